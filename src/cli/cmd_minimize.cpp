@@ -1,0 +1,94 @@
+// trbc minimize: relax a mesh to a local energy minimum of any composition of terms.
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <numbers>
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "membrane/model.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/io.hpp"
+#include "mesh/validate.hpp"
+#include "solvers/minimize.hpp"
+
+namespace trbc::cli {
+
+void registerMinimize(CLI::App& app) {
+    struct Opts {
+        std::string mesh, reference, out;
+        ModulusOptions moduli;
+        double reducedVolume = 0.0, tolerance = 1e-6, oblate = 1.0;
+        int maxIterations = 200000;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "minimize", "Relax a mesh to a local minimum of the chosen energy terms by L-BFGS (mesh units) "
+                    "and write it with per-vertex force, mean curvature and area fields");
+    cmd->add_option("--mesh", o->mesh, "initial mesh (OFF)")->required();
+    cmd->add_option("--reference", o->reference, "stress-free mesh for the Lim term (OFF)");
+    cmd->add_option("--out", o->out, "relaxed mesh (.off, .ply or .vtk)")->required();
+    addModulusOptions(cmd, o->moduli);
+    cmd->add_option("--reduced-volume", o->reducedVolume,
+                    "set V0 from a reduced volume v in (0, 1]: V0 = v A0^{3/2} / (6 sqrt(pi)), A0 = --A0 or the "
+                    "mesh area")->check(CLI::Range(0.0, 1.0));
+    cmd->add_option("--oblate-seed", o->oblate,
+                    "scale the initial z coordinates by this factor (< 1 seeds the oblate/discocyte branch)")
+        ->check(CLI::Range(0.05, 1.0))->capture_default_str();
+    cmd->add_option("--tol", o->tolerance, "stop when the largest vertex force is below this")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--max-iter", o->maxIterations, "iteration limit")->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->callback([o]() {
+        Mesh mesh = readOff(o->mesh);
+        ModulusOptions moduli = o->moduli;
+        if (o->reducedVolume > 0) {
+            if (!moduli.haveA0) moduli.A0 = totalArea(mesh.X, mesh.F);
+            moduli.haveA0 = true;
+            moduli.V0 = o->reducedVolume * std::pow(moduli.A0, 1.5) / (6.0 * std::sqrt(std::numbers::pi));
+            moduli.haveV0 = true;
+        }
+        const MembraneParameters p = checkedParameters(moduli);
+        std::unique_ptr<Mesh> ref;
+        if (!o->reference.empty()) {
+            ref = std::make_unique<Mesh>(readOff(o->reference));
+            validateSameConnectivity(mesh, *ref, o->reference);
+        } else if (p.hasLim()) {
+            throw InputError("the Lim term (--ka or --mu > 0) needs the stress-free mesh --reference");
+        }
+        const MembraneModel model(mesh.F, mesh.numVertices(), p, ref ? &ref->X : nullptr);
+        if (o->oblate < 1.0) {
+            const Eigen::Vector3d c = centroid(mesh.X);
+            mesh.X.row(2) = ((mesh.X.row(2).array() - c[2]) * o->oblate + c[2]).matrix();
+        }
+        MinimizeOptions opt;
+        opt.gradientTolerance = o->tolerance;
+        opt.maxIterations = o->maxIterations;
+        const auto t0 = std::chrono::steady_clock::now();
+        const MinimizeResult r = minimizeEnergy(model, mesh.X, opt);
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        Vertices grad;
+        EnergyTerms terms;
+        model.evaluate(mesh.X, &grad, &terms);
+        const auto d = model.vertexDiagnostics(mesh.X);
+        writeMesh(o->out, mesh,
+                  {{"force", -grad}, {"mean_curvature", d.meanCurvature.transpose()},
+                   {"vertex_area", d.area.transpose()}});
+        nlohmann::json j;
+        j["energy"] = terms.total();
+        j["terms"] = energyTermsJson(p, terms);
+        j["mesh"] = meshSummary(mesh);
+        j["diagnostics"] = {{"converged", r.converged}, {"iterations", r.iterations},
+                            {"evaluations", r.evaluations}, {"max_vertex_force", r.gradientNorm},
+                            {"message", r.message}, {"wall_s", wall}};
+        j["output"] = o->out;
+        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
+        std::cout << j.dump(2) << std::endl;
+        if (!r.converged) throw NumericalError("minimisation did not converge: " + r.message);
+    });
+}
+
+}  // namespace trbc::cli

@@ -1,0 +1,79 @@
+#include "cli/common.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "core/error.hpp"
+
+namespace trbc::cli {
+namespace {
+std::string g_commandLine;
+}
+
+void setCommandLine(int argc, char** argv) {
+    g_commandLine.clear();
+    for (int i = 0; i < argc; ++i) g_commandLine += (i ? " " : "") + std::string(argv[i]);
+}
+
+std::string commandLine() { return g_commandLine; }
+
+void addModulusOptions(CLI::App* app, ModulusOptions& m) {
+    auto& b = m.p.bending;
+    auto& l = m.p.lim;
+    auto& g = m.p.penalty;
+    app->add_option("--kb", b.kb, "Juelicher bending modulus kb (energy units; 0 = off)")->group("Bending");
+    app->add_option("--C0", b.C0, "spontaneous curvature C0 (1/length; H0 = C0/2)")->group("Bending");
+    app->add_option("--kad", b.kad, "area-difference modulus k_AD (energy; 0 = off)")->group("Bending");
+    app->add_option("--DA0", b.DA0, "reference area difference Delta A0 / delta (length)")->group("Bending");
+    app->add_option("--ka", l.Kalpha, "Lim area-dilation modulus K_alpha (energy/area; 0 = off)")->group("Lim");
+    app->add_option("--a3", l.a3, "Lim coefficient a3")->group("Lim");
+    app->add_option("--a4", l.a4, "Lim coefficient a4")->group("Lim");
+    app->add_option("--mu", l.mu, "Lim shear modulus mu (energy/area; 0 = off)")->group("Lim");
+    app->add_option("--b1", l.b1, "Lim coefficient b1")->group("Lim");
+    app->add_option("--b2", l.b2, "Lim coefficient b2")->group("Lim");
+    app->add_option("--kA", g.kA, "global area penalty kA, U = kA/2 (A-A0)^2/A0 (0 = off)")->group("Penalties");
+    app->add_option("--A0", m.A0, "target area A0 (required when --kA > 0)")->group("Penalties")
+        ->each([&m](const std::string&) { m.haveA0 = true; });
+    app->add_option("--kV", g.kV, "global volume penalty kV, U = kV/2 (V-V0)^2/V0 (0 = off)")->group("Penalties");
+    app->add_option("--V0", m.V0, "target volume V0 (required when --kV > 0)")->group("Penalties")
+        ->each([&m](const std::string&) { m.haveV0 = true; });
+}
+
+MembraneParameters checkedParameters(const ModulusOptions& m) {
+    MembraneParameters p = m.p;
+    auto finite = [](const char* name, double v) {
+        if (!std::isfinite(v)) throw InputError(fmt::format("--{} must be a finite number (got {})", name, v));
+    };
+    auto nonNegative = [&](const char* name, double v) {
+        finite(name, v);
+        if (v < 0) throw InputError(fmt::format("--{} = {} is out of range: a modulus must be >= 0", name, v));
+    };
+    nonNegative("kb", p.bending.kb);
+    finite("C0", p.bending.C0);
+    nonNegative("kad", p.bending.kad);
+    finite("DA0", p.bending.DA0);
+    nonNegative("ka", p.lim.Kalpha);
+    finite("a3", p.lim.a3);
+    finite("a4", p.lim.a4);
+    nonNegative("mu", p.lim.mu);
+    finite("b1", p.lim.b1);
+    finite("b2", p.lim.b2);
+    nonNegative("kA", p.penalty.kA);
+    nonNegative("kV", p.penalty.kV);
+    if (p.penalty.kA > 0) {
+        if (!m.haveA0) throw InputError("--kA > 0 needs the target area --A0");
+        if (!std::isfinite(m.A0) || m.A0 <= 0)
+            throw InputError(fmt::format("--A0 = {} is out of range: the target area must be > 0", m.A0));
+    }
+    if (p.penalty.kV > 0) {
+        if (!m.haveV0) throw InputError("--kV > 0 needs the target volume --V0");
+        if (!std::isfinite(m.V0) || m.V0 <= 0)
+            throw InputError(fmt::format("--V0 = {} is out of range: the target volume must be > 0", m.V0));
+    }
+    p.penalty.A0 = m.A0;
+    p.penalty.V0 = m.V0;
+    return p;
+}
+
+}  // namespace trbc::cli

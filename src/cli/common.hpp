@@ -1,0 +1,40 @@
+#pragma once
+// Helpers shared by the subcommands: membrane-modulus options, validation, JSON printing.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "membrane/model.hpp"
+#include "membrane/parameters.hpp"
+#include "mesh/mesh.hpp"
+
+namespace trbc::cli {
+
+/// Values of the modulus options as given on the command line (mesh units, no conversion).
+struct ModulusOptions {
+    MembraneParameters p;
+    double A0 = 0.0, V0 = 0.0;
+    bool haveA0 = false, haveV0 = false;
+};
+
+/// Adds --kb --C0 --kad --DA0 --ka --a3 --a4 --mu --b1 --b2 --kA --A0 --kV --V0.
+void addModulusOptions(CLI::App* app, ModulusOptions& m);
+
+/// Checks ranges (moduli >= 0, finite; A0 and V0 positive and present when their penalty is on)
+/// and returns the parameters. Throws InputError naming the option.
+MembraneParameters checkedParameters(const ModulusOptions& m);
+
+/// The command line as one string, for provenance.
+std::string commandLine();
+void setCommandLine(int argc, char** argv);
+
+/// {"bending": .., "lim": ..} for the terms that are on.
+nlohmann::json energyTermsJson(const MembraneParameters& p, const EnergyTerms& t);
+/// Size, area, volume, reduced volume and principal extents of a mesh.
+nlohmann::json meshSummary(const Mesh& m);
+
+void registerForces(CLI::App& app);
+void registerMesh(CLI::App& app);
+void registerMinimize(CLI::App& app);
+
+}  // namespace trbc::cli

@@ -1,0 +1,4 @@
+#pragma once
+namespace trbc {
+inline constexpr const char* kVersion = TRBC_VERSION;
+}

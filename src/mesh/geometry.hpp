@@ -1,0 +1,35 @@
+#pragma once
+// Geometry of a triangle mesh as free functions over plain arrays (MODEL.md B.3, E.0).
+#include <Eigen/Core>
+
+#include "mesh/mesh.hpp"
+
+namespace trbc {
+
+/// A_t = |(x_j - x_i) x (x_k - x_i)| / 2 for every face.
+Eigen::VectorXd faceAreas(const Vertices& X, const Faces& F);
+/// A = sum_t A_t.
+double totalArea(const Vertices& X, const Faces& F);
+/// V = 1/6 sum_t x_i . (x_j x x_k) (signed, positive for outward faces).
+double enclosedVolume(const Vertices& X, const Faces& F);
+/// v = 6 sqrt(pi) V / A^{3/2}: volume over that of the sphere with the same area.
+double reducedVolume(double area, double volume);
+double reducedVolume(const Vertices& X, const Faces& F);
+/// A_i = 1/3 sum of the areas of the faces around vertex i.
+Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F);
+/// Unweighted vertex centroid.
+Eigen::Vector3d centroid(const Vertices& X);
+
+/// Principal frame of the vertex cloud (MODEL.md E.0): rotation R whose rows are the
+/// eigenvectors of the vertex covariance, by decreasing variance (x largest, z smallest), with
+/// det R = +1. Aligned positions are R (x - centroid).
+Eigen::Matrix3d principalAxes(const Vertices& X);
+/// Vertices centred and expressed in the principal frame.
+Vertices alignPrincipalAxes(const Vertices& X);
+/// Bounding-box extents of the vertices along the coordinate axes.
+Eigen::Vector3d extents(const Vertices& X);
+
+/// Uniform scaling about the centroid so that the total area equals `area`.
+Vertices scaleToArea(const Vertices& X, const Faces& F, double area);
+
+}  // namespace trbc

@@ -1,0 +1,231 @@
+#include "mesh/io.hpp"
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "mesh/validate.hpp"
+
+namespace trbc {
+namespace {
+
+struct Token {
+    std::string text;
+    int line;
+};
+
+// Whitespace-separated tokens with their line numbers; '#' starts a comment to end of line.
+std::vector<Token> tokenize(std::istream& in) {
+    std::vector<Token> tokens;
+    std::string line;
+    int lineNo = 0;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        if (auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
+        std::istringstream ls(line);
+        std::string t;
+        while (ls >> t) tokens.push_back({t, lineNo});
+    }
+    return tokens;
+}
+
+class TokenReader {
+public:
+    TokenReader(std::string path, std::vector<Token> tokens)
+        : path_(std::move(path)), tokens_(std::move(tokens)) {}
+
+    bool done() const { return pos_ >= tokens_.size(); }
+    int line() const { return done() ? (tokens_.empty() ? 1 : tokens_.back().line) : tokens_[pos_].line; }
+
+    const Token& next(const std::string& what) {
+        if (done())
+            throw InputError(fmt::format("{}:{}: file ends early (truncated): expected {}", path_,
+                                         line(), what));
+        return tokens_[pos_++];
+    }
+
+    double number(const std::string& what) {
+        const Token& t = next(what);
+        char* end = nullptr;
+        errno = 0;
+        const double v = std::strtod(t.text.c_str(), &end);
+        if (end == t.text.c_str() || *end != '\0')
+            throw InputError(fmt::format("{}:{}: malformed line: expected {} but found '{}'", path_,
+                                         t.line, what, t.text));
+        if (!std::isfinite(v))
+            throw InputError(fmt::format("{}:{}: {} is '{}' (NaN/Inf coordinates are not allowed)",
+                                         path_, t.line, what, t.text));
+        return v;
+    }
+
+    long integer(const std::string& what) {
+        const Token& t = next(what);
+        char* end = nullptr;
+        errno = 0;
+        const long v = std::strtol(t.text.c_str(), &end, 10);
+        if (end == t.text.c_str() || *end != '\0' || errno == ERANGE)
+            throw InputError(fmt::format("{}:{}: malformed line: expected {} (an integer) but found '{}'",
+                                         path_, t.line, what, t.text));
+        return v;
+    }
+
+private:
+    std::string path_;
+    std::vector<Token> tokens_;
+    std::size_t pos_ = 0;
+};
+
+std::ofstream openForWriting(const std::string& path) {
+    std::ofstream out(path);
+    if (!out) throw InputError(fmt::format("cannot open '{}' for writing", path));
+    out.precision(17);
+    return out;
+}
+
+void finishWriting(std::ofstream& out, const std::string& path) {
+    out.flush();
+    if (!out) throw InputError(fmt::format("error while writing '{}' (disk full or unwritable?)", path));
+}
+
+void checkFields(const Mesh& mesh, const std::vector<VertexField>& fields) {
+    for (const auto& f : fields)
+        if (f.values.cols() != mesh.numVertices() || (f.values.rows() != 1 && f.values.rows() != 3))
+            throw std::invalid_argument(fmt::format(
+                "vertex field '{}' must be 1x{} or 3x{}, got {}x{}", f.name, mesh.numVertices(),
+                mesh.numVertices(), f.values.rows(), f.values.cols()));
+}
+
+}  // namespace
+
+Mesh parseOff(const std::string& path, MeshSource* source) {
+    std::ifstream in(path);
+    if (!in) throw InputError(fmt::format("cannot open mesh file '{}' (missing or unreadable)", path));
+    TokenReader r(path, tokenize(in));
+    if (r.done()) throw InputError(fmt::format("{}:1: empty file, expected an OFF mesh", path));
+    {
+        const int line = r.line();
+        const Token& head = r.next("the header 'OFF'");
+        if (head.text != "OFF")
+            throw InputError(fmt::format("{}:{}: expected the header 'OFF' but found '{}'", path, line,
+                                         head.text));
+    }
+    const int countLine = r.line();
+    const long nv = r.integer("the vertex count");
+    const long nf = r.integer("the face count");
+    r.integer("the edge count");
+    if (nv < 4 || nf < 4)
+        throw InputError(fmt::format("{}:{}: a closed triangle mesh needs at least 4 vertices and 4 "
+                                     "faces, header says {} vertices and {} faces",
+                                     path, countLine, nv, nf));
+    Mesh m;
+    m.X.resize(3, nv);
+    m.F.resize(3, nf);
+    std::vector<int> vLine(static_cast<std::size_t>(nv)), fLine(static_cast<std::size_t>(nf));
+    for (long i = 0; i < nv; ++i) {
+        vLine[i] = r.line();
+        for (int k = 0; k < 3; ++k)
+            m.X(k, i) = r.number(fmt::format("coordinate {} of vertex {} (of {})", "xyz"[k], i, nv));
+    }
+    for (long f = 0; f < nf; ++f) {
+        fLine[f] = r.line();
+        const long n = r.integer(fmt::format("the vertex count of face {} (of {})", f, nf));
+        if (n != 3)
+            throw InputError(fmt::format("{}:{}: face {} has {} vertices; only triangles (3) are supported",
+                                         path, fLine[f], f, n));
+        for (int k = 0; k < 3; ++k) {
+            const long idx = r.integer(fmt::format("vertex index {} of face {}", k, f));
+            if (idx < 0 || idx >= nv)
+                throw InputError(fmt::format("{}:{}: face {} has vertex index {} out of range [0, {}]",
+                                             path, fLine[f], f, idx, nv - 1));
+            m.F(k, f) = static_cast<int>(idx);
+        }
+    }
+    if (!r.done())
+        throw InputError(fmt::format("{}:{}: unexpected data after the {} faces announced in the header "
+                                     "(wrong counts on line {}, or extra values on a line?)",
+                                     path, r.line(), nf, countLine));
+    if (source) *source = MeshSource{path, std::move(vLine), std::move(fLine)};
+    return m;
+}
+
+Mesh readOff(const std::string& path) {
+    MeshSource source;
+    Mesh m = parseOff(path, &source);
+    validateClosedManifold(m, &source);
+    return m;
+}
+
+void writeOff(const std::string& path, const Mesh& mesh) {
+    auto out = openForWriting(path);
+    out << "OFF\n" << mesh.numVertices() << ' ' << mesh.numFaces() << " 0\n";
+    for (Eigen::Index i = 0; i < mesh.numVertices(); ++i)
+        out << mesh.X(0, i) << ' ' << mesh.X(1, i) << ' ' << mesh.X(2, i) << '\n';
+    for (Eigen::Index f = 0; f < mesh.numFaces(); ++f)
+        out << "3 " << mesh.F(0, f) << ' ' << mesh.F(1, f) << ' ' << mesh.F(2, f) << '\n';
+    finishWriting(out, path);
+}
+
+void writePly(const std::string& path, const Mesh& mesh, const std::vector<VertexField>& fields) {
+    checkFields(mesh, fields);
+    auto out = openForWriting(path);
+    out << "ply\nformat ascii 1.0\ncomment written by trbc\nelement vertex " << mesh.numVertices()
+        << "\nproperty double x\nproperty double y\nproperty double z\n";
+    for (const auto& f : fields) {
+        if (f.values.rows() == 1)
+            out << "property double " << f.name << '\n';
+        else
+            for (char c : {'x', 'y', 'z'}) out << "property double " << f.name << '_' << c << '\n';
+    }
+    out << "element face " << mesh.numFaces() << "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (Eigen::Index i = 0; i < mesh.numVertices(); ++i) {
+        out << mesh.X(0, i) << ' ' << mesh.X(1, i) << ' ' << mesh.X(2, i);
+        for (const auto& f : fields)
+            for (Eigen::Index r = 0; r < f.values.rows(); ++r) out << ' ' << f.values(r, i);
+        out << '\n';
+    }
+    for (Eigen::Index f = 0; f < mesh.numFaces(); ++f)
+        out << "3 " << mesh.F(0, f) << ' ' << mesh.F(1, f) << ' ' << mesh.F(2, f) << '\n';
+    finishWriting(out, path);
+}
+
+void writeVtk(const std::string& path, const Mesh& mesh, const std::vector<VertexField>& fields) {
+    checkFields(mesh, fields);
+    auto out = openForWriting(path);
+    const auto nv = mesh.numVertices(), nf = mesh.numFaces();
+    out << "# vtk DataFile Version 3.0\ntrbc membrane mesh\nASCII\nDATASET POLYDATA\nPOINTS " << nv
+        << " double\n";
+    for (Eigen::Index i = 0; i < nv; ++i) out << mesh.X(0, i) << ' ' << mesh.X(1, i) << ' ' << mesh.X(2, i) << '\n';
+    out << "POLYGONS " << nf << ' ' << 4 * nf << '\n';
+    for (Eigen::Index f = 0; f < nf; ++f)
+        out << "3 " << mesh.F(0, f) << ' ' << mesh.F(1, f) << ' ' << mesh.F(2, f) << '\n';
+    if (!fields.empty()) out << "POINT_DATA " << nv << '\n';
+    for (const auto& f : fields) {
+        if (f.values.rows() == 1)
+            out << "SCALARS " << f.name << " double 1\nLOOKUP_TABLE default\n";
+        else
+            out << "VECTORS " << f.name << " double\n";
+        for (Eigen::Index i = 0; i < nv; ++i) {
+            for (Eigen::Index r = 0; r < f.values.rows(); ++r) out << (r ? " " : "") << f.values(r, i);
+            out << '\n';
+        }
+    }
+    finishWriting(out, path);
+}
+
+void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<VertexField>& fields) {
+    auto endsWith = [&](const char* ext) {
+        const std::string e(ext);
+        return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+    };
+    if (endsWith(".off")) return writeOff(path, mesh);
+    if (endsWith(".ply")) return writePly(path, mesh, fields);
+    if (endsWith(".vtk")) return writeVtk(path, mesh, fields);
+    throw InputError(fmt::format("cannot tell the mesh format of '{}': use the extension .off, .ply or .vtk", path));
+}
+
+}  // namespace trbc

@@ -1,0 +1,152 @@
+#include "solvers/viscous_dynamics.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.hpp"
+
+namespace trbc {
+namespace {
+
+// One variational BDF step: minimise U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xn) + eps) (X-Y).
+MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xn, const Vertices& Y, double c0,
+                       double dt, const ViscousDynamicsOptions& opt, const Vertices* fext, Vertices& X) {
+    const Eigen::Index nv = X.cols();
+    const double k = c0 / dt;
+    Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
+    Vertices Xv(3, nv), G(3, nv), W(3, nv);
+    const Objective phi = [&](const Eigen::VectorXd& xv, Eigen::VectorXd& g) {
+        Xv = Eigen::Map<const Vertices>(xv.data(), 3, nv);
+        double u = model.evaluate(Xv, &G);
+        if (fext) {
+            u -= (fext->array() * Xv.array()).sum();
+            G -= *fext;
+        }
+        W = Xv - Y;
+        // Gamma W = -f_visc(W); add eps W.
+        const Vertices GW = -membraneViscousForce(Xn, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
+        u += 0.5 * k * (W.array() * GW.array()).sum();
+        G += k * GW;
+        g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
+        return u;
+    };
+    MinimizeResult r = lbfgsMinimize(phi, x, opt.inner);
+    X = Eigen::Map<const Vertices>(x.data(), 3, nv);
+    return r;
+}
+
+double maxNorm(const Vertices& D) { return D.colwise().norm().maxCoeff(); }
+
+}  // namespace
+
+ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, const ViscousDynamicsOptions& opt,
+                                       const std::vector<double>& sampleTimes, const DynamicsObserver& observer,
+                                       const Vertices* fext) {
+    if (!(opt.gamma > 0) && !(opt.isotropicFriction > 0))
+        throw InputError("viscous dynamics needs a positive friction (gamma or isotropic friction)");
+    if (!(opt.tEnd > 0) || !(opt.dtInitial > 0))
+        throw InputError(fmt::format("viscous dynamics needs tEnd > 0 and dtInitial > 0 (got {}, {})",
+                                     opt.tEnd, opt.dtInitial));
+    std::vector<double> samples(sampleTimes);
+    std::sort(samples.begin(), samples.end());
+    samples.erase(std::remove_if(samples.begin(), samples.end(),
+                                 [&](double t) { return t <= 0 || t > opt.tEnd; }),
+                  samples.end());
+    samples.push_back(opt.tEnd);
+    std::size_t nextSample = 0;
+    if (observer) observer(0.0, X);
+
+    ViscousDynamicsResult res;
+    res.dtSmallest = std::numeric_limits<double>::infinity();
+    const double dtMax = opt.dtMax > 0 ? opt.dtMax : opt.tEnd;
+    // History: X_n (current), X_{n-1}, X_{n-2} with step sizes.
+    Vertices Xprev = X, Xprev2 = X;
+    double dtPrev = 0.0, dtPrev2 = 0.0;
+    int history = 0;  // number of completed steps
+    double t = 0.0, dt = std::min(opt.dtInitial, dtMax);
+    Vertices Xnew(3, X.cols());
+
+    while (t < opt.tEnd * (1 - 1e-14)) {
+        const double target = samples[nextSample];
+        bool hitsSample = false;
+        double h = dt;
+        if (history >= 1) h = std::min(h, 2.4 * dtPrev);  // variable-step BDF2 is zero-stable for w < 1 + sqrt 2
+        if (t + h >= target * (1 - 1e-12)) {
+            h = target - t;
+            hitsSample = true;
+        }
+        double c0 = 1.0;
+        Vertices Y = X;
+        Vertices Xpred = X;
+        if (history >= 1) {
+            const double w = h / dtPrev;
+            c0 = (1 + 2 * w) / (1 + w);
+            Y = ((1 + w) * X - (w * w / (1 + w)) * Xprev) / c0;
+            Xpred = X + w * (X - Xprev);
+            if (history >= 2) {
+                // Quadratic extrapolation through (t-dtPrev-dtPrev2, t-dtPrev, t).
+                const double t0 = -dtPrev - dtPrev2, t1 = -dtPrev, t2 = 0.0, tp = h;
+                const double l0 = (tp - t1) * (tp - t2) / ((t0 - t1) * (t0 - t2));
+                const double l1 = (tp - t0) * (tp - t2) / ((t1 - t0) * (t1 - t2));
+                const double l2 = (tp - t0) * (tp - t1) / ((t2 - t0) * (t2 - t1));
+                Xpred = l0 * Xprev2 + l1 * Xprev + l2 * X;
+            }
+        }
+        Xnew = Xpred;
+        const MinimizeResult inner = bdfStep(model, X, Y, c0, h, opt, fext, Xnew);
+        res.evaluations += inner.evaluations;
+        if (!inner.converged) {
+            ++res.rejectedSteps;
+            dt = 0.25 * h;
+            if (dt < opt.dtMin) {
+                res.message = fmt::format("step size fell below {:.3g} at t = {:.6g}: {}", opt.dtMin, t,
+                                          inner.message);
+                return res;
+            }
+            continue;
+        }
+        double factor = 2.0;
+        if (opt.adaptive && history >= 2) {
+            const double err = (2.0 / 11.0) * maxNorm(Xnew - Xpred);  // BDF2 vs quadratic predictor
+            if (err > opt.errorTolerance) {
+                ++res.rejectedSteps;
+                dt = std::max(opt.dtMin, h * std::max(0.2, 0.9 * std::cbrt(opt.errorTolerance / err)));
+                if (h <= opt.dtMin) {
+                    res.message = fmt::format("step size fell below {:.3g} at t = {:.6g}", opt.dtMin, t);
+                    return res;
+                }
+                continue;
+            }
+            factor = std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 2.0);
+        }
+        // Accept.
+        Xprev2.swap(Xprev);
+        Xprev.swap(X);
+        X.swap(Xnew);
+        dtPrev2 = dtPrev;
+        dtPrev = h;
+        ++history;
+        ++res.steps;
+        t += h;
+        res.dtSmallest = std::min(res.dtSmallest, h);
+        res.dtLargest = std::max(res.dtLargest, h);
+        if (hitsSample) {
+            t = target;
+            if (observer) observer(t, X);
+            ++nextSample;
+        }
+        if (opt.adaptive) {
+            // After a step shortened to hit a sample, keep the step that the error control wanted.
+            dt = std::min(dtMax, std::max(hitsSample ? dt : h, h) * (history >= 2 ? factor : 1.0));
+        } else {
+            dt = opt.dtInitial;
+        }
+    }
+    res.completed = true;
+    res.message = "completed";
+    return res;
+}
+
+}  // namespace trbc

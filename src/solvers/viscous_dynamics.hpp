@@ -1,0 +1,50 @@
+#pragma once
+// Overdamped membrane dynamics  Gamma(X) dX/dt = -dU/dX + f_ext  (MODEL.md G.3), Gamma the
+// edge-friction matrix of the membrane viscosity (C.4) plus an optional isotropic friction eps I.
+//
+// Time stepping is variational BDF2 with adaptive steps: each step minimises
+//   Phi(X) = U(X) - f_ext.X + c0/(2 dt) (X - Y)^T [Gamma(X_n) + eps I] (X - Y),
+// whose stationarity condition is the variable-step BDF2 formula (c0 = (1+2w)/(1+w),
+// Y = ((1+w) X_n - w^2/(1+w) X_{n-1}) / c0, w = dt_n / dt_{n-1}; the first step is implicit
+// Euler, c0 = 1, Y = X_n). Unconditionally stable for the stiff area/volume penalties, so the
+// step follows the physics (the relaxation time) rather than the stiffest mode. The local error is
+// estimated against a quadratic predictor (Milne's device) and the step adapted to a tolerance.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "membrane/model.hpp"
+#include "solvers/minimize.hpp"
+
+namespace trbc {
+
+struct ViscousDynamicsOptions {
+    double gamma = 1.0;               ///< edge friction gamma = 4 eta_m / sqrt(3)
+    double isotropicFriction = 0.0;   ///< eps: extra friction eps v_i per vertex (0 = none)
+    double tEnd = 1.0;
+    double dtInitial = 1e-4;
+    double dtMax = 0.0;               ///< 0: no cap beyond tEnd
+    double dtMin = 1e-14;
+    double errorTolerance = 1e-4;     ///< local error per step, max vertex displacement (length)
+    bool adaptive = true;             ///< false: fixed step dtInitial
+    MinimizeOptions inner;            ///< per-step minimisation (gradient in force units)
+};
+
+struct ViscousDynamicsResult {
+    bool completed = false;
+    int steps = 0, rejectedSteps = 0, evaluations = 0;
+    double dtSmallest = 0.0, dtLargest = 0.0;
+    std::string message;
+};
+
+/// Called at t = 0 and at every requested sample time (exactly hit by the stepper).
+using DynamicsObserver = std::function<void(double t, const Vertices& X)>;
+
+/// Integrates from X (updated in place) to options.tEnd.
+ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X,
+                                       const ViscousDynamicsOptions& options,
+                                       const std::vector<double>& sampleTimes = {},
+                                       const DynamicsObserver& observer = {},
+                                       const Vertices* externalForces = nullptr);
+
+}  // namespace trbc
