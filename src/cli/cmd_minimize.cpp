@@ -24,6 +24,7 @@ void registerMinimize(CLI::App& app) {
         ModulusOptions moduli;
         double reducedVolume = 0.0, tolerance = 1e-6, oblate = 1.0;
         int maxIterations = 200000;
+        double maxStep = 0.0;
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
@@ -41,6 +42,8 @@ void registerMinimize(CLI::App& app) {
         ->check(CLI::Range(0.05, 1.0))->capture_default_str();
     cmd->add_option("--tol", o->tolerance, "stop when the largest vertex force is below this")
         ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--max-step", o->maxStep, "cap on any vertex displacement per iteration (0 = none)")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
     cmd->add_option("--max-iter", o->maxIterations, "iteration limit")->check(CLI::PositiveNumber)->capture_default_str();
     cmd->callback([o]() {
         Mesh mesh = readOff(o->mesh);
@@ -67,6 +70,7 @@ void registerMinimize(CLI::App& app) {
         MinimizeOptions opt;
         opt.gradientTolerance = o->tolerance;
         opt.maxIterations = o->maxIterations;
+        opt.maxVertexStep = o->maxStep;
         const auto t0 = std::chrono::steady_clock::now();
         const MinimizeResult r = minimizeEnergy(model, mesh.X, opt);
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -40,6 +40,13 @@ public:
         : path_(std::move(path)), tokens_(std::move(tokens)) {}
 
     bool done() const { return pos_ >= tokens_.size(); }
+    std::size_t remaining() const { return tokens_.size() - pos_; }
+    // Tokens left on the line of the next token (0 at the end of the file).
+    std::size_t leftOnLine() const {
+        std::size_t n = 0;
+        while (pos_ + n < tokens_.size() && tokens_[pos_ + n].line == tokens_[pos_].line) ++n;
+        return n;
+    }
     int line() const { return done() ? (tokens_.empty() ? 1 : tokens_.back().line) : tokens_[pos_].line; }
 
     const Token& next(const std::string& what) {
@@ -114,7 +121,13 @@ Mesh parseOff(const std::string& path, MeshSource* source) {
             throw InputError(fmt::format("{}:{}: expected the header 'OFF' but found '{}'", path, line,
                                          head.text));
     }
+    // Each record (the counts, a vertex, a face) fills exactly one line, so that a missing or
+    // extra value is reported on its own line instead of shifting every later record.
     const int countLine = r.line();
+    if (const auto n = r.leftOnLine(); n != 0 && n != 3)
+        throw InputError(fmt::format("{}:{}: the header needs the vertex, face and edge counts "
+                                     "'nv nf ne' on one line but this line has {} values",
+                                     path, countLine, n));
     const long nv = r.integer("the vertex count");
     const long nf = r.integer("the face count");
     r.integer("the edge count");
@@ -122,21 +135,35 @@ Mesh parseOff(const std::string& path, MeshSource* source) {
         throw InputError(fmt::format("{}:{}: a closed triangle mesh needs at least 4 vertices and 4 "
                                      "faces, header says {} vertices and {} faces",
                                      path, countLine, nv, nf));
+    // Every record has at least one value: this also bounds the allocations below.
+    if (static_cast<std::size_t>(nv) > r.remaining() || static_cast<std::size_t>(nf) > r.remaining())
+        throw InputError(fmt::format("{}:{}: header says {} vertices and {} faces but only {} values "
+                                     "follow (wrong counts, or truncated file)",
+                                     path, countLine, nv, nf, r.remaining()));
     Mesh m;
     m.X.resize(3, nv);
     m.F.resize(3, nf);
     std::vector<int> vLine(static_cast<std::size_t>(nv)), fLine(static_cast<std::size_t>(nf));
     for (long i = 0; i < nv; ++i) {
         vLine[i] = r.line();
+        if (const auto n = r.leftOnLine(); n != 0 && n != 3)
+            throw InputError(fmt::format("{}:{}: vertex {} needs 3 values 'x y z' on its line but "
+                                         "there are {} (missing or extra values)",
+                                         path, vLine[i], i, n));
         for (int k = 0; k < 3; ++k)
             m.X(k, i) = r.number(fmt::format("coordinate {} of vertex {} (of {})", "xyz"[k], i, nv));
     }
     for (long f = 0; f < nf; ++f) {
         fLine[f] = r.line();
+        const auto values = r.leftOnLine();
         const long n = r.integer(fmt::format("the vertex count of face {} (of {})", f, nf));
         if (n != 3)
             throw InputError(fmt::format("{}:{}: face {} has {} vertices; only triangles (3) are supported",
                                          path, fLine[f], f, n));
+        if (values != 4)
+            throw InputError(fmt::format("{}:{}: face {} needs 4 values '3 i j k' on its line but there "
+                                         "are {} (missing or extra values)",
+                                         path, fLine[f], f, values));
         for (int k = 0; k < 3; ++k) {
             const long idx = r.integer(fmt::format("vertex index {} of face {}", k, f));
             if (idx < 0 || idx >= nv)
@@ -147,7 +174,7 @@ Mesh parseOff(const std::string& path, MeshSource* source) {
     }
     if (!r.done())
         throw InputError(fmt::format("{}:{}: unexpected data after the {} faces announced in the header "
-                                     "(wrong counts on line {}, or extra values on a line?)",
+                                     "(wrong counts on line {}?)",
                                      path, r.line(), nf, countLine));
     if (source) *source = MeshSource{path, std::move(vLine), std::move(fLine)};
     return m;
