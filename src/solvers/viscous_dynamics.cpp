@@ -10,8 +10,9 @@
 namespace trbc {
 namespace {
 
-// One variational BDF step: minimise U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xn) + eps) (X-Y).
-MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xn, const Vertices& Y, double c0,
+// One variational BDF step: minimise U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xf) + eps) (X-Y), with the
+// friction matrix taken at the extrapolated state Xf (second order; Gamma(X_n) would be first order).
+MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Vertices& Y, double c0,
                        double dt, const ViscousDynamicsOptions& opt, const Vertices* fext, Vertices& X) {
     const Eigen::Index nv = X.cols();
     const double k = c0 / dt;
@@ -26,7 +27,7 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xn, const Ver
         }
         W = Xv - Y;
         // Gamma W = -f_visc(W); add eps W.
-        const Vertices GW = -membraneViscousForce(Xn, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
+        const Vertices GW = -membraneViscousForce(Xf, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
         u += 0.5 * k * (W.array() * GW.array()).sum();
         G += k * GW;
         g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
@@ -95,7 +96,7 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
             }
         }
         Xnew = Xpred;
-        const MinimizeResult inner = bdfStep(model, X, Y, c0, h, opt, fext, Xnew);
+        const MinimizeResult inner = bdfStep(model, Xpred, Y, c0, h, opt, fext, Xnew);
         res.evaluations += inner.evaluations;
         if (!inner.converged) {
             ++res.rejectedSteps;

@@ -3,10 +3,11 @@
 // edge-friction matrix of the membrane viscosity (C.4) plus an optional isotropic friction eps I.
 //
 // Time stepping is variational BDF2 with adaptive steps: each step minimises
-//   Phi(X) = U(X) - f_ext.X + c0/(2 dt) (X - Y)^T [Gamma(X_n) + eps I] (X - Y),
+//   Phi(X) = U(X) - f_ext.X + c0/(2 dt) (X - Y)^T [Gamma(X*) + eps I] (X - Y),
 // whose stationarity condition is the variable-step BDF2 formula (c0 = (1+2w)/(1+w),
 // Y = ((1+w) X_n - w^2/(1+w) X_{n-1}) / c0, w = dt_n / dt_{n-1}; the first step is implicit
-// Euler, c0 = 1, Y = X_n). Unconditionally stable for the stiff area/volume penalties, so the
+// Euler, c0 = 1, Y = X_n; X* is the extrapolated state, so that the scheme stays second order
+// although Gamma depends on X). Unconditionally stable for the stiff area/volume penalties, so the
 // step follows the physics (the relaxation time) rather than the stiffest mode. The local error is
 // estimated against a quadratic predictor (Milne's device) and the step adapted to a tolerance.
 #include <functional>
@@ -27,7 +28,7 @@ struct ViscousDynamicsOptions {
     double dtMin = 1e-14;
     double errorTolerance = 1e-4;     ///< local error per step, max vertex displacement (length)
     bool adaptive = true;             ///< false: fixed step dtInitial
-    MinimizeOptions inner;            ///< per-step minimisation (gradient in force units)
+    MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
 };
 
 struct ViscousDynamicsResult {
