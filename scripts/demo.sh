@@ -9,7 +9,9 @@ cd "$(dirname "$0")/.."
 T=build/trbc
 O=out/demo
 mkdir -p "$O"
-export OMP_NUM_THREADS=${OMP_NUM_THREADS:-2}
+# One thread by default: at Nv = 2562 a second thread gains little, and a busy second core makes
+# OpenMP barriers spin.
+export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
 
 echo "== icosphere L4 and Evans-Fung cell (A = 135 um^2)"
 $T mesh icosphere --level 4 --out "$O/sphere_L4.off" > "$O/sphere_L4.json"
