@@ -3,7 +3,10 @@
 // The loops that gather positions, call them and scatter gradients live in model.cpp.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 #include "membrane/parameters.hpp"
 
@@ -11,31 +14,64 @@ namespace trbc::kernels {
 
 using Vec3 = Eigen::Vector3d;
 
-/// Face geometry: twice-area vector n2A = (x_j - x_i) x (x_k - x_i), area A_t = |n2A|/2,
-/// outward unit normal n.
-struct FaceGeometry {
-    Vec3 normal;
-    double area;
+/// A 3-vector of plain doubles for the kernels that run inside the face and edge loops: the
+/// compiler vectorises those loops across faces or edges, which Eigen's own SSE code for
+/// fixed-size 3-vectors would prevent.
+struct Real3 {
+    double x, y, z;
 };
 
-inline FaceGeometry faceGeometry(const Vec3& xi, const Vec3& xj, const Vec3& xk) {
-    const Vec3 c = (xj - xi).cross(xk - xi);
-    const double twiceArea = c.norm();
-    return {c / twiceArea, 0.5 * twiceArea};
+inline Real3 operator+(Real3 a, Real3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline Real3 operator-(Real3 a, Real3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline Real3 operator-(Real3 a) { return {-a.x, -a.y, -a.z}; }
+inline Real3 operator*(double s, Real3 a) { return {s * a.x, s * a.y, s * a.z}; }
+inline Real3& operator+=(Real3& a, Real3 b) { return a = a + b; }
+inline double dot(Real3 a, Real3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Real3 cross(Real3 a, Real3 b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 
-/// dA_t/dx for the three corners: dA/dx_i = 1/2 n x (x_k - x_j), cyclic (MODEL.md C).
+/// Twice-area vector of face (i, j, k): c = (x_j - x_i) x (x_k - x_i), so that A_t = |c|/2 and
+/// the outward unit normal is n = c/|c|.
+inline Real3 twiceAreaVector(Real3 xi, Real3 xj, Real3 xk) { return cross(xj - xi, xk - xi); }
+
+/// Signed volume of the tetrahedron (o, x_i, x_j, x_k), y = x - o: V_t = y_i.(y_j x y_k)/6.
+inline double faceVolume(Real3 yi, Real3 yj, Real3 yk) { return dot(yi, cross(yj, yk)) / 6.0; }
+
+/// A vector per corner (i, j, k) of a face.
 struct Corner3 {
-    Vec3 i, j, k;
+    Real3 i, j, k;
 };
 
-inline Corner3 areaGradient(const Vec3& n, const Vec3& xi, const Vec3& xj, const Vec3& xk) {
-    return {0.5 * n.cross(xk - xj), 0.5 * n.cross(xi - xk), 0.5 * n.cross(xj - xi)};
+inline Corner3& operator+=(Corner3& a, const Corner3& b) {
+    a.i += b.i;
+    a.j += b.j;
+    a.k += b.k;
+    return a;
 }
 
-/// dV_t/dx with V_t = 1/6 (x_i - c).((x_j - c) x (x_k - c)), c a fixed origin.
-inline Corner3 volumeGradient(const Vec3& yi, const Vec3& yj, const Vec3& yk) {
-    return {yj.cross(yk) / 6.0, yk.cross(yi) / 6.0, yi.cross(yj) / 6.0};
+/// The edges opposite the corners, e_i = x_k - x_j, e_j = x_i - x_k, e_k = x_j - x_i
+/// (cyclic, along the face orientation).
+inline Corner3 oppositeEdges(Real3 xi, Real3 xj, Real3 xk) { return {xk - xj, xi - xk, xj - xi}; }
+
+/// cArea dA_t/dx + cVolume dV_t/dx at the three corners (MODEL.md C), with y = x - o and
+/// V_t = 1/6 y_i.(y_j x y_k): dA_t/dx_r = 1/2 n x e_r (r = i, j, k) and, as
+/// y_j = y_i + e_k, y_k = y_i - e_j and e_j x e_k = 2 A_t n,
+/// dV_t/dx_i = 1/6 y_j x y_k = 1/6 (y_i x e_i + 2 A_t n), dV_t/dx_j = 1/6 y_k x y_i = 1/6 y_i x e_j,
+/// dV_t/dx_k = 1/6 y_i x y_j = 1/6 y_i x e_k. Together, with u = cArea/2 n + cVolume/6 y_i:
+///   g_i = u x e_i + cVolume A_t/3 n,  g_j = u x e_j,  g_k = u x e_k.
+inline Corner3 areaVolumeGradient(double cArea, double cVolume, Real3 n, double area, Real3 yi, Corner3 e) {
+    const Real3 u = (0.5 * cArea) * n + (cVolume / 6.0) * yi;
+    return {cross(u, e.i) + (cVolume * area / 3.0) * n, cross(u, e.j), cross(u, e.k)};
+}
+
+/// c ? a : b, branch-free with both a and b computed. A plain ?: lets GCC move the arithmetic of
+/// a or b under a branch, which (as it might trap, -ftrapping-math) keeps the loop from
+/// vectorising on targets without AVX-512 masks.
+inline double select(bool c, double a, double b) {
+    const std::uint64_t m = -static_cast<std::uint64_t>(c), ua = std::bit_cast<std::uint64_t>(a),
+                        ub = std::bit_cast<std::uint64_t>(b);
+    return std::bit_cast<double>((ua & m) | (ub & ~m));
 }
 
 /// atan2(y, x) without branches, so that loops over many edges vectorise (libm's atan2 does not,
@@ -48,7 +84,7 @@ inline double fastAtan2(double y, double x) {
     const double ay = std::abs(y), ax = std::abs(x);
     const double lo = std::min(ay, ax), hi = std::max(ay, ax);
     const bool shift = lo > kTanPi8 * hi;  // t in (tan pi/8, 1]: atan t = pi/4 + atan((t-1)/(t+1))
-    const double t = (shift ? lo - hi : lo) / (shift ? lo + hi : hi);
+    const double t = select(shift, lo - hi, lo) / select(shift, lo + hi, hi);
     const double z = t * t;
     double p = 0.02116433177473143;
     p = p * z - 0.043505175038486062;
@@ -60,80 +96,100 @@ inline double fastAtan2(double y, double x) {
     p = p * z - 0.14285714182892653;
     p = p * z + 0.199999999988794;
     p = p * z - 0.33333333333328524;
-    double r = t + t * z * p + (shift ? 0.25 * kPi : 0.0);
-    r = ay > ax ? 0.5 * kPi - r : r;
-    r = x < 0 ? kPi - r : r;
-    return y < 0 ? -r : r;
+    double r = t + t * z * p + select(shift, 0.25 * kPi, 0.0);
+    r = select(ay > ax, 0.5 * kPi - r, r);
+    r = select(x < 0, kPi - r, r);
+    return select(y < 0, -r, r);
 }
 
 /// Signed dihedral angle of edge (a, b) between the outward normals of faces (a,b,c) and
-/// (b,a,d), positive when convex: theta = atan2((n1 x n2).e, n1.n2) (MODEL.md C.1).
-inline double dihedralAngle(const Vec3& n1, const Vec3& n2, const Vec3& eHat) {
-    return fastAtan2(n1.cross(n2).dot(eHat), n1.dot(n2));
-}
-
-/// Gradient of l_e theta_e over the edge stencil (a, b, c, d), scaled by `coef`:
-/// coef [theta dl/dx + l dtheta/dx] with dtheta/dx_c = -n1/h_c, dtheta/dx_d = -n2/h_d,
-/// dtheta/dx_a = (1 - s_c) n1/h_c + (1 - s_d) n2/h_d, dtheta/dx_b = s_c n1/h_c + s_d n2/h_d,
-/// h = 2 A / l the heights over the edge and s_c = (x_c - x_a).(x_b - x_a)/l^2 (MODEL.md C.1).
-struct Corner4 {
-    Vec3 a, b, c, d;
+/// (b,a,d), positive when convex (MODEL.md C.1): theta = atan2((n1 x n2).e_hat, n1.n2)
+/// = atan2(y, l x) with e = x_b - x_a, l = |e|, y = (n1 x n2).e, x = n1.n2. In two steps, so
+/// that the loops can take the square root l = sqrt(e.e) for a whole block of edges in between.
+struct DihedralArgs {
+    double y, x;
 };
 
-inline Corner4 lengthThetaGradient(double coef, const Vec3& xa, const Vec3& xb, const Vec3& xc,
-                                   const Vec3& xd, const Vec3& n1, const Vec3& n2, double area1,
-                                   double area2, double theta) {
-    const Vec3 e = xb - xa;
-    const double l2 = e.squaredNorm(), l = std::sqrt(l2);
-    const Vec3 eHat = e / l;
-    const double sc = (xc - xa).dot(e) / l2, sd = (xd - xa).dot(e) / l2;
-    // l * n/h = l^2 n / (2 A)
-    const Vec3 g1 = (coef * l2 / (2.0 * area1)) * n1;
-    const Vec3 g2 = (coef * l2 / (2.0 * area2)) * n2;
-    const Vec3 gl = (coef * theta) * eHat;
-    return {-gl + (1.0 - sc) * g1 + (1.0 - sd) * g2, gl + sc * g1 + sd * g2, -g1, -g2};
+inline DihedralArgs dihedralArgs(Real3 n1, Real3 n2, Real3 e) { return {dot(cross(n1, n2), e), dot(n1, n2)}; }
+
+inline double dihedralAngle(DihedralArgs a, double l) { return fastAtan2(a.y, l * a.x); }
+
+/// Face t's share of sum_e coef_e d(l_e theta_e)/dx over its three edges (MODEL.md C.1 split by
+/// face, theta dl/dx halved between the two faces of an edge). For the half-edge h = (p -> q) of
+/// t with opposite corner r, e_h = x_q - x_p, s_h = (x_r - x_p).e_h / l_h^2 and h_r = 2 A_t / l_h:
+///   d/dx_p = (1 - s_h) G_h n - B_h e_h,  d/dx_q = s_h G_h n + B_h e_h,  d/dx_r = -G_h n,
+/// G_h = coef_h l_h / h_r = coef_h |e_h|^2 / (2 A_t), s_h G_h = coef_h (x_r - x_p).e_h / (2 A_t),
+/// B_h = coef_h theta_h / (2 l_h). The other face of the edge has the half-edge q -> p.
+/// Half-edges i, j, k are the ones opposite corners i, j, k: (j -> k), (k -> i), (i -> j), with
+/// e = oppositeEdges(x_i, x_j, x_k).
+struct HalfEdges {
+    double i, j, k;
+};
+
+inline Corner3 lengthThetaGradient(Real3 n, Corner3 e, double invTwiceArea, HalfEdges coef,
+                                   HalfEdges thetaOverLen) {
+    const Real3 ei = e.i, ej = e.j, ek = e.k;
+    const double wi = coef.i * invTwiceArea, wj = coef.j * invTwiceArea, wk = coef.k * invTwiceArea;
+    const double Gi = wi * dot(ei, ei), Gj = wj * dot(ej, ej), Gk = wk * dot(ek, ek);
+    const double Si = -wi * dot(ek, ei), Sj = -wj * dot(ei, ej), Sk = -wk * dot(ej, ek);  // s G
+    const double Bi = 0.5 * coef.i * thetaOverLen.i, Bj = 0.5 * coef.j * thetaOverLen.j,
+                 Bk = 0.5 * coef.k * thetaOverLen.k;
+    return {(Gk - Sk + Sj - Gi) * n + Bj * ej - Bk * ek,
+            (Gi - Si + Sk - Gj) * n + Bk * ek - Bi * ei,
+            (Gj - Sj + Si - Gk) * n + Bi * ei - Bj * ej};
 }
 
-/// Stress-free data of one face for the Lim energy: |a0|^2, |b0|^2, a0.b0 and A0_t, with
-/// a0 = X_j - X_i, b0 = X_k - X_i.
+/// Stress-free data of one face for the Lim energy: |a0|^2, |b0|^2, a0.b0, A0_t and 1/A0_t,
+/// with a0 = X_j - X_i, b0 = X_k - X_i.
 struct LimReference {
-    double a0a0, b0b0, a0b0, area0;
+    double a0a0, b0b0, a0b0, area0, invArea0;
 };
 
 inline LimReference limReference(const Vec3& Xi, const Vec3& Xj, const Vec3& Xk) {
     const Vec3 a0 = Xj - Xi, b0 = Xk - Xi;
-    return {a0.squaredNorm(), b0.squaredNorm(), a0.dot(b0), 0.5 * a0.cross(b0).norm()};
+    const double area0 = 0.5 * a0.cross(b0).norm();
+    return {a0.squaredNorm(), b0.squaredNorm(), a0.dot(b0), area0, 1.0 / area0};
 }
 
-/// Lim energy of one face and its gradient written as
-/// dU_t/dx = cArea dA_t/dx + cN dN/dx (MODEL.md C.2) with
-/// N = |b0|^2 |a|^2 + |a0|^2 |b|^2 - 2 (a0.b0)(a.b), alpha = A/A0 - 1, beta = N/(8 A0 A) - 1.
+/// N = |b0|^2 |a|^2 + |a0|^2 |b|^2 - 2 (a0.b0)(a.b) with a = x_j - x_i, b = x_k - x_i
+/// (MODEL.md C.2), so that beta = N/(8 A0 A) - 1; from aa = a.a, bb = b.b, ab = a.b.
+inline double limN(const LimReference& r, double aa, double bb, double ab) {
+    return r.b0b0 * aa + r.a0a0 * bb - 2.0 * r.a0b0 * ab;
+}
+
+/// Lim energy of one face and its gradient written as dU_t/dx = cArea dA_t/dx + cN dN/dx
+/// (MODEL.md C.2), from N, A = A_t and 1/A: alpha = A/A0 - 1, beta = N/(8 A0 A) - 1,
+/// cArea = dU/dalpha / A0 - dU/dbeta (beta + 1)/A, cN = dU/dbeta / (8 A0 A)
+/// (dalpha/dx = dA/dx / A0, dbeta/dx = dN/dx / (8 A0 A) - (beta + 1)/A dA/dx).
 struct LimFace {
     double energy, alpha, beta, cArea, cN;
 };
 
-inline LimFace limFace(const LimParameters& p, const LimReference& r, const Vec3& a, const Vec3& b,
-                       double area) {
-    const double N = r.b0b0 * a.squaredNorm() + r.a0a0 * b.squaredNorm() - 2.0 * r.a0b0 * a.dot(b);
-    const double alpha = area / r.area0 - 1.0;
-    const double beta = N / (8.0 * r.area0 * area) - 1.0;
+inline LimFace limFace(const LimParameters& p, const LimReference& r, double N, double area, double invArea) {
+    const double alpha = area * r.invArea0 - 1.0;
+    const double beta = 0.125 * N * r.invArea0 * invArea - 1.0;
     const double a2 = alpha * alpha;
-    const double energy =
-        r.area0 * (0.5 * p.Kalpha * a2 * (1.0 + p.a3 * alpha + p.a4 * a2) +
-                   p.mu * beta * (1.0 + p.b1 * alpha + p.b2 * beta));
-    const double dUdAlpha = r.area0 * (p.Kalpha * alpha * (1.0 + 1.5 * p.a3 * alpha + 2.0 * p.a4 * a2) +
-                                       p.mu * p.b1 * beta);
-    const double dUdBeta = r.area0 * p.mu * (1.0 + p.b1 * alpha + 2.0 * p.b2 * beta);
-    // dalpha/dx = dA/dx / A0; dbeta/dx = dN/dx / (8 A0 A) - (beta + 1)/A dA/dx
-    return {energy, alpha, beta, dUdAlpha / r.area0 - dUdBeta * (beta + 1.0) / area,
-            dUdBeta / (8.0 * r.area0 * area)};
+    const double energy = r.area0 * (0.5 * p.Kalpha * a2 * (1.0 + p.a3 * alpha + p.a4 * a2) +
+                                     p.mu * beta * (1.0 + p.b1 * alpha + p.b2 * beta));
+    // dU/dalpha / A0 and dU/dbeta / A0
+    const double dAlpha =
+        p.Kalpha * alpha * (1.0 + 1.5 * p.a3 * alpha + 2.0 * p.a4 * a2) + p.mu * p.b1 * beta;
+    const double dBeta = p.mu * (1.0 + p.b1 * alpha + 2.0 * p.b2 * beta);
+    return {energy, alpha, beta, dAlpha - dBeta * r.area0 * (beta + 1.0) * invArea, 0.125 * dBeta * invArea};
 }
 
-/// dN/dx for the three corners (MODEL.md C.2), scaled by c.
-inline Corner3 limShearGradient(double c, const LimReference& r, const Vec3& a, const Vec3& b) {
-    const Vec3 gj = (2.0 * c) * (r.b0b0 * a - r.a0b0 * b);
-    const Vec3 gk = (2.0 * c) * (r.a0a0 * b - r.a0b0 * a);
-    return {-gj - gk, gj, gk};
+/// The same from the current edge vectors a = x_j - x_i, b = x_k - x_i and the area A_t.
+inline LimFace limFace(const LimParameters& p, const LimReference& r, const Vec3& a, const Vec3& b,
+                       double area) {
+    return limFace(p, r, limN(r, a.squaredNorm(), b.squaredNorm(), a.dot(b)), area, 1.0 / area);
+}
+
+/// dN/dx for the three corners (MODEL.md C.2), scaled by c:
+/// dN/dx_j = 2 (|b0|^2 a - (a0.b0) b), dN/dx_k = 2 (|a0|^2 b - (a0.b0) a), dN/dx_i = -dN/dx_j - dN/dx_k.
+inline Corner3 limShearGradient(double c, const LimReference& r, Real3 a, Real3 b) {
+    const double ca = 2.0 * c * r.a0a0, cb = 2.0 * c * r.b0b0, cab = 2.0 * c * r.a0b0;
+    const Real3 gj = cb * a - cab * b, gk = ca * b - cab * a;
+    return {-(gj + gk), gj, gk};
 }
 
 /// Pairwise membrane-viscosity force on vertex a of edge (a, b) (MODEL.md C.4):

@@ -48,21 +48,45 @@ public:
     Eigen::Index numVertices() const { return numVertices_; }
 
 private:
+    // Per-face, per-edge and per-vertex quantities of the last evaluation, as structures of arrays
+    // (one column per quantity) so that the loops in evaluate() vectorise. Each array has kPad
+    // (model.cpp) rows more than there are faces, edges or vertices; the padding of faceArea,
+    // edgeLenTheta and faceGrad stays zero.
     struct Scratch {
-        Eigen::Matrix3Xd faceNormal;
-        Eigen::VectorXd faceArea, faceVolume, faceEnergy;
-        Eigen::VectorXd edgeLenTheta;  // l_e theta_e
-        Eigen::VectorXd vertexArea, vertexH, vertexEnergy, vertexH2;  // H2: H^2 - H0^2
-        Eigen::Matrix<double, 9, Eigen::Dynamic> faceGrad;
-        Eigen::Matrix<double, 12, Eigen::Dynamic> edgeGrad;
+        Eigen::Matrix<double, Eigen::Dynamic, 3> faceNormal, faceY;  // n_t; y = x_i - o
+        Eigen::Matrix<double, Eigen::Dynamic, 9> faceEdge;  // (t, 3 m + c): edge opposite corner m
+        Eigen::VectorXd faceArea, faceInvTwiceArea, faceVolume;  // A_t, 1/(2 A_t), V_t
+        Eigen::VectorXd faceLimEnergy, faceLimCArea, faceLimCN;  // kernels::LimFace
+        Eigen::VectorXd edgeLenTheta, edgeThetaOverLen;          // l_e theta_e, theta_e / l_e
+        Eigen::VectorXd vertexArea, vertexH, vertexEnergy;
+        Eigen::VectorXd vertexCoefM, vertexCoefA;  // kb (H - H0), 2 kb/3 (H^2 - H0^2)
+        Eigen::Matrix3Xd faceGrad;  // column m (Nf + kPad) + t: gradient at corner m of face t
     };
     void resizeScratch() const;
+    kernels::LimReference limReference(Eigen::Index face) const;
 
     Faces faces_;
     Eigen::Index numVertices_;
     Topology topo_;
     MembraneParameters params_;
-    std::vector<kernels::LimReference> limRef_;
+    // 64-bit copies of the index arrays that the face and edge loops read (faces_,
+    // topo_.faceEdges, topo_.edgeFaces): with 32-bit indices GCC vectorises those loops eight
+    // elements at a time on AVX2 (the width of the narrowest type), two registers per double, and
+    // runs out of registers.
+    Eigen::Matrix<Eigen::Index, 3, Eigen::Dynamic> faceVertices_, faceEdges_;
+    Eigen::Matrix<Eigen::Index, 2, Eigen::Dynamic> edgeFaces_;
+    // Per edge (a, b): the position in s_.faceEdge.data() of the x component of x_b - x_a, an edge
+    // vector of its first face (y and z follow one and two columns further).
+    Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 1> edgeVector_;
+    // The vertex rings as tables of fixed width ringWidth_ (the largest valence), entry (k, i) at
+    // k Nv + i: the k-th face corner of vertex i (topo_.vertexCorners order) as its face and as its
+    // column of s_.faceGrad, and the k-th incident edge (topo_.vertexEdgeList). Shorter rings are
+    // filled up with the first padding entry (zero) of faceArea, faceGrad and edgeLenTheta. The
+    // vertex loops then vectorise across vertices.
+    int ringWidth_ = 0;
+    std::vector<int> ringFace_, ringEdge_, ringGradColumn_;
+    // Lim stress-free data per face (rows), one column per field of kernels::LimReference.
+    Eigen::Matrix<double, Eigen::Dynamic, 5> limRef_;
     mutable Scratch s_;
 };
 

@@ -40,6 +40,7 @@ Topology buildTopology(const Faces& F, Eigen::Index numVertices) {
     t.edges.resize(2, ne);
     t.opposite.resize(2, ne);
     t.edgeFaces.resize(2, ne);
+    t.faceEdges.resize(3, nf);
     Eigen::Index e = 0;
     for (Eigen::Index f = 0; f < nf; ++f) {
         for (int k = 0; k < 3; ++k) {
@@ -49,12 +50,17 @@ Topology buildTopology(const Faces& F, Eigen::Index numVertices) {
             if (it == halfEdgeFace.end() || e >= ne)
                 throw std::logic_error("buildTopology: mesh is not a closed manifold (validate first)");
             const int g = it->second;
-            int d = -1;
+            int d = -1, md = -1;  // d = F(md, g)
             for (int m = 0; m < 3; ++m)
-                if (F(m, g) != a && F(m, g) != b) d = F(m, g);
+                if (F(m, g) != a && F(m, g) != b) {
+                    d = F(m, g);
+                    md = m;
+                }
             t.edges.col(e) << a, b;
             t.opposite.col(e) << c, d;
             t.edgeFaces.col(e) << static_cast<int>(f), g;
+            t.faceEdges((k + 2) % 3, f) = static_cast<int>(e);  // opposite c
+            t.faceEdges(md, g) = static_cast<int>(e);              // opposite d
             ++e;
         }
     }

@@ -17,6 +17,7 @@ struct Topology {
     Eigen::Matrix2Xi edges;     ///< (a, b) per edge, oriented as in faceOfEdge(0, e)
     Eigen::Matrix2Xi opposite;  ///< (c, d): third vertex of face (a,b,c) and of face (b,a,d)
     Eigen::Matrix2Xi edgeFaces; ///< the two faces of each edge: (a,b,c) first, (b,a,d) second
+    Eigen::Matrix3Xi faceEdges; ///< (m, f): the edge of face f opposite its corner m
 
     // CSR: corners (3*face + k) incident to vertex i are vertexCorners[vertexCornerStart[i] ..
     // vertexCornerStart[i+1]).
