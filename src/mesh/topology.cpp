@@ -71,16 +71,7 @@ Topology buildTopology(const Faces& F, Eigen::Index numVertices) {
         for (int k = 0; k < 3; ++k) cornerVertex[3 * f + k] = F(k, f);
     buildCsr(numVertices, cornerVertex, t.vertexCornerStart, t.vertexCorners);
 
-    std::vector<int> slotVertex(static_cast<std::size_t>(4 * ne));
-    for (Eigen::Index i = 0; i < ne; ++i) {
-        slotVertex[4 * i + 0] = t.edges(0, i);
-        slotVertex[4 * i + 1] = t.edges(1, i);
-        slotVertex[4 * i + 2] = t.opposite(0, i);
-        slotVertex[4 * i + 3] = t.opposite(1, i);
-    }
-    buildCsr(numVertices, slotVertex, t.vertexSlotStart, t.vertexSlots);
-
-    // Incident edges: the slots 0 and 1 (edge endpoints) of the slot list.
+    // Incident edges: those where the vertex is an endpoint.
     std::vector<int> endVertex(static_cast<std::size_t>(2 * ne));
     for (Eigen::Index i = 0; i < ne; ++i) {
         endVertex[2 * i] = t.edges(0, i);

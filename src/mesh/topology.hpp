@@ -3,7 +3,7 @@
 //
 // Edge e = (a, b) is stored with the orientation it has in its first face (a, b, c); the
 // second face is (b, a, d) (MODEL.md C, notation). The dihedral angle of e is defined with
-// these two faces. Vertex -> face-corner and vertex -> edge-slot lists (CSR) let force loops
+// these two faces. Vertex -> face-corner and vertex -> edge lists (CSR) let force loops
 // gather per-vertex sums without write conflicts, so threaded results do not depend on the
 // number of threads.
 #include <Eigen/Core>
@@ -22,8 +22,6 @@ struct Topology {
     // CSR: corners (3*face + k) incident to vertex i are vertexCorners[vertexCornerStart[i] ..
     // vertexCornerStart[i+1]).
     std::vector<int> vertexCornerStart, vertexCorners;
-    // CSR: edge slots (4*edge + s), s = 0..3 for a, b, c, d of the edge's stencil.
-    std::vector<int> vertexSlotStart, vertexSlots;
     // CSR: incident edges of each vertex (the edges where the vertex is a or b).
     std::vector<int> vertexEdgeStart, vertexEdgeList;
 
