@@ -48,6 +48,12 @@ Vertices readForceCsv(const std::string& path, Eigen::Index nv) {
     return f;
 }
 
+// The CLI's CSV forces against central finite differences of the library energy.
+void expectCsvForcesMatchFiniteDifferences(const std::string& csv, const Mesh& m, const MembraneModel& model) {
+    const Vertices fd = test::finiteDifferenceGradient(model, m.X, 1e-5 * test::meanEdgeLength(m));
+    EXPECT_LE(test::relativeMaxError(readForceCsv(csv, m.numVertices()), -fd), 1e-6);
+}
+
 std::string tmpCsv(const std::string& name) {
     return (std::filesystem::temp_directory_path() / ("trbc_cli_" + name + ".csv")).string();
 }
@@ -62,9 +68,7 @@ TEST(CliForces, BendingOnRbc498MatchesReferenceEnergyAndFiniteDifferences) {
     const Mesh m = readOff(mesh);
     MembraneParameters p;
     p.bending.kb = 1.0;
-    const MembraneModel model(m.F, m.numVertices(), p);
-    const Vertices fd = test::finiteDifferenceGradient(model, m.X, 1e-5 * test::meanEdgeLength(m));
-    EXPECT_LE(test::relativeMaxError(readForceCsv(out, m.numVertices()), -fd), 1e-6);
+    expectCsvForcesMatchFiniteDifferences(out, m, MembraneModel(m.F, m.numVertices(), p));
 }
 
 TEST(CliForces, LimOnRbc642WithSphereReferenceMatchesReferenceEnergyAndFiniteDifferences) {
@@ -79,9 +83,7 @@ TEST(CliForces, LimOnRbc642WithSphereReferenceMatchesReferenceEnergyAndFiniteDif
     const Mesh m = readOff(mesh), s = readOff(ref);
     MembraneParameters p;
     p.lim = {1, -2, 8, 1, 0.7, 0.75};
-    const MembraneModel model(m.F, m.numVertices(), p, &s.X);
-    const Vertices fd = test::finiteDifferenceGradient(model, m.X, 1e-5 * test::meanEdgeLength(m));
-    EXPECT_LE(test::relativeMaxError(readForceCsv(out, m.numVertices()), -fd), 1e-6);
+    expectCsvForcesMatchFiniteDifferences(out, m, MembraneModel(m.F, m.numVertices(), p, &s.X));
 }
 
 TEST(CliForces, FullModelReportsEveryTerm) {

@@ -123,6 +123,17 @@ Relaxation stretchedSphere() {
     return r;
 }
 
+// Edge friction 1 plus isotropic friction 0.2, which regularises the friction-free
+// near-isometric modes (MODEL.md G.3); tight inner solves.
+ViscousDynamicsOptions relaxationOptions() {
+    ViscousDynamicsOptions opt;
+    opt.gamma = 1.0;
+    opt.isotropicFriction = 0.2;
+    opt.inner.gradientTolerance = 1e-10;
+    opt.inner.maxIterations = 2000;
+    return opt;
+}
+
 double elongation(const Vertices& X) {
     const Eigen::Vector3d e = extents(alignPrincipalAxes(X));
     return e[0] / e[1];
@@ -131,9 +142,7 @@ double elongation(const Vertices& X) {
 TEST(ViscousDynamics, EnergyDecreasesAndStateRelaxesToTheMinimum) {
     Relaxation r = stretchedSphere();
     const MembraneModel model(r.mesh.F, r.mesh.numVertices(), r.params, &r.ref);
-    ViscousDynamicsOptions opt;
-    opt.gamma = 1.0;
-        opt.isotropicFriction = 0.2;  // regularises the friction-free near-isometric modes (MODEL.md G.3)
+    ViscousDynamicsOptions opt = relaxationOptions();
     opt.tEnd = 20.0;
     opt.dtInitial = 1e-3;
     opt.errorTolerance = 1e-4;
@@ -161,14 +170,10 @@ TEST(ViscousDynamics, FixedStepBdf2IsSecondOrderAccurate) {
     Relaxation r = stretchedSphere();
     const MembraneModel model(r.mesh.F, r.mesh.numVertices(), r.params, &r.ref);
     auto run = [&](double dt) {
-        ViscousDynamicsOptions opt;
-        opt.gamma = 1.0;
-        opt.isotropicFriction = 0.2;  // regularises the friction-free near-isometric modes (MODEL.md G.3)
+        ViscousDynamicsOptions opt = relaxationOptions();
         opt.tEnd = 0.4;
         opt.dtInitial = dt;
         opt.adaptive = false;
-        opt.inner.gradientTolerance = 1e-10;
-        opt.inner.maxIterations = 2000;
         Vertices X = r.mesh.X;
         EXPECT_TRUE(integrateViscous(model, X, opt).completed);
         return X;
@@ -187,15 +192,11 @@ TEST(ViscousDynamics, AdaptiveStepMeetsItsToleranceWithFewSteps) {
     const MembraneModel model(r.mesh.F, r.mesh.numVertices(), r.params, &r.ref);
     std::vector<double> times = {0.2, 0.5, 1.0};
     auto run = [&](bool adaptive, double dt, std::vector<double>& z, ViscousDynamicsResult& res) {
-        ViscousDynamicsOptions opt;
-        opt.gamma = 1.0;
-        opt.isotropicFriction = 0.2;  // regularises the friction-free near-isometric modes (MODEL.md G.3)
+        ViscousDynamicsOptions opt = relaxationOptions();
         opt.tEnd = 1.0;
         opt.dtInitial = dt;
         opt.adaptive = adaptive;
         opt.errorTolerance = 1e-5;
-        opt.inner.gradientTolerance = 1e-10;
-        opt.inner.maxIterations = 2000;
         Vertices X = r.mesh.X;
         res = integrateViscous(model, X, opt, times, [&](double, const Vertices& Y) { z.push_back(elongation(Y)); });
     };

@@ -15,8 +15,6 @@ double maxVertexNorm(const Eigen::VectorXd& g) {
 
 namespace {
 
-double maxVertexStepOf(const Eigen::VectorXd& d) { return maxVertexNorm(d); }
-
 struct Pair {
     Eigen::VectorXd s, y;
     double rho;
@@ -75,7 +73,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         double t = 1.0;
         if (mem.empty()) t = std::min(1.0, 1.0 / std::sqrt(g.squaredNorm()));  // first step or restart
         if (opt.maxVertexStep > 0) {
-            const double dm = maxVertexStepOf(d);
+            const double dm = maxVertexNorm(d);
             if (t * dm > opt.maxVertexStep) t = opt.maxVertexStep / dm;
         }
 
@@ -130,6 +128,15 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
     return res;
 }
 
+double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertices* externalForces, Vertices& grad) {
+    double u = model.evaluate(X, &grad);
+    if (externalForces) {
+        u -= (externalForces->array() * X.array()).sum();
+        grad -= *externalForces;
+    }
+    return u;
+}
+
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
                               const Vertices* externalForces) {
     const Eigen::Index nv = X.cols();
@@ -137,11 +144,7 @@ MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const Min
     Vertices Xv(3, nv), G(3, nv);
     const Objective f = [&](const Eigen::VectorXd& xv, Eigen::VectorXd& g) {
         Xv = Eigen::Map<const Vertices>(xv.data(), 3, nv);
-        double u = model.evaluate(Xv, &G);
-        if (externalForces) {
-            u -= (externalForces->array() * Xv.array()).sum();
-            G -= *externalForces;
-        }
+        const double u = loadedEnergy(model, Xv, externalForces, G);
         g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
         return u;
     };

@@ -32,6 +32,10 @@ using Objective = std::function<double(const Eigen::VectorXd& x, Eigen::VectorXd
 /// Minimises f starting from x (overwritten with the best point found).
 MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& options);
 
+/// U(X) - sum_i f_ext_i . x_i and its gradient (f_ext may be null): the potential that the
+/// minimiser and the time integrator work on.
+double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertices* externalForces, Vertices& grad);
+
 /// Minimises U(X) - sum_i f_ext_i . x_i for a membrane model, X updated in place.
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
                               const Vertices* externalForces = nullptr);

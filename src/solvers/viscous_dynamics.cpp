@@ -20,11 +20,7 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
     Vertices Xv(3, nv), G(3, nv), W(3, nv);
     const Objective phi = [&](const Eigen::VectorXd& xv, Eigen::VectorXd& g) {
         Xv = Eigen::Map<const Vertices>(xv.data(), 3, nv);
-        double u = model.evaluate(Xv, &G);
-        if (fext) {
-            u -= (fext->array() * Xv.array()).sum();
-            G -= *fext;
-        }
+        double u = loadedEnergy(model, Xv, fext, G);
         W = Xv - Y;
         // Gamma W = -f_visc(W); add eps W.
         const Vertices GW = -membraneViscousForce(Xf, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
