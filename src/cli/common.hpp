@@ -2,9 +2,11 @@
 // Helpers shared by the subcommands: membrane-modulus options, validation, JSON printing.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <filesystem>
 #include <string>
 
 #include "membrane/model.hpp"
+#include "experiments/sfs.hpp"
 #include "membrane/parameters.hpp"
 #include "mesh/mesh.hpp"
 
@@ -33,7 +35,24 @@ nlohmann::json energyTermsJson(const MembraneParameters& p, const EnergyTerms& t
 /// Size, area, volume, reduced volume and principal extents of a mesh.
 nlohmann::json meshSummary(const Mesh& m);
 
+/// Throws InputError unless the file's directory exists and is writable (checked before a long run).
+void ensureWritableFile(const std::string& path);
+/// Creates the directory if needed; throws InputError unless it is writable.
+void ensureWritableDirectory(const std::string& dir);
+
+/// SFS cache options (--cache DIR, --no-cache).
+struct CacheOptions {
+    std::string dir;
+    bool disabled = false;
+};
+void addCacheOptions(CLI::App* cmd, CacheOptions& c);
+std::filesystem::path cacheDirectory(const CacheOptions& c);
+/// Diagnostics of a stress-free state as JSON.
+nlohmann::json sfsJson(const StressFreeState& s);
+
 void registerForces(CLI::App& app);
+void registerSfs(CLI::App& app);
+void registerSimulate(CLI::App& app);
 void registerMesh(CLI::App& app);
 void registerMinimize(CLI::App& app);
 

@@ -16,6 +16,8 @@ int main(int argc, char** argv) {
     trbc::cli::registerForces(app);
     trbc::cli::registerMesh(app);
     trbc::cli::registerMinimize(app);
+    trbc::cli::registerSfs(app);
+    trbc::cli::registerSimulate(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

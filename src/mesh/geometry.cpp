@@ -35,6 +35,28 @@ double reducedVolume(const Vertices& X, const Faces& F) {
     return reducedVolume(totalArea(X, F), enclosedVolume(X, F));
 }
 
+AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) {
+    const Eigen::Vector3d o = centroid(X);
+    AreaVolume r;
+    r.areaGradient = Vertices::Zero(3, X.cols());
+    r.volumeGradient = Vertices::Zero(3, X.cols());
+    for (Eigen::Index f = 0; f < F.cols(); ++f) {
+        const Eigen::Vector3d a = X.col(F(0, f)) - o, b = X.col(F(1, f)) - o, c = X.col(F(2, f)) - o;
+        const Eigen::Vector3d m = (b - a).cross(c - a);
+        const double twiceArea = m.norm();
+        const Eigen::Vector3d n = m / twiceArea;
+        r.area += 0.5 * twiceArea;
+        r.volume += a.dot(b.cross(c)) / 6.0;
+        r.areaGradient.col(F(0, f)) += 0.5 * n.cross(c - b);
+        r.areaGradient.col(F(1, f)) += 0.5 * n.cross(a - c);
+        r.areaGradient.col(F(2, f)) += 0.5 * n.cross(b - a);
+        r.volumeGradient.col(F(0, f)) += b.cross(c) / 6.0;
+        r.volumeGradient.col(F(1, f)) += c.cross(a) / 6.0;
+        r.volumeGradient.col(F(2, f)) += a.cross(b) / 6.0;
+    }
+    return r;
+}
+
 Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F) {
     const Eigen::VectorXd af = faceAreas(X, F);
     Eigen::VectorXd av = Eigen::VectorXd::Zero(X.cols());

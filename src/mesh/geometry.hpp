@@ -15,6 +15,14 @@ double enclosedVolume(const Vertices& X, const Faces& F);
 /// v = 6 sqrt(pi) V / A^{3/2}: volume over that of the sphere with the same area.
 double reducedVolume(double area, double volume);
 double reducedVolume(const Vertices& X, const Faces& F);
+/// A, V and their gradients dA/dx_i = 1/2 sum_t n_t x (x_k - x_j), dV/dx_i = 1/6 sum_t x_j x x_k
+/// over the faces (i, j, k) around vertex i, in one pass over the faces (the retraction of the
+/// constrained minimiser calls this a few times per step).
+struct AreaVolume {
+    double area = 0.0, volume = 0.0;
+    Vertices areaGradient, volumeGradient;
+};
+AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F);
 /// A_i = 1/3 sum of the areas of the faces around vertex i.
 Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F);
 /// Unweighted vertex centroid.

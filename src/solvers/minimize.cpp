@@ -2,9 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <deque>
 #include <limits>
+
+#include "mesh/geometry.hpp"
 
 namespace trbc {
 
@@ -20,7 +23,7 @@ struct Pair {
     double rho;
 };
 
-// Two-loop recursion: d = -H g.
+// Two-loop recursion: d = -H g, H0 = (s.y / y.y) I from the newest pair.
 Eigen::VectorXd lbfgsDirection(const std::deque<Pair>& mem, const Eigen::VectorXd& g) {
     Eigen::VectorXd q = -g;
     std::vector<double> alpha(mem.size());
@@ -39,12 +42,55 @@ Eigen::VectorXd lbfgsDirection(const std::deque<Pair>& mem, const Eigen::VectorX
     return q;
 }
 
+// The constraint manifold c(x) = 0 around the current point: values, Jacobian and the Cholesky
+// factor of J^T J, which give the multipliers, the tangent projector and the retraction.
+class Manifold {
+public:
+    explicit Manifold(const EqualityConstraints* con) : con_(con) {}
+    bool active() const { return con_ != nullptr; }
+
+    void at(const Eigen::VectorXd& x) {
+        con_->evaluate(x, c_, J_);
+        gram_.compute(J_.transpose() * J_);
+    }
+    double error() const { return (c_.array().abs() / con_->scale.array()).maxCoeff(); }
+    // lambda = (J^T J)^{-1} J^T g: least-squares multipliers of the gradient g.
+    Eigen::VectorXd multipliers(const Eigen::VectorXd& g) const { return gram_.solve(J_.transpose() * g); }
+    const Eigen::MatrixXd& jacobian() const { return J_; }
+    // v <- (I - J (J^T J)^{-1} J^T) v.
+    void project(Eigen::VectorXd& v) const { v -= J_ * multipliers(v); }
+
+    // Gauss-Newton projection of x onto c = 0; leaves the manifold state at the new x.
+    bool retract(Eigen::VectorXd& x) {
+        at(x);
+        for (int it = 0; it < con_->maxNewtonIterations; ++it) {
+            if (!c_.allFinite()) return false;
+            if (error() <= con_->tolerance) return true;
+            x -= J_ * gram_.solve(c_);
+            at(x);
+        }
+        return c_.allFinite() && error() <= con_->tolerance;
+    }
+
+private:
+    const EqualityConstraints* con_;
+    Eigen::VectorXd c_;
+    Eigen::MatrixXd J_;
+    Eigen::LDLT<Eigen::MatrixXd> gram_;
+};
+
 }  // namespace
 
-MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& opt) {
+MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& opt,
+                             const EqualityConstraints* constraints) {
     MinimizeResult res;
     const Eigen::Index n = x.size();
-    Eigen::VectorXd g(n), gNew(n), xNew(n);
+    Manifold manifold(constraints);
+    if (manifold.active() && !manifold.retract(x)) {
+        res.message = "the starting point cannot be projected onto the constraints";
+        return res;
+    }
+    Eigen::VectorXd g(n), gNew(n), xNew(n), lambda;
     double fx = f(x, g);
     ++res.evaluations;
     if (!std::isfinite(fx) || !g.allFinite()) {
@@ -52,26 +98,34 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         res.energy = fx;
         return res;
     }
+    // pg: gradient of the Lagrangian f - lambda.c, i.e. the tangent component of g.
+    Eigen::VectorXd pg = g;
+    Eigen::MatrixXd Jx;
+    if (manifold.active()) {
+        Jx = manifold.jacobian();
+        lambda = manifold.multipliers(g);
+        pg -= manifold.jacobian() * lambda;
+    }
     std::deque<Pair> mem;
     constexpr double c1 = 1e-4;
     constexpr double eps = std::numeric_limits<double>::epsilon();
-    int roundoffStalls = 0;
 
     for (res.iterations = 0; res.iterations < opt.maxIterations; ++res.iterations) {
-        res.gradientNorm = maxVertexNorm(g);
+        res.gradientNorm = maxVertexNorm(pg);
         if (res.gradientNorm <= opt.gradientTolerance) {
             res.converged = true;
             break;
         }
-        Eigen::VectorXd d = lbfgsDirection(mem, g);
-        double slope = g.dot(d);
+        Eigen::VectorXd d = lbfgsDirection(mem, pg);
+        if (manifold.active()) manifold.project(d);
+        double slope = pg.dot(d);
         if (!(slope < 0)) {  // not a descent direction: restart from steepest descent
             mem.clear();
-            d = -g;
-            slope = -g.squaredNorm();
+            d = -pg;
+            slope = -pg.squaredNorm();
         }
         double t = 1.0;
-        if (mem.empty()) t = std::min(1.0, 1.0 / std::sqrt(g.squaredNorm()));  // first step or restart
+        if (mem.empty()) t = std::min(1.0, 1.0 / pg.norm());  // first step or restart
         if (opt.maxVertexStep > 0) {
             const double dm = maxVertexNorm(d);
             if (t * dm > opt.maxVertexStep) t = opt.maxVertexStep / dm;
@@ -79,26 +133,29 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
 
         // Backtracking with Armijo; where energy differences are at round-off level the
         // directional derivative decides (the gradient stays accurate when the energy does not).
+        // Constrained: the trial point is retracted onto the manifold first (the manifold state
+        // then belongs to the trial point).
         bool accepted = false;
         double fNew = fx;
         for (int ls = 0; ls < 40; ++ls) {
             xNew = x + t * d;
-            fNew = f(xNew, gNew);
-            ++res.evaluations;
-            if (std::isfinite(fNew) && gNew.allFinite()) {
-                const double noise = 100.0 * eps * std::abs(fx);
-                if (fNew <= fx + c1 * t * slope) {
-                    accepted = true;
-                } else if (std::abs(fNew - fx) <= noise && std::abs(gNew.dot(d)) <= 0.9 * std::abs(slope)) {
-                    accepted = true;
-                    ++roundoffStalls;
+            if (!manifold.active() || manifold.retract(xNew)) {
+                fNew = f(xNew, gNew);
+                ++res.evaluations;
+                if (std::isfinite(fNew) && gNew.allFinite()) {
+                    const double noise = 100.0 * eps * std::abs(fx);
+                    if (fNew <= fx + c1 * t * slope)
+                        accepted = true;
+                    else if (std::abs(fNew - fx) <= noise && std::abs(gNew.dot(d)) <= 0.9 * std::abs(slope))
+                        accepted = true;
                 }
             }
             if (accepted) break;
             t *= (ls < 2 ? 0.5 : 0.25);
         }
         if (!accepted) {
-            if (!mem.empty()) {  // drop the curvature history and retry along -g
+            if (manifold.active()) manifold.at(x);
+            if (!mem.empty()) {  // drop the curvature history and retry along the steepest descent
                 mem.clear();
                 continue;
             }
@@ -106,7 +163,17 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
                                       "(gradient norm {:.3g}, energy round-off reached)", res.gradientNorm);
             break;
         }
+        // y = grad L(xNew, lambdaNew) - grad L(x, lambdaNew): the Lagrangian's curvature.
         Pair p{xNew - x, gNew - g, 0.0};
+        Eigen::VectorXd pgNew = gNew;
+        if (manifold.active()) {
+            // The manifold state is at xNew (last retraction); Jx is J(x).
+            const Eigen::VectorXd lambdaNew = manifold.multipliers(gNew);
+            pgNew -= manifold.jacobian() * lambdaNew;
+            p.y += (Jx - manifold.jacobian()) * lambdaNew;
+            Jx = manifold.jacobian();
+            lambda = lambdaNew;
+        }
         const double sy = p.s.dot(p.y);
         if (sy > 1e-12 * p.s.norm() * p.y.norm()) {
             p.rho = 1.0 / sy;
@@ -115,10 +182,15 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         }
         x.swap(xNew);
         g.swap(gNew);
+        pg.swap(pgNew);
         fx = fNew;
     }
     res.energy = fx;
-    res.gradientNorm = maxVertexNorm(g);
+    res.gradientNorm = maxVertexNorm(pg);
+    if (manifold.active()) {
+        res.multipliers = lambda;
+        res.constraintError = manifold.error();
+    }
     if (res.gradientNorm <= opt.gradientTolerance) res.converged = true;
     if (res.converged)
         res.message = "converged";
@@ -126,6 +198,30 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         res.message = fmt::format("reached the iteration limit ({}) with gradient norm {:.3g} > {:.3g}",
                                   opt.maxIterations, res.gradientNorm, opt.gradientTolerance);
     return res;
+}
+
+EqualityConstraints areaVolumeConstraints(const Faces& faces, Eigen::Index nv, const AreaVolumeConstraint& target) {
+    EqualityConstraints con;
+    const bool area = target.area > 0, volume = target.volume > 0;
+    const int m = int(area) + int(volume);
+    con.scale.resize(m);
+    if (area) con.scale[0] = target.area;
+    if (volume) con.scale[m - 1] = target.volume;
+    con.evaluate = [&faces, nv, target, area, volume, m](const Eigen::VectorXd& x, Eigen::VectorXd& c,
+                                                         Eigen::MatrixXd& J) {
+        const AreaVolume av = areaVolumeWithGradients(Eigen::Map<const Vertices>(x.data(), 3, nv), faces);
+        c.resize(m);
+        J.resize(3 * nv, m);
+        if (area) {
+            c[0] = av.area - target.area;
+            J.col(0) = Eigen::Map<const Eigen::VectorXd>(av.areaGradient.data(), 3 * nv);
+        }
+        if (volume) {
+            c[m - 1] = av.volume - target.volume;
+            J.col(m - 1) = Eigen::Map<const Eigen::VectorXd>(av.volumeGradient.data(), 3 * nv);
+        }
+    };
+    return con;
 }
 
 double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertices* externalForces, Vertices& grad) {
@@ -138,7 +234,7 @@ double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertice
 }
 
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
-                              const Vertices* externalForces) {
+                              const Vertices* externalForces, const AreaVolumeConstraint& constraint) {
     const Eigen::Index nv = X.cols();
     Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
     Vertices Xv(3, nv), G(3, nv);
@@ -148,7 +244,13 @@ MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const Min
         g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
         return u;
     };
-    MinimizeResult r = lbfgsMinimize(f, x, options);
+    MinimizeResult r;
+    if (constraint.active()) {
+        const EqualityConstraints con = areaVolumeConstraints(model.faces(), nv, constraint);
+        r = lbfgsMinimize(f, x, options, &con);
+    } else {
+        r = lbfgsMinimize(f, x, options);
+    }
     X = Eigen::Map<const Vertices>(x.data(), 3, nv);
     return r;
 }

@@ -22,15 +22,42 @@ struct MinimizeResult {
     int iterations = 0;
     int evaluations = 0;
     double energy = 0.0;
-    double gradientNorm = 0.0;        ///< max_i |dU/dx_i| at the returned point
+    double gradientNorm = 0.0;        ///< max_i |P dU/dx_i| at the returned point (P: tangent projector)
+    Eigen::VectorXd multipliers;      ///< Lagrange multipliers of the equality constraints
+    double constraintError = 0.0;     ///< max_k |c_k| / scale_k at the returned point
     std::string message;
 };
 
 /// f(x, grad) returns the objective and writes its gradient; x holds 3 coordinates per vertex.
 using Objective = std::function<double(const Eigen::VectorXd& x, Eigen::VectorXd& grad)>;
 
-/// Minimises f starting from x (overwritten with the best point found).
-MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& options);
+/// Equality constraints c(x) = 0 (a few, smooth, with independent gradients).
+struct EqualityConstraints {
+    /// Writes the values c (m) and the Jacobian columns J = [dc_1/dx ... dc_m/dx] (n x m).
+    std::function<void(const Eigen::VectorXd& x, Eigen::VectorXd& c, Eigen::MatrixXd& J)> evaluate;
+    Eigen::VectorXd scale;            ///< c is satisfied when |c_k| <= tolerance * scale_k
+    double tolerance = 1e-12;
+    int maxNewtonIterations = 20;
+};
+
+/// Minimises f starting from x (overwritten with the best point found). With constraints, x is
+/// first projected onto the manifold c = 0 and every trial point is pulled back onto it
+/// (retraction by Gauss-Newton steps x -= J (J^T J)^{-1} c); the L-BFGS pairs use the gradient of
+/// the Lagrangian and the search directions are projected onto the tangent space, so the stiffness
+/// of penalties never enters and the multipliers come out as by-products.
+MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& options,
+                             const EqualityConstraints* constraints = nullptr);
+
+/// Exact global constraints A(X) = area, V(X) = volume (MODEL.md G.3: equivalent to the stiff
+/// penalties of C.3 up to relative area/volume errors of order tension / kA). A zero leaves that
+/// quantity free. Multipliers: membrane tension (area) and pressure (volume), with the sign
+/// convention grad U = lambda_A grad A + lambda_V grad V at a constrained minimum.
+struct AreaVolumeConstraint {
+    double area = 0.0, volume = 0.0;
+    bool active() const { return area > 0.0 || volume > 0.0; }
+};
+EqualityConstraints areaVolumeConstraints(const Faces& faces, Eigen::Index numVertices,
+                                          const AreaVolumeConstraint& target);
 
 /// U(X) - sum_i f_ext_i . x_i and its gradient (f_ext may be null): the potential that the
 /// minimiser and the time integrator work on.
@@ -38,7 +65,7 @@ double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertice
 
 /// Minimises U(X) - sum_i f_ext_i . x_i for a membrane model, X updated in place.
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
-                              const Vertices* externalForces = nullptr);
+                              const Vertices* externalForces = nullptr, const AreaVolumeConstraint& constraint = {});
 
 /// max_i |g_i| over the 3-vectors of a flattened gradient.
 double maxVertexNorm(const Eigen::VectorXd& g);

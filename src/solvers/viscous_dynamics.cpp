@@ -10,12 +10,17 @@
 namespace trbc {
 namespace {
 
-// One variational BDF step: minimise U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xf) + eps) (X-Y), with the
-// friction matrix taken at the extrapolated state Xf (second order; Gamma(X_n) would be first order).
-MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Vertices& Y, double c0,
-                       double dt, const ViscousDynamicsOptions& opt, const Vertices* fext, Vertices& X) {
+// One variational BDF step: minimise
+//   U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xf) + eps) (X-Y) + m c0^2/(2 dt^2) |X - Y - dt Yv / c0|^2,
+// with the friction matrix taken at the extrapolated state Xf (second order; Gamma(X_n) would be
+// first order). The last term (inertia, m > 0) makes the stationarity condition the BDF2 formula
+// for the first-order system (X, V): c0 (X - Y)/dt = V, m c0 (V - Yv)/dt = -dU/dX - Gamma V + f.
+MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Vertices& Y, const Vertices& Yv,
+                       double c0, double dt, const ViscousDynamicsOptions& opt, const Vertices* fext, Vertices& X) {
     const Eigen::Index nv = X.cols();
     const double k = c0 / dt;
+    const double km = opt.vertexMass * k * k;
+    const Vertices inertialTarget = opt.vertexMass > 0 ? Vertices(Y + Yv / k) : Y;
     Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
     Vertices Xv(3, nv), G(3, nv), W(3, nv);
     const Objective phi = [&](const Eigen::VectorXd& xv, Eigen::VectorXd& g) {
@@ -26,10 +31,21 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
         const Vertices GW = -membraneViscousForce(Xf, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
         u += 0.5 * k * (W.array() * GW.array()).sum();
         G += k * GW;
+        if (km > 0) {
+            const Vertices D = Xv - inertialTarget;
+            u += 0.5 * km * D.squaredNorm();
+            G += km * D;
+        }
         g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
         return u;
     };
-    MinimizeResult r = lbfgsMinimize(phi, x, opt.inner);
+    MinimizeResult r;
+    if (opt.constraint.active()) {
+        const EqualityConstraints con = areaVolumeConstraints(model.faces(), nv, opt.constraint);
+        r = lbfgsMinimize(phi, x, opt.inner, &con);
+    } else {
+        r = lbfgsMinimize(phi, x, opt.inner);
+    }
     X = Eigen::Map<const Vertices>(x.data(), 3, nv);
     return r;
 }
@@ -41,8 +57,8 @@ double maxNorm(const Vertices& D) { return D.colwise().norm().maxCoeff(); }
 ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, const ViscousDynamicsOptions& opt,
                                        const std::vector<double>& sampleTimes, const DynamicsObserver& observer,
                                        const Vertices* fext) {
-    if (!(opt.gamma > 0) && !(opt.isotropicFriction > 0))
-        throw InputError("viscous dynamics needs a positive friction (gamma or isotropic friction)");
+    if (!(opt.gamma > 0) && !(opt.isotropicFriction > 0) && !(opt.vertexMass > 0))
+        throw InputError("viscous dynamics needs a positive friction (gamma or isotropic friction) or a vertex mass");
     if (!(opt.tEnd > 0) || !(opt.dtInitial > 0))
         throw InputError(fmt::format("viscous dynamics needs tEnd > 0 and dtInitial > 0 (got {}, {})",
                                      opt.tEnd, opt.dtInitial));
@@ -60,6 +76,7 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
     const double dtMax = opt.dtMax > 0 ? opt.dtMax : opt.tEnd;
     // History: X_n (current), X_{n-1}, X_{n-2} with step sizes.
     Vertices Xprev = X, Xprev2 = X;
+    Vertices V = Vertices::Zero(3, X.cols()), Vprev = V;  // velocities (inertial case), start at rest
     double dtPrev = 0.0, dtPrev2 = 0.0;
     int history = 0;  // number of completed steps
     double t = 0.0, dt = std::min(opt.dtInitial, dtMax);
@@ -75,12 +92,13 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
             hitsSample = true;
         }
         double c0 = 1.0;
-        Vertices Y = X;
+        Vertices Y = X, Yv = V;
         Vertices Xpred = X;
         if (history >= 1) {
             const double w = h / dtPrev;
             c0 = (1 + 2 * w) / (1 + w);
             Y = ((1 + w) * X - (w * w / (1 + w)) * Xprev) / c0;
+            if (opt.vertexMass > 0) Yv = ((1 + w) * V - (w * w / (1 + w)) * Vprev) / c0;
             Xpred = X + w * (X - Xprev);
             if (history >= 2) {
                 // Quadratic extrapolation through (t-dtPrev-dtPrev2, t-dtPrev, t).
@@ -92,7 +110,7 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
             }
         }
         Xnew = Xpred;
-        const MinimizeResult inner = bdfStep(model, Xpred, Y, c0, h, opt, fext, Xnew);
+        const MinimizeResult inner = bdfStep(model, Xpred, Y, Yv, c0, h, opt, fext, Xnew);
         res.evaluations += inner.evaluations;
         if (!inner.converged) {
             ++res.rejectedSteps;
@@ -119,6 +137,10 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
             factor = std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 2.0);
         }
         // Accept.
+        if (opt.vertexMass > 0) {
+            Vprev.swap(V);
+            V = (c0 / h) * (Xnew - Y);
+        }
         Xprev2.swap(Xprev);
         Xprev.swap(X);
         X.swap(Xnew);

@@ -1,6 +1,8 @@
 #pragma once
 // Overdamped membrane dynamics  Gamma(X) dX/dt = -dU/dX + f_ext  (MODEL.md G.3), Gamma the
-// edge-friction matrix of the membrane viscosity (C.4) plus an optional isotropic friction eps I.
+// edge-friction matrix of the membrane viscosity (C.4) plus an optional isotropic friction eps I,
+// or, with a vertex mass m, the reference's second-order dynamics m d2X/dt2 + Gamma dX/dt = -dU/dX
+// + f_ext (E.3), started from rest.
 //
 // Time stepping is variational BDF2 with adaptive steps: each step minimises
 //   Phi(X) = U(X) - f_ext.X + c0/(2 dt) (X - Y)^T [Gamma(X*) + eps I] (X - Y),
@@ -22,6 +24,7 @@ namespace trbc {
 struct ViscousDynamicsOptions {
     double gamma = 1.0;               ///< edge friction gamma = 4 eta_m / sqrt(3)
     double isotropicFriction = 0.0;   ///< eps: extra friction eps v_i per vertex (0 = none)
+    double vertexMass = 0.0;          ///< m > 0: second-order dynamics m dV/dt = -dU/dX - Gamma V + f_ext
     double tEnd = 1.0;
     double dtInitial = 1e-4;
     double dtMax = 0.0;               ///< 0: no cap beyond tEnd
@@ -29,6 +32,7 @@ struct ViscousDynamicsOptions {
     double errorTolerance = 1e-4;     ///< local error per step, max vertex displacement (length)
     bool adaptive = true;             ///< false: fixed step dtInitial
     MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
+    AreaVolumeConstraint constraint;  ///< exact area/volume constraints during the motion (none by default)
 };
 
 struct ViscousDynamicsResult {

@@ -1,0 +1,79 @@
+// trbc sfs: the stress-free state for a reduced volume (MODEL.md D), cached by (v, level, version).
+#include <fmt/format.h>
+
+#include <iostream>
+#include <memory>
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "experiments/parameters.hpp"
+#include "experiments/sfs.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/io.hpp"
+
+namespace trbc::cli {
+
+void addCacheOptions(CLI::App* cmd, CacheOptions& c) {
+    cmd->add_option("--cache", c.dir, "SFS cache directory (default: $TRBC_CACHE_DIR, $XDG_CACHE_HOME/trbc or ~/.cache/trbc)");
+    cmd->add_flag("--no-cache", c.disabled, "neither read nor write the SFS cache");
+}
+
+std::filesystem::path cacheDirectory(const CacheOptions& c) {
+    if (c.disabled) return {};
+    return c.dir.empty() ? defaultCacheDirectory() : std::filesystem::path(c.dir);
+}
+
+nlohmann::json sfsJson(const StressFreeState& s) {
+    return {{"v", s.v},
+            {"v_imposed", s.vTarget},
+            {"level", s.level},
+            {"reduced_volume", s.reducedVolume},
+            {"energy_kappa", s.energy},
+            {"max_tangential_force_kappa_per_R", s.gradientNorm},
+            {"tension_kappa_per_R2", s.tension},
+            {"pressure_kappa_per_R3", s.pressure},
+            {"iterations", s.iterations},
+            {"force_evaluations", s.evaluations},
+            {"converged", s.converged},
+            {"wall_s", s.wallSeconds},
+            {"principal_extents_rel", {s.principalExtents[0], s.principalExtents[1], s.principalExtents[2]}},
+            {"from_cache", s.fromCache}};
+}
+
+void registerSfs(CLI::App& app) {
+    struct Opts {
+        double v = 0.95;
+        int level = 4;
+        std::string out;
+        CacheOptions cache;
+        double tolerance = SfsOptions{}.gradientTolerance;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "sfs", "Stress-free state of the cytoskeleton for a reduced volume v (MODEL.md D), written at the "
+               "cell area A0 = 135 um^2 (um), cached on disk by (v, level, model version)");
+    cmd->add_option("--v", o->v, "reduced volume v in (0, 1] (prior [0.65, 1])")->required();
+    cmd->add_option("--level", o->level, "icosphere level (Nv = 10 4^L + 2)")->check(CLI::Range(1, 6))->capture_default_str();
+    cmd->add_option("--out", o->out, "output mesh (.off, .ply or .vtk), in um at area 135 um^2")->required();
+    cmd->add_option("--tol", o->tolerance, "stop when the largest tangential force is below this (kappa / R'_A)")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    addCacheOptions(cmd, o->cache);
+    cmd->callback([o]() {
+        ensureWritableFile(o->out);
+        SfsOptions so;
+        so.gradientTolerance = o->tolerance;
+        const StressFreeState s = stressFreeState(o->v, o->level, cacheDirectory(o->cache), so);
+        Mesh out = s.mesh;
+        out.X = scaleToArea(out.X, out.F, cell::area);
+        writeMesh(o->out, out);
+        nlohmann::json j;
+        j["sfs"] = sfsJson(s);
+        j["mesh"] = meshSummary(out);
+        j["output"] = o->out;
+        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}, {"sfs_model_version", kSfsModelVersion}};
+        std::cout << j.dump(2) << std::endl;
+    });
+}
+
+}  // namespace trbc::cli

@@ -1,0 +1,262 @@
+// trbc simulate: one forward-model sample (SFS + equilibrium, stretching, relaxation; MODEL.md D, E)
+// in physical units, printed as one JSON object.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "experiments/experiments.hpp"
+#include "experiments/reference_protocol.hpp"
+#include "mesh/io.hpp"
+
+namespace trbc::cli {
+namespace {
+
+nlohmann::json staticJson(const SolverDiagnostics& d) {
+    return {{"converged", d.converged},
+            {"iterations", d.iterations},
+            {"force_evaluations", d.evaluations},
+            {"wall_s", d.wallSeconds},
+            {"max_tangential_force_pN", d.gradientNorm},
+            {"tension_pN_per_um", d.tension},
+            {"pressure_Pa", d.pressure},
+            {"message", d.message}};
+}
+
+std::vector<double> parseForceList(const std::string& text) {
+    std::vector<double> out;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        std::size_t used = 0;
+        double f = 0.0;
+        try {
+            f = std::stod(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != item.size())
+            throw InputError(fmt::format("--force-curve: '{}' is not a number (expected a comma-separated list of pN)", item));
+        out.push_back(f);
+    }
+    return out;
+}
+
+ExperimentSet parseExperiments(const std::string& text) {
+    ExperimentSet s{false, false, false};
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        if (item == "eq")
+            s.equilibrium = true;
+        else if (item == "stretch")
+            s.stretching = true;
+        else if (item == "relax")
+            s.relaxation = true;
+        else
+            throw InputError(fmt::format("--experiments: unknown experiment '{}' (valid: eq, stretch, relax)", item));
+    }
+    s.equilibrium = true;  // stretching and relaxation start from the equilibrium shape
+    return s;
+}
+
+void writeCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {
+    std::ofstream out(path);
+    out.precision(10);
+    out << header << '\n';
+    for (std::size_t i = 0; i < cols.front().size(); ++i) {
+        for (std::size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c][i];
+        out << '\n';
+    }
+    if (!out) throw InputError("cannot write " + path);
+}
+
+void saveShapes(const std::string& dir, const SampleResult& s, const ExperimentSet& which) {
+    const Faces& F = s.sfs.mesh.F;
+    Mesh sfs = s.sfs.mesh;
+    sfs.X = cellMeshes(s.sfs).reference;
+    writeMesh(dir + "/sfs.vtk", sfs);
+    const Mesh eq{s.equilibrium.shape, F};
+    writeMesh(dir + "/equilibrium.vtk", eq);
+    writeMesh(dir + "/equilibrium.ply", eq);
+    const ThicknessProfile& pr = s.equilibrium.profile;
+    std::vector<double> h(pr.r.size());
+    for (std::size_t i = 0; i < h.size(); ++i) h[i] = pr.zHigh[i] - pr.zLow[i];
+    writeCsv(dir + "/equilibrium_profile.csv", "r_um,zlow_um,zhigh_um,h_um", {pr.r, pr.zLow, pr.zHigh, h});
+    if (which.stretching) {
+        std::vector<double> f, d0, d1;
+        for (std::size_t k = 0; k < s.stretching.size(); ++k) {
+            writeMesh(dir + fmt::format("/stretch_{:g}pN.vtk", s.stretching[k].fext), Mesh{s.stretchShapes[k], F});
+            if (k == 0 && s.stretching.size() > 1) continue;  // the requested force; the curve follows
+            f.push_back(s.stretching[k].fext);
+            d0.push_back(s.stretching[k].observables.D0);
+            d1.push_back(s.stretching[k].observables.D1);
+        }
+        writeCsv(dir + "/stretching_curve.csv", "Fext_pN,D0_um,D1_um", {f, d0, d1});
+    }
+    if (which.relaxation) {
+        const RelaxationResult& r = s.relaxation;
+        writeMesh(dir + "/relaxation_release.vtk", Mesh{r.released, F});
+        writeMesh(dir + "/relaxation_end.vtk", Mesh{r.final, F});
+        writeCsv(dir + "/relaxation.csv", "t_s,L_um,W_um,z", {r.t, r.L, r.W, r.z});
+    }
+}
+
+}  // namespace
+
+void registerSimulate(CLI::App& app) {
+    struct Opts {
+        CellParameters p;
+        double kbJ = 0.0, fext = 100.0;
+        int level = 4, threads = 1;
+        std::string experiments = "eq,stretch,relax", saveShapes, forceCurve;
+        bool allowOutside = false;
+        CacheOptions cache;
+        ExperimentOptions exp;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "simulate", "One forward-model sample: stress-free state, equilibrium shape (D, hmin, hmax), two-bead "
+                    "stretching (D0, D1) and relaxation (tc) of MODEL.md D-E, printed as JSON (um, pN, s). "
+                    "Defaults: the reference point v=0.95, mu=4, FvK=250, b2=1.5, etam=0.7, Fext=100");
+    cmd->add_option("--v", o->p.v, "reduced volume v of the stress-free state, prior [0.65, 1]")->capture_default_str();
+    cmd->add_option("--mu", o->p.mu, "shear modulus mu_uN_per_m (uN/m), prior [1, 10]")->capture_default_str();
+    auto* fvk = cmd->add_option("--FvK", o->p.FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]")
+                    ->capture_default_str();
+    cmd->add_option("--kb", o->kbJ, "bending modulus kb_J (J), replaces --FvK; prior [1.074e-19, 1.074e-18]")
+        ->excludes(fvk);
+    cmd->add_option("--b2", o->p.b2, "Lim non-linear shear coefficient b2, prior [0, 4]")->capture_default_str();
+    cmd->add_option("--etam", o->p.etam, "membrane viscosity etam_Pa_s_um (Pa s um), prior [0.1, 1]")->capture_default_str();
+    cmd->add_option("--Fext", o->fext, "bead force Fext_pN (pN, per bead), prior [0, 200]")->capture_default_str();
+    cmd->add_option("--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2; 4 as in the paper)")
+        ->check(CLI::Range(2, 6))->capture_default_str();
+    cmd->add_option("--experiments", o->experiments, "comma-separated subset of eq,stretch,relax")->capture_default_str();
+    cmd->add_option("--save-shapes", o->saveShapes,
+                    "directory for the shapes (VTK/PLY), the equilibrium profile, the stretching curve and the "
+                    "relaxation time series (CSV) and simulate.json");
+    cmd->add_option("--force-curve", o->forceCurve,
+                    "extra force levels in pN, comma-separated, for a whole stretching curve (continuation)");
+    cmd->add_flag("--allow-outside-prior", o->allowOutside, "accept parameters outside the prior box (studies)");
+    cmd->add_option("--tol", o->exp.staticTolerance,
+                    "static states stop when the largest tangential vertex force < tol * mu * l0")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_flag("--overdamped", o->exp.overdamped,
+                  "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
+    cmd->add_option("--threads", o->threads, "OpenMP threads for the force evaluation")
+        ->check(CLI::Range(1, 1024))->capture_default_str();
+    addCacheOptions(cmd, o->cache);
+    cmd->callback([o]() {
+        CellParameters p = o->p;
+        if (o->kbJ != 0.0) {
+            if (!(o->kbJ > 0.0))
+                throw InputError(fmt::format("parameter kb_J = {} must be positive (prior [1.074e-19, 1.074e-18] J)", o->kbJ));
+            p.FvK = CellParameters::fvkFromKb(p.mu, o->kbJ);
+        }
+        validateCellParameters(p, o->allowOutside);
+        validateForce(o->fext, o->allowOutside);
+        const ExperimentSet which = parseExperiments(o->experiments);
+        std::vector<double> curve;
+        if (!o->forceCurve.empty()) {
+            curve = parseForceList(o->forceCurve);
+            for (double f : curve) validateForce(f, o->allowOutside);
+        }
+        if (!o->saveShapes.empty()) ensureWritableDirectory(o->saveShapes);
+        omp_set_num_threads(o->threads);
+        ExperimentOptions eo = o->exp;
+        eo.level = o->level;
+        eo.cacheDir = cacheDirectory(o->cache);
+
+        nlohmann::json j;
+        j["parameters"] = {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()},
+                           {"b2", p.b2}, {"etam_Pa_s_um", p.etam}, {"Fext_pN", o->fext}};
+        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}, {"level", o->level},
+                           {"vertices", 10 * (1 << (2 * o->level)) + 2}, {"sfs_model_version", kSfsModelVersion},
+                           {"threads", o->threads}};
+        const auto t0 = std::chrono::steady_clock::now();
+        SampleResult s;
+        try {
+            s = runSample(p, o->fext, which, eo, curve, !o->saveShapes.empty());
+        } catch (const NumericalError& e) {
+            j["status"] = "failed";
+            j["reason"] = e.what();
+            std::cout << j.dump(2) << std::endl;
+            throw;
+        }
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        nlohmann::json obs = {{"D_um", nullptr}, {"hmin_um", nullptr}, {"hmax_um", nullptr},
+                              {"D0_um", nullptr}, {"D1_um", nullptr}, {"tc_s", nullptr}};
+        nlohmann::json diag;
+        diag["sfs"] = sfsJson(s.sfs);
+        const ReferenceProtocolSteps ref = referenceProtocolSteps(p, o->level);
+        long evaluations = s.sfs.fromCache ? 0 : s.sfs.evaluations;
+        double refSteps = s.sfs.fromCache ? 0.0 : ref.sfs;
+        diag["sfs"]["reference_protocol_steps"] = ref.sfs;
+        obs["D_um"] = s.equilibrium.observables.D;
+        obs["hmin_um"] = s.equilibrium.observables.hmin;
+        obs["hmax_um"] = s.equilibrium.observables.hmax;
+        diag["equilibrium"] = staticJson(s.equilibrium.diagnostics);
+        diag["equilibrium"]["reference_protocol_steps"] = ref.equilibrium;
+        evaluations += s.equilibrium.diagnostics.evaluations;
+        refSteps += ref.equilibrium;
+        if (which.stretching) {
+            obs["D0_um"] = s.stretching.front().observables.D0;
+            obs["D1_um"] = s.stretching.front().observables.D1;
+            diag["stretching"] = staticJson(s.stretching.front().diagnostics);
+            diag["stretching"]["reference_protocol_steps"] = ref.stretchPerForce;
+            evaluations += s.stretching.front().diagnostics.evaluations;
+            refSteps += ref.stretchPerForce;
+            if (s.stretching.size() > 1) {
+                nlohmann::json c = nlohmann::json::array();
+                int curveEvaluations = 0;
+                for (std::size_t k = 1; k < s.stretching.size(); ++k) {
+                    const auto& pt = s.stretching[k];
+                    c.push_back({{"Fext_pN", pt.fext}, {"D0_um", pt.observables.D0}, {"D1_um", pt.observables.D1},
+                                 {"force_evaluations", pt.diagnostics.evaluations}});
+                    curveEvaluations += pt.diagnostics.evaluations;
+                }
+                j["stretching_curve"] = c;
+                diag["stretching_curve"] = {{"levels", s.stretching.size() - 1},
+                                            {"force_evaluations", curveEvaluations},
+                                            {"reference_protocol_steps", ref.stretchPerForce * (s.stretching.size() - 1)}};
+            }
+        }
+        if (which.relaxation) {
+            const RelaxationResult& r = s.relaxation;
+            obs["tc_s"] = r.fit.tc;
+            j["relaxation_fit"] = {{"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
+                                   {"pre_stretch_force_pN", r.preStretchForce}};
+            diag["relaxation"] = {{"pre_stretch", staticJson(r.preStretch)},
+                                  {"converged", r.dynamics.converged},
+                                  {"time_steps", r.dynamics.iterations},
+                                  {"rejected_steps", r.rejectedSteps},
+                                  {"force_evaluations", r.dynamics.evaluations + r.preStretch.evaluations},
+                                  {"wall_s", r.dynamics.wallSeconds + r.preStretch.wallSeconds},
+                                  {"reference_protocol_steps", ref.preStretch + ref.relaxation}};
+            evaluations += r.dynamics.evaluations + r.preStretch.evaluations;
+            refSteps += ref.preStretch + ref.relaxation;
+        }
+        diag["total"] = {{"force_evaluations", evaluations},
+                         {"reference_protocol_steps", refSteps},
+                         {"reduction_factor", refSteps / std::max<long>(1, evaluations)},
+                         {"wall_s", wall}};
+        j["status"] = "ok";
+        j["observables"] = obs;
+        j["diagnostics"] = diag;
+        if (!o->saveShapes.empty()) {
+            saveShapes(o->saveShapes, s, which);
+            std::ofstream out(o->saveShapes + "/simulate.json");
+            out << j.dump(2) << '\n';
+            if (!out) throw InputError("cannot write " + o->saveShapes + "/simulate.json");
+        }
+        std::cout << j.dump(2) << std::endl;
+    });
+}
+
+}  // namespace trbc::cli

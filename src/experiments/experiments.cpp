@@ -1,0 +1,203 @@
+#include "experiments/experiments.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "membrane/model.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/icosphere.hpp"
+#include "solvers/minimize.hpp"
+#include "solvers/viscous_dynamics.hpp"
+
+namespace trbc {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+double meanEdgeLength(const Vertices& X, const Topology& topo) {
+    double sum = 0.0;
+    for (Eigen::Index e = 0; e < topo.edges.cols(); ++e) sum += (X.col(topo.edges(0, e)) - X.col(topo.edges(1, e))).norm();
+    return sum / static_cast<double>(topo.edges.cols());
+}
+
+const AreaVolumeConstraint kCellConstraint{cell::area, cell::volume};
+
+SolverDiagnostics staticDiagnostics(const MinimizeResult& r, Clock::time_point t0) {
+    SolverDiagnostics d;
+    d.converged = r.converged;
+    d.iterations = r.iterations;
+    d.evaluations = r.evaluations;
+    d.gradientNorm = r.gradientNorm;
+    if (r.multipliers.size() == 2) {
+        d.tension = r.multipliers[0];
+        d.pressure = r.multipliers[1];
+    }
+    d.wallSeconds = secondsSince(t0);
+    d.message = r.message;
+    return d;
+}
+
+MinimizeOptions staticOptions(const CellParameters& p, const MembraneModel& model, const Vertices& X,
+                              const ExperimentOptions& opt) {
+    MinimizeOptions mo;
+    mo.gradientTolerance = opt.staticTolerance * p.mu * meanEdgeLength(X, model.topology());
+    mo.maxIterations = opt.maxIterations;
+    return mo;
+}
+
+void requireConverged(const SolverDiagnostics& d, const std::string& what) {
+    if (!d.converged) throw NumericalError(fmt::format("{} did not converge: {}", what, d.message));
+}
+
+}  // namespace
+
+CellMeshes cellMeshes(const StressFreeState& sfs) {
+    CellMeshes m;
+    m.faces = sfs.mesh.F;
+    m.reference = scaleToArea(sfs.mesh.X, sfs.mesh.F, cell::area);
+    // E.1 variant: Evans-Fung map of the same icosphere, whose symmetry axis z is the SFS
+    // material axis (the SFS was seeded along z), so the material and shape axes coincide.
+    const Mesh ico = icosphere(sfs.level);
+    m.initial = scaleToArea(evansFungMap(ico.X), ico.F, cell::area);
+    return m;
+}
+
+EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& meshes, const ExperimentOptions& opt) {
+    const auto t0 = Clock::now();
+    const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
+    EquilibriumResult res;
+    Vertices X = meshes.initial;
+    const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint);
+    res.diagnostics = staticDiagnostics(r, t0);
+    requireConverged(res.diagnostics, "equilibrium shape");
+    res.shape = alignPrincipalAxes(X);
+    res.observables = equilibriumObservables(res.shape, meshes.faces, &res.profile);
+    res.diagnostics.wallSeconds = secondsSince(t0);
+    return res;
+}
+
+Vertices beadForces(const Vertices& X, const Faces& faces, double fext) {
+    const Topology topo = buildTopology(faces, X.cols());
+    const double h = meanEdgeLength(X, topo);
+    const double xbar = X.row(0).mean();
+    const double R0 = 0.5 * (X.row(0).maxCoeff() - X.row(0).minCoeff());
+    const double rc = 0.5 * cell::beadContactDiameter;
+    if (!(R0 > rc)) throw NumericalError(fmt::format("cell radius {:.4g} um is smaller than the bead contact radius", R0));
+    const double xc = std::sqrt(R0 * R0 - rc * rc);
+    std::vector<Eigen::Index> right, left;
+    for (Eigen::Index i = 0; i < X.cols(); ++i) {
+        const double dx = X(0, i) - xbar;
+        if (std::abs(dx - xc) <= 0.25 * h) right.push_back(i);
+        if (std::abs(dx + xc) <= 0.25 * h) left.push_back(i);
+    }
+    if (right.empty() || left.empty())
+        throw NumericalError(fmt::format("bead contact set is empty (right {}, left {} vertices)", right.size(), left.size()));
+    Vertices f = Vertices::Zero(3, X.cols());
+    for (auto i : right) f(0, i) += fext / static_cast<double>(right.size());
+    for (auto i : left) f(0, i) -= fext / static_cast<double>(left.size());
+    return f;
+}
+
+std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshes& meshes, const Vertices& equilibrium,
+                                        std::vector<double> forces, const ExperimentOptions& opt,
+                                        std::vector<Vertices>* shapes) {
+    std::sort(forces.begin(), forces.end());
+    const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
+    const Vertices unit = beadForces(equilibrium, meshes.faces, 1.0);
+    const MinimizeOptions mo = staticOptions(p, model, equilibrium, opt);
+    std::vector<StretchPoint> out;
+    Vertices X = equilibrium;
+    for (double f : forces) {
+        const auto t0 = Clock::now();
+        const Vertices fext = f * unit;
+        const MinimizeResult r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
+        StretchPoint pt;
+        pt.fext = f;
+        pt.diagnostics = staticDiagnostics(r, t0);
+        requireConverged(pt.diagnostics, fmt::format("stretching at {} pN", f));
+        pt.observables = stretchObservables(X);
+        out.push_back(pt);
+        if (shapes) shapes->push_back(X);
+    }
+    return out;
+}
+
+RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes, const Vertices& equilibrium,
+                               const ExperimentOptions& opt) {
+    RelaxationResult res;
+    res.preStretchForce = cell::preStretchForcePerMu * p.mu;
+    std::vector<Vertices> stretched;
+    const std::vector<StretchPoint> pre =
+        runStretching(p, meshes, equilibrium, {res.preStretchForce}, opt, &stretched);
+    res.preStretch = pre.front().diagnostics;
+    res.released = alignPrincipalAxes(stretched.front());
+
+    const auto t0 = Clock::now();
+    const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
+    ViscousDynamicsOptions vo;
+    vo.gamma = 4.0 * p.etam / std::sqrt(3.0);
+    if (opt.overdamped)
+        vo.isotropicFriction = opt.isotropicFriction * vo.gamma;
+    else
+        vo.vertexMass = opt.vertexMassKg * 1e6;  // kg -> pN s^2 / um
+    vo.tEnd = opt.relaxDuration;
+    const double tc0 = p.etam / p.mu;  // Kelvin-Voigt time, sets the first step
+    vo.dtInitial = 1e-3 * tc0;
+    vo.errorTolerance = opt.relaxErrorTolerance;
+    vo.inner.gradientTolerance = opt.relaxInnerTolerance * p.mu * meanEdgeLength(equilibrium, model.topology());
+    vo.inner.maxIterations = 5000;
+    vo.constraint = kCellConstraint;
+    std::vector<double> times;
+    for (int k = 1; k <= opt.relaxSamples; ++k) times.push_back(opt.relaxDuration * k / opt.relaxSamples);
+    Vertices X = res.released;
+    const DynamicsObserver observe = [&](double t, const Vertices& Y) {
+        const Eigen::Vector3d e = extents(alignPrincipalAxes(Y));
+        res.t.push_back(t);
+        res.L.push_back(e[0]);
+        res.W.push_back(e[1]);
+        res.z.push_back(e[0] / e[1]);
+    };
+    const ViscousDynamicsResult r = integrateViscous(model, X, vo, times, observe);
+    res.dynamics.converged = r.completed;
+    res.dynamics.iterations = r.steps;
+    res.dynamics.evaluations = r.evaluations;
+    res.dynamics.message = r.message;
+    res.dynamics.wallSeconds = secondsSince(t0);
+    res.rejectedSteps = r.rejectedSteps;
+    requireConverged(res.dynamics, "relaxation");
+    res.final = X;
+    // E.3: the fit starts at the first sample after release, z0 fixed to it.
+    const std::vector<double> tf(res.t.begin() + 1, res.t.end()), zf(res.z.begin() + 1, res.z.end());
+    res.fit = fitHochmuth(tf, zf);
+    if (!res.fit.converged) throw NumericalError("Hochmuth fit of the relaxation did not converge: " + res.fit.message);
+    return res;
+}
+
+SampleResult runSample(const CellParameters& p, double fext, const ExperimentSet& which, const ExperimentOptions& opt,
+                       const std::vector<double>& curveForces, bool keepShapes) {
+    SampleResult s;
+    s.parameters = p;
+    s.fext = fext;
+    s.sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
+    if (!which.equilibrium && !which.stretching && !which.relaxation) return s;
+    const CellMeshes meshes = cellMeshes(s.sfs);
+    s.equilibrium = runEquilibrium(p, meshes, opt);
+    if (which.stretching) {
+        std::vector<double> forces{fext};
+        s.stretching = runStretching(p, meshes, s.equilibrium.shape, forces, opt, keepShapes ? &s.stretchShapes : nullptr);
+        if (!curveForces.empty()) {
+            const auto curve = runStretching(p, meshes, s.equilibrium.shape, curveForces, opt,
+                                             keepShapes ? &s.stretchShapes : nullptr);
+            s.stretching.insert(s.stretching.end(), curve.begin(), curve.end());
+        }
+    }
+    if (which.relaxation) s.relaxation = runRelaxation(p, meshes, s.equilibrium.shape, opt);
+    return s;
+}
+
+}  // namespace trbc

@@ -1,0 +1,119 @@
+#pragma once
+// The three single-cell experiments of MODEL.md E (equilibrium, two-bead stretching, relaxation
+// after stretching), chained as SFS -> equilibrium -> stretching -> relaxation, in physical
+// units (um, pN, s). Static states are constrained minimisations (A = A0, V = V0 exactly, G.3);
+// the stretching continues over force levels; the relaxation integrates the overdamped
+// membrane-viscous dynamics with adaptive variational BDF2 steps.
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "experiments/hochmuth.hpp"
+#include "experiments/observables.hpp"
+#include "experiments/parameters.hpp"
+#include "experiments/sfs.hpp"
+#include "mesh/mesh.hpp"
+
+namespace trbc {
+
+struct ExperimentOptions {
+    int level = 4;                       ///< icosphere level of every mesh (Nv = 10 4^L + 2)
+    /// Static states stop when the largest tangential vertex force is below
+    /// staticTolerance * mu * l0 (l0 = mean edge length; G.3 suggests 1e-6).
+    double staticTolerance = 1e-5;
+    int maxIterations = 200000;
+    /// Relaxation: local error per step (max vertex displacement, um) and inner tolerance
+    /// (relative, like staticTolerance).
+    double relaxErrorTolerance = 2e-3;
+    double relaxInnerTolerance = 1e-6;
+    /// Relaxation dynamics (E.3): false = the reference's second-order dynamics with the vertex
+    /// mass below (baseline); true = overdamped Gamma dX/dt = -dU/dX (no inertia).
+    bool overdamped = false;
+    double vertexMassKg = 1e-11;         ///< reference vertex mass (1e-11 kg = 1e-5 pN s^2/um)
+    /// Overdamped only: isotropic friction eps, relative to gamma, that regularises the
+    /// edge-friction matrix on rigid and near-isometric motions (G.3).
+    double isotropicFriction = 1e-3;
+    double relaxDuration = 1.0;          ///< s
+    int relaxSamples = 100;              ///< at t = k duration / samples, k = 1..samples
+    std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
+    SfsOptions sfs;
+};
+
+struct SolverDiagnostics {
+    bool converged = false;
+    int iterations = 0;        ///< minimiser iterations or accepted time steps
+    int evaluations = 0;       ///< force evaluations
+    double wallSeconds = 0.0;
+    double gradientNorm = 0.0; ///< pN (static states)
+    double tension = 0.0;      ///< area multiplier, pN/um (static states)
+    double pressure = 0.0;     ///< volume multiplier, pN/um^2 (static states)
+    std::string message;
+};
+
+/// The experiments' mesh data for one sample: Lim reference (SFS rescaled to A0) and the
+/// equilibrium's initial shape (Evans-Fung map of the icosphere about the SFS material axis z).
+struct CellMeshes {
+    Faces faces;
+    Vertices reference;
+    Vertices initial;
+};
+CellMeshes cellMeshes(const StressFreeState& sfs);
+
+struct EquilibriumResult {
+    EquilibriumObservables observables;  ///< um
+    Vertices shape;                      ///< aligned (E.0), um
+    ThicknessProfile profile;
+    SolverDiagnostics diagnostics;
+};
+EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& meshes, const ExperimentOptions& opt);
+
+/// Bead forces of E.2 on an aligned shape (fixed vertex sets and vectors). Throws NumericalError
+/// if a contact set is empty.
+Vertices beadForces(const Vertices& alignedShape, const Faces& faces, double fextPn);
+
+struct StretchPoint {
+    double fext = 0.0;                   ///< pN
+    StretchObservables observables;      ///< um
+    SolverDiagnostics diagnostics;
+};
+/// Static equilibrium under the bead forces for every force of `forces` (sorted ascending;
+/// each level starts from the previous solution). Shapes are returned when `shapes` is given.
+std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshes& meshes, const Vertices& equilibrium,
+                                        std::vector<double> forces, const ExperimentOptions& opt,
+                                        std::vector<Vertices>* shapes = nullptr);
+
+struct RelaxationResult {
+    double preStretchForce = 0.0;        ///< pN
+    std::vector<double> t, L, W, z;      ///< s, um, um, -; t = 0 (release) first
+    HochmuthFit fit;                     ///< on the samples t >= duration / samples (E.3)
+    SolverDiagnostics preStretch, dynamics;
+    int rejectedSteps = 0;
+    Vertices released, final;            ///< aligned shape at release, shape at the end
+};
+RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes, const Vertices& equilibrium,
+                               const ExperimentOptions& opt);
+
+/// Which experiments a sample runs (stretching and relaxation need the equilibrium).
+struct ExperimentSet {
+    bool equilibrium = true, stretching = true, relaxation = true;
+};
+
+struct SampleResult {
+    CellParameters parameters;
+    double fext = 0.0;
+    StressFreeState sfs;
+    EquilibriumResult equilibrium;
+    std::vector<StretchPoint> stretching;  ///< the requested force first, then any curve levels
+    RelaxationResult relaxation;
+    std::vector<Vertices> stretchShapes;
+};
+
+/// One forward-model sample: SFS(v) (cached), then the chosen experiments. `curveForces`: extra
+/// force levels for a whole stretching curve (continuation). Throws NumericalError when a stage
+/// fails to converge.
+SampleResult runSample(const CellParameters& p, double fextPn, const ExperimentSet& which,
+                       const ExperimentOptions& opt, const std::vector<double>& curveForces = {},
+                       bool keepShapes = false);
+
+}  // namespace trbc

@@ -1,0 +1,61 @@
+#pragma once
+// Parameters of one red-cell sample in physical units, the prior box (MODEL.md F.2) and the
+// membrane model that the experiments use (E, fixed constants of F.1).
+//
+// Internal units of the experiments (MODEL.md A.1): um, pN, s. Moduli then keep their paper
+// values (uN/m = pN/um, Pa s um = pN s/um) except kb: 1 J = 1e18 pN um.
+#include <string>
+
+#include "membrane/parameters.hpp"
+
+namespace trbc {
+
+/// Constants of the cell and of the experiments (MODEL.md A.2, E, F.1).
+namespace cell {
+inline constexpr double area = 135.0;                      // A0, um^2
+inline constexpr double volume = 94.0;                     // V0, um^3
+inline constexpr double radiusSquared = 10.742958658;      // R_A^2 = A0 / (4 pi), um^2
+inline constexpr double joule = 1e18;                      // pN um per J
+inline constexpr double a3 = -2.0, a4 = 8.0, b1 = 0.7;     // Lim coefficients (reference values)
+inline constexpr double beadContactDiameter = 2.0;         // um (E.2)
+inline constexpr double preStretchForcePerMu = 7.5386;     // pN per (uN/m): 2.3 mu R_A (E.3)
+inline constexpr double sfsArea = 140.0;                   // um^2, area at which the SFS is generated (D)
+}  // namespace cell
+
+/// theta = (v, mu, FvK, b2, eta_m) of MODEL.md F.1, in the units of the canonical names.
+struct CellParameters {
+    double v = 0.95;
+    double mu = 4.0;      ///< mu_uN_per_m
+    double FvK = 250.0;   ///< mu R_A^2 / kb
+    double b2 = 1.5;
+    double etam = 0.7;    ///< etam_Pa_s_um
+
+    double kbPnUm() const { return mu * cell::radiusSquared / FvK; }
+    double kbJoule() const { return kbPnUm() / cell::joule; }
+    static double fvkFromKb(double mu, double kbJoule) { return mu * cell::radiusSquared / (kbJoule * cell::joule); }
+};
+
+/// The prior box of MODEL.md F.2 (FvK support [10, 1000], Fext [0, 200] pN).
+struct PriorRange {
+    const char* name;
+    double lo, hi;
+};
+inline constexpr PriorRange kPriorV{"v", 0.65, 1.0};
+inline constexpr PriorRange kPriorMu{"mu_uN_per_m", 1.0, 10.0};
+inline constexpr PriorRange kPriorFvK{"FvK", 10.0, 1000.0};
+inline constexpr PriorRange kPriorB2{"b2", 0.0, 4.0};
+inline constexpr PriorRange kPriorEtam{"etam_Pa_s_um", 0.1, 1.0};
+inline constexpr PriorRange kPriorFext{"Fext_pN", 0.0, 200.0};
+
+/// Throws InputError naming the parameter and its valid range when a value is not finite or
+/// (unless `allowOutsidePrior`) outside the prior box; physically impossible values (v outside
+/// (0, 1], non-positive moduli, negative b2 or force) are rejected in any case.
+void validateCellParameters(const CellParameters& p, bool allowOutsidePrior);
+void validateForce(double fextPn, bool allowOutsidePrior);
+
+/// Membrane moduli of the experiments (E): Kalpha = mu, kb = mu R_A^2 / FvK, Lim coefficients of
+/// F.1, C0 = 0, no ADE. The global area and volume are imposed exactly (solvers), so the penalty
+/// moduli are zero here.
+MembraneParameters experimentMembrane(const CellParameters& p);
+
+}  // namespace trbc
