@@ -147,6 +147,12 @@ void registerSimulate(CLI::App& app) {
     cmd->add_option("--tol", o->exp.staticTolerance,
                     "static states stop when the largest tangential vertex force < tol * mu * l0")
         ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--relax-tol", o->exp.relaxErrorTolerance,
+                    "relaxation: local error per time step (largest vertex displacement, um)")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--relax-inner-tol", o->exp.relaxInnerTolerance,
+                    "relaxation: each implicit step stops when the largest vertex force residual < this * mu * l0")
+        ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_flag("--overdamped", o->exp.overdamped,
                   "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
     cmd->add_option("--threads", o->threads, "OpenMP threads for the force evaluation")

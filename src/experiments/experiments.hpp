@@ -25,8 +25,8 @@ struct ExperimentOptions {
     int maxIterations = 200000;
     /// Relaxation: local error per step (max vertex displacement, um) and inner tolerance
     /// (relative, like staticTolerance).
-    double relaxErrorTolerance = 2e-3;
-    double relaxInnerTolerance = 1e-6;
+    double relaxErrorTolerance = 5e-3;
+    double relaxInnerTolerance = 1e-3;
     /// Relaxation dynamics (E.3): false = the reference's second-order dynamics with the vertex
     /// mass below (baseline); true = overdamped Gamma dX/dt = -dU/dX (no inertia).
     bool overdamped = false;

@@ -91,9 +91,20 @@ HochmuthFit fitHochmuth(const std::vector<double>& t, const std::vector<double>&
     double lambda = 1e-3;
     const int maxIterations = 500;
     const double stepTol = 1e-12, gradTol = 1e-14;
+    const double zScale = Eigen::Map<const Eigen::VectorXd>(z.data(), r.size()).cwiseAbs().maxCoeff();
     auto finish = [&](bool converged, std::string message) {
+        // A stationary point where z(t_k) does not depend on tc (tc far below the first sample
+        // interval, or zInf = z0) leaves tc undetermined: report it instead of an arbitrary value.
+        if (converged && J.col(0).norm() <= 1e-8 * std::sqrt(n) * zScale) {
+            converged = false;
+            message = "tc is not determined by the data: the fitted law does not depend on it (" + message + ")";
+        }
         fit.tc = std::exp(p[0]);
         fit.zInf = p[1];
+        if (!std::isfinite(fit.tc)) {
+            converged = false;
+            message = "tc diverged to infinity: the data show no relaxation (" + message + ")";
+        }
         fit.rms = std::sqrt(2.0 * cost / n);
         fit.converged = converged;
         fit.message = std::move(message);
@@ -133,7 +144,6 @@ HochmuthFit fitHochmuth(const std::vector<double>& t, const std::vector<double>&
         if (!accepted) {
             // No damped step decreases the cost: either the fit is exact up to round-off, or the
             // Gauss-Newton model promises less than the cost's own round-off (a minimum), or a stall.
-            const double zScale = Eigen::Map<const Eigen::VectorXd>(z.data(), r.size()).cwiseAbs().maxCoeff();
             if (std::sqrt(2.0 * cost / n) <= 1e-12 * zScale) return finish(true, "exact fit (round-off level)");
             const double predicted = 0.5 * g.dot(H.ldlt().solve(g));  // Gauss-Newton decrease
             if (predicted <= 1e-10 * cost) return finish(true, "no further decrease (round-off level)");

@@ -106,6 +106,9 @@ ThicknessProfile thicknessProfile(const Vertices& alignedX, const Faces& F, doub
     if (rays < 2) throw InputError(fmt::format("thicknessProfile: rays = {} must be >= 2", rays));
     if (!(radius > 0.0) || !std::isfinite(radius))
         throw InputError(fmt::format("thicknessProfile: radius = {} must be positive and finite", radius));
+    if (F.cols() > 0 && (F.minCoeff() < 0 || F.maxCoeff() >= alignedX.cols()))
+        throw InputError("thicknessProfile: face index out of range");
+    if (!alignedX.allFinite()) throw NumericalError("thicknessProfile: non-finite vertex positions");
     RaySlab slab(radius, rays);
     for (Eigen::Index f = 0; f < F.cols(); ++f) {
         const std::array<int, 3> id = {F(0, f), F(1, f), F(2, f)};

@@ -15,7 +15,8 @@ struct ThicknessProfile {
 /// E.1 step 3: on a mesh already in its principal frame (z = thinnest axis), cast `rays` rays
 /// parallel to z through (r_k, 0), r_k = k/(rays-1) * radius, k = 0..rays-1, exact ray-triangle
 /// intersection; zLow/zHigh = min/max z over all intersection points of the ray; rays that miss
-/// are dropped. Requires rays >= 2 and a finite radius >= 0; face indices must be valid.
+/// are dropped. Requires rays >= 2, a finite radius > 0, valid face indices (else InputError) and
+/// finite positions (else NumericalError).
 ThicknessProfile thicknessProfile(const Vertices& alignedX, const Faces& F, double radius, int rays = 2000);
 
 struct EquilibriumObservables {

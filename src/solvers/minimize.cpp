@@ -51,12 +51,21 @@ public:
 
     void at(const Eigen::VectorXd& x) {
         con_->evaluate(x, c_, J_);
-        gram_.compute(J_.transpose() * J_);
+        const Eigen::Index m = J_.cols();
+        Eigen::MatrixXd gram(m, m);  // J^T J by dot products (a general GEMM is slow for m = 2)
+        for (Eigen::Index a = 0; a < m; ++a)
+            for (Eigen::Index b = 0; b <= a; ++b) gram(a, b) = gram(b, a) = J_.col(a).dot(J_.col(b));
+        gram_.compute(gram);
     }
     double error() const { return (c_.array().abs() / con_->scale.array()).maxCoeff(); }
     // lambda = (J^T J)^{-1} J^T g: least-squares multipliers of the gradient g.
-    Eigen::VectorXd multipliers(const Eigen::VectorXd& g) const { return gram_.solve(J_.transpose() * g); }
+    Eigen::VectorXd multipliers(const Eigen::VectorXd& g) const {
+        Eigen::VectorXd jg(J_.cols());
+        for (Eigen::Index a = 0; a < J_.cols(); ++a) jg[a] = J_.col(a).dot(g);
+        return gram_.solve(jg);
+    }
     const Eigen::MatrixXd& jacobian() const { return J_; }
+    const Eigen::VectorXd& values() const { return c_; }
     // v <- (I - J (J^T J)^{-1} J^T) v.
     void project(Eigen::VectorXd& v) const { v -= J_ * multipliers(v); }
 
@@ -137,14 +146,17 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         // then belongs to the trial point).
         bool accepted = false;
         double fNew = fx;
+        const double merit = manifold.active() ? fx - lambda.dot(manifold.values()) : fx;
         for (int ls = 0; ls < 40; ++ls) {
             xNew = x + t * d;
             if (!manifold.active() || manifold.retract(xNew)) {
                 fNew = f(xNew, gNew);
                 ++res.evaluations;
+                // Merit: the Lagrangian f - lambda.c, blind to the retraction's residual c.
+                const double meritNew = manifold.active() ? fNew - lambda.dot(manifold.values()) : fNew;
                 if (std::isfinite(fNew) && gNew.allFinite()) {
                     const double noise = 100.0 * eps * std::abs(fx);
-                    if (fNew <= fx + c1 * t * slope)
+                    if (meritNew <= merit + c1 * t * slope)
                         accepted = true;
                     else if (std::abs(fNew - fx) <= noise && std::abs(gNew.dot(d)) <= 0.9 * std::abs(slope))
                         accepted = true;

@@ -36,7 +36,7 @@ struct EqualityConstraints {
     /// Writes the values c (m) and the Jacobian columns J = [dc_1/dx ... dc_m/dx] (n x m).
     std::function<void(const Eigen::VectorXd& x, Eigen::VectorXd& c, Eigen::MatrixXd& J)> evaluate;
     Eigen::VectorXd scale;            ///< c is satisfied when |c_k| <= tolerance * scale_k
-    double tolerance = 1e-12;
+    double tolerance = 1e-10;
     int maxNewtonIterations = 20;
 };
 

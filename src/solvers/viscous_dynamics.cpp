@@ -68,6 +68,7 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
                                  [&](double t) { return t <= 0 || t > opt.tEnd; }),
                   samples.end());
     samples.push_back(opt.tEnd);
+    samples.erase(std::unique(samples.begin(), samples.end()), samples.end());
     std::size_t nextSample = 0;
     if (observer) observer(0.0, X);
 
@@ -87,9 +88,13 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
         bool hitsSample = false;
         double h = dt;
         if (history >= 1) h = std::min(h, 2.4 * dtPrev);  // variable-step BDF2 is zero-stable for w < 1 + sqrt 2
-        if (t + h >= target * (1 - 1e-12)) {
+        if (!opt.interpolateSamples && t + h >= target * (1 - 1e-12)) {
             h = target - t;
             hitsSample = true;
+        }
+        if (t + h >= opt.tEnd * (1 - 1e-12)) {
+            h = opt.tEnd - t;
+            hitsSample = !opt.interpolateSamples;
         }
         double c0 = 1.0;
         Vertices Y = X, Yv = V;
@@ -155,6 +160,23 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
             t = target;
             if (observer) observer(t, X);
             ++nextSample;
+        } else if (opt.interpolateSamples) {
+            // Dense output: quadratic through (t - h - dtPrev2, t - h, t), the BDF2 interpolant.
+            const double tNew = t;
+            while (nextSample < samples.size() && samples[nextSample] <= tNew * (1 + 1e-12)) {
+                const double ts = samples[nextSample++];
+                if (history < 2) {
+                    const double a = (ts - (tNew - h)) / h;
+                    if (observer) observer(ts, Vertices((1 - a) * Xprev + a * X));
+                    continue;
+                }
+                const double t0 = tNew - h - dtPrev2, t1 = tNew - h, t2 = tNew;
+                const double l0 = (ts - t1) * (ts - t2) / ((t0 - t1) * (t0 - t2));
+                const double l1 = (ts - t0) * (ts - t2) / ((t1 - t0) * (t1 - t2));
+                const double l2 = (ts - t0) * (ts - t1) / ((t2 - t0) * (t2 - t1));
+                if (observer) observer(ts, Vertices(l0 * Xprev2 + l1 * Xprev + l2 * X));
+            }
+            if (tNew >= opt.tEnd * (1 - 1e-12)) t = opt.tEnd;
         }
         if (opt.adaptive) {
             // After a step shortened to hit a sample, keep the step that the error control wanted.

@@ -31,6 +31,9 @@ struct ViscousDynamicsOptions {
     double dtMin = 1e-14;
     double errorTolerance = 1e-4;     ///< local error per step, max vertex displacement (length)
     bool adaptive = true;             ///< false: fixed step dtInitial
+    /// false: steps are shortened to land on every sample time; true: steps follow the error
+    /// control alone and samples are interpolated (BDF2 quadratic through the last three states)
+    bool interpolateSamples = false;
     MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
     AreaVolumeConstraint constraint;  ///< exact area/volume constraints during the motion (none by default)
 };
