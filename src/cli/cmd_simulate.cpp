@@ -147,6 +147,8 @@ void registerSimulate(CLI::App& app) {
     cmd->add_option("--tol", o->exp.staticTolerance,
                     "static states stop when the largest tangential vertex force < tol * mu * l0")
         ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--max-iter", o->exp.maxIterations, "iteration limit of each static minimisation")
+        ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_option("--relax-tol", o->exp.relaxErrorTolerance,
                     "relaxation: local error per time step (largest vertex displacement, um)")
         ->check(CLI::PositiveNumber)->capture_default_str();

@@ -32,8 +32,9 @@ struct ExperimentOptions {
     bool overdamped = false;
     double vertexMassKg = 1e-11;         ///< reference vertex mass (1e-11 kg = 1e-5 pN s^2/um)
     /// Overdamped only: isotropic friction eps, relative to gamma, that regularises the
-    /// edge-friction matrix on rigid and near-isometric motions (G.3).
-    double isotropicFriction = 1e-3;
+    /// edge-friction matrix on rigid and near-isometric motions (G.3). tc at the reference point,
+    /// level 3: 0.1981 s (eps 1e-3), 0.1815 (1e-4), 0.1795 (1e-5), 0.1792 (1e-6).
+    double isotropicFriction = 1e-5;
     double relaxDuration = 1.0;          ///< s
     int relaxSamples = 100;              ///< at t = k duration / samples, k = 1..samples
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
