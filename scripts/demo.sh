@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# make demo: a short showcase of the membrane engine (later issues grow it into the calibration).
+# make demo: a short showcase of the membrane engine and the forward model (later issues grow it
+# into the calibration).
 #  1. a level-4 icosphere (Nv = 2562) and the Evans-Fung resting cell, scaled to A0 = 135 um^2;
 #  2. forces of the full model on the cell (cross-check command);
-#  3. relaxation of a sphere to the biconcave discocyte at reduced volume 0.64 (MODEL.md D units).
+#  3. relaxation of a sphere to the biconcave discocyte at reduced volume 0.64 (MODEL.md D units);
+#  4. one forward-model sample at the reference point with a stretching curve, and its figures.
 # Outputs go to out/demo/ (VTK files open in ParaView with force, mean curvature and area fields).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -39,4 +41,19 @@ print(f"   converged={g['converged']} iterations={g['iterations']} max force={g[
       f"wall={g['wall_s']:.2f} s")
 print(f"   v={m['reduced_volume']:.4f}  extents={e[0]:.3f} x {e[1]:.3f} x {e[2]:.3f} (units of R_A')")
 PY
+echo "== forward model at the reference point (level 4): SFS, equilibrium, stretching curve, relaxation"
+$T simulate --level 4 --force-curve 0,16.4,30.78,47.6,67.2,88.3,108.9,130.3,150.5,173.1,193.1 \
+  --save-shapes "$O/simulate_L4" > "$O/simulate_L4.json"
+python3 - "$O/simulate_L4.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+o, t = d["observables"], d["diagnostics"]["total"]
+print("   " + "  ".join(f"{k}={v:.4g}" for k, v in o.items()))
+print(f"   {t['force_evaluations']} force evaluations ({t['reduction_factor']:.0f}x fewer than the reference protocol), "
+      f"{t['wall_s']:.2f} s")
+PY
+if /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
+  /usr/bin/python3 scripts/plot_forward.py "$O/simulate_L4" --out "$O/figures" > /dev/null
+  echo "   figures in $O/figures/"
+fi
 echo "demo outputs in $O/ (open the .vtk files in ParaView)"
