@@ -15,10 +15,17 @@
 
 #include "core/error.hpp"
 #include "mesh/io.hpp"
+#include "test_support.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using trbc::test::CliRun;
+using trbc::test::shellQuote;
+using trbc::test::slurp;
+using trbc::test::TempDir;
+
+CliRun runCli(const std::string& args, const TempDir& tmp) { return trbc::test::runTrbc(args, tmp.path()); }
 
 struct BadMesh {
     const char* file;    ///< in tests/data/bad_meshes (missing.off deliberately does not exist)
@@ -60,16 +67,6 @@ const fs::path kDir = fs::path(TRBC_TEST_DATA) / "bad_meshes";
 
 std::string pathOf(const char* file) { return (kDir / file).string(); }
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-std::string shellQuote(const std::string& s) {
-    std::string q = "'";
-    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
 
 /// The InputError message of readOff(path); fails the test (and returns "") if there is none.
 std::string readOffError(const std::string& path) {
@@ -85,44 +82,6 @@ std::string readOffError(const std::string& path) {
     return "";
 }
 
-struct CliRun {
-    int status;  ///< exit status, -1 if the process did not exit normally
-    std::string out, err;
-};
-
-/// A scratch directory per test, removed afterwards.
-class TempDir {
-public:
-    TempDir() {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        std::string name = std::string(info->test_suite_name()) + "_" + info->name();
-        for (char& c : name)
-            if (c == '/') c = '_';
-        path_ = fs::temp_directory_path() / ("trbc_" + std::to_string(::getpid()) + "_" + name);
-        fs::remove_all(path_);
-        fs::create_directories(path_);
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    const fs::path& path() const { return path_; }
-
-private:
-    fs::path path_;
-};
-
-CliRun runCli(const std::string& args, const TempDir& tmp) {
-    const fs::path out = tmp.path() / "stdout.txt", err = tmp.path() / "stderr.txt";
-    const std::string cmd = shellQuote(TRBC_CLI) + " " + args + " </dev/null >" + shellQuote(out.string()) +
-                            " 2>" + shellQuote(err.string());
-    const int raw = std::system(cmd.c_str());
-    CliRun r;
-    r.status = raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-}
 
 class BadMeshTest : public ::testing::TestWithParam<BadMesh> {};
 

@@ -1,6 +1,13 @@
 #include "test_support.hpp"
 
 #include <Eigen/Geometry>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
 
 #include "mesh/icosphere.hpp"
 #include "mesh/topology.hpp"
@@ -49,6 +56,46 @@ Eigen::Matrix3d randomRotation(unsigned seed) {
     std::normal_distribution<double> n;
     Eigen::Quaterniond q(n(rng), n(rng), n(rng), n(rng));
     return q.normalized().toRotationMatrix();
+}
+
+namespace fs = std::filesystem;
+
+TempDir::TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = info ? std::string(info->test_suite_name()) + "_" + info->name() : "trbc";
+    for (char& c : name)
+        if (c == '/') c = '_';
+    path_ = fs::temp_directory_path() / ("trbc_" + std::to_string(::getpid()) + "_" + name);
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+}
+
+TempDir::~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+}
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+std::string shellQuote(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
+CliRun runTrbc(const std::string& args, const fs::path& scratch) {
+    const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
+    const std::string cmd = shellQuote(TRBC_CLI) + " " + args + " </dev/null >" + shellQuote(out.string()) + " 2>" +
+                            shellQuote(err.string());
+    const int raw = std::system(cmd.c_str());
+    CliRun r;
+    r.status = raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
 }
 
 }  // namespace trbc::test

@@ -1,6 +1,7 @@
 #pragma once
 // Shared helpers for the test suite.
 #include <Eigen/Core>
+#include <filesystem>
 #include <random>
 #include <string>
 
@@ -27,5 +28,29 @@ double meanEdgeLength(const Mesh& m);
 
 /// A random rotation matrix (fixed seed).
 Eigen::Matrix3d randomRotation(unsigned seed);
+
+/// A scratch directory named after the running test, removed afterwards.
+class TempDir {
+public:
+    TempDir();
+    ~TempDir();
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+    const std::filesystem::path& path() const { return path_; }
+
+private:
+    std::filesystem::path path_;
+};
+
+std::string slurp(const std::filesystem::path& p);
+std::string shellQuote(const std::string& s);
+
+struct CliRun {
+    int status;  ///< exit status, -1 if the process did not exit normally
+    std::string out, err;
+};
+/// Runs the trbc CLI with `args` (already shell-quoted where needed), stdin from /dev/null,
+/// stdout and stderr captured through files in `scratch`.
+CliRun runTrbc(const std::string& args, const std::filesystem::path& scratch);
 
 }  // namespace trbc::test

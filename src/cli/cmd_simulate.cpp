@@ -144,19 +144,7 @@ void registerSimulate(CLI::App& app) {
     cmd->add_option("--force-curve", o->forceCurve,
                     "extra force levels in pN, comma-separated, for a whole stretching curve (continuation)");
     cmd->add_flag("--allow-outside-prior", o->allowOutside, "accept parameters outside the prior box (studies)");
-    cmd->add_option("--tol", o->exp.staticTolerance,
-                    "static states stop when the largest tangential vertex force < tol * mu * l0")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--max-iter", o->exp.maxIterations, "iteration limit of each static minimisation")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--relax-tol", o->exp.relaxErrorTolerance,
-                    "relaxation: local error per time step (largest vertex displacement, um)")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--relax-inner-tol", o->exp.relaxInnerTolerance,
-                    "relaxation: each implicit step stops when the largest vertex force residual < this * mu * l0")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_flag("--overdamped", o->exp.overdamped,
-                  "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
+    addSolverOptions(cmd, o->exp);
     cmd->add_option("--threads", o->threads, "OpenMP threads for the force evaluation")
         ->check(CLI::Range(1, 1024))->capture_default_str();
     addCacheOptions(cmd, o->cache);

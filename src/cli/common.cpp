@@ -96,4 +96,20 @@ void ensureWritableDirectory(const std::string& dir) {
     if (::access(dir.c_str(), W_OK) != 0) throw InputError(fmt::format("output directory {} is not writable", dir));
 }
 
+void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
+    cmd->add_option("--tol", e.staticTolerance,
+                    "static states stop when the largest tangential vertex force < tol * mu * l0")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--max-iter", e.maxIterations, "iteration limit of each static minimisation")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--relax-tol", e.relaxErrorTolerance,
+                    "relaxation: local error per time step (largest vertex displacement, um)")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--relax-inner-tol", e.relaxInnerTolerance,
+                    "relaxation: each implicit step stops when the largest vertex force residual < this * mu * l0")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_flag("--overdamped", e.overdamped,
+                  "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
+}
+
 }  // namespace trbc::cli

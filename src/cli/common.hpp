@@ -6,6 +6,7 @@
 #include <string>
 
 #include "membrane/model.hpp"
+#include "experiments/experiments.hpp"
 #include "experiments/sfs.hpp"
 #include "membrane/parameters.hpp"
 #include "mesh/mesh.hpp"
@@ -50,7 +51,11 @@ std::filesystem::path cacheDirectory(const CacheOptions& c);
 /// Diagnostics of a stress-free state as JSON.
 nlohmann::json sfsJson(const StressFreeState& s);
 
+/// Solver tolerances of the experiments: --tol --max-iter --relax-tol --relax-inner-tol --overdamped.
+void addSolverOptions(CLI::App* cmd, ExperimentOptions& e);
+
 void registerForces(CLI::App& app);
+void registerCampaign(CLI::App& app);
 void registerSfs(CLI::App& app);
 void registerSimulate(CLI::App& app);
 void registerMesh(CLI::App& app);

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     trbc::cli::registerMinimize(app);
     trbc::cli::registerSfs(app);
     trbc::cli::registerSimulate(app);
+    trbc::cli::registerCampaign(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -1,0 +1,164 @@
+// trbc campaign: the training campaign of SURROGATE.md 2 (issue 5). Parses, then calls
+// sampling/campaign; under MPI (built with TRBC_WITH_MPI, run with mpirun) the cells are shared
+// round robin between ranks, each rank checkpointing to its own part file.
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#ifdef TRBC_WITH_MPI
+#include <mpi.h>
+#endif
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "sampling/campaign.hpp"
+
+namespace trbc::cli {
+namespace {
+
+std::string hms(double s) {
+    if (!std::isfinite(s) || s < 0) return "--";
+    const long t = long(s + 0.5);
+    return t >= 3600 ? fmt::format("{}h{:02}m", t / 3600, t / 60 % 60) : fmt::format("{}m{:02}s", t / 60, t % 60);
+}
+
+/// A progress bar with rate and ETA on a terminal; plain log lines (every 30 s) otherwise.
+class ProgressReporter {
+public:
+    explicit ProgressReporter(int ranks) : ranks_(ranks), tty_(::isatty(STDERR_FILENO)) {}
+    void operator()(const CampaignProgress& p) {
+        const double now = p.elapsedSeconds;
+        const long computed = p.cellsDone - p.cellsResumed, left = p.cellsTotal - p.cellsDone;
+        const double rate = now > 0 ? computed / now : 0.0;  // cells per second, this rank
+        const double eta = rate > 0 ? left / rate : NAN;
+        const bool last = p.cellsDone == p.cellsTotal;
+        if (tty_) {
+            const int width = 30, filled = p.cellsTotal ? int(width * p.cellsDone / p.cellsTotal) : width;
+            std::fprintf(stderr, "\r[%s%s] %ld/%ld cells  %ld ok %ld failed  %.1f cells/min  ETA %s   ",
+                         std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), p.cellsDone,
+                         p.cellsTotal, p.rowsOk, p.rowsFailed, 60.0 * rate, hms(eta).c_str());
+            if (last) std::fputc('\n', stderr);
+        } else if (last || p.cellsDone == p.cellsResumed || now - lastLog_ >= 30.0) {
+            lastLog_ = now;
+            std::fprintf(stderr, "campaign%s: %ld/%ld cells (%ld resumed), rows %ld ok %ld failed, %.1f cells/min, elapsed %s, ETA %s\n",
+                         ranks_ > 1 ? " rank 0" : "", p.cellsDone, p.cellsTotal, p.cellsResumed, p.rowsOk, p.rowsFailed,
+                         60.0 * rate, hms(now).c_str(), hms(eta).c_str());
+        }
+        std::fflush(stderr);
+    }
+
+private:
+    int ranks_;
+    bool tty_;
+    double lastLog_ = -1e9;
+};
+
+std::set<long> parseIdList(const std::string& text) {
+    std::set<long> ids;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        std::size_t used = 0;
+        long id = -1;
+        try {
+            id = std::stol(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != item.size() || id < 0)
+            throw InputError(fmt::format("--inject-failures: '{}' is not a sample id (non-negative integer)", item));
+        ids.insert(id);
+    }
+    return ids;
+}
+
+}  // namespace
+
+void registerCampaign(CLI::App& app) {
+    struct Opts {
+        CampaignOptions c;
+        std::string design = "uniform", out, inject;
+        int level = 4;
+        CacheOptions cache;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "campaign",
+        "Training campaign over the input box of SURROGATE.md 1.1: one CSV row per sample (v, mu_uN_per_m, FvK, b2, "
+        "etam_Pa_s_um, Fext_pN -> D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s, status, reason, wall_s) in "
+        "OUT/samples.csv, provenance in OUT/campaign.json. Checkpoints every cell; --resume continues a killed run. "
+        "Under MPI (mpirun -n P trbc campaign ...) the cells are shared between ranks");
+    cmd->add_option("--samples", o->c.samples, "number of samples (rows)")->capture_default_str();
+    cmd->add_option("--design", o->design, "uniform (i.i.d., as the reference) or lhs (Latin hypercube)")
+        ->capture_default_str();
+    cmd->add_option("--seed", o->c.seed, "seed of the design")->capture_default_str();
+    cmd->add_option("--level", o->level, "icosphere level of the meshes (4: Nv = 2562, the training level)")
+        ->capture_default_str();
+    cmd->add_option("--forces-per-cell", o->c.forcesPerCell,
+                    "rows per cell: the rows of a cell share (v, mu, FvK, b2, etam) and one SFS, equilibrium, "
+                    "stretching continuation and relaxation, and differ in Fext. 1 = the paper's one force per sample")
+        ->capture_default_str();
+    cmd->add_option("--out", o->out, "output directory")->required();
+    cmd->add_option("--threads", o->c.threads, "cells run concurrently (one thread each)")->capture_default_str();
+    cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required)");
+    cmd->add_option("--inject-failures", o->inject,
+                    "comma-separated sample ids whose cell fails on purpose (to test failure records)");
+    addSolverOptions(cmd, o->c.experiment);
+    addCacheOptions(cmd, o->cache);
+    cmd->callback([o]() {
+        CampaignOptions c = o->c;
+        c.design = parseDesignKind(o->design);
+        c.outDir = o->out;
+        c.command = commandLine();
+        c.experiment.level = o->level;
+        c.experiment.cacheDir = cacheDirectory(o->cache);
+        if (!o->inject.empty()) c.injectFailures = parseIdList(o->inject);
+        int rank = 0, ranks = 1;
+#ifdef TRBC_WITH_MPI
+        int provided = 0;
+        MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+        MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+#endif
+        ProgressReporter reporter(ranks);
+        if (rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
+        const auto t0 = std::chrono::steady_clock::now();
+        CampaignSummary share, s;
+        std::string error;
+        try {
+            if (rank == 0) prepareCampaign(c);
+#ifdef TRBC_WITH_MPI
+            MPI_Barrier(MPI_COMM_WORLD);
+#endif
+            share = runCampaignShare(c, rank, ranks);
+        } catch (const std::exception& e) {
+            error = e.what();
+        }
+#ifdef TRBC_WITH_MPI
+        int failed = error.empty() ? 0 : 1, anyFailed = 0;
+        MPI_Allreduce(&failed, &anyFailed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+        if (anyFailed && error.empty()) error = "another rank failed (see its message)";
+#endif
+        if (error.empty() && rank == 0)
+            s = finalizeCampaign(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+#ifdef TRBC_WITH_MPI
+        MPI_Finalize();
+#endif
+        if (!error.empty()) throw InputError(error);
+        if (rank != 0) return;
+        std::cout << fmt::format("campaign: {} of {} samples done ({} ok, {} failed); {} cells computed now, {} resumed; "
+                                 "{:.1f} s\n",
+                                 s.samples, c.samples, s.ok, s.failed, share.cellsComputed, share.cellsResumed,
+                                 s.wallSeconds);
+        std::cout << (s.complete ? fmt::format("table: {}\n", (c.outDir / "samples.csv").string())
+                                 : std::string("incomplete: rerun with --resume\n"));
+        if (!s.complete) throw NumericalError("campaign incomplete");
+    });
+}
+
+}  // namespace trbc::cli

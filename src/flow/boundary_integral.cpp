@@ -1,0 +1,536 @@
+#include "flow/boundary_integral.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "flow/stokes_kernels.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/validate.hpp"
+
+namespace trbc {
+namespace {
+
+using stokes::Mat3;
+using stokes::Vec3;
+using Eigen::Index;
+
+constexpr double kPi = std::numbers::pi;
+// Quadrature points per block of the far loops: the square roots of a block go through Eigen's
+// packet sqrt (std::sqrt with errno semantics blocks vectorisation of the loop itself).
+constexpr int kBlock = 256;
+
+/// A rule on the reference triangle: barycentric coordinates (points x 3), weights summing to 1.
+struct TriangleRule {
+    Eigen::MatrixX3d bary;
+    Eigen::VectorXd weight;
+};
+
+/// Symmetric rules (Strang & Fix 1973; Dunavant 1985): degree 1, 2, 4, 5 for 1, 3, 6, 7 points.
+TriangleRule symmetricRule(int points) {
+    TriangleRule r;
+    std::vector<std::array<double, 4>> p;  // b0, b1, b2, w
+    auto orbit3 = [&](double a, double w) {  // (a, a, 1 - 2a) and its permutations
+        const double b = 1.0 - 2.0 * a;
+        p.push_back({a, a, b, w});
+        p.push_back({a, b, a, w});
+        p.push_back({b, a, a, w});
+    };
+    switch (points) {
+        case 1: p.push_back({1.0 / 3, 1.0 / 3, 1.0 / 3, 1.0}); break;
+        case 3: orbit3(1.0 / 6, 1.0 / 3); break;
+        case 6:
+            orbit3(0.445948490915965, 0.223381589678011);
+            orbit3(0.091576213509771, 0.109951743655322);
+            break;
+        case 7:
+            p.push_back({1.0 / 3, 1.0 / 3, 1.0 / 3, 0.225});
+            orbit3(0.470142064105115, 0.132394152788506);
+            orbit3(0.101286507323456, 0.125939180544827);
+            break;
+        default:
+            throw InputError(fmt::format("quadrature farPoints = {}: must be 1, 3, 6 or 7", points));
+    }
+    r.bary.resize(static_cast<Index>(p.size()), 3);
+    r.weight.resize(static_cast<Index>(p.size()));
+    for (Index q = 0; q < r.weight.size(); ++q) {
+        for (int m = 0; m < 3; ++m) r.bary(q, m) = p[q][m];
+        r.weight[q] = p[q][3];
+    }
+    return r;
+}
+
+/// The rule applied on the 4^levels sub-triangles of midpoint subdivision.
+TriangleRule subdividedRule(const TriangleRule& base, int levels) {
+    std::vector<Eigen::Matrix3d> tris{Eigen::Matrix3d::Identity()};  // rows: corners (barycentric)
+    for (int l = 0; l < levels; ++l) {
+        std::vector<Eigen::Matrix3d> next;
+        for (const auto& t : tris) {
+            const Eigen::RowVector3d a = t.row(0), b = t.row(1), c = t.row(2);
+            const Eigen::RowVector3d ab = 0.5 * (a + b), bc = 0.5 * (b + c), ca = 0.5 * (c + a);
+            for (const auto& [p, q, s] : {std::array{a, ab, ca}, std::array{ab, b, bc},
+                                          std::array{ca, bc, c}, std::array{ab, bc, ca}}) {
+                Eigen::Matrix3d m;
+                m << p, q, s;
+                next.push_back(m);
+            }
+        }
+        tris.swap(next);
+    }
+    const Index nb = base.weight.size();
+    TriangleRule r;
+    r.bary.resize(nb * static_cast<Index>(tris.size()), 3);
+    r.weight.resize(r.bary.rows());
+    for (std::size_t t = 0; t < tris.size(); ++t)
+        for (Index q = 0; q < nb; ++q) {
+            const Index k = static_cast<Index>(t) * nb + q;
+            r.bary.row(k) = base.bary.row(q) * tris[t];
+            r.weight[k] = base.weight[q] / static_cast<double>(tris.size());
+        }
+    return r;
+}
+
+/// Gauss-Legendre nodes and weights on [0, 1] (Newton on P_n).
+void gaussLegendre01(int n, Eigen::VectorXd& x, Eigen::VectorXd& w) {
+    x.resize(n);
+    w.resize(n);
+    for (int i = 0; i < n; ++i) {
+        double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 1.0;
+        for (int it = 0; it < 100; ++it) {
+            double p0 = 1.0, p1 = z;  // P_0, P_1
+            for (int k = 2; k <= n; ++k) {
+                const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            const double pn = n == 1 ? z : p1, pm = n == 1 ? 1.0 : p0;
+            dp = n * (z * pn - pm) / (z * z - 1.0);
+            const double dz = pn / dp;
+            z -= dz;
+            if (std::abs(dz) < 1e-16) break;
+        }
+        x[i] = 0.5 * (1.0 - z);
+        w[i] = 1.0 / ((1.0 - z * z) * dp * dp);  // 2/((1-z^2) P'^2), halved for [0, 1]
+    }
+}
+
+/// Accumulator of the sparse correction blocks of one target.
+struct CorrectionRow {
+    std::vector<int> col;
+    std::vector<Mat3> s, d;
+    void add(int j, const Mat3& bs, const Mat3& bd) {
+        const auto it = std::find(col.begin(), col.end(), j);
+        if (it == col.end()) {
+            col.push_back(j);
+            s.push_back(bs);
+            d.push_back(bd);
+        } else {
+            const auto k = it - col.begin();
+            s[k] += bs;
+            d[k] += bd;
+        }
+    }
+};
+
+/// sum_q w_q G(y_q - x0) g_q over quadrature points [0, n): the far part of the single layer.
+Vec3 farSingleLayer(const Vec3& x0, Index n, const double* qx, const double* qy, const double* qz,
+                    const double* qw, const double* gx, const double* gy, const double* gz) {
+    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
+    double ux = 0.0, uy = 0.0, uz = 0.0;
+    for (Index b0 = 0; b0 < n; b0 += kBlock) {
+        const int m = static_cast<int>(std::min<Index>(kBlock, n - b0));
+#pragma omp simd
+        for (int k = 0; k < m; ++k) {
+            dx[k] = qx[b0 + k] - x0.x();
+            dy[k] = qy[b0 + k] - x0.y();
+            dz[k] = qz[b0 + k] - x0.z();
+            rinv[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
+        }
+        Eigen::Map<Eigen::ArrayXd> r(rinv, m);
+        r = r.rsqrt();
+#pragma omp simd reduction(+ : ux, uy, uz)
+        for (int k = 0; k < m; ++k)
+            stokes::addStokeslet(dx[k], dy[k], dz[k], rinv[k], qw[b0 + k], gx[b0 + k], gy[b0 + k],
+                                 gz[b0 + k], ux, uy, uz);
+    }
+    return {ux, uy, uz};
+}
+
+/// sum_q w_q (u_q - u0) . K(y_q - x0, n_q) over quadrature points [0, n): the far part of the
+/// double layer with the singularity subtracted.
+Vec3 farDoubleLayer(const Vec3& x0, const Vec3& u0, Index n, const double* qx, const double* qy,
+                    const double* qz, const double* wnx, const double* wny, const double* wnz,
+                    const double* ux, const double* uy, const double* uz) {
+    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
+    double vx = 0.0, vy = 0.0, vz = 0.0;
+    for (Index b0 = 0; b0 < n; b0 += kBlock) {
+        const int m = static_cast<int>(std::min<Index>(kBlock, n - b0));
+#pragma omp simd
+        for (int k = 0; k < m; ++k) {
+            dx[k] = qx[b0 + k] - x0.x();
+            dy[k] = qy[b0 + k] - x0.y();
+            dz[k] = qz[b0 + k] - x0.z();
+            rinv[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
+        }
+        Eigen::Map<Eigen::ArrayXd> r(rinv, m);
+        r = r.rsqrt();
+#pragma omp simd reduction(+ : vx, vy, vz)
+        for (int k = 0; k < m; ++k) {
+            const double c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k],
+                                                            wnx[b0 + k], wny[b0 + k], wnz[b0 + k]);
+            // K (u_q - u0) = c d (d . (u_q - u0))
+            const double du = dx[k] * (ux[b0 + k] - u0.x()) + dy[k] * (uy[b0 + k] - u0.y()) +
+                              dz[k] * (uz[b0 + k] - u0.z());
+            vx += c * du * dx[k];
+            vy += c * du * dy[k];
+            vz += c * du * dz[k];
+        }
+    }
+    return {vx, vy, vz};
+}
+
+Eigen::Matrix3d faceCorners(const Mesh& m, Index f) {
+    Eigen::Matrix3d c;
+    for (int k = 0; k < 3; ++k) c.col(k) = m.X.col(m.F(k, f));
+    return c;
+}
+
+}  // namespace
+
+BoundaryIntegralOperators::BoundaryIntegralOperators(const Mesh& mesh, const QuadratureOptions& options)
+    : mesh_(mesh), options_(options) {
+    validateClosedManifold(mesh_);
+    if (!(options_.nearFactor >= 0.0) || !std::isfinite(options_.nearFactor))
+        throw InputError(fmt::format("quadrature nearFactor = {}: must be finite and >= 0",
+                                     options_.nearFactor));
+    if (options_.nearSubdivisions < 0 || options_.nearSubdivisions > 5)
+        throw InputError(fmt::format("quadrature nearSubdivisions = {}: must be in [0, 5]",
+                                     options_.nearSubdivisions));
+    if (options_.singularPoints < 1 || options_.singularPoints > 64)
+        throw InputError(fmt::format("quadrature singularPoints = {}: must be in [1, 64]",
+                                     options_.singularPoints));
+    if (!mesh_.X.allFinite()) throw InputError("mesh: vertex positions must be finite");
+
+    const Index nf = mesh_.numFaces(), nv = mesh_.numVertices();
+    faceArea_ = trbc::faceAreas(mesh_.X, mesh_.F);
+    faceNormal_.resize(3, nf);
+    vertexNormal_ = Eigen::Matrix3Xd::Zero(3, nv);
+    for (Index f = 0; f < nf; ++f) {
+        const Eigen::Matrix3d c = faceCorners(mesh_, f);
+        const Vec3 twiceArea = (c.col(1) - c.col(0)).cross(c.col(2) - c.col(0));
+        faceNormal_.col(f) = twiceArea.normalized();
+        for (int k = 0; k < 3; ++k) vertexNormal_.col(mesh_.F(k, f)) += twiceArea;
+    }
+    vertexNormal_.colwise().normalize();
+    vertexArea_ = trbc::vertexAreas(mesh_.X, mesh_.F);
+    area_ = faceArea_.sum();
+    volume_ = enclosedVolume(mesh_.X, mesh_.F);
+    buildQuadrature();
+    buildCorrections();
+}
+
+void BoundaryIntegralOperators::buildQuadrature() {
+    const TriangleRule rule = symmetricRule(options_.farPoints);
+    ruleBary_ = rule.bary;
+    ruleWeight_ = rule.weight;
+    const Index nf = mesh_.numFaces(), nq = ruleWeight_.size(), n = nf * nq;
+    for (auto* v : {&qx_, &qy_, &qz_, &qw_, &qnx_, &qny_, &qnz_}) v->assign(n, 0.0);
+    for (Index f = 0; f < nf; ++f) {
+        const Eigen::Matrix3d c = faceCorners(mesh_, f);
+        for (Index q = 0; q < nq; ++q) {
+            const Index k = f * nq + q;
+            const Vec3 y = c * ruleBary_.row(q).transpose();
+            const double w = faceArea_[f] * ruleWeight_[q];
+            qx_[k] = y.x();
+            qy_[k] = y.y();
+            qz_[k] = y.z();
+            qw_[k] = w;
+            qnx_[k] = w * faceNormal_(0, f);
+            qny_[k] = w * faceNormal_(1, f);
+            qnz_[k] = w * faceNormal_(2, f);
+        }
+    }
+}
+
+void BoundaryIntegralOperators::buildCorrections() {
+    const Index nf = mesh_.numFaces(), nv = mesh_.numVertices(), nq = ruleWeight_.size();
+    const TriangleRule nearRule =
+        subdividedRule(TriangleRule{ruleBary_, ruleWeight_}, options_.nearSubdivisions);
+    Eigen::VectorXd gt, gw;
+    gaussLegendre01(options_.singularPoints, gt, gw);
+
+    // Faces around each vertex, centroids and longest edges.
+    std::vector<std::vector<int>> vertexFaces(nv);
+    Eigen::Matrix3Xd centroid(3, nf);
+    Eigen::VectorXd longest(nf);
+    for (Index f = 0; f < nf; ++f) {
+        const Eigen::Matrix3d c = faceCorners(mesh_, f);
+        for (int k = 0; k < 3; ++k) vertexFaces[mesh_.F(k, f)].push_back(static_cast<int>(f));
+        centroid.col(f) = c.rowwise().mean();
+        longest[f] = std::max({(c.col(1) - c.col(0)).norm(), (c.col(2) - c.col(1)).norm(),
+                               (c.col(0) - c.col(2)).norm()});
+    }
+
+    std::vector<CorrectionRow> rows(nv);
+#pragma omp parallel for schedule(dynamic, 16)
+    for (Index i = 0; i < nv; ++i) {
+        CorrectionRow& row = rows[i];
+        const Vec3 x0 = mesh_.X.col(i);
+        const Mat3 zero = Mat3::Zero();
+        // Far-rule contribution of face f, to be replaced: S blocks per corner and the DL kernel.
+        auto subtractFarRule = [&](Index f, bool withDouble) {
+            const Eigen::Matrix3d c = faceCorners(mesh_, f);
+            const Vec3 n = faceNormal_.col(f);
+            for (Index q = 0; q < nq; ++q) {
+                const Vec3 d = c * ruleBary_.row(q).transpose() - x0;
+                const double w = faceArea_[f] * ruleWeight_[q];
+                const Mat3 g = w * stokes::stokeslet(d);
+                const Mat3 k = withDouble ? Mat3(w * stokes::stressletNormal(d, n)) : zero;
+                for (int m = 0; m < 3; ++m)
+                    row.add(mesh_.F(m, f), -ruleBary_(q, m) * g, -ruleBary_(q, m) * k);
+                if (withDouble) row.add(static_cast<int>(i), zero, k);
+            }
+        };
+        // Adjacent faces: single layer in Duffy coordinates about x_i (corner c0 = i, then c1, c2
+        // along the face): int_face G phi dS = 2 A int_0^1 G(e1 + t (e2 - e1)) c(t) dt with
+        // c = 1/2, (1 - t)/2, t/2 for phi_c0, phi_c1, phi_c2 (the s-integral done exactly).
+        for (const int f : vertexFaces[i]) {
+            int k0 = 0;
+            while (mesh_.F(k0, f) != i) ++k0;
+            const int c0 = static_cast<int>(i), c1 = mesh_.F((k0 + 1) % 3, f), c2 = mesh_.F((k0 + 2) % 3, f);
+            const Vec3 e1 = mesh_.X.col(c1) - x0, e2 = mesh_.X.col(c2) - x0;
+            Mat3 b0 = zero, b1 = zero, b2 = zero;
+            for (Index q = 0; q < gt.size(); ++q) {
+                const double t = gt[q];
+                const Mat3 g = (2.0 * faceArea_[f] * gw[q]) * stokes::stokeslet(e1 + t * (e2 - e1));
+                b0 += 0.5 * g;
+                b1 += (0.5 * (1.0 - t)) * g;
+                b2 += (0.5 * t) * g;
+            }
+            row.add(c0, b0, zero);
+            row.add(c1, b1, zero);
+            row.add(c2, b2, zero);
+            // The far rule's double-layer terms of a flat face through x_i vanish ((y - x_i) . n = 0).
+            subtractFarRule(f, false);
+        }
+        // Near faces: refined rule for both layers (double layer with the subtraction u - u_i).
+        for (Index f = 0; f < nf; ++f) {
+            if (mesh_.F(0, f) == i || mesh_.F(1, f) == i || mesh_.F(2, f) == i) continue;
+            if ((centroid.col(f) - x0).norm() >= options_.nearFactor * longest[f]) continue;
+            const Eigen::Matrix3d c = faceCorners(mesh_, f);
+            const Vec3 n = faceNormal_.col(f);
+            Mat3 ks = zero;
+            std::array<Mat3, 3> bs{zero, zero, zero}, bd{zero, zero, zero};
+            for (Index q = 0; q < nearRule.weight.size(); ++q) {
+                const Vec3 d = c * nearRule.bary.row(q).transpose() - x0;
+                const double w = faceArea_[f] * nearRule.weight[q];
+                const Mat3 g = w * stokes::stokeslet(d), k = w * stokes::stressletNormal(d, n);
+                for (int m = 0; m < 3; ++m) {
+                    bs[m] += nearRule.bary(q, m) * g;
+                    bd[m] += nearRule.bary(q, m) * k;
+                }
+                ks += k;
+            }
+            for (int m = 0; m < 3; ++m) row.add(mesh_.F(m, f), bs[m], bd[m]);
+            row.add(static_cast<int>(i), zero, -ks);
+            subtractFarRule(f, true);
+        }
+    }
+
+    corrStart_.assign(nv + 1, 0);
+    for (Index i = 0; i < nv; ++i) corrStart_[i + 1] = corrStart_[i] + static_cast<int>(rows[i].col.size());
+    const std::size_t nnz = static_cast<std::size_t>(corrStart_[nv]);
+    corrCol_.resize(nnz);
+    corrS_.resize(9 * nnz);
+    corrD_.resize(9 * nnz);
+    for (Index i = 0; i < nv; ++i)
+        for (std::size_t k = 0; k < rows[i].col.size(); ++k) {
+            const std::size_t p = corrStart_[i] + k;
+            corrCol_[p] = rows[i].col[k];
+            Eigen::Map<Mat3>{&corrS_[9 * p]} = rows[i].s[k];
+            Eigen::Map<Mat3>{&corrD_[9 * p]} = rows[i].d[k];
+        }
+}
+
+double BoundaryIntegralOperators::meanCorrectionsPerTarget() const {
+    return static_cast<double>(corrCol_.size()) / static_cast<double>(numVertices());
+}
+
+void BoundaryIntegralOperators::interpolate(const Eigen::Matrix3Xd& v, std::vector<double>& vx,
+                                            std::vector<double>& vy, std::vector<double>& vz) const {
+    const Index nf = mesh_.numFaces(), nq = ruleWeight_.size();
+    vx.resize(nf * nq);
+    vy.resize(nf * nq);
+    vz.resize(nf * nq);
+    for (Index f = 0; f < nf; ++f) {
+        const Vec3 a = v.col(mesh_.F(0, f)), b = v.col(mesh_.F(1, f)), c = v.col(mesh_.F(2, f));
+        for (Index q = 0; q < nq; ++q) {
+            const Vec3 y = ruleBary_(q, 0) * a + ruleBary_(q, 1) * b + ruleBary_(q, 2) * c;
+            vx[f * nq + q] = y.x();
+            vy[f * nq + q] = y.y();
+            vz[f * nq + q] = y.z();
+        }
+    }
+}
+
+namespace {
+void checkDensity(const Eigen::Matrix3Xd& v, Index nv, const char* name) {
+    if (v.cols() != nv)
+        throw InputError(fmt::format("{}: {} columns given, the mesh has {} vertices", name, v.cols(), nv));
+}
+}  // namespace
+
+Eigen::Matrix3Xd BoundaryIntegralOperators::singleLayer(const Eigen::Matrix3Xd& f) const {
+    const Index nv = numVertices();
+    checkDensity(f, nv, "single-layer density");
+    std::vector<double> gx, gy, gz;
+    interpolate(f, gx, gy, gz);
+    Eigen::Matrix3Xd out(3, nv);
+    const Index nq = numQuadraturePoints();
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < nv; ++i) {
+        Vec3 u = farSingleLayer(mesh_.X.col(i), nq, qx_.data(), qy_.data(), qz_.data(), qw_.data(),
+                                gx.data(), gy.data(), gz.data());
+        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
+            u += Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]) * f.col(corrCol_[p]);
+        out.col(i) = u;
+    }
+    return out;
+}
+
+Eigen::Matrix3Xd BoundaryIntegralOperators::doubleLayer(const Eigen::Matrix3Xd& u) const {
+    const Index nv = numVertices();
+    checkDensity(u, nv, "double-layer density");
+    std::vector<double> ux, uy, uz;
+    interpolate(u, ux, uy, uz);
+    Eigen::Matrix3Xd out(3, nv);
+    const Index nq = numQuadraturePoints();
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < nv; ++i) {
+        const Vec3 u0 = u.col(i);
+        Vec3 v = farDoubleLayer(mesh_.X.col(i), u0, nq, qx_.data(), qy_.data(), qz_.data(),
+                                qnx_.data(), qny_.data(), qnz_.data(), ux.data(), uy.data(), uz.data());
+        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
+            v += Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]) * u.col(corrCol_[p]);
+        out.col(i) = v - 4.0 * kPi * u0;
+    }
+    return out;
+}
+
+Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayer() const {
+    const Index nv = numVertices(), nf = mesh_.numFaces(), nq = ruleWeight_.size();
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(3 * nv, 3 * nv);
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < nv; ++i) {
+        const Vec3 x0 = mesh_.X.col(i);
+        for (Index f = 0; f < nf; ++f)
+            for (Index q = 0; q < nq; ++q) {
+                const Index k = f * nq + q;
+                const Vec3 d(qx_[k] - x0.x(), qy_[k] - x0.y(), qz_[k] - x0.z());
+                const Mat3 g = qw_[k] * stokes::stokeslet(d);
+                for (int m = 0; m < 3; ++m) A.block<3, 3>(3 * i, 3 * mesh_.F(m, f)) += ruleBary_(q, m) * g;
+            }
+        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
+            A.block<3, 3>(3 * i, 3 * corrCol_[p]) +=
+                Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]);
+    }
+    return A;
+}
+
+Eigen::MatrixXd BoundaryIntegralOperators::assembleDoubleLayer() const {
+    const Index nv = numVertices(), nf = mesh_.numFaces(), nq = ruleWeight_.size();
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(3 * nv, 3 * nv);
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < nv; ++i) {
+        const Vec3 x0 = mesh_.X.col(i);
+        Mat3 ksum = Mat3::Zero();
+        for (Index f = 0; f < nf; ++f)
+            for (Index q = 0; q < nq; ++q) {
+                const Index k = f * nq + q;
+                const Vec3 d(qx_[k] - x0.x(), qy_[k] - x0.y(), qz_[k] - x0.z());
+                const Mat3 kern = qw_[k] * stokes::stressletNormal(d, faceNormal_.col(f));
+                for (int m = 0; m < 3; ++m) A.block<3, 3>(3 * i, 3 * mesh_.F(m, f)) += ruleBary_(q, m) * kern;
+                ksum += kern;
+            }
+        A.block<3, 3>(3 * i, 3 * i) -= ksum + 4.0 * kPi * Mat3::Identity();
+        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
+            A.block<3, 3>(3 * i, 3 * corrCol_[p]) +=
+                Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]);
+    }
+    return A;
+}
+
+Eigen::Vector3d BoundaryIntegralOperators::integrate(const Eigen::Matrix3Xd& f) const {
+    checkDensity(f, numVertices(), "surface density");
+    return f * vertexArea_;
+}
+
+Eigen::Vector3d BoundaryIntegralOperators::moment(const Eigen::Matrix3Xd& f, const Eigen::Vector3d& c) const {
+    checkDensity(f, numVertices(), "surface density");
+    // int_face phi_a phi_b dS = A (1 + delta_ab) / 12.
+    Vec3 m = Vec3::Zero();
+    for (Index t = 0; t < mesh_.numFaces(); ++t) {
+        Vec3 xs = Vec3::Zero(), fs = Vec3::Zero(), diag = Vec3::Zero();
+        for (int k = 0; k < 3; ++k) {
+            const Vec3 x = mesh_.X.col(mesh_.F(k, t)) - c, g = f.col(mesh_.F(k, t));
+            xs += x;
+            fs += g;
+            diag += x.cross(g);
+        }
+        m += faceArea_[t] / 12.0 * (xs.cross(fs) + diag);
+    }
+    return m;
+}
+
+Eigen::Matrix3d BoundaryIntegralOperators::firstMoment(const Eigen::Matrix3Xd& f,
+                                                       const Eigen::Vector3d& c) const {
+    checkDensity(f, numVertices(), "surface density");
+    Mat3 m = Mat3::Zero();
+    for (Index t = 0; t < mesh_.numFaces(); ++t) {
+        Vec3 xs = Vec3::Zero(), fs = Vec3::Zero();
+        Mat3 diag = Mat3::Zero();
+        for (int k = 0; k < 3; ++k) {
+            const Vec3 x = mesh_.X.col(mesh_.F(k, t)) - c, g = f.col(mesh_.F(k, t));
+            xs += x;
+            fs += g;
+            diag += x * g.transpose();
+        }
+        m += faceArea_[t] / 12.0 * (xs * fs.transpose() + diag);
+    }
+    return m;
+}
+
+double BoundaryIntegralOperators::normalFlux(const Eigen::Matrix3Xd& u) const {
+    checkDensity(u, numVertices(), "surface velocity");
+    double s = 0.0;
+    for (Index t = 0; t < mesh_.numFaces(); ++t) {
+        const Vec3 us = u.col(mesh_.F(0, t)) + u.col(mesh_.F(1, t)) + u.col(mesh_.F(2, t));
+        s += faceArea_[t] / 3.0 * us.dot(faceNormal_.col(t));
+    }
+    return s;
+}
+
+Eigen::Vector3d BoundaryIntegralOperators::volumeMeanVelocity(const Eigen::Matrix3Xd& u) const {
+    checkDensity(u, numVertices(), "surface velocity");
+    Vec3 s = Vec3::Zero();
+    for (Index t = 0; t < mesh_.numFaces(); ++t) {
+        const Vec3 n = faceNormal_.col(t);
+        Vec3 xs = Vec3::Zero(), diag = Vec3::Zero();
+        double us = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            const Vec3 x = mesh_.X.col(mesh_.F(k, t));
+            const double un = u.col(mesh_.F(k, t)).dot(n);
+            xs += x;
+            us += un;
+            diag += un * x;
+        }
+        s += faceArea_[t] / 12.0 * (us * xs + diag);
+    }
+    return s / volume_;
+}
+
+}  // namespace trbc

@@ -1,0 +1,355 @@
+#include "sampling/campaign.hpp"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <omp.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numeric>
+
+#include "core/error.hpp"
+#include "core/version.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+fs::path partsDir(const CampaignOptions& o) { return o.outDir / "parts"; }
+fs::path partPath(const CampaignOptions& o, int rank) { return partsDir(o) / fmt::format("rank{}.csv", rank); }
+fs::path provenancePath(const CampaignOptions& o) { return o.outDir / "campaign.json"; }
+fs::path samplesPath(const CampaignOptions& o) { return o.outDir / "samples.csv"; }
+
+/// Everything that decides the rows; a resume must match it exactly.
+nlohmann::json settingsJson(const CampaignOptions& o) {
+    const ExperimentOptions& e = o.experiment;
+    return {{"design", designName(o.design)},
+            {"samples", o.samples},
+            {"forces_per_cell", o.forcesPerCell},
+            {"seed", o.seed},
+            {"level", e.level},
+            {"static_tolerance", e.staticTolerance},
+            {"max_iterations", e.maxIterations},
+            {"relax_error_tolerance", e.relaxErrorTolerance},
+            {"relax_inner_tolerance", e.relaxInnerTolerance},
+            {"overdamped", e.overdamped},
+            {"vertex_mass_kg", e.vertexMassKg},
+            {"isotropic_friction", e.isotropicFriction},
+            {"relax_duration_s", e.relaxDuration},
+            {"relax_samples", e.relaxSamples},
+            {"sfs_gradient_tolerance", e.sfs.gradientTolerance},
+            {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
+}
+
+void writeJsonAtomically(const fs::path& path, const nlohmann::json& j) {
+    fs::path tmp = path;
+    tmp += ".tmp";
+    {
+        std::ofstream out(tmp);
+        out << j.dump(2) << '\n';
+        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
+    }
+    fs::rename(tmp, path);
+}
+
+void validateOptions(const CampaignOptions& o) {
+    if (o.samples < 1 || o.samples > 100'000'000)
+        throw InputError(fmt::format("--samples {} is outside [1, 1e8]", o.samples));
+    if (o.forcesPerCell < 1 || o.forcesPerCell > 1000)
+        throw InputError(fmt::format("--forces-per-cell {} is outside [1, 1000]", o.forcesPerCell));
+    if (o.threads < 1 || o.threads > 1024) throw InputError(fmt::format("--threads {} is outside [1, 1024]", o.threads));
+    if (o.experiment.level < 1 || o.experiment.level > 6)
+        throw InputError(fmt::format("--level {} is outside [1, 6]", o.experiment.level));
+    if (o.outDir.empty()) throw InputError("--out: an output directory is required");
+}
+
+/// Groups the design rows by cell (they are contiguous).
+std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>& pts) {
+    std::vector<std::vector<CampaignPoint>> cells;
+    for (const CampaignPoint& q : pts) {
+        if (cells.empty() || cells.back().front().cellId != q.cellId) cells.emplace_back();
+        cells.back().push_back(q);
+    }
+    return cells;
+}
+
+/// Rows of the finished cells found in all part files (torn tails and unfinished cells dropped),
+/// keyed by sample id.
+std::map<long, CampaignRow> finishedRows(const CampaignOptions& o, const std::vector<std::vector<CampaignPoint>>& cells) {
+    std::map<long, CampaignRow> rows;
+    if (!fs::exists(partsDir(o))) return rows;
+    for (const auto& entry : fs::directory_iterator(partsDir(o))) {
+        if (entry.path().extension() != ".csv" || fs::file_size(entry.path()) == 0) continue;
+        for (CampaignRow& r : readCampaignCsv(entry.path(), true)) rows.emplace(r.point.sampleId, std::move(r));
+    }
+    for (const auto& cell : cells) {
+        const bool complete = std::all_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return rows.count(q.sampleId); });
+        if (!complete)
+            for (const CampaignPoint& q : cell) rows.erase(q.sampleId);
+    }
+    std::erase_if(rows, [&](const auto& kv) { return kv.first >= o.samples; });
+    return rows;
+}
+
+/// Rewrites this rank's part file with its finished cells only (so new rows never follow a torn
+/// line), then opens it for appending.
+int openPartFile(const CampaignOptions& o, int rank, const std::map<long, CampaignRow>& finished) {
+    const fs::path part = partPath(o, rank);
+    std::string keep = campaignCsvHeader() + "\n";
+    if (fs::exists(part) && fs::file_size(part) > 0) {
+        for (const CampaignRow& r : readCampaignCsv(part, true))
+            if (finished.count(r.point.sampleId)) keep += formatCampaignRow(r) + "\n";
+    }
+    fs::path tmp = part;
+    tmp += ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        out << keep;
+        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
+    }
+    fs::rename(tmp, part);
+    const int fd = ::open(part.c_str(), O_WRONLY | O_APPEND);
+    if (fd < 0) throw InputError(fmt::format("cannot open {} for appending", part.string()));
+    return fd;
+}
+
+/// One write() per cell, then fsync: a kill leaves either the whole block, a torn block (its cell
+/// is then incomplete and recomputed) or nothing.
+void appendBlock(int fd, const std::string& block, const fs::path& part) {
+    std::size_t off = 0;
+    while (off < block.size()) {
+        const ssize_t n = ::write(fd, block.data() + off, block.size() - off);
+        if (n < 0) throw InputError(fmt::format("cannot append to {}", part.string()));
+        off += std::size_t(n);
+    }
+    ::fsync(fd);
+}
+
+void markFailed(std::vector<CampaignRow>& rows, const std::string& reason) {
+    for (CampaignRow& r : rows)
+        if (r.reason.empty()) r.reason = reason;
+}
+
+}  // namespace
+
+std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell, std::uint64_t seed,
+                                         const ExperimentOptions& opt, bool injectFailure) {
+    const auto t0 = Clock::now();
+    std::vector<CampaignRow> rows(cell.size());
+    for (std::size_t i = 0; i < cell.size(); ++i) {
+        rows[i].point = cell[i];
+        rows[i].seed = seed;
+    }
+    const CellParameters& p = cell.front().p;
+    std::string stage = "stress-free state";
+    try {
+        const StressFreeState sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
+        const CellMeshes meshes = cellMeshes(sfs);
+        stage = "equilibrium";
+        if (injectFailure) throw NumericalError("injected failure (--inject-failures)");
+        const EquilibriumResult eq = runEquilibrium(p, meshes, opt);
+        for (CampaignRow& r : rows) r.D = eq.observables.D, r.hmin = eq.observables.hmin, r.hmax = eq.observables.hmax;
+
+        stage = "stretching";
+        std::vector<double> forces;
+        for (const CampaignPoint& q : cell) forces.push_back(q.fext);
+        try {
+            const auto pts = runStretching(p, meshes, eq.shape, forces, opt);  // continuation, ascending
+            std::vector<std::size_t> order(cell.size());
+            std::iota(order.begin(), order.end(), 0);
+            std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return forces[a] < forces[b]; });
+            for (std::size_t k = 0; k < order.size(); ++k)
+                rows[order[k]].D0 = pts[k].observables.D0, rows[order[k]].D1 = pts[k].observables.D1;
+        } catch (const NumericalError&) {
+            // The continuation broke somewhere: solve each force from the equilibrium shape.
+            for (std::size_t i = 0; i < cell.size(); ++i) {
+                try {
+                    const auto pt = runStretching(p, meshes, eq.shape, {forces[i]}, opt);
+                    rows[i].D0 = pt[0].observables.D0, rows[i].D1 = pt[0].observables.D1;
+                } catch (const NumericalError& e) {
+                    rows[i].reason = fmt::format("stretching at {:.4g} pN: {}", forces[i], e.what());
+                }
+            }
+        }
+
+        stage = "relaxation";
+        try {
+            const RelaxationResult rx = runRelaxation(p, meshes, eq.shape, opt);
+            for (CampaignRow& r : rows) r.tc = rx.fit.tc;
+        } catch (const NumericalError& e) {
+            markFailed(rows, fmt::format("relaxation: {}", e.what()));
+        }
+    } catch (const std::exception& e) {
+        markFailed(rows, fmt::format("{}: {}", stage, e.what()));
+    }
+    const double wall = secondsSince(t0) / double(rows.size());
+    for (CampaignRow& r : rows) {
+        r.wallSeconds = wall;
+        const double out[6] = {r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc};
+        const bool finite = std::all_of(out, out + 6, [](double x) { return std::isfinite(x); });
+        if (finite) {
+            r.status = "ok";
+            r.reason.clear();
+        } else {
+            r.status = "failed";
+            if (r.reason.empty()) r.reason = "non-finite output";
+        }
+    }
+    return rows;
+}
+
+void prepareCampaign(const CampaignOptions& o) {
+    validateOptions(o);
+    std::error_code ec;
+    fs::create_directories(partsDir(o), ec);
+    if (ec) throw InputError(fmt::format("--out: cannot create {}: {}", partsDir(o).string(), ec.message()));
+    const nlohmann::json settings = settingsJson(o);
+    if (fs::exists(provenancePath(o))) {
+        if (!o.resume)
+            throw InputError(fmt::format("--out: {} already holds a campaign; add --resume to continue it or choose "
+                                         "another directory",
+                                         o.outDir.string()));
+        nlohmann::json old;
+        try {
+            std::ifstream in(provenancePath(o));
+            old = nlohmann::json::parse(in);
+        } catch (const std::exception& e) {
+            throw InputError(fmt::format("{}: cannot parse: {}", provenancePath(o).string(), e.what()));
+        }
+        if (!old.contains("settings") || old["settings"] != settings) {
+            std::string diff;
+            for (auto& [k, v] : settings.items())
+                if (!old["settings"].contains(k) || old["settings"][k] != v)
+                    diff += fmt::format(" {} (was {}, now {})", k, old["settings"].value(k, nlohmann::json()).dump(), v.dump());
+            throw InputError(fmt::format("--resume: {} was made with different settings:{}", provenancePath(o).string(), diff));
+        }
+        nlohmann::json j = old;
+        j["resumed_by"].push_back({{"command", o.command}, {"version", kVersion}});
+        writeJsonAtomically(provenancePath(o), j);
+        return;
+    }
+    if (fs::exists(samplesPath(o)) || !fs::is_empty(partsDir(o)))
+        throw InputError(fmt::format("--out: {} holds campaign files but no campaign.json; choose another directory",
+                                     o.outDir.string()));
+    writeJsonAtomically(provenancePath(o), {{"command", o.command},
+                                            {"version", kVersion},
+                                            {"status", "running"},
+                                            {"settings", settings},
+                                            {"columns", campaignCsvHeader()},
+                                            {"units", "um, pN, s; mu in uN/m, etam in Pa s um"},
+                                            {"note", "rows of one cell share (v, mu, FvK, b2, etam) and differ in Fext; "
+                                                     "wall_s is the row's share of its cell's wall time"}});
+}
+
+CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) {
+    validateOptions(o);
+    if (rank < 0 || rank >= ranks) throw InputError(fmt::format("rank {} is outside [0, {})", rank, ranks));
+    const auto t0 = Clock::now();
+    const auto cells = cellsOf(campaignDesign(o.design, o.samples, o.forcesPerCell, o.seed));
+    const auto finished = finishedRows(o, cells);
+    const int fd = openPartFile(o, rank, finished);
+
+    std::vector<std::size_t> pending;
+    CampaignProgress prog;
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+        if (long(c) % ranks != rank) continue;
+        ++prog.cellsTotal;
+        if (finished.count(cells[c].front().sampleId)) {
+            ++prog.cellsResumed;
+            for (const CampaignPoint& q : cells[c]) (finished.at(q.sampleId).ok() ? prog.rowsOk : prog.rowsFailed)++;
+        } else {
+            pending.push_back(c);
+        }
+    }
+    prog.cellsDone = prog.cellsResumed;
+    if (o.progress) o.progress(prog);
+
+    std::string error;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.threads)
+    for (std::size_t k = 0; k < pending.size(); ++k) {
+        omp_set_num_threads(1);  // one thread per cell: the force loops inside stay serial
+        const auto& cell = cells[pending[k]];
+        const bool inject = std::any_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return o.injectFailures.count(q.sampleId); });
+        const auto rows = runCampaignCell(cell, o.seed, o.experiment, inject);
+        std::string block;
+        for (const CampaignRow& r : rows) block += formatCampaignRow(r) + "\n";
+#pragma omp critical(trbc_campaign_append)
+        {
+            try {
+                appendBlock(fd, block, partPath(o, rank));
+            } catch (const std::exception& e) {
+                error = e.what();
+            }
+            ++prog.cellsDone;
+            for (const CampaignRow& r : rows) (r.ok() ? prog.rowsOk : prog.rowsFailed)++;
+            prog.elapsedSeconds = secondsSince(t0);
+            if (o.progress) o.progress(prog);
+        }
+    }
+    ::close(fd);
+    if (!error.empty()) throw InputError(error);
+
+    CampaignSummary s;
+    s.cellsComputed = long(pending.size());
+    s.cellsResumed = prog.cellsResumed;
+    s.ok = prog.rowsOk;
+    s.failed = prog.rowsFailed;
+    s.samples = s.ok + s.failed;
+    s.wallSeconds = secondsSince(t0);
+    return s;
+}
+
+CampaignSummary finalizeCampaign(const CampaignOptions& o, double wallSeconds) {
+    const auto pts = campaignDesign(o.design, o.samples, o.forcesPerCell, o.seed);
+    const auto rows = finishedRows(o, cellsOf(pts));
+    CampaignSummary s;
+    s.wallSeconds = wallSeconds;
+    for (const auto& [id, r] : rows) (r.ok() ? s.ok : s.failed)++;
+    s.samples = long(rows.size());
+    s.complete = s.samples == o.samples;
+    nlohmann::json j;
+    {
+        std::ifstream in(provenancePath(o));
+        j = nlohmann::json::parse(in);
+    }
+    if (s.complete) {
+        fs::path tmp = samplesPath(o);
+        tmp += ".tmp";
+        {
+            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+            out << campaignCsvHeader() << '\n';
+            for (const auto& [id, r] : rows) out << formatCampaignRow(r) << '\n';
+            if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
+        }
+        fs::rename(tmp, samplesPath(o));
+        j["status"] = "complete";
+    } else {
+        j["status"] = "incomplete";
+    }
+    j["samples_ok"] = s.ok;
+    j["samples_failed"] = s.failed;
+    j["samples_done"] = s.samples;
+    j["last_run_wall_s"] = wallSeconds;
+    writeJsonAtomically(provenancePath(o), j);
+    return s;
+}
+
+CampaignSummary runCampaign(const CampaignOptions& o) {
+    prepareCampaign(o);
+    const CampaignSummary share = runCampaignShare(o, 0, 1);
+    CampaignSummary s = finalizeCampaign(o, share.wallSeconds);
+    s.cellsComputed = share.cellsComputed;
+    s.cellsResumed = share.cellsResumed;
+    return s;
+}
+
+}  // namespace trbc

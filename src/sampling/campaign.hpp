@@ -1,0 +1,75 @@
+#pragma once
+// The training campaign (SURROGATE.md 2, issue 5): a design over the input box, the forward model
+// per cell, one CSV row per sample, continuous checkpointing and resume.
+//
+// Files in the output directory:
+//   campaign.json      provenance: command, version, seed, design, sizes, options; final counts
+//   parts/rank<r>.csv  the checkpoint: rows appended cell by cell (one write + fsync per cell)
+//   samples.csv        the finished table, all rows sorted by sample_id (written once all cells are done)
+// A run killed at any moment (SIGKILL included) and restarted with resume loses no finished cell
+// and repeats none: a cell counts as done when all its rows are in a part file; a torn last line
+// or the rows of an unfinished cell are discarded on restart.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "experiments/experiments.hpp"
+#include "sampling/campaign_table.hpp"
+#include "sampling/design.hpp"
+
+namespace trbc {
+
+struct CampaignProgress {
+    long cellsDone = 0, cellsTotal = 0;        ///< this process, including resumed cells
+    long cellsResumed = 0;                     ///< found done at start
+    long rowsOk = 0, rowsFailed = 0;
+    double elapsedSeconds = 0.0;               ///< since this process started
+};
+
+struct CampaignOptions {
+    DesignKind design = DesignKind::Uniform;
+    long samples = 1000;
+    int forcesPerCell = 1;
+    std::uint64_t seed = 1;
+    int threads = 1;                           ///< cells run concurrently, one thread each
+    std::filesystem::path outDir;
+    bool resume = false;
+    ExperimentOptions experiment;
+    std::set<long> injectFailures;             ///< sample ids whose cell fails on purpose (tests)
+    std::string command;                       ///< for provenance
+    std::function<void(const CampaignProgress&)> progress;  ///< after every cell (serialised)
+};
+
+struct CampaignSummary {
+    long samples = 0, ok = 0, failed = 0;
+    long cellsComputed = 0, cellsResumed = 0;
+    double wallSeconds = 0.0;
+    bool complete = false;                     ///< samples.csv written
+};
+
+/// Runs the forward model for the rows of one cell (all share SFS, equilibrium, the stretching
+/// continuation over their forces and one relaxation). Never throws for a numerical failure:
+/// the affected outputs stay nan and the rows say why.
+std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell, std::uint64_t seed,
+                                         const ExperimentOptions& opt, bool injectFailure = false);
+
+/// Creates the output directory and the provenance of a new campaign (refusing to overwrite one
+/// without resume), or checks that a resumed campaign was made with the same settings. Call once
+/// before any rank runs (rank 0 under MPI).
+void prepareCampaign(const CampaignOptions& opt);
+
+/// Runs the cells assigned to `rank` of `ranks` (round robin; ranks = 1 without MPI) that are not
+/// done yet, appending to parts/rank<rank>.csv (after prepareCampaign).
+CampaignSummary runCampaignShare(const CampaignOptions& opt, int rank = 0, int ranks = 1);
+
+/// Merges the part files into samples.csv (sorted by sample id) when every cell is done, and
+/// writes the final provenance. Call once, after all ranks finished (rank 0 under MPI).
+CampaignSummary finalizeCampaign(const CampaignOptions& opt, double wallSeconds);
+
+/// Convenience: prepareCampaign + runCampaignShare + finalizeCampaign in one process.
+CampaignSummary runCampaign(const CampaignOptions& opt);
+
+}  // namespace trbc

@@ -1,0 +1,41 @@
+#pragma once
+// Experimental designs over the input box of SURROGATE.md 1.1: i.i.d. uniform (the reference's
+// design, 2.1) and Latin hypercube, both seeded; points are rows of [0, 1]^d, then mapped to the box.
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "experiments/parameters.hpp"
+
+namespace trbc {
+
+enum class DesignKind { Uniform, LatinHypercube };
+DesignKind parseDesignKind(const std::string& name);  ///< "uniform" | "lhs"; InputError otherwise
+std::string designName(DesignKind kind);
+
+/// n x d points in [0, 1)^d: i.i.d. uniform, or a Latin hypercube (each column one point per
+/// stratum [k/n, (k+1)/n), uniformly jittered, strata randomly permuted per column).
+Eigen::MatrixXd unitDesign(DesignKind kind, long n, int d, std::uint64_t seed);
+
+/// The five cell inputs (v, mu, FvK, b2, etam) in design order, and the bead force.
+inline constexpr PriorRange kCellBox[5] = {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam};
+CellParameters cellFromUnit(const Eigen::Ref<const Eigen::RowVectorXd>& u);
+double forceFromUnit(double u);
+
+/// One row of a campaign: a cell (five parameters) at one bead force. Rows that share a cell
+/// share its SFS, equilibrium, stretching continuation and relaxation (the physics of
+/// SURROGATE.md 1.2: only the stretching depends on the force).
+struct CampaignPoint {
+    long sampleId = 0;
+    long cellId = 0;
+    CellParameters p;
+    double fext = 0.0;  ///< pN
+};
+
+/// `nSamples` rows in cells of `forcesPerCell` rows (the last cell may be smaller). The cells
+/// follow a 5-D design of kind `kind`; the forces a 1-D design of the same kind over all rows, so
+/// every marginal is uniform on its range. forcesPerCell = 1 is the reference design (2.1).
+std::vector<CampaignPoint> campaignDesign(DesignKind kind, long nSamples, int forcesPerCell, std::uint64_t seed);
+
+}  // namespace trbc

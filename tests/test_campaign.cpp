@@ -1,0 +1,265 @@
+// The campaign runner (issue 5, SURROGATE.md 2): designs, the table format, failure records, and
+// resume after SIGKILL giving the same final table as an uninterrupted run.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <thread>
+
+#include "core/error.hpp"
+#include "sampling/campaign.hpp"
+#include "sampling/campaign_table.hpp"
+#include "sampling/design.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+using test::CliRun;
+using test::runTrbc;
+using test::shellQuote;
+using test::TempDir;
+
+// --- Designs ---------------------------------------------------------------------------------------
+
+TEST(CampaignDesign, LatinHypercubeHasOnePointPerStratum) {
+    const long n = 97;
+    const Eigen::MatrixXd u = unitDesign(DesignKind::LatinHypercube, n, 6, 3);
+    for (int j = 0; j < 6; ++j) {
+        std::vector<int> count(n, 0);
+        for (long i = 0; i < n; ++i) {
+            ASSERT_GE(u(i, j), 0.0);
+            ASSERT_LT(u(i, j), 1.0);
+            ++count[long(u(i, j) * n)];
+        }
+        EXPECT_TRUE(std::all_of(count.begin(), count.end(), [](int c) { return c == 1; })) << "column " << j;
+    }
+}
+
+TEST(CampaignDesign, UniformDesignIsSeededAndExtendsAsAPrefix) {
+    const Eigen::MatrixXd a = unitDesign(DesignKind::Uniform, 50, 5, 11);
+    const Eigen::MatrixXd b = unitDesign(DesignKind::Uniform, 80, 5, 11);
+    const Eigen::MatrixXd c = unitDesign(DesignKind::Uniform, 50, 5, 12);
+    EXPECT_EQ(a, b.topRows(50));
+    EXPECT_NE(a, c);
+    // Mean of U[0,1) over 4000 values: sd of the mean 0.0046, tolerance 4.5 sd.
+    const Eigen::MatrixXd big = unitDesign(DesignKind::Uniform, 800, 5, 5);
+    EXPECT_NEAR(big.mean(), 0.5, 0.021);
+}
+
+TEST(CampaignDesign, CellsShareParametersAndCoverTheBox) {
+    const auto pts = campaignDesign(DesignKind::LatinHypercube, 103, 10, 9);
+    ASSERT_EQ(pts.size(), 103u);
+    EXPECT_EQ(pts.back().cellId, 10);  // 11 cells, the last one with 3 rows
+    for (const CampaignPoint& q : pts) {
+        const CampaignPoint& first = pts[q.cellId * 10];
+        EXPECT_EQ(q.p.v, first.p.v);
+        EXPECT_EQ(q.p.mu, first.p.mu);
+        EXPECT_EQ(q.p.etam, first.p.etam);
+        EXPECT_NO_THROW(validateCellParameters(q.p, false));
+        EXPECT_NO_THROW(validateForce(q.fext, false));
+    }
+    // The forces form a 1-D Latin hypercube over all rows: one per stratum of width 200/103 pN.
+    std::vector<int> count(103, 0);
+    for (const CampaignPoint& q : pts) ++count[long(q.fext / 200.0 * 103)];
+    EXPECT_TRUE(std::all_of(count.begin(), count.end(), [](int c) { return c == 1; }));
+}
+
+TEST(CampaignDesign, ReferenceDesignIsSixDimensionalUniform) {
+    const auto pts = campaignDesign(DesignKind::Uniform, 20, 1, 4);
+    const Eigen::MatrixXd u = unitDesign(DesignKind::Uniform, 20, 6, 4);
+    for (long i = 0; i < 20; ++i) {
+        EXPECT_EQ(pts[i].cellId, i);
+        EXPECT_DOUBLE_EQ(pts[i].p.v, 0.65 + 0.35 * u(i, 0));
+        EXPECT_DOUBLE_EQ(pts[i].fext, 200.0 * u(i, 5));
+    }
+}
+
+TEST(CampaignDesign, RejectsBadSizes) {
+    EXPECT_THROW(campaignDesign(DesignKind::Uniform, 0, 1, 1), InputError);
+    EXPECT_THROW(campaignDesign(DesignKind::Uniform, 10, 0, 1), InputError);
+    EXPECT_THROW(parseDesignKind("sobol"), InputError);
+}
+
+// --- Table -----------------------------------------------------------------------------------------
+
+TEST(CampaignTable, RoundTripIsBitExact) {
+    TempDir tmp;
+    CampaignRow r;
+    r.point = campaignDesign(DesignKind::Uniform, 3, 1, 2)[2];
+    r.seed = 2;
+    r.D = 7.8123456789012345, r.hmin = 0.1 + 1e-16, r.hmax = 2.5, r.D0 = 5.0 / 3.0, r.D1 = 13.0, r.tc = std::nextafter(0.2, 1.0);
+    CampaignRow f = r;
+    f.point.sampleId = 3;
+    f.tc = NAN;
+    f.status = "failed";
+    f.reason = csvSafe("relaxation: fit, did not\nconverge");
+    const fs::path p = tmp.path() / "t.csv";
+    std::ofstream(p) << campaignCsvHeader() << '\n' << formatCampaignRow(r) << '\n' << formatCampaignRow(f) << '\n';
+    const auto rows = readCampaignCsv(p);
+    ASSERT_EQ(rows.size(), 2u);
+    EXPECT_EQ(rows[0].point.p.FvK, r.point.p.FvK);
+    EXPECT_EQ(rows[0].point.fext, r.point.fext);
+    EXPECT_EQ(rows[0].hmin, r.hmin);
+    EXPECT_EQ(rows[0].D0, r.D0);
+    EXPECT_EQ(rows[0].tc, r.tc);
+    EXPECT_TRUE(std::isnan(rows[1].tc));
+    EXPECT_EQ(rows[1].reason, "relaxation: fit; did not converge");
+}
+
+TEST(CampaignTable, MalformedTablesNameFileAndLine) {
+    TempDir tmp;
+    CampaignRow r;
+    r.point = campaignDesign(DesignKind::Uniform, 1, 1, 2)[0];
+    const std::string good = formatCampaignRow(r);
+    auto expectError = [&](const std::string& body, const std::string& phrase) {
+        const fs::path p = tmp.path() / "bad.csv";
+        std::ofstream(p) << body;
+        try {
+            readCampaignCsv(p);
+            ADD_FAILURE() << "accepted: " << body;
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(phrase), std::string::npos) << e.what();
+        }
+    };
+    expectError("v,mu\n", "bad.csv:1: not a campaign table header");
+    expectError(campaignCsvHeader() + "\n" + good + "\n1,2,3\n", "bad.csv:3: 3 fields, expected 18");
+    std::string nonNumeric = good;
+    nonNumeric.replace(nonNumeric.find(',', nonNumeric.find(',', nonNumeric.find(',') + 1) + 1) + 1, 1, "x");
+    expectError(campaignCsvHeader() + "\n" + nonNumeric + "\n", "bad.csv:2: column v");
+    expectError("", "empty file");
+}
+
+// --- Runner ----------------------------------------------------------------------------------------
+
+/// The table without the wall_s column (timings differ between runs).
+std::vector<std::string> rowsWithoutWallTime(const fs::path& samples) {
+    std::vector<std::string> out;
+    std::ifstream in(samples);
+    std::string line;
+    while (std::getline(in, line)) out.push_back(line.substr(0, line.rfind(',')));
+    return out;
+}
+
+long countLines(const fs::path& p) {
+    std::ifstream in(p);
+    return std::count(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>(), '\n');
+}
+
+const std::string kTiny = "--samples 160 --forces-per-cell 4 --level 2 --seed 5 --no-cache --inject-failures 13";
+
+TEST(CampaignRunner, ResumeAfterSigkillGivesTheUninterruptedTable) {
+    TempDir tmp;
+    const fs::path a = tmp.path() / "a", b = tmp.path() / "b";
+    const CliRun full = runTrbc("campaign " + kTiny + " --threads 2 --out " + shellQuote(a.string()), tmp.path());
+    ASSERT_EQ(full.status, 0) << full.err;
+
+    // The same campaign, killed with SIGKILL once some cells are written.
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny +
+                                " --threads 1 --out " + shellQuote(b.string()) + " >/dev/null 2>&1";
+        execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+        _exit(127);
+    }
+    const fs::path part = b / "parts" / "rank0.csv";
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!(fs::exists(part) && countLines(part) >= 1 + 4 * 8) &&
+           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be killed";
+    EXPECT_FALSE(fs::exists(b / "samples.csv"));
+    const long before = countLines(part) - 1;
+    EXPECT_LT(before, 160);
+    // A torn last line, as a kill in the middle of a write would leave it.
+    std::ofstream(part, std::ios::app) << "999,249,5,0.9,3";
+
+    const CliRun again = runTrbc("campaign " + kTiny + " --threads 2 --out " + shellQuote(b.string()), tmp.path());
+    EXPECT_EQ(again.status, 2) << "an existing campaign must not be overwritten without --resume";
+    EXPECT_NE(again.err.find("add --resume"), std::string::npos) << again.err;
+
+    const CliRun resumed = runTrbc("campaign " + kTiny + " --threads 2 --resume --out " + shellQuote(b.string()), tmp.path());
+    ASSERT_EQ(resumed.status, 0) << resumed.err;
+    // No finished cell was repeated: the resumed run computed only what was missing.
+    EXPECT_NE(resumed.out.find(fmt::format("{} resumed", before / 4)), std::string::npos) << resumed.out;
+    EXPECT_EQ(rowsWithoutWallTime(a / "samples.csv"), rowsWithoutWallTime(b / "samples.csv"));
+
+    // Failures are kept with their reason: the injected cell (rows 12..15), nothing dropped.
+    const auto rows = readCampaignCsv(b / "samples.csv");
+    ASSERT_EQ(rows.size(), 160u);
+    for (const CampaignRow& r : rows) {
+        EXPECT_EQ(r.point.sampleId, &r - rows.data());
+        if (r.point.cellId == 3) {
+            EXPECT_EQ(r.status, "failed");
+            EXPECT_EQ(r.reason, "equilibrium: injected failure (--inject-failures)");
+            EXPECT_TRUE(std::isnan(r.D));
+        } else {
+            EXPECT_EQ(r.status, "ok") << r.reason;
+            EXPECT_TRUE(std::isfinite(r.tc));
+        }
+    }
+}
+
+TEST(CampaignRunner, ResumeRefusesOtherSettings) {
+    TempDir tmp;
+    const fs::path a = tmp.path() / "a";
+    ASSERT_EQ(runTrbc("campaign --samples 4 --forces-per-cell 4 --level 2 --seed 5 --no-cache --out " + shellQuote(a.string()),
+                      tmp.path())
+                  .status,
+              0);
+    const CliRun r = runTrbc(
+        "campaign --samples 4 --forces-per-cell 4 --level 2 --seed 6 --no-cache --resume --out " + shellQuote(a.string()), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("seed (was 5, now 6)"), std::string::npos) << r.err;
+}
+
+TEST(CampaignRunner, RowsOfACellMatchTheDirectForwardModel) {
+    // A cell's stretching is a continuation over its forces; each row must agree with a direct
+    // solve at its own force (within the static tolerance's effect, 0.02 um as for trbc simulate).
+    // Level 3: on the level-2 mesh (162 vertices) the stretched shape has nearby alternative
+    // equilibria and the two paths can end in different ones (0.16 um apart in D0).
+    ExperimentOptions opt;
+    opt.level = 3;
+    auto cell = campaignDesign(DesignKind::Uniform, 3, 3, 8);
+    const auto rows = runCampaignCell(cell, 8, opt);
+    for (const CampaignRow& r : rows) {
+        ASSERT_TRUE(r.ok()) << r.reason;
+        const SampleResult s = runSample(r.point.p, r.point.fext, {true, true, false}, opt);
+        EXPECT_EQ(r.D, s.equilibrium.observables.D);
+        EXPECT_NEAR(r.D0, s.stretching[0].observables.D0, 0.02);
+        EXPECT_NEAR(r.D1, s.stretching[0].observables.D1, 0.02);
+    }
+}
+
+TEST(CampaignCli, RejectsBadOptions) {
+    TempDir tmp;
+    const std::string out = " --out " + shellQuote((tmp.path() / "x").string());
+    const std::pair<std::string, std::string> cases[] = {
+        {"--samples 0", "--samples 0 is outside [1, 1e8]"},
+        {"--samples 4 " "--design sobol", "unknown design 'sobol' (valid: uniform, lhs)"},
+        {"--samples 4 " "--forces-per-cell 0", "--forces-per-cell 0 is outside [1, 1000]"},
+        {"--samples 4 " "--threads 0", "--threads 0 is outside [1, 1024]"},
+        {"--samples 4 " "--level 9", "--level 9 is outside [1, 6]"},
+        {"--samples 4 " "--inject-failures 3,x", "'x' is not a sample id"},
+    };
+    for (const auto& [args, phrase] : cases) {
+        const CliRun r = runTrbc("campaign " + args + out, tmp.path());
+        EXPECT_EQ(r.status, 2) << args;
+        EXPECT_NE(r.err.find(phrase), std::string::npos) << args << ": " << r.err;
+    }
+}
+
+}  // namespace
+}  // namespace trbc

@@ -1,0 +1,322 @@
+// Boundary-integral Stokes flow around one closed surface, against exact solutions on the unit
+// sphere (radius a = 1, vertices of the icosphere on the sphere):
+//  * operator identities: int G dS = 16 pi a/3 I, int G . n dS = 0, double layer of rigid motions;
+//  * rigid sphere translating: drag F = -6 pi mu a U; rotating: torque -8 pi mu a^3 Omega;
+//  * drop (viscosity ratio lambda) driven by a force F: Hadamard-Rybczynski velocity;
+//  * freely suspended rigid sphere in simple shear: Omega = -gamma/2 e_z, U = 0.
+// Production resolution: icosphere level 3 (642 vertices), every case within 1 %. The level 1-4
+// table of docs/flow_verification.md comes from the disabled test StokesConvergence.Table.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "flow/boundary_integral.hpp"
+#include "flow/stokes_kernels.hpp"
+#include "flow/stokes_solver.hpp"
+#include "mesh/icosphere.hpp"
+
+namespace trbc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr int kProductionLevel = 3;
+
+double relErr(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).norm() / b.norm(); }
+
+// ---- The verification cases, each returning its relative error (also used by the table).
+
+/// Rigid unit sphere translating with U = (0.3, -0.2, 1) in fluid at rest: F = -6 pi mu a U.
+double translatingSphereError(const BoundaryIntegralOperators& ops, int* iterations = nullptr) {
+    const double mu = 1.7;
+    const Eigen::Vector3d U(0.3, -0.2, 1.0);
+    const RigidBodyResult r =
+        solveRigidBodyResistance(ops, mu, U, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    if (iterations) *iterations = r.gmres.iterations;
+    return relErr(r.force, -6.0 * kPi * mu * U);
+}
+
+/// Rigid unit sphere rotating with Omega: torque -8 pi mu a^3 Omega.
+double rotatingSphereError(const BoundaryIntegralOperators& ops) {
+    const double mu = 0.8;
+    const Eigen::Vector3d W(0.5, 1.0, -0.25);
+    const RigidBodyResult r =
+        solveRigidBodyResistance(ops, mu, Eigen::Vector3d::Zero(), W, Eigen::Vector3d::Zero());
+    return relErr(r.torque, -8.0 * kPi * mu * W);
+}
+
+/// Freely suspended unit sphere in u = (gamma y, 0, 0), centred at c (mesh also rotated, so
+/// that its symmetry axes are not aligned with the flow): Omega = (0, 0, -gamma/2),
+/// U = u_inf(c) = (gamma c_y, 0, 0), and the stresslet (symmetric traceless part of the first
+/// moment of the traction; the traction is f = 5 mu E . n up to a pressure) is
+/// S = 20/3 pi mu a^3 E with E the rate of strain (Batchelor 1970). Returns the errors
+/// {max(|Omega - Omega_exact|, |U - U_exact| / a) / (gamma/2), |S - S_exact| / |S_exact|}.
+/// Omega and U alone would be exact up to the GMRES tolerance: the icosphere is centrally
+/// symmetric, so the discrete strain-rotation coupling vanishes; the stresslet tests the quadrature.
+std::pair<double, double> shearedSphereErrors(int level, int* iterations = nullptr) {
+    const double mu = 1.3, gamma = 2.0;
+    const Eigen::Vector3d c(0.3, -0.4, 0.2);
+    Mesh m = icosphere(level);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    m.X = (R * m.X).colwise() + c;
+    const BoundaryIntegralOperators ops(m);
+    const LinearFlow shear = LinearFlow::simpleShear(gamma);
+    const RigidBodyResult r = solveRigidBodyMobility(ops, mu, c, shear, Eigen::Vector3d::Zero(),
+                                                     Eigen::Vector3d::Zero());
+    if (iterations) *iterations = r.gmres.iterations;
+    const double w = (r.angularVelocity - Eigen::Vector3d(0, 0, -gamma / 2)).norm() / (gamma / 2);
+    const double u = (r.velocity - Eigen::Vector3d(gamma * c.y(), 0, 0)).norm() / (gamma / 2);
+    const Eigen::Matrix3d M = ops.firstMoment(r.traction, c);
+    const Eigen::Matrix3d S = 0.5 * (M + M.transpose()) - M.trace() / 3.0 * Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d E = 0.5 * (shear.gradient + shear.gradient.transpose());
+    const Eigen::Matrix3d Sx = 20.0 / 3.0 * kPi * mu * E;
+    return {std::max(w, u), (S - Sx).norm() / Sx.norm()};
+}
+
+/// Drop of viscosity ratio lambda driven by a force F (e.g. a uniform body force density F/V on
+/// its contents, as for a sedimenting drop). Exact: with the modified inside pressure
+/// P = p - (F/V) . x the body force moves into the traction jump, which becomes (modulo a
+/// uniform pressure, whose single layer vanishes since int G . n dS = 0)
+///     Delta f = (sigma_out - sigma_in) . n = -(F . x / V) n,       int Delta f dS = -F,
+/// and the Hadamard-Rybczynski solution (Happel & Brenner 1965, 4-21) satisfies the normal and
+/// tangential stress conditions on the undeformed sphere exactly for this Delta f and any surface
+/// tension. It gives the drop velocity U = F (1 + lambda) / (2 pi mu a (2 + 3 lambda)) and the
+/// interface velocity u = U - (I - n n) U / (2 (1 + lambda)) (tangential slip, lab frame).
+/// Returns the relative errors of U (volume mean of the interface velocity) and of the field u
+/// (max over vertices / |U|).
+std::pair<double, double> hadamardRybczynskiErrors(const BoundaryIntegralOperators& ops, double lambda,
+                                                   int* iterations = nullptr) {
+    const double mu = 1.4, a = 1.0;
+    const Eigen::Vector3d F(0.2, 0.5, -1.0);
+    const Eigen::Matrix3Xd& X = ops.mesh().X;
+    const double V = 4.0 * kPi * a * a * a / 3.0;
+    Eigen::Matrix3Xd df(3, X.cols());
+    for (Eigen::Index i = 0; i < X.cols(); ++i) {
+        const Eigen::Vector3d n = X.col(i).normalized();  // exact sphere normal
+        df.col(i) = -(F.dot(X.col(i)) / V) * n;
+    }
+    const InterfaceResult r = solveInterfaceVelocity(ops, mu, lambda, df);
+    if (iterations) *iterations = r.gmres.iterations;
+    const Eigen::Vector3d U = F * (1.0 + lambda) / (2.0 * kPi * mu * a * (2.0 + 3.0 * lambda));
+    double field = 0.0;
+    for (Eigen::Index i = 0; i < X.cols(); ++i) {
+        const Eigen::Vector3d n = X.col(i).normalized();
+        const Eigen::Vector3d exact = U - (U - n * n.dot(U)) / (2.0 * (1.0 + lambda));
+        field = std::max(field, (r.velocity.col(i) - exact).norm() / U.norm());
+    }
+    return {relErr(ops.volumeMeanVelocity(r.velocity), U), field};
+}
+
+// ---- Kernels and operators.
+
+TEST(StokesKernels, StokesletAndStressletAreSymmetricAndHomogeneous) {
+    const Eigen::Vector3d d(0.3, -1.2, 0.7), n(0.1, 0.4, -0.9);
+    const Eigen::Matrix3d G = stokes::stokeslet(d), K = stokes::stressletNormal(d, n);
+    EXPECT_LT((G - G.transpose()).norm(), 1e-15);
+    EXPECT_LT((K - K.transpose()).norm(), 1e-15);
+    // G is homogeneous of degree -1, T of degree -2.
+    EXPECT_LT((stokes::stokeslet(2.0 * d) - 0.5 * G).norm(), 1e-14);
+    EXPECT_LT((stokes::stressletNormal(2.0 * d, n) - 0.25 * K).norm(), 1e-14);
+    // K_ij = T_ijk n_k.
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            double s = 0.0;
+            for (int k = 0; k < 3; ++k) s += stokes::stresslet(d, i, j, k) * n[k];
+            EXPECT_NEAR(K(i, j), s, 1e-14);
+        }
+    // Scalar form used by the loops.
+    const Eigen::Vector3d g(1.0, 2.0, -0.5);
+    double ux = 0, uy = 0, uz = 0;
+    stokes::addStokeslet(d.x(), d.y(), d.z(), 1.0 / d.norm(), 0.7, g.x(), g.y(), g.z(), ux, uy, uz);
+    EXPECT_LT((Eigen::Vector3d(ux, uy, uz) - 0.7 * G * g).norm(), 1e-14);
+    const double c = stokes::doubleLayerCoefficient(d.x(), d.y(), d.z(), 1.0 / d.norm(), 0.7 * n.x(),
+                                                    0.7 * n.y(), 0.7 * n.z());
+    EXPECT_LT((c * d * d.transpose() - 0.7 * K).norm(), 1e-14);
+}
+
+TEST(StokesOperators, SphereIdentities) {
+    const BoundaryIntegralOperators ops(icosphere(kProductionLevel));
+    const Eigen::Index nv = ops.numVertices();
+    // int G dS = 16 pi a / 3 I at points of the sphere (uniform density).
+    const Eigen::Vector3d e(0.2, -0.6, 1.0);
+    const Eigen::Matrix3Xd S1 = ops.singleLayer(e.replicate(1, nv));
+    const double sRef = 16.0 * kPi / 3.0;
+    EXPECT_LT((S1.colwise() - sRef * e).colwise().norm().maxCoeff() / (sRef * e.norm()), 5e-3);
+    // int G . n dS = 0.
+    const Eigen::Matrix3Xd Sn = ops.singleLayer(ops.vertexNormals());
+    EXPECT_LT(Sn.colwise().norm().maxCoeff() / sRef, 5e-3);
+    // Double layer of rigid-body motions: -4 pi u (exact for translations by construction).
+    const Eigen::Matrix3Xd Dt = ops.doubleLayer(e.replicate(1, nv));
+    EXPECT_LT((Dt + 4.0 * kPi * e.replicate(1, nv)).norm(), 1e-10 * Dt.norm());
+    Eigen::Matrix3Xd rot(3, nv);
+    for (Eigen::Index i = 0; i < nv; ++i) rot.col(i) = e.cross(ops.mesh().X.col(i));
+    // (for a rotation u(x) - u(x0) = w x (x - x0) is orthogonal to x - x0, so the subtracted
+    // integrand vanishes pointwise and the result is exact as well).
+    const Eigen::Matrix3Xd Dr = ops.doubleLayer(rot);
+    EXPECT_LT((Dr + 4.0 * kPi * rot).norm(), 1e-10 * Dr.norm());
+    // Double layer of the normal field: on a sphere n is an eigenfunction with eigenvalue +4 pi
+    // (int n(x) . T(x - x0) . n(x) dS = 4 pi n(x0)). The flat faces miss the O(h^2) curvature
+    // terms of (n(x) - n(x0)) . T . n near x0: 1.5 % at level 3, 0.6 % at level 4.
+    const Eigen::Matrix3Xd Dn = ops.doubleLayer(ops.vertexNormals());
+    EXPECT_LT((Dn - 4.0 * kPi * ops.vertexNormals()).colwise().norm().maxCoeff() / (4.0 * kPi), 2e-2);
+}
+
+TEST(StokesOperators, DenseAssemblyEqualsMatrixFreeApply) {
+    const BoundaryIntegralOperators ops(icosphere(2));
+    const Eigen::Index nv = ops.numVertices();
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, nv);
+    const Eigen::Map<const Eigen::VectorXd> fv(f.data(), 3 * nv);
+    const Eigen::Matrix3Xd S = ops.singleLayer(f), D = ops.doubleLayer(f);
+    const Eigen::VectorXd Sd = ops.assembleSingleLayer() * fv, Dd = ops.assembleDoubleLayer() * fv;
+    EXPECT_LT((Eigen::Map<const Eigen::VectorXd>(S.data(), 3 * nv) - Sd).norm(), 1e-12 * Sd.norm());
+    EXPECT_LT((Eigen::Map<const Eigen::VectorXd>(D.data(), 3 * nv) - Dd).norm(), 1e-12 * Dd.norm());
+}
+
+TEST(StokesOperators, ResultDoesNotDependOnThreads) {
+    const BoundaryIntegralOperators ops(icosphere(2));
+    const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, ops.numVertices());
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const Eigen::Matrix3Xd S1 = ops.singleLayer(f), D1 = ops.doubleLayer(f);
+    omp_set_num_threads(2);
+    const Eigen::Matrix3Xd S2 = ops.singleLayer(f), D2 = ops.doubleLayer(f);
+    omp_set_num_threads(saved);
+    EXPECT_EQ(S1, S2);
+    EXPECT_EQ(D1, D2);
+}
+
+// ---- Verification at the production level.
+
+TEST(StokesRigidBody, TranslatingSphereHasStokesDrag) {
+    const BoundaryIntegralOperators ops(icosphere(kProductionLevel));
+    EXPECT_LT(translatingSphereError(ops), 0.01);
+}
+
+TEST(StokesRigidBody, RotatingSphereHasStokesTorque) {
+    const BoundaryIntegralOperators ops(icosphere(kProductionLevel));
+    EXPECT_LT(rotatingSphereError(ops), 0.01);
+}
+
+TEST(StokesRigidBody, FreeSphereInSimpleShearRotatesAtHalfTheShearRate) {
+    const auto [motion, stresslet] = shearedSphereErrors(kProductionLevel);
+    EXPECT_LT(motion, 0.01);
+    EXPECT_LT(stresslet, 0.01);
+}
+
+TEST(StokesRigidBody, MatrixFreeAndDenseAgree) {
+    const BoundaryIntegralOperators ops(icosphere(2));
+    GmresOptions dense, free;
+    dense.mode = OperatorMode::Dense;
+    free.mode = OperatorMode::MatrixFree;
+    const RigidBodyResult a = solveRigidBodyMobility(ops, 1.0, Eigen::Vector3d::Zero(),
+                                                     LinearFlow::simpleShear(1.0), Eigen::Vector3d(0, 0, 1),
+                                                     Eigen::Vector3d::Zero(), dense);
+    const RigidBodyResult b = solveRigidBodyMobility(ops, 1.0, Eigen::Vector3d::Zero(),
+                                                     LinearFlow::simpleShear(1.0), Eigen::Vector3d(0, 0, 1),
+                                                     Eigen::Vector3d::Zero(), free);
+    EXPECT_LT((a.velocity - b.velocity).norm(), 1e-7);
+    EXPECT_LT((a.angularVelocity - b.angularVelocity).norm(), 1e-7);
+    // Force balance holds and the sphere sediments at about F / (6 pi mu a).
+    EXPECT_LT((a.force + Eigen::Vector3d(0, 0, 1)).norm(), 1e-7);
+    EXPECT_NEAR(a.velocity.z(), 1.0 / (6.0 * kPi), 0.02 / (6.0 * kPi));
+}
+
+TEST(StokesDrop, HadamardRybczynskiVelocity) {
+    const BoundaryIntegralOperators ops(icosphere(kProductionLevel));
+    for (const double lambda : {0.1, 1.0, 5.0}) {
+        const auto [u, field] = hadamardRybczynskiErrors(ops, lambda);
+        EXPECT_LT(u, 0.01) << "lambda = " << lambda;
+        EXPECT_LT(field, 0.02) << "lambda = " << lambda;
+    }
+}
+
+TEST(StokesDrop, InterfaceInUniformFlowMovesWithIt) {
+    // No traction jump: the drop is advected, u = u_inf for any lambda (second-kind equation:
+    // (I - kappa D) U = 2/(1+lambda) U since D U = -4 pi U).
+    const BoundaryIntegralOperators ops(icosphere(2));
+    const Eigen::Vector3d U(1.0, -2.0, 0.5);
+    const InterfaceResult r = solveInterfaceVelocity(ops, 1.0, 3.0,
+                                                     Eigen::Matrix3Xd::Zero(3, ops.numVertices()),
+                                                     LinearFlow::uniform(U));
+    EXPECT_LT((r.velocity.colwise() - U).norm(), 1e-6 * U.norm());
+}
+
+// ---- Errors.
+
+TEST(StokesErrors, BadInputsThrowInputError) {
+    const BoundaryIntegralOperators ops(icosphere(1));
+    const Eigen::Vector3d z = Eigen::Vector3d::Zero();
+    const Eigen::Matrix3Xd df = Eigen::Matrix3Xd::Zero(3, ops.numVertices());
+    auto expectInput = [](auto&& call, const std::string& word) {
+        try {
+            call();
+            ADD_FAILURE() << "no exception; expected one naming " << word;
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(word), std::string::npos) << e.what();
+        }
+    };
+    expectInput([&] { solveRigidBodyResistance(ops, 0.0, z, z, z); }, "viscosity");
+    expectInput([&] { solveRigidBodyMobility(ops, -1.0, z); }, "viscosity");
+    expectInput([&] { solveInterfaceVelocity(ops, std::nan(""), 1.0, df); }, "viscosity");
+    expectInput([&] { solveInterfaceVelocity(ops, 1.0, 0.0, df); }, "lambda");
+    expectInput([&] { solveInterfaceVelocity(ops, 1.0, -2.0, df); }, "lambda");
+    expectInput([&] { solveInterfaceVelocity(ops, 1.0, 2.0, Eigen::Matrix3Xd::Zero(3, 5)); }, "traction jump");
+    GmresOptions bad;
+    bad.restart = 0;
+    expectInput([&] { solveRigidBodyResistance(ops, 1.0, z, z, z, {}, bad); }, "restart");
+    QuadratureOptions q;
+    q.farPoints = 4;
+    expectInput([&] { BoundaryIntegralOperators(icosphere(1), q); }, "farPoints");
+    // Open mesh: one face removed.
+    Mesh open = icosphere(1);
+    open.F.conservativeResize(3, open.F.cols() - 1);
+    EXPECT_THROW(BoundaryIntegralOperators{open}, InputError);
+}
+
+TEST(StokesErrors, GmresNonConvergenceThrowsNumericalError) {
+    const BoundaryIntegralOperators ops(icosphere(2));
+    GmresOptions g;
+    g.maxIterations = 3;
+    g.restart = 3;
+    try {
+        solveRigidBodyResistance(ops, 1.0, Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Zero(),
+                                 Eigen::Vector3d::Zero(), {}, g);
+        ADD_FAILURE() << "no exception";
+    } catch (const NumericalError& e) {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find("residual"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("3 iterations"), std::string::npos) << msg;
+    }
+}
+
+// ---- Convergence table of docs/flow_verification.md (levels 1-4, matrix-free at level 4;
+// several minutes on 2 cores):
+//   ./build/tests/trbc_tests --gtest_also_run_disabled_tests --gtest_filter='StokesConvergence.*'
+TEST(StokesConvergence, DISABLED_Table) {
+    std::printf("| level | Nv | drag (transl.) | torque (rot.) | shear: Omega, U | shear: stresslet | "
+                "HR U, lambda=0.1 | HR U, lambda=1 | HR U, lambda=5 | HR field max, lambda=0.1/1/5 | "
+                "GMRES its transl./shear/HR 0.1/HR 5 | seconds |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (int level = 1; level <= 4; ++level) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const BoundaryIntegralOperators ops(icosphere(level));
+        int i1 = 0, i3 = 0, i01 = 0, i5 = 0;
+        const double e1 = translatingSphereError(ops, &i1), e2 = rotatingSphereError(ops);
+        const auto e3 = shearedSphereErrors(level, &i3);
+        const auto h01 = hadamardRybczynskiErrors(ops, 0.1, &i01), h1 = hadamardRybczynskiErrors(ops, 1.0),
+                   h5 = hadamardRybczynskiErrors(ops, 5.0, &i5);
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::printf("| %d | %ld | %.2e | %.2e | %.1e | %.2e | %.2e | %.2e | %.2e | %.1e / %.1e / %.1e | "
+                    "%d / %d / %d / %d | %.1f |\n",
+                    level, static_cast<long>(ops.numVertices()), e1, e2, e3.first, e3.second, h01.first,
+                    h1.first, h5.first, h01.second, h1.second, h5.second, i1, i3, i01, i5, s);
+        std::fflush(stdout);
+    }
+}
+
+}  // namespace
+}  // namespace trbc
