@@ -56,6 +56,11 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e);
 
 void registerForces(CLI::App& app);
 void registerCampaign(CLI::App& app);
+void registerSurrogate(CLI::App& app);
+void registerSobol(CLI::App& app);
+
+/// Shipped surrogates: $TRBC_SURROGATE_DIR, else <source>/data/surrogates.
+std::filesystem::path defaultSurrogateDirectory();
 void registerSfs(CLI::App& app);
 void registerSimulate(CLI::App& app);
 void registerMesh(CLI::App& app);

@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
     trbc::cli::registerSfs(app);
     trbc::cli::registerSimulate(app);
     trbc::cli::registerCampaign(app);
+    trbc::cli::registerSurrogate(app);
+    trbc::cli::registerSobol(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

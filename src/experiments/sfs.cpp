@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/version.hpp"
 #include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
@@ -46,12 +47,6 @@ Vertices oblateSeed(const Vertices& sphere, const Faces& F, double vTarget) {
     Vertices Y = sphere;
     Y.row(2) *= 0.5 * (lo + hi);
     return scaleToArea(Y, F, kFourPi);
-}
-
-std::uint64_t fnv1a(const std::string& bytes) {
-    std::uint64_t h = 1469598103934665603ull;
-    for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
-    return h;
 }
 
 std::string readBytes(const std::filesystem::path& p) {

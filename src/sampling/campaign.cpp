@@ -343,6 +343,33 @@ CampaignSummary finalizeCampaign(const CampaignOptions& o, double wallSeconds) {
     return s;
 }
 
+std::vector<CampaignRow> readCampaignRows(const fs::path& path, bool* complete) {
+    if (complete) *complete = true;
+    if (fs::is_regular_file(path)) return readCampaignCsv(path);
+    if (!fs::is_directory(path)) throw InputError(fmt::format("campaign data {} does not exist", path.string()));
+    if (fs::exists(path / "samples.csv")) return readCampaignCsv(path / "samples.csv");
+    if (complete) *complete = false;
+    std::vector<CampaignRow> rows;
+    if (!fs::exists(path / "parts") || !fs::exists(path / "campaign.json"))
+        throw InputError(fmt::format("{} holds neither samples.csv nor the campaign.json and parts/ of a campaign", path.string()));
+    // The finished cells of the design recorded in campaign.json.
+    CampaignOptions o;
+    o.outDir = path;
+    try {
+        std::ifstream in(provenancePath(o));
+        const nlohmann::json j = nlohmann::json::parse(in).at("settings");
+        o.design = parseDesignKind(j.at("design").get<std::string>());
+        o.samples = j.at("samples").get<long>();
+        o.forcesPerCell = j.at("forces_per_cell").get<int>();
+        o.seed = j.at("seed").get<std::uint64_t>();
+    } catch (const std::exception& e) {
+        throw InputError(fmt::format("{}: cannot read the campaign settings: {}", provenancePath(o).string(), e.what()));
+    }
+    for (auto& [id, r] : finishedRows(o, cellsOf(campaignDesign(o.design, o.samples, o.forcesPerCell, o.seed))))
+        rows.push_back(std::move(r));
+    return rows;
+}
+
 CampaignSummary runCampaign(const CampaignOptions& o) {
     prepareCampaign(o);
     const CampaignSummary share = runCampaignShare(o, 0, 1);

@@ -69,6 +69,10 @@ CampaignSummary runCampaignShare(const CampaignOptions& opt, int rank = 0, int r
 /// writes the final provenance. Call once, after all ranks finished (rank 0 under MPI).
 CampaignSummary finalizeCampaign(const CampaignOptions& opt, double wallSeconds);
 
+/// The rows of a campaign directory: samples.csv when the campaign is complete, otherwise the
+/// finished cells of its part files (`complete` says which). A path to a CSV file reads that table.
+std::vector<CampaignRow> readCampaignRows(const std::filesystem::path& dirOrFile, bool* complete = nullptr);
+
 /// Convenience: prepareCampaign + runCampaignShare + finalizeCampaign in one process.
 CampaignSummary runCampaign(const CampaignOptions& opt);
 

@@ -1,0 +1,117 @@
+// trbc sobol: first-order and total Sobol' indices of every surrogate output with respect to
+// (v, mu, FvK, b2, etam) on the box of SURROGATE.md 1.1 (section 4): D, hmin, hmax, tc, and D0, D1
+// at each force of a grid over [0, 200] pN.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "surrogate/sobol.hpp"
+#include "surrogate/sobol_io.hpp"
+#include "surrogate/surrogate.hpp"
+
+namespace trbc::cli {
+
+/// The Sobol' model: rows of X are points (v, mu, FvK, b2, etam); columns of the result are
+/// D, hmin, hmax, tc, then D0@F_j and D1@F_j for every force.
+static Eigen::MatrixXd sobolOutputs(const Surrogate& s, const Eigen::MatrixXd& X, const std::vector<double>& forces) {
+    const Eigen::Index n = X.rows();
+    const Eigen::MatrixXd x = X.transpose();  // 5 x n
+    const std::size_t nF = forces.size();
+    Eigen::MatrixXd Y(n, 4 + 2 * Eigen::Index(nF));
+    Eigen::MatrixXd eqIn(2, n);
+    eqIn << x.row(0), x.row(2);
+    Y.leftCols(3) = s.equilibriumOutputs(eqIn).transpose();
+    Y.col(3) = s.relaxationTime(x);
+    Eigen::MatrixXd st(5, n);
+    st.topRows(4) = x.topRows(4);
+    for (std::size_t j = 0; j < nF; ++j) {
+        st.row(4).setConstant(forces[j]);
+        const Eigen::MatrixXd d = s.stretchingOutputs(st);
+        Y.col(4 + 2 * Eigen::Index(j)) = d.row(0).transpose();
+        Y.col(5 + 2 * Eigen::Index(j)) = d.row(1).transpose();
+    }
+    return Y;
+}
+
+void registerSobol(CLI::App& app) {
+    struct Opts {
+        std::string model, out, base = "sobol";
+        long samples = 1024;
+        std::uint64_t seed = 1;
+        int forces = 100, resamples = 100, threads = 1;
+        bool noPlot = false;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "sobol", "Sobol' sensitivity indices (first order and total, bootstrap 95 % intervals; SURROGATE.md 4) of D_um, "
+                 "hmin_um, hmax_um, tc_s and of D0_um, D1_um at each force, with respect to v, mu_uN_per_m, FvK, b2, "
+                 "etam_Pa_s_um uniform on the prior box; writes OUT/sobol_indices.csv, sobol_second_order.csv, sobol.json "
+                 "and the figures");
+    cmd->add_option("--model", o->model, "model directory (default: the shipped surrogates)");
+    cmd->add_option("--samples", o->samples, "N, base rows of the Saltelli design (N(2D+2) evaluations)")
+        ->check(CLI::Range(2L, 1L << 24))->capture_default_str();
+    cmd->add_option("--seed", o->seed, "seed of the bootstrap (and of the base sample with --base random)")->capture_default_str();
+    cmd->add_option("--base", o->base, "base sample: sobol (Joe-Kuo low-discrepancy) or random")
+        ->check(CLI::IsMember({"sobol", "random"}))->capture_default_str();
+    cmd->add_option("--forces", o->forces, "number of forces F_j = 200 j / (n - 1) pN for D0 and D1")
+        ->check(CLI::Range(2, 1000))->capture_default_str();
+    cmd->add_option("--resamples", o->resamples, "bootstrap resamples")->check(CLI::Range(2, 100000))->capture_default_str();
+    cmd->add_option("--out", o->out, "output directory")->required();
+    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    cmd->add_flag("--no-plot", o->noPlot, "skip the figures (scripts/plot_sobol.py)");
+    cmd->callback([o]() {
+        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        const Surrogate s = Surrogate::load(modelDir);
+        ensureWritableDirectory(o->out);
+        omp_set_num_threads(o->threads);
+        std::vector<double> forces;
+        for (int j = 0; j < o->forces; ++j) forces.push_back(200.0 * j / (o->forces - 1));
+        std::vector<std::string> outputs = {"D_um", "hmin_um", "hmax_um", "tc_s"};
+        for (double f : forces) outputs.push_back(fmt::format("D0_um@{:.4g}", f)), outputs.push_back(fmt::format("D1_um@{:.4g}", f));
+        const std::vector<std::string> inputs = {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"};
+        Eigen::VectorXd lo(5), hi(5);
+        for (int k = 0; k < 5; ++k) lo(k) = kCellBox[k].lo, hi(k) = kCellBox[k].hi;
+        SobolOptions so;
+        so.n_base = o->samples;
+        so.base = o->base == "sobol" ? SobolBase::Sobol : SobolBase::PseudoRandom;
+        so.seed = o->seed;
+        so.resamples = o->resamples;
+        const auto t0 = std::chrono::steady_clock::now();
+        const SobolResult r = sobolAnalysis([&](const Eigen::MatrixXd& X) { return sobolOutputs(s, X, forces); }, lo, hi, so,
+                                            inputs, outputs);
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const std::filesystem::path dir = o->out;
+        writeSobolCsv(dir / "sobol_indices.csv", r);
+        writeSobolSecondOrderCsv(dir / "sobol_second_order.csv", r);
+        const nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"model", modelDir.string()},
+                                  {"seed", o->seed}, {"base", o->base}, {"n_base", r.n_base},
+                                  {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall}};
+        std::ofstream(dir / "sobol.json") << j.dump(2) << '\n';
+        std::cout << fmt::format("sobol: {} outputs x {} inputs, {} model evaluations per output, {:.2f} s\n", outputs.size(),
+                                 inputs.size(), r.evaluations, wall);
+        std::cout << "first-order / total indices (95 % CI half-width):\n";
+        for (int out = 0; out < 4; ++out) {
+            std::cout << fmt::format("  {:<8}", outputs[out]);
+            for (int in = 0; in < 5; ++in)
+                std::cout << fmt::format("  {}: {:.3f}/{:.3f}", inputs[in], r.S1(out, in), r.ST(out, in));
+            std::cout << '\n';
+        }
+        if (!o->noPlot) {
+            const std::string cmdline = fmt::format("/usr/bin/python3 {}/scripts/plot_sobol.py {} >/dev/null 2>&1", TRBC_SOURCE_DIR, dir.string());
+            if (std::system(cmdline.c_str()) != 0)
+                std::cerr << "sobol: the figures were not drawn (needs python3-matplotlib): " << cmdline << '\n';
+            else
+                std::cout << fmt::format("figures: {}/sobol_scalar.png, {}/sobol_force.png\n", dir.string(), dir.string());
+        }
+    });
+}
+
+}  // namespace trbc::cli

@@ -1,0 +1,211 @@
+// trbc surrogate train | eval: the three networks of SURROGATE.md 3, trained from a campaign
+// (issue 5) and evaluated in batches on a CSV of inputs.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "cli/common.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "sampling/campaign.hpp"
+#include "surrogate/surrogate.hpp"
+
+namespace trbc::cli {
+namespace {
+
+nlohmann::json accuracyJson(const std::vector<OutputAccuracy>& acc) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const OutputAccuracy& a : acc)
+        j.push_back({{"output", a.name}, {"n", a.n}, {"rmse", a.rmse}, {"relative_rmse", a.relativeRmse}, {"mae", a.mae},
+                     {"max_abs", a.maxAbs}, {"mean_relative", a.meanRelative}, {"r2", a.r2}});
+    return j;
+}
+
+std::string accuracyMarkdown(const std::vector<OutputAccuracy>& acc) {
+    std::string s = "| output | n | RMSE | relative RMSE | MAE | max abs | R^2 |\n|---|---|---|---|---|---|---|\n";
+    for (const OutputAccuracy& a : acc)
+        s += fmt::format("| {} | {} | {:.4g} | {:.3f} % | {:.4g} | {:.4g} | {:.5f} |\n", a.name, a.n, a.rmse,
+                         100 * a.relativeRmse, a.mae, a.maxAbs, a.r2);
+    return s;
+}
+
+void writeText(const std::filesystem::path& p, const std::string& text) {
+    std::ofstream out(p);
+    out << text;
+    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
+}
+
+void registerTrain(CLI::App* parent) {
+    struct Opts {
+        std::string data, out;
+        SurrogateTrainingOptions t;
+        int threads = 2;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = parent->add_subcommand(
+        "train", "Train the equilibrium, stretching and relaxation networks (3 x 32 tanh, Adam, early stopping; "
+                 "SURROGATE.md 3) on a campaign table; writes MODEL_DIR/{equilibrium,stretching,relaxation}.json and "
+                 "the held-out accuracy (accuracy.md, accuracy.json, test_predictions.csv)");
+    cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
+        ->required();
+    cmd->add_option("--out", o->out, "model directory")->required();
+    cmd->add_option("--seed", o->t.network.seed, "seed of the initial weights and mini-batch order")->capture_default_str();
+    cmd->add_option("--split-seed", o->t.network.splitSeed, "seed of the training/validation split")->capture_default_str();
+    cmd->add_option("--test-fraction", o->t.testFraction, "share of the cells held out as the test set, [0, 0.5)")
+        ->capture_default_str();
+    cmd->add_option("--test-seed", o->t.testSeed, "seed of the choice of test cells")->capture_default_str();
+    cmd->add_option("--max-epochs", o->t.network.maxEpochs, "epoch cap of each network")->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--threads", o->threads, "networks trained concurrently (results do not depend on it)")
+        ->check(CLI::Range(1, 3))->capture_default_str();
+    cmd->callback([o]() {
+        ensureWritableDirectory(o->out);
+        bool complete = true;
+        const auto rows = readCampaignRows(o->data, &complete);
+        if (!complete)
+            std::cerr << fmt::format("surrogate train: {} is an unfinished campaign; training on its {} finished rows\n",
+                                     o->data, rows.size());
+        SurrogateTrainingOptions t = o->t;
+        t.command = commandLine();
+        t.progress = [](const std::string& net, const EpochRecord& e) {
+            if (e.reduced || e.last || e.epoch % 100 == 0)
+                std::cerr << fmt::format("  {:<11} epoch {:>4}  train {:.3e}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
+                                         net, e.epoch, e.trainLoss, e.validationLoss, e.bestValidationLoss, e.learningRate,
+                                         e.last ? "  (done)" : e.reduced ? "  (restored best, rate / 10)" : "");
+        };
+        omp_set_num_threads(o->threads);
+        const auto t0 = std::chrono::steady_clock::now();
+        const SurrogateTrainingReport rep = trainSurrogate(rows, t);
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        rep.model.save(o->out);
+
+        const std::filesystem::path dir = o->out;
+        nlohmann::json j = {{"command", commandLine()},
+                            {"version", kVersion},
+                            {"data", o->data},
+                            {"data_complete", complete},
+                            {"data_hash", rep.dataHash},
+                            {"rows", rep.rows},
+                            {"cells", rep.cells},
+                            {"test_cells", rep.testCells},
+                            {"test_seed", t.testSeed},
+                            {"seed", t.network.seed},
+                            {"split_seed", t.network.splitSeed},
+                            {"wall_s", wall},
+                            {"networks", nlohmann::json::object()},
+                            {"dropped_where", rep.droppedWhere},
+                            {"test", accuracyJson(rep.test)},
+                            {"validation", accuracyJson(rep.validation)}};
+        const char* names[3] = {"equilibrium", "stretching", "relaxation"};
+        const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
+        for (int k = 0; k < 3; ++k)
+            j["networks"][names[k]] = {{"samples_used", rep.used[k]},
+                                       {"samples_dropped", rep.dropped[k]},
+                                       {"wall_s", rep.wallSeconds[k]},
+                                       {"epochs", nets[k]->history.passes()},
+                                       {"best_epoch", nets[k]->history.bestEpoch},
+                                       {"best_validation_loss", nets[k]->history.bestValidationLoss},
+                                       {"hit_epoch_cap", nets[k]->history.hitEpochCap}};
+        writeText(dir / "accuracy.json", j.dump(2) + "\n");
+        std::string md = fmt::format("# Surrogate accuracy\n\nMade by `{}` (trbc {}), data hash {}: {} rows in {} cells{}; "
+                                     "{} cells held out as the test set.\n\n## Test set (cells never seen in training or early stopping)\n\n",
+                                     commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
+                                     complete ? "" : " (finished part of an unfinished campaign)", rep.testCells);
+        md += accuracyMarkdown(rep.test) + "\n## Validation split (used for early stopping)\n\n" + accuracyMarkdown(rep.validation);
+        md += "\n## Training\n\n| network | samples | dropped | epochs | wall s |\n|---|---|---|---|---|\n";
+        for (int k = 0; k < 3; ++k)
+            md += fmt::format("| {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
+                              rep.wallSeconds[k]);
+        if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
+        writeText(dir / "accuracy.md", md);
+        {
+            std::ofstream out(dir / "test_predictions.csv");
+            out << "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,"
+                   "D_um_pred,hmin_um_pred,hmax_um_pred,D0_um_pred,D1_um_pred,tc_s_pred\n";
+            for (Eigen::Index c = 0; c < rep.testInputs.cols(); ++c) {
+                std::string line;
+                for (const Eigen::MatrixXd* m : {&rep.testInputs, &rep.testTruth, &rep.testPredicted})
+                    for (Eigen::Index r = 0; r < 6; ++r) line += fmt::format("{}{:.10g}", line.empty() ? "" : ",", (*m)(r, c));
+                out << line << '\n';
+            }
+        }
+        std::cout << md;
+        std::cout << fmt::format("\nmodel: {}\n", dir.string());
+    });
+}
+
+void registerEval(CLI::App* parent) {
+    struct Opts {
+        std::string model, in, out;
+        bool single = false;
+        int threads = 1;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = parent->add_subcommand(
+        "eval", "Evaluate the surrogates on a CSV with columns v, mu_uN_per_m, FvK (or kb_J), b2, etam_Pa_s_um, Fext_pN "
+                "(other columns ignored); writes those inputs, D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s and "
+                "outside_training_box (1 = extrapolation)");
+    cmd->add_option("--model", o->model, "model directory (default: the shipped surrogates)");
+    cmd->add_option("--in", o->in, "input CSV")->required();
+    cmd->add_option("--out", o->out, "output CSV")->required();
+    cmd->add_flag("--single-precision", o->single, "evaluate in float (about 3x faster, ~1e-6 relative difference)");
+    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    cmd->callback([o]() {
+        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        Surrogate s = Surrogate::load(modelDir);
+        s.precision = o->single ? Precision::Single : Precision::Double;
+        ensureWritableFile(o->out);
+        const NumericTable t = readNumericTable(o->in, {"v", "mu_uN_per_m", "FvK", "kb_J", "b2", "etam_Pa_s_um", "Fext_pN"});
+        Eigen::MatrixXd x(6, t.values.rows());
+        x.row(0) = t.column("v").transpose();
+        x.row(1) = t.column("mu_uN_per_m", "shear modulus, uN/m").transpose();
+        if (t.find("FvK") >= 0)
+            x.row(2) = t.column("FvK").transpose();
+        else {
+            const Eigen::VectorXd kb = t.column("kb_J", "or FvK; bending modulus in J");
+            for (Eigen::Index i = 0; i < kb.size(); ++i) x(2, i) = CellParameters::fvkFromKb(x(1, i), kb(i));
+        }
+        x.row(3) = t.column("b2").transpose();
+        x.row(4) = t.column("etam_Pa_s_um", "membrane viscosity, Pa s um").transpose();
+        x.row(5) = t.column("Fext_pN", "bead force, pN").transpose();
+        for (Eigen::Index i = 0; i < x.cols(); ++i)
+            if (!(x(1, i) > 0 && x(2, i) > 0 && x(4, i) > 0))
+                throw InputError(fmt::format("{}:{}: mu_uN_per_m, FvK and etam_Pa_s_um must be positive", o->in, t.lines[i]));
+        omp_set_num_threads(o->threads);
+        const Eigen::MatrixXd y = s.evaluate(x);
+        const auto outside = outsideTrainingBox(x);
+        std::ofstream out(o->out);
+        out << "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,outside_training_box\n";
+        long nOutside = 0;
+        for (Eigen::Index i = 0; i < x.cols(); ++i) {
+            for (int r = 0; r < 6; ++r) out << fmt::format("{:.10g},", x(r, i));
+            for (int r = 0; r < 6; ++r) out << fmt::format("{:.10g},", y(r, i));
+            out << (outside[i] ? 1 : 0) << '\n';
+            nOutside += outside[i];
+        }
+        if (!out) throw InputError(fmt::format("cannot write {}", o->out));
+        std::cerr << fmt::format("surrogate eval: {} rows -> {}{}\n", x.cols(), o->out,
+                                 nOutside ? fmt::format(" ({} outside the training box: extrapolated, flagged)", nOutside) : "");
+    });
+}
+
+}  // namespace
+
+std::filesystem::path defaultSurrogateDirectory() {
+    if (const char* env = std::getenv("TRBC_SURROGATE_DIR")) return env;
+    return std::filesystem::path(TRBC_DATA_DIR) / "surrogates";
+}
+
+void registerSurrogate(CLI::App& app) {
+    CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (SURROGATE.md 3)");
+    cmd->require_subcommand(1);
+    registerTrain(cmd);
+    registerEval(cmd);
+}
+
+}  // namespace trbc::cli

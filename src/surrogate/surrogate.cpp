@@ -1,0 +1,304 @@
+#include "surrogate/surrogate.hpp"
+
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "surrogate/network_io.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+const std::vector<std::string>& surrogateInputNames() {
+    static const std::vector<std::string> n = {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um", "Fext_pN"};
+    return n;
+}
+
+const std::vector<std::string>& surrogateOutputNames() {
+    static const std::vector<std::string> n = {"D_um", "hmin_um", "hmax_um", "D0_um", "D1_um", "tc_s"};
+    return n;
+}
+
+namespace {
+
+const char* kFiles[3] = {"equilibrium.json", "stretching.json", "relaxation.json"};
+const char* kNetworks[3] = {"equilibrium", "stretching", "relaxation"};
+
+// Rows of the six-input batch that each network reads (SURROGATE 3.1).
+const int kEqRows[2] = {0, 2};
+const int kStretchRows[5] = {0, 1, 2, 3, 5};
+const int kRelaxRows[5] = {0, 1, 2, 3, 4};
+
+template <int N>
+Eigen::MatrixXd pickRows(const Eigen::Ref<const Eigen::MatrixXd>& x, const int (&rows)[N]) {
+    Eigen::MatrixXd out(N, x.cols());
+    for (int k = 0; k < N; ++k) out.row(k) = x.row(rows[k]);
+    return out;
+}
+
+void expectRows(const Eigen::Ref<const Eigen::MatrixXd>& x, int rows, const char* what) {
+    if (x.rows() != rows) throw InputError(fmt::format("{}: a batch needs {} input rows, got {}", what, rows, x.rows()));
+}
+
+}  // namespace
+
+Surrogate Surrogate::load(const fs::path& dir) {
+    Surrogate s;
+    TrainedNetwork* nets[3] = {&s.equilibrium, &s.stretching, &s.relaxation};
+    const int inputs[3] = {2, 5, 5}, outputs[3] = {3, 2, 1};
+    for (int k = 0; k < 3; ++k) {
+        const fs::path p = dir / kFiles[k];
+        if (!fs::exists(p))
+            throw InputError(fmt::format("surrogate model {}: missing {} (train one with trbc surrogate train)", dir.string(), p.string()));
+        *nets[k] = loadNetwork(p.string());
+        if (nets[k]->net.numInputs() != inputs[k] || nets[k]->net.numOutputs() != outputs[k])
+            throw InputError(fmt::format("{}: the {} network must map {} inputs to {} outputs, found {} -> {}", p.string(),
+                                         kNetworks[k], inputs[k], outputs[k], nets[k]->net.numInputs(), nets[k]->net.numOutputs()));
+    }
+    return s;
+}
+
+void Surrogate::save(const fs::path& dir) const {
+    fs::create_directories(dir);
+    const TrainedNetwork* nets[3] = {&equilibrium, &stretching, &relaxation};
+    for (int k = 0; k < 3; ++k) saveNetwork(*nets[k], (dir / kFiles[k]).string());
+}
+
+Eigen::MatrixXd Surrogate::equilibriumOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    expectRows(x, 2, "equilibrium surrogate");
+    return equilibrium.evaluate(x, precision);
+}
+
+Eigen::MatrixXd Surrogate::stretchingOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    expectRows(x, 5, "stretching surrogate");
+    return stretching.evaluate(x, precision);
+}
+
+Eigen::VectorXd Surrogate::relaxationTime(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    expectRows(x, 5, "relaxation surrogate");
+    const Eigen::MatrixXd tcTilde = relaxation.evaluate(x, precision);
+    return (tcTilde.row(0).array() * x.row(4).array() / x.row(1).array()).transpose();
+}
+
+Eigen::MatrixXd Surrogate::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    expectRows(x, 6, "surrogate");
+    Eigen::MatrixXd y(6, x.cols());
+    y.topRows(3) = equilibriumOutputs(pickRows(x, kEqRows));
+    y.middleRows(3, 2) = stretchingOutputs(pickRows(x, kStretchRows));
+    y.row(5) = relaxationTime(pickRows(x, kRelaxRows)).transpose();
+    return y;
+}
+
+std::vector<bool> outsideTrainingBox(const Eigen::Ref<const Eigen::MatrixXd>& x) {
+    const PriorRange box[6] = {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam, kPriorFext};
+    std::vector<bool> out(x.cols(), false);
+    for (Eigen::Index j = 0; j < x.cols(); ++j)
+        for (int k = 0; k < 6; ++k)
+            if (!(x(k, j) >= box[k].lo && x(k, j) <= box[k].hi)) out[j] = true;
+    return out;
+}
+
+OutputAccuracy outputAccuracy(const std::string& name, const Eigen::VectorXd& truth, const Eigen::VectorXd& predicted) {
+    OutputAccuracy a;
+    a.name = name;
+    a.n = truth.size();
+    if (a.n == 0) return a;
+    const Eigen::ArrayXd e = (predicted - truth).array();
+    const Eigen::ArrayXd rel = e / truth.array();
+    a.rmse = std::sqrt(e.square().mean());
+    a.relativeRmse = std::sqrt(rel.square().mean());
+    a.mae = e.abs().mean();
+    a.maxAbs = e.abs().maxCoeff();
+    a.meanRelative = rel.abs().mean();
+    const double var = (truth.array() - truth.mean()).square().mean();
+    a.r2 = var > 0 ? 1.0 - e.square().mean() / var : NAN;
+    return a;
+}
+
+namespace {
+
+struct NetworkData {
+    Eigen::MatrixXd X, Y;  ///< physical units (relaxation: Y = tc mu / etam)
+};
+
+Eigen::VectorXd rowInputs(const CampaignRow& r) {
+    Eigen::VectorXd x(6);
+    x << r.point.p.v, r.point.p.mu, r.point.p.FvK, r.point.p.b2, r.point.p.etam, r.point.fext;
+    return x;
+}
+
+/// Where the dropped rows lie: per input, counts in five equal bins of its range.
+std::vector<std::string> describeDropped(const std::vector<const CampaignRow*>& dropped) {
+    std::vector<std::string> lines;
+    if (dropped.empty()) return lines;
+    const PriorRange box[6] = {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam, kPriorFext};
+    for (int k = 0; k < 6; ++k) {
+        int bins[5] = {0, 0, 0, 0, 0};
+        for (const CampaignRow* r : dropped) {
+            const double u = (rowInputs(*r)(k) - box[k].lo) / (box[k].hi - box[k].lo);
+            ++bins[std::clamp(int(u * 5), 0, 4)];
+        }
+        lines.push_back(fmt::format("{}: {} {} {} {} {} (five equal bins of [{}, {}])", box[k].name, bins[0], bins[1],
+                                    bins[2], bins[3], bins[4], box[k].lo, box[k].hi));
+    }
+    return lines;
+}
+
+}  // namespace
+
+SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt) {
+    if (!(opt.testFraction >= 0.0 && opt.testFraction < 0.5))
+        throw InputError(fmt::format("surrogate training: test fraction {} is outside [0, 0.5)", opt.testFraction));
+    SurrogateTrainingReport rep;
+    rep.rows = long(rows.size());
+    std::uint64_t h = fnv1a("");
+    std::map<long, std::vector<const CampaignRow*>> byCell;
+    for (const CampaignRow& r : rows) {
+        h = fnv1a(formatCampaignRow(r).substr(0, formatCampaignRow(r).rfind(',')), h);  // without wall_s
+        byCell[r.point.cellId].push_back(&r);
+    }
+    rep.dataHash = fmt::format("fnv1a:{:016x}", h);
+    rep.cells = long(byCell.size());
+    if (rep.cells < 10) throw InputError(fmt::format("surrogate training: {} cells in the table; at least 10 are needed", rep.cells));
+
+    std::vector<long> cellIds;
+    for (const auto& [id, v] : byCell) cellIds.push_back(id);
+    const auto perm = seededPermutation(Eigen::Index(cellIds.size()), opt.testSeed);
+    rep.testCells = long(std::ceil(opt.testFraction * double(cellIds.size())));
+    std::vector<bool> isTest(cellIds.size(), false);
+    for (long k = 0; k < rep.testCells; ++k) isTest[perm[k]] = true;
+
+    auto eqOk = [](const CampaignRow& r) { return std::isfinite(r.D) && std::isfinite(r.hmin) && std::isfinite(r.hmax); };
+    auto stOk = [](const CampaignRow& r) { return std::isfinite(r.D0) && std::isfinite(r.D1); };
+    auto rxOk = [](const CampaignRow& r) { return std::isfinite(r.tc) && r.tc > 0; };
+
+    std::vector<Eigen::VectorXd> xs[3], ys[3];
+    std::vector<const CampaignRow*> droppedRows, testRows;
+    for (std::size_t c = 0; c < cellIds.size(); ++c) {
+        const auto& cell = byCell[cellIds[c]];
+        if (isTest[c]) {
+            testRows.insert(testRows.end(), cell.begin(), cell.end());
+            continue;
+        }
+        const CampaignRow& first = *cell.front();
+        const Eigen::VectorXd x0 = rowInputs(first);
+        if (eqOk(first)) {
+            xs[0].push_back((Eigen::VectorXd(2) << x0(0), x0(2)).finished());
+            ys[0].push_back((Eigen::VectorXd(3) << first.D, first.hmin, first.hmax).finished());
+        } else {
+            ++rep.dropped[0];
+        }
+        if (rxOk(first)) {
+            xs[2].push_back(x0.head(5));
+            ys[2].push_back(Eigen::VectorXd::Constant(1, first.tc * first.point.p.mu / first.point.p.etam));
+        } else {
+            ++rep.dropped[2];
+        }
+        for (const CampaignRow* r : cell) {
+            if (!r->ok()) droppedRows.push_back(r);
+            if (!stOk(*r)) {
+                ++rep.dropped[1];
+                continue;
+            }
+            const Eigen::VectorXd x = rowInputs(*r);
+            xs[1].push_back((Eigen::VectorXd(5) << x(0), x(1), x(2), x(3), x(5)).finished());
+            ys[1].push_back((Eigen::VectorXd(2) << r->D0, r->D1).finished());
+        }
+    }
+    rep.droppedWhere = describeDropped(droppedRows);
+
+    NetworkData data[3];
+    for (int k = 0; k < 3; ++k) {
+        rep.used[k] = long(xs[k].size());
+        if (xs[k].size() < 10)
+            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", xs[k].size(), kNetworks[k]));
+        data[k].X.resize(xs[k].front().size(), Eigen::Index(xs[k].size()));
+        data[k].Y.resize(ys[k].front().size(), Eigen::Index(ys[k].size()));
+        for (std::size_t j = 0; j < xs[k].size(); ++j) data[k].X.col(Eigen::Index(j)) = xs[k][j], data[k].Y.col(Eigen::Index(j)) = ys[k][j];
+    }
+
+    const std::vector<std::string> inNames[3] = {{"v", "FvK"},
+                                                 {"v", "mu_uN_per_m", "FvK", "b2", "Fext_pN"},
+                                                 {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"}};
+    const std::vector<std::string> outNames[3] = {{"D_um", "hmin_um", "hmax_um"}, {"D0_um", "D1_um"}, {"tc_mu_over_etam"}};
+    TrainingResult results[3];
+    std::string errors[3];
+    // Largest first so that two threads finish together.
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(3, omp_get_max_threads()))
+    for (int i = 0; i < 3; ++i) {
+        const int k = (i + 1) % 3;  // stretching, relaxation, equilibrium
+        try {
+            TrainingOptions o = opt.network;
+            // SURROGATE 3.1 (256 / 128), reduced for small tables so that the training set holds
+            // at least four mini-batches and the validation set is not empty.
+            o.batchSize = std::max(1, std::min(k == 0 ? 256 : 128, int(0.8 * double(data[k].X.cols())) / 4));
+            o.testFraction = 0.0;              // the test cells are already out
+            if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
+#pragma omp critical(trbc_surrogate_progress)
+                opt.progress(kNetworks[k], e);
+            };
+            const auto t0 = std::chrono::steady_clock::now();
+            results[k] = trainNetwork(data[k].X, data[k].Y, o, inNames[k], outNames[k]);
+            rep.wallSeconds[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            results[k].network.dataHash = rep.dataHash;
+            results[k].network.command = opt.command;
+        } catch (const std::exception& e) {
+            errors[k] = fmt::format("{} network: {}", kNetworks[k], e.what());
+        }
+    }
+    for (const std::string& e : errors)
+        if (!e.empty()) throw InputError(e);
+    rep.model.equilibrium = results[0].network;
+    rep.model.stretching = results[1].network;
+    rep.model.relaxation = results[2].network;
+
+    // Validation split of each network (the rows its early stopping saw), physical units.
+    const int firstOutput[3] = {0, 3, 5};
+    for (int k = 0; k < 3; ++k) {
+        const auto& val = results[k].split.validation;
+        Eigen::MatrixXd Xv(data[k].X.rows(), Eigen::Index(val.size())), Yv(data[k].Y.rows(), Eigen::Index(val.size()));
+        for (std::size_t j = 0; j < val.size(); ++j) Xv.col(Eigen::Index(j)) = data[k].X.col(val[j]), Yv.col(Eigen::Index(j)) = data[k].Y.col(val[j]);
+        Eigen::MatrixXd P = results[k].network.evaluate(Xv);
+        if (k == 2) {  // back to seconds
+            const Eigen::ArrayXd scale = Xv.row(4).array() / Xv.row(1).array();
+            P.row(0).array() *= scale.transpose();
+            Yv.row(0).array() *= scale.transpose();
+        }
+        for (Eigen::Index o = 0; o < P.rows(); ++o)
+            rep.validation.push_back(outputAccuracy(surrogateOutputNames()[firstOutput[k] + o], Yv.row(o).transpose(), P.row(o).transpose()));
+    }
+
+    // Held-out cells: every output of every test row (equilibrium and relaxation once per cell).
+    if (!testRows.empty()) {
+        rep.testInputs.resize(6, Eigen::Index(testRows.size()));
+        rep.testTruth.resize(6, Eigen::Index(testRows.size()));
+        for (std::size_t j = 0; j < testRows.size(); ++j) {
+            const CampaignRow& r = *testRows[j];
+            rep.testInputs.col(Eigen::Index(j)) = rowInputs(r);
+            rep.testTruth.col(Eigen::Index(j)) << r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc;
+        }
+        rep.testPredicted = rep.model.evaluate(rep.testInputs);
+        for (int o = 0; o < 6; ++o) {
+            std::vector<double> t, p;
+            long lastCell = -1;
+            for (std::size_t j = 0; j < testRows.size(); ++j) {
+                const bool perCell = o < 3 || o == 5;
+                if (perCell && testRows[j]->point.cellId == lastCell) continue;
+                lastCell = testRows[j]->point.cellId;
+                if (!std::isfinite(rep.testTruth(o, Eigen::Index(j)))) continue;
+                t.push_back(rep.testTruth(o, Eigen::Index(j)));
+                p.push_back(rep.testPredicted(o, Eigen::Index(j)));
+            }
+            rep.test.push_back(outputAccuracy(surrogateOutputNames()[o], Eigen::Map<Eigen::VectorXd>(t.data(), Eigen::Index(t.size())),
+                                              Eigen::Map<Eigen::VectorXd>(p.data(), Eigen::Index(p.size()))));
+        }
+    }
+    return rep;
+}
+
+}  // namespace trbc

@@ -1,0 +1,77 @@
+#pragma once
+// The three surrogate networks of SURROGATE.md 3.1 as one model: trained from a campaign table,
+// saved as MODEL_DIR/{equilibrium,stretching,relaxation}.json, evaluated in batches in physical
+// units. Batches are column-major, one sample per column.
+#include <Eigen/Core>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sampling/campaign_table.hpp"
+#include "surrogate/training.hpp"
+
+namespace trbc {
+
+/// Canonical names of the six inputs and six outputs (rows of a batch, in this order).
+const std::vector<std::string>& surrogateInputNames();   ///< v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN
+const std::vector<std::string>& surrogateOutputNames();  ///< D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s
+
+struct Surrogate {
+    TrainedNetwork equilibrium;  ///< (v, FvK) -> (D, hmin, hmax)
+    TrainedNetwork stretching;   ///< (v, mu, FvK, b2, Fext) -> (D0, D1)
+    TrainedNetwork relaxation;   ///< (v, mu, FvK, b2, etam) -> tc mu / etam (dimensionless)
+    Precision precision = Precision::Double;
+
+    /// Reads the three network files of `dir`; InputError naming the file when one is missing or bad.
+    static Surrogate load(const std::filesystem::path& dir);
+    void save(const std::filesystem::path& dir) const;
+
+    Eigen::MatrixXd equilibriumOutputs(const Eigen::Ref<const Eigen::MatrixXd>& vFvK) const;  ///< 2 x n -> 3 x n
+    Eigen::MatrixXd stretchingOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const;     ///< 5 x n -> 2 x n
+    /// tc in s = network(x) * etam / mu (SURROGATE 3.1), x = (v, mu, FvK, b2, etam), 5 x n.
+    Eigen::VectorXd relaxationTime(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+    /// All six outputs for the six inputs, 6 x n -> 6 x n.
+    Eigen::MatrixXd evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+};
+
+/// For each column of a 6 x n input batch, whether it lies outside the training box of
+/// SURROGATE.md 1.1 (evaluations there are extrapolations: flagged, never clipped).
+std::vector<bool> outsideTrainingBox(const Eigen::Ref<const Eigen::MatrixXd>& x);
+
+/// Accuracy of one output on held-out rows (SURROGATE 5.2.1).
+struct OutputAccuracy {
+    std::string name;
+    long n = 0;
+    double rmse = 0, relativeRmse = 0, mae = 0, maxAbs = 0, meanRelative = 0, r2 = 0;
+};
+OutputAccuracy outputAccuracy(const std::string& name, const Eigen::VectorXd& truth, const Eigen::VectorXd& predicted);
+
+struct SurrogateTrainingOptions {
+    TrainingOptions network;          ///< schedule of 3.4; batch size 256 is used for the equilibrium net
+    double testFraction = 0.1;        ///< share of the cells held out as the test set (5.2.1)
+    std::uint64_t testSeed = 20240101;
+    std::string command;              ///< stored in every network file
+    std::function<void(const std::string& network, const EpochRecord&)> progress;
+};
+
+struct SurrogateTrainingReport {
+    Surrogate model;
+    std::string dataHash;                       ///< FNV-1a of the table rows used
+    long rows = 0, cells = 0, testCells = 0;
+    /// Rows (cells for equilibrium/relaxation) used per network and dropped for a non-finite output.
+    long used[3] = {0, 0, 0}, dropped[3] = {0, 0, 0};
+    std::vector<std::string> droppedWhere;      ///< where the dropped samples lie (one line per input)
+    double wallSeconds[3] = {0, 0, 0};
+    std::vector<OutputAccuracy> test;           ///< per output, on the held-out cells
+    std::vector<OutputAccuracy> validation;     ///< per output, on each network's validation split
+    Eigen::MatrixXd testInputs, testTruth, testPredicted;  ///< 6 x n_test rows of the stretching set
+};
+
+/// Trains the three networks from campaign rows (failed rows dropped per network and reported).
+/// Rows of one cell share their equilibrium and relaxation outputs: those networks see one row per
+/// cell. The test set is a seeded choice of whole cells, used neither for training nor for early
+/// stopping. The three networks train concurrently (OpenMP sections), each deterministically.
+SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt);
+
+}  // namespace trbc
