@@ -125,11 +125,27 @@ std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshe
     const Vertices unit = beadForces(equilibrium, meshes.faces, 1.0);
     const MinimizeOptions mo = staticOptions(p, model, equilibrium, opt);
     std::vector<StretchPoint> out;
-    Vertices X = equilibrium;
+    Vertices X = equilibrium, Xprev;
+    double fPrev = 0.0, fPrevPrev = 0.0;
     for (double f : forces) {
         const auto t0 = Clock::now();
+        // Secant predictor along the force path, X(f) ~ X_k + (f - f_k) / (f_k - f_{k-1}) (X_k - X_{k-1}),
+        // its step capped at the last one; the minimiser's retraction restores A and V. Falls back
+        // to the plain continuation (start from X_k) when the predicted shape fails.
+        const Vertices Xk = X;
+        const bool predict = Xprev.size() && fPrev > fPrevPrev && f > fPrev;
+        if (predict) X += std::min(1.0, (f - fPrev) / (fPrev - fPrevPrev)) * (Xk - Xprev);
         const Vertices fext = f * unit;
-        const MinimizeResult r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
+        MinimizeResult r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
+        if (predict && !r.converged) {
+            X = Xk;
+            const int evaluations = r.evaluations;
+            r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
+            r.evaluations += evaluations;
+        }
+        Xprev = Xk;
+        fPrevPrev = fPrev;
+        fPrev = f;
         StretchPoint pt;
         pt.fext = f;
         pt.diagnostics = staticDiagnostics(r, t0);

@@ -234,9 +234,11 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
         const int k = (i + 1) % 3;  // stretching, relaxation, equilibrium
         try {
             TrainingOptions o = opt.network;
-            // SURROGATE 3.1 (256 / 128), reduced for small tables so that the training set holds
-            // at least four mini-batches and the validation set is not empty.
-            o.batchSize = std::max(1, std::min(k == 0 ? 256 : 128, int(0.8 * double(data[k].X.cols())) / 4));
+            // SURROGATE 3.1 (256 / 128) for the paper's 50,000 rows. The schedule counts patience in
+            // epochs, so a small table (one row per cell for the equilibrium and relaxation networks)
+            // needs smaller batches to take enough optimiser steps per epoch: at least 50
+            // mini-batches per epoch, batches of at least 8.
+            o.batchSize = std::clamp(int(0.8 * double(data[k].X.cols()) / 50.0), 8, k == 0 ? 256 : 128);
             o.testFraction = 0.0;              // the test cells are already out
             if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
 #pragma omp critical(trbc_surrogate_progress)

@@ -1,0 +1,202 @@
+// The three-network surrogate (SURROGATE.md 3, 5.2): training from a campaign table, the held-out
+// test set of whole cells, invariances, save/load, the training-box flag, and the surrogate and
+// sobol commands on bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "core/error.hpp"
+#include "sampling/design.hpp"
+#include "surrogate/surrogate.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+using test::runTrbc;
+using test::shellQuote;
+using test::TempDir;
+
+// Smooth stand-ins for the forward model with the dependences of SURROGATE 1.2.
+double fakeD(const CellParameters& p) { return 7.0 + 1.5 * (p.v - 0.8) - 0.2 * std::log10(p.FvK); }
+double fakeD0(const CellParameters& p, double F) { return fakeD(p) - 0.012 * F / (1.0 + 0.1 * p.mu) * (1.0 - 0.05 * p.b2); }
+double fakeD1(const CellParameters& p, double F) { return fakeD(p) + 0.03 * F / (1.0 + 0.2 * p.mu) * (1.0 - 0.04 * p.b2); }
+double fakeTc(const CellParameters& p) { return p.etam / p.mu * (0.8 + 0.3 * p.v + 0.05 * p.b2); }
+
+std::vector<CampaignRow> fakeCampaign(long samples, int perCell, long failedCell = -1) {
+    std::vector<CampaignRow> rows;
+    for (const CampaignPoint& q : campaignDesign(DesignKind::LatinHypercube, samples, perCell, 3)) {
+        CampaignRow r;
+        r.point = q;
+        r.seed = 3;
+        r.D = fakeD(q.p), r.hmin = 0.8 + 0.5 * (1.0 - q.p.v), r.hmax = 2.6 - 0.3 * (1.0 - q.p.v);
+        r.D0 = fakeD0(q.p, q.fext), r.D1 = fakeD1(q.p, q.fext), r.tc = fakeTc(q.p);
+        if (q.cellId == failedCell) {
+            r.tc = NAN;
+            r.status = "failed";
+            r.reason = "relaxation: test";
+        }
+        rows.push_back(r);
+    }
+    return rows;
+}
+
+SurrogateTrainingOptions quickOptions() {
+    SurrogateTrainingOptions o;
+    o.network.maxEpochs = 400;
+    o.testFraction = 0.1;
+    return o;
+}
+
+struct TrainedFixture : ::testing::Test {
+    static void SetUpTestSuite() {
+        report = new SurrogateTrainingReport(trainSurrogate(fakeCampaign(2400, 8, 5), quickOptions()));
+    }
+    static void TearDownTestSuite() { delete report; }
+    static SurrogateTrainingReport* report;
+};
+SurrogateTrainingReport* TrainedFixture::report = nullptr;
+
+TEST_F(TrainedFixture, TestSetIsWholeCellsAndAccurate) {
+    const auto& r = *report;
+    EXPECT_EQ(r.cells, 300);
+    EXPECT_EQ(r.testCells, 30);
+    EXPECT_EQ(r.testInputs.cols(), 30 * 8);
+    // The failed cell's relaxation row is dropped (and its stretching rows kept) unless it is a test cell.
+    EXPECT_LE(r.dropped[2], 1);
+    EXPECT_EQ(r.dropped[1], 0);
+    EXPECT_EQ(r.used[0] + r.dropped[0], 270);
+    ASSERT_EQ(r.test.size(), 6u);
+    // Smooth functions, 270 cells: measured relative RMSE 0.1-0.6 %, R^2 >= 0.97 (D varies by
+    // only +-0.5 um, with a log(FvK) bend at small FvK).
+    for (const OutputAccuracy& a : r.test) {
+        EXPECT_LT(a.relativeRmse, a.name == "tc_s" ? 0.03 : 0.01) << a.name;
+        EXPECT_GT(a.r2, 0.95) << a.name;
+    }
+}
+
+TEST_F(TrainedFixture, InvariancesOfSurrogate52) {
+    const Surrogate& s = report->model;
+    Eigen::MatrixXd x(6, 2);
+    x.col(0) << 0.9, 2.0, 300.0, 1.0, 0.3, 50.0;
+    x.col(1) << 0.9, 8.0, 300.0, 3.0, 0.9, 50.0;  // other mu, b2, etam
+    const Eigen::MatrixXd y = s.evaluate(x);
+    EXPECT_EQ(y.block(0, 0, 3, 1), y.block(0, 1, 3, 1));  // equilibrium ignores mu, b2, etam
+    // Relaxation: exactly etam / mu times the network output (which itself takes etam and mu,
+    // for the reference's vertex inertia).
+    Eigen::MatrixXd r(5, 2);
+    r.col(0) << 0.9, 4.0, 300.0, 1.0, 0.2;
+    r.col(1) << 0.7, 6.0, 30.0, 2.0, 0.8;
+    const Eigen::VectorXd tc = s.relaxationTime(r);
+    const Eigen::MatrixXd net = s.relaxation.evaluate(r);
+    EXPECT_EQ(tc(0), net(0, 0) * 0.2 / 4.0);
+    EXPECT_EQ(tc(1), net(0, 1) * 0.8 / 6.0);
+    // And in the training data tc mu / etam is what the network learns: with the fake model's
+    // tc = etam / mu g(v, b2), doubling etam doubles tc within the fit error.
+    Eigen::MatrixXd r2 = r;
+    r2(4, 0) = 0.4;
+    EXPECT_NEAR(s.relaxationTime(r2)(0) / tc(0), 2.0, 0.05);
+}
+
+TEST_F(TrainedFixture, SaveLoadGivesIdenticalOutputs) {
+    TempDir tmp;
+    report->model.save(tmp.path() / "m");
+    const Surrogate loaded = Surrogate::load(tmp.path() / "m");
+    EXPECT_EQ(loaded.evaluate(report->testInputs), report->model.evaluate(report->testInputs));
+    EXPECT_EQ(loaded.stretching.dataHash, report->dataHash);
+    fs::remove(tmp.path() / "m" / "relaxation.json");
+    try {
+        Surrogate::load(tmp.path() / "m");
+        ADD_FAILURE() << "loaded a model without its relaxation network";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("relaxation.json"), std::string::npos) << e.what();
+    }
+}
+
+TEST(SurrogateBox, OutsideTrainingBoxIsFlagged) {
+    Eigen::MatrixXd x(6, 3);
+    x.col(0) << 0.9, 4.0, 300.0, 1.0, 0.5, 100.0;
+    x.col(1) << 0.9, 4.0, 300.0, 1.0, 1.5, 100.0;  // etam above 1 (INFERENCE 3.3 does this)
+    x.col(2) << 0.9, 4.0, 300.0, 1.0, 0.5, 250.0;
+    const auto out = outsideTrainingBox(x);
+    EXPECT_EQ(out, (std::vector<bool>{false, true, true}));
+}
+
+TEST(SurrogateTraining, DataHashIgnoresWallTimeAndTracksValues) {
+    auto rows = fakeCampaign(200, 4);
+    auto opt = quickOptions();
+    opt.network.maxEpochs = 2;
+    const std::string h1 = trainSurrogate(rows, opt).dataHash;
+    rows[7].wallSeconds = 99.0;
+    EXPECT_EQ(trainSurrogate(rows, opt).dataHash, h1);
+    rows[7].D0 += 1e-9;
+    EXPECT_NE(trainSurrogate(rows, opt).dataHash, h1);
+    rows.resize(20);  // 5 cells
+    EXPECT_THROW(trainSurrogate(rows, opt), InputError);
+}
+
+TEST_F(TrainedFixture, EvalCliWritesOutputsAndFlagsExtrapolation) {
+    TempDir tmp;
+    report->model.save(tmp.path() / "m");
+    const fs::path in = tmp.path() / "in.csv", out = tmp.path() / "out.csv";
+    std::ofstream(in) << "v,mu_uN_per_m,kb_J,b2,etam_Pa_s_um,Fext_pN,comment\n0.9,4,1.8e-19,1,0.5,100,a\n0.9,4,1.8e-19,1,1.5,100,b\n";
+    const std::string model = " --model " + shellQuote((tmp.path() / "m").string());
+    auto r = runTrbc("surrogate eval" + model + " --in " + shellQuote(in.string()) + " --out " + shellQuote(out.string()), tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("1 outside the training box"), std::string::npos) << r.err;
+    std::ifstream res(out);
+    std::string header, l1, l2;
+    std::getline(res, header), std::getline(res, l1), std::getline(res, l2);
+    EXPECT_EQ(header, "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,outside_training_box");
+    EXPECT_EQ(l1.back(), '0');
+    EXPECT_EQ(l2.back(), '1');
+
+    std::ofstream(in) << "v,mu_uN_per_m,FvK,b2,Fext_pN\n0.9,4,250,1,100\n";
+    r = runTrbc("surrogate eval" + model + " --in " + shellQuote(in.string()) + " --out " + shellQuote(out.string()), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("missing column 'etam_Pa_s_um'"), std::string::npos) << r.err;
+    std::ofstream(in) << "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN\n0.9,4,250,1,0.5,100\n0.9,four,250,1,0.5,100\n";
+    r = runTrbc("surrogate eval" + model + " --in " + shellQuote(in.string()) + " --out " + shellQuote(out.string()), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("in.csv:3: column 'mu_uN_per_m': 'four' is not a finite number"), std::string::npos) << r.err;
+    r = runTrbc("surrogate eval --model " + shellQuote((tmp.path() / "none").string()) + " --in " + shellQuote(in.string()) +
+                    " --out " + shellQuote(out.string()),
+                tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("missing"), std::string::npos) << r.err;
+}
+
+TEST_F(TrainedFixture, SobolOfTheSurrogateHasTheStructureOfItsNetworks) {
+    TempDir tmp;
+    report->model.save(tmp.path() / "m");
+    const auto r = runTrbc("sobol --no-plot --samples 512 --forces 3 --resamples 20 --seed 2 --model " +
+                               shellQuote((tmp.path() / "m").string()) + " --out " + shellQuote((tmp.path() / "s").string()),
+                           tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream in(tmp.path() / "s" / "sobol_indices.csv");
+    std::string line;
+    std::getline(in, line);
+    EXPECT_EQ(line, "output,input,S1,S1_ci,ST,ST_ci");
+    int checked = 0;
+    while (std::getline(in, line)) {
+        std::stringstream ss(line);
+        std::string output, input, s1, s1ci, st;
+        std::getline(ss, output, ','), std::getline(ss, input, ','), std::getline(ss, s1, ','), std::getline(ss, s1ci, ','),
+            std::getline(ss, st, ',');
+        const bool eq = output == "D_um" || output == "hmin_um" || output == "hmax_um";
+        const bool stretch = output.rfind("D0_um@", 0) == 0 || output.rfind("D1_um@", 0) == 0;
+        const bool inert = (eq && input != "v" && input != "FvK") || (stretch && input == "etam_Pa_s_um");
+        if (inert) {  // a network input that is not there: exactly zero
+            EXPECT_EQ(std::stod(s1), 0.0) << line;
+            EXPECT_EQ(std::stod(st), 0.0) << line;
+            ++checked;
+        }
+        EXPECT_LE(std::stod(s1), std::stod(st) + 0.05) << line;
+    }
+    EXPECT_EQ(checked, 3 * 3 + 6);
+}
+
+}  // namespace
+}  // namespace trbc
