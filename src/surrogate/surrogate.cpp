@@ -239,6 +239,10 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             // needs smaller batches to take enough optimiser steps per epoch: at least 50
             // mini-batches per epoch, batches of at least 8.
             o.batchSize = std::clamp(int(0.8 * double(data[k].X.cols()) / 50.0), 8, k == 0 ? 256 : 128);
+            // Likewise the patience: at least ~3000 optimiser steps without improvement before a
+            // rate reduction (the paper's 11 epochs of 50,000 rows are ~3400 steps).
+            const double batchesPerEpoch = std::max(1.0, 0.8 * double(data[k].X.cols()) / o.batchSize);
+            o.patience = std::max(o.patience, int(std::ceil(3000.0 / batchesPerEpoch)));
             o.testFraction = 0.0;              // the test cells are already out
             if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
 #pragma omp critical(trbc_surrogate_progress)
