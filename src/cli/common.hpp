@@ -65,5 +65,6 @@ void registerSfs(CLI::App& app);
 void registerSimulate(CLI::App& app);
 void registerMesh(CLI::App& app);
 void registerMinimize(CLI::App& app);
+void registerFlow(CLI::App& app);
 
 }  // namespace trbc::cli

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
     trbc::cli::registerCampaign(app);
     trbc::cli::registerSurrogate(app);
     trbc::cli::registerSobol(app);
+    trbc::cli::registerFlow(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

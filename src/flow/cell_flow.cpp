@@ -1,0 +1,621 @@
+#include "flow/cell_flow.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/validate.hpp"
+
+namespace trbc {
+namespace {
+
+using Eigen::Index;
+using Eigen::VectorXd;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kPi = std::numbers::pi;
+
+void requirePositive(const char* name, double value, const char* unit) {
+    if (!(value > 0.0) || !std::isfinite(value))
+        throw InputError(fmt::format("parameter {} = {} {}: must be finite and > 0 (valid range (0, inf) {})", name,
+                                     value, unit, unit));
+}
+
+FlowScales makeScales(const FlowConditions& f) {
+    FlowScales s;
+    s.length = std::sqrt(f.A0 / (4.0 * kPi));
+    s.time = f.timeScale > 0.0 ? f.timeScale : 1.0 / f.shearRate;
+    s.viscosity = f.etaOut * 1e-3;  // mPa s -> Pa s = pN s / um^2
+    return s;
+}
+
+/// Bending and Lim moduli in internal units. No penalties: area and volume are exact
+/// constraints (multiplier rows in the coupled system, projection after each step).
+MembraneParameters internalMembrane(const CellParameters& p, const FlowScales& s) {
+    MembraneParameters m = experimentMembrane(p);  // kb (pN um), Kalpha = mu (pN/um), Lim constants
+    const double F = s.force(), L = s.length;
+    m.bending.kb /= F * L;
+    m.lim.Kalpha /= F / L;
+    m.lim.mu /= F / L;
+    return m;
+}
+
+Vertices checkedReference(const Faces& faces, const Vertices& ref, double length) {
+    if (ref.cols() == 0 || faces.cols() == 0) throw InputError("cell flow: empty reference mesh");
+    if (!ref.allFinite()) throw InputError("cell flow: reference positions must be finite");
+    validateClosedManifold(Mesh{ref, faces});
+    return ref / length;
+}
+
+// ---- GMRES (restarted, modified Gram-Schmidt with one re-orthogonalisation, Givens rotations,
+// right preconditioning), stopping on the true relative residual |b - A x| / |b|.
+struct GmresStats {
+    int iterations = 0;
+    double residual = 0.0;
+    bool converged = false;
+};
+
+using LinearMap = std::function<void(const VectorXd&, VectorXd&)>;
+
+GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd& b, VectorXd& x, double tol,
+                      int restart, int maxIt) {
+    GmresStats st;
+    const Index n = b.size();
+    const double bn = b.norm();
+    if (bn == 0.0) {
+        x.setZero();
+        st.converged = true;
+        return st;
+    }
+    if (x.size() != n || !x.allFinite()) x = VectorXd::Zero(n);
+    VectorXd r(n), w(n), z(n);
+    A(x, r);
+    r = b - r;
+    double beta = r.norm();
+    st.residual = beta / bn;
+    Eigen::MatrixXd V, H;
+    VectorXd cs, sn, g;
+    while (st.residual > tol && st.iterations < maxIt) {
+        const int m = std::min(restart, maxIt - st.iterations);
+        V.resize(n, m + 1);
+        H = Eigen::MatrixXd::Zero(m + 1, m);
+        cs.resize(m);
+        sn.resize(m);
+        g = VectorXd::Zero(m + 1);
+        V.col(0) = r / beta;
+        g[0] = beta;
+        int j = 0;
+        while (j < m) {
+            Minv(V.col(j), z);
+            A(z, w);
+            for (int pass = 0; pass < 2; ++pass)
+                for (int i = 0; i <= j; ++i) {
+                    const double h = w.dot(V.col(i));
+                    H(i, j) += h;
+                    w -= h * V.col(i);
+                }
+            const double hn = w.norm();
+            H(j + 1, j) = hn;
+            if (hn > 0.0) V.col(j + 1) = w / hn;
+            for (int i = 0; i < j; ++i) {
+                const double t = cs[i] * H(i, j) + sn[i] * H(i + 1, j);
+                H(i + 1, j) = -sn[i] * H(i, j) + cs[i] * H(i + 1, j);
+                H(i, j) = t;
+            }
+            const double den = std::hypot(H(j, j), H(j + 1, j));
+            if (den == 0.0) break;
+            cs[j] = H(j, j) / den;
+            sn[j] = H(j + 1, j) / den;
+            H(j, j) = den;
+            H(j + 1, j) = 0.0;
+            g[j + 1] = -sn[j] * g[j];
+            g[j] = cs[j] * g[j];
+            ++j;
+            ++st.iterations;
+            if (std::abs(g[j]) <= 0.5 * tol * bn || hn <= 1e-14 * den) break;
+        }
+        if (j == 0) break;
+        const VectorXd y = H.topLeftCorner(j, j).triangularView<Eigen::Upper>().solve(g.head(j));
+        Minv(V.leftCols(j) * y, z);
+        x += z;
+        A(x, r);
+        r = b - r;
+        beta = r.norm();
+        const double previous = st.residual;
+        st.residual = beta / bn;
+        if (!std::isfinite(st.residual) || st.residual >= previous) break;
+    }
+    st.converged = st.residual <= tol;
+    return st;
+}
+
+/// The coupled linear system of one (linearly implicit) step, frozen at the state Xs. Unknowns:
+/// the membrane velocity u, the membrane tension tau (multiplier of the exact global area
+/// constraint, force -tau dA/dx) and a uniform normal velocity q (flux correction):
+///   u - k D u + c S M^-1 ((Gamma + alpha H) u + tau g) - q n = 2/(1+lambda) u_inf + c S M^-1 F_exp,
+///   g . u = area rate,  dV/dx . u = volume rate,      g = dA/dx at Xs,
+/// (the two scalar rows and columns scaled to unit norm), H u by central differences of the
+/// membrane gradient. Right preconditioner for the u block:
+/// P = I + c B M^-1 Gamma with B the 3x3 self-blocks of S (a local approximation of the single
+/// layer); P^-1 = (M B^-1 / c + Gamma)^-1 M B^-1 / c, a sparse SPD solve (Cholesky).
+class CoupledSystem {
+public:
+    CoupledSystem(const CellFlowModel& model, const Vertices& Xs, double alpha, const CellFlowOptions& opt)
+        : model_(model), Xs_(Xs), alpha_(alpha), opt_(opt), ops_(Mesh{Xs, model.faces()}, opt.quadrature) {
+        const double lambda = model.viscosityRatio();
+        c_ = 1.0 / (4.0 * kPi * (1.0 + lambda));
+        k_ = (1.0 - lambda) / (4.0 * kPi * (1.0 + lambda));
+        invArea_ = ops_.vertexAreas().cwiseInverse();
+        const Index nv = Xs.cols();
+        dense_ = opt.operators == OperatorMode::Dense ||
+                 (opt.operators == OperatorMode::Auto && 3 * nv <= opt.denseLimit);
+        if (dense_) {
+            Sd_ = ops_.assembleSingleLayer();
+            if (k_ != 0.0) Dd_ = ops_.assembleDoubleLayer();
+        }
+        gp_.resize(3, nv);
+        gm_.resize(3, nv);
+        const AreaVolume av = areaVolumeWithGradients(Xs, model.faces());
+        area_ = av.area;
+        volume_ = av.volume;
+        areaGradient_ = av.areaGradient;
+        volumeGradient_ = av.volumeGradient;
+        gNorm_ = areaGradient_.norm();
+        vNorm_ = volumeGradient_.norm();
+        w_ = forceVelocity(areaGradient_);
+        wNorm_ = w_.norm();
+        normals_ = ops_.vertexNormals() / ops_.vertexNormals().norm();
+        if (opt.preconditioner) buildPreconditioner();
+    }
+
+    const BoundaryIntegralOperators& operators() const { return ops_; }
+    double area() const { return area_; }
+    double volume() const { return volume_; }
+    const Vertices& areaGradient() const { return areaGradient_; }
+    const Vertices& volumeGradient() const { return volumeGradient_; }
+
+    /// H v (Hessian of the membrane energy at Xs times v), central differences.
+    Vertices hessianTimes(const Vertices& v) const {
+        const double vmax = v.colwise().norm().maxCoeff();
+        if (!(vmax > 0.0)) return Vertices::Zero(3, v.cols());
+        const double eps = 1e-6 / vmax;  // largest vertex displacement 1e-6 R_A
+        model_.membrane().evaluate(Xs_ + eps * v, &gp_);
+        model_.membrane().evaluate(Xs_ - eps * v, &gm_);
+        return (gp_ - gm_) / (2.0 * eps);
+    }
+
+    struct Solution {
+        Vertices u;
+        double tension = 0.0;
+        double fluxCorrection = 0.0;  ///< uniform normal velocity added to conserve the volume
+        GmresStats gmres;
+    };
+
+    /// Solves for u and tau with the explicit nodal force Fexp and the prescribed rate of
+    /// area change g . u = areaRate and volume change dV/dx . u = volumeRate; (uGuess, tauGuess)
+    /// start GMRES.
+    Solution solve(const Vertices& Fexp, double areaRate, double volumeRate, const Vertices& uGuess,
+                   double tauGuess) const {
+        const Index nv = Xs_.cols(), n = 3 * nv;
+        VectorXd b(n + 2);
+        Eigen::Map<Vertices>(b.data(), 3, nv) =
+            (2.0 / (1.0 + model_.viscosityRatio())) * model_.background().at(Xs_) + forceVelocity(Fexp);
+        b[n] = areaRate / gNorm_;
+        b[n + 1] = volumeRate / vNorm_;
+        const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
+            y.resize(n + 2);
+            const Eigen::Map<const Vertices> u(x.data(), 3, nv);
+            Eigen::Map<Vertices> yu(y.data(), 3, nv);
+            yu = u - forceVelocity(implicitForce(u));
+            if (k_ != 0.0) yu -= k_ * doubleLayer(u);
+            yu += (x[n] / wNorm_) * w_ - x[n + 1] * normals_;
+            y[n] = (areaGradient_.array() * u.array()).sum() / gNorm_;
+            y[n + 1] = (volumeGradient_.array() * u.array()).sum() / vNorm_;
+        };
+        const LinearMap Minv = [&](const VectorXd& x, VectorXd& y) {
+            if (!opt_.preconditioner) {
+                y = x;
+                return;
+            }
+            y.resize(n + 2);
+            VectorXd r(n);
+            for (Index i = 0; i < nv; ++i) r.segment<3>(3 * i) = precBlocks_[i] * x.segment<3>(3 * i);
+            y.head(n) = precFactor_.solve(r);
+            y.tail<2>() = x.tail<2>();
+        };
+        VectorXd x(n + 2);
+        Eigen::Map<Vertices>(x.data(), 3, nv) = uGuess;
+        x[n] = tauGuess * wNorm_;
+        x[n + 1] = 0.0;
+        Solution sol;
+        sol.gmres = gmresSolve(A, Minv, b, x, opt_.gmresTolerance, opt_.gmresRestart, opt_.gmresMaxIterations);
+        sol.u = Eigen::Map<const Vertices>(x.data(), 3, nv);
+        sol.tension = x[n] / wNorm_;
+        sol.fluxCorrection = x[n + 1] / ops_.vertexNormals().norm();
+        return sol;
+    }
+
+private:
+    Vertices single(const Vertices& f) const {
+        if (!dense_) return ops_.singleLayer(f);
+        Vertices y(3, f.cols());
+        Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Sd_ * Eigen::Map<const VectorXd>(f.data(), f.size());
+        return y;
+    }
+    Vertices doubleLayer(const Vertices& u) const {
+        if (!dense_) return ops_.doubleLayer(u);
+        Vertices y(3, u.cols());
+        Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Dd_ * Eigen::Map<const VectorXd>(u.data(), u.size());
+        return y;
+    }
+    /// Nodal force of the implicit terms, -(Gamma u + alpha H u).
+    Vertices implicitForce(const Vertices& u) const {
+        Vertices f = membraneViscousForce(Xs_, u, model_.edgeFriction(), model_.membrane().topology());
+        if (alpha_ > 0.0) f -= alpha_ * hessianTimes(u);
+        return f;
+    }
+    /// c S M^-1 F: the velocity induced by nodal membrane forces F.
+    Vertices forceVelocity(const Vertices& F) const { return c_ * single(F * invArea_.asDiagonal()); }
+
+    /// Self-block of the single layer at vertex i: from the dense matrix, or the integral over a
+    /// flat disc of the star's area with a hat density, pi rho (3/2 I - 1/2 n n^T).
+    Eigen::Matrix3d selfBlock(Index i) const {
+        if (dense_) return Sd_.block<3, 3>(3 * i, 3 * i);
+        const double rho = std::sqrt(3.0 * ops_.vertexAreas()[i] / kPi);
+        const Eigen::Vector3d nrm = ops_.vertexNormals().col(i);
+        return kPi * rho * (1.5 * Eigen::Matrix3d::Identity() - 0.5 * nrm * nrm.transpose());
+    }
+
+    void buildPreconditioner() {
+        const Index nv = Xs_.cols(), n = 3 * nv;
+        const Topology& T = model_.membrane().topology();
+        std::vector<Eigen::Triplet<double>> trip;
+        trip.reserve(static_cast<std::size_t>(9 * (nv + 4 * T.numEdges())));
+        precBlocks_.clear();
+        precBlocks_.reserve(static_cast<std::size_t>(nv));
+        for (Index i = 0; i < nv; ++i) {
+            // M_i B_i^-1 / c (symmetrised).
+            Eigen::Matrix3d Bi = selfBlock(i);
+            Bi = 0.5 * (Bi + Bi.transpose());
+            const Eigen::Matrix3d K = Bi.inverse() / (opt_.preconditionerScale * c_ * invArea_[i]);
+            for (int a = 0; a < 3; ++a)
+                for (int bb = 0; bb < 3; ++bb) trip.emplace_back(3 * i + a, 3 * i + bb, K(a, bb));
+            precBlocks_.push_back(K);
+        }
+        const double gamma = model_.edgeFriction();
+        for (Index e = 0; e < T.numEdges(); ++e) {
+            const int a = T.edges(0, e), bq = T.edges(1, e);
+            const Eigen::Vector3d d = (Xs_.col(a) - Xs_.col(bq)).normalized();
+            const Eigen::Matrix3d G = gamma * d * d.transpose();
+            for (int p = 0; p < 3; ++p)
+                for (int q = 0; q < 3; ++q) {
+                    trip.emplace_back(3 * a + p, 3 * a + q, G(p, q));
+                    trip.emplace_back(3 * bq + p, 3 * bq + q, G(p, q));
+                    trip.emplace_back(3 * a + p, 3 * bq + q, -G(p, q));
+                    trip.emplace_back(3 * bq + p, 3 * a + q, -G(p, q));
+                }
+        }
+        Eigen::SparseMatrix<double> Kp(n, n);
+        Kp.setFromTriplets(trip.begin(), trip.end());
+        precFactor_.compute(Kp);
+        if (precFactor_.info() != Eigen::Success)
+            throw NumericalError("cell flow: the preconditioner factorisation failed");
+    }
+
+    const CellFlowModel& model_;
+    Vertices Xs_;
+    double alpha_;
+    const CellFlowOptions& opt_;
+    BoundaryIntegralOperators ops_;
+    double c_ = 0.0, k_ = 0.0;
+    VectorXd invArea_;
+    bool dense_ = false;
+    Eigen::MatrixXd Sd_, Dd_;
+    mutable Vertices gp_, gm_;
+    double area_ = 0.0, volume_ = 0.0, gNorm_ = 1.0, vNorm_ = 1.0, wNorm_ = 1.0;
+    Vertices areaGradient_, volumeGradient_, w_, normals_;
+    std::vector<Eigen::Matrix3d> precBlocks_;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> precFactor_;
+};
+
+void checkOptions(const CellFlowOptions& o) {
+    requirePositive("tEnd", o.tEnd, "(internal time)");
+    requirePositive("frameInterval", o.frameInterval, "(internal time)");
+    requirePositive("errorTolerance", o.errorTolerance, "R_A");
+    requirePositive("dtInitial", o.dtInitial, "(internal time)");
+    requirePositive("dtMin", o.dtMin, "(internal time)");
+    requirePositive("dtMax", o.dtMax, "(internal time)");
+    if (!(o.gmresTolerance > 0.0 && o.gmresTolerance < 1.0))
+        throw InputError(fmt::format("GMRES tolerance = {}: must be in (0, 1)", o.gmresTolerance));
+    if (o.gmresRestart < 1 || o.gmresMaxIterations < 1 || o.maxSteps < 1)
+        throw InputError("cell flow: gmresRestart, gmresMaxIterations and maxSteps must be >= 1");
+    requirePositive("maxDrift", o.maxDrift, "");
+}
+
+double maxNorm(const Vertices& D) { return D.colwise().norm().maxCoeff(); }
+
+/// Gauss-Newton projection onto A = A0, V = V0 (moves along dA/dx and dV/dx; a few iterations).
+void projectAreaVolume(Vertices& X, const Faces& F, double A0, double V0) {
+    for (int it = 0; it < 5; ++it) {
+        const AreaVolume av = areaVolumeWithGradients(X, F);
+        const Eigen::Vector2d c(av.area - A0, av.volume - V0);
+        if (std::abs(c[0]) <= 1e-13 * A0 && std::abs(c[1]) <= 1e-13 * V0) return;
+        const Eigen::Map<const VectorXd> ga(av.areaGradient.data(), X.size()), gv(av.volumeGradient.data(), X.size());
+        Eigen::Matrix2d JtJ;
+        JtJ << ga.dot(ga), ga.dot(gv), ga.dot(gv), gv.dot(gv);
+        const Eigen::Vector2d l = JtJ.ldlt().solve(c);
+        X -= l[0] * av.areaGradient + l[1] * av.volumeGradient;
+    }
+}
+
+}  // namespace
+
+void validateFlowConditions(const FlowConditions& f) {
+    requirePositive("eta_out", f.etaOut, "mPa s");
+    requirePositive("eta_in", f.etaIn, "mPa s");
+    if (!(f.shearRate >= 0.0) || !std::isfinite(f.shearRate))
+        throw InputError(fmt::format("parameter shear_rate = {} 1/s: must be finite and >= 0", f.shearRate));
+    if (f.shearRate == 0.0 && !(f.timeScale > 0.0))
+        throw InputError("parameter time_scale: a positive time scale (s) is required in a quiescent fluid");
+    if (f.timeScale != 0.0) requirePositive("time_scale", f.timeScale, "s");
+    requirePositive("A0", f.A0, "um^2");
+    requirePositive("V0", f.V0, "um^3");
+}
+
+CellFlowModel::CellFlowModel(const CellParameters& cell, const FlowConditions& flow, const Faces& faces,
+                             const Vertices& referenceUm)
+    : cell_(cell),
+      flow_((validateFlowConditions(flow), flow)),
+      scales_(makeScales(flow)),
+      internalReference_(checkedReference(faces, referenceUm, scales_.length)),
+      membrane_(faces, referenceUm.cols(), internalMembrane(cell, scales_), &internalReference_) {
+    for (double v : {cell.mu, cell.FvK, cell.etam})
+        if (!(v > 0.0) || !std::isfinite(v))
+            throw InputError(fmt::format("cell parameters: mu = {}, FvK = {}, etam = {} must be finite and > 0",
+                                         cell.mu, cell.FvK, cell.etam));
+    gamma_ = (4.0 * cell.etam / std::sqrt(3.0)) / (scales_.viscosity * scales_.length);
+    lambda_ = flow.etaIn / flow.etaOut;
+    area0_ = flow.A0 / (scales_.length * scales_.length);
+    volume0_ = flow.V0 / (scales_.length * scales_.length * scales_.length);
+    background_ = LinearFlow::simpleShear(flow.shearRate * scales_.time);
+}
+
+FlowGroups CellFlowModel::groups() const {
+    FlowGroups g;
+    const double eta = scales_.viscosity, R = scales_.length;
+    g.capillary = eta * flow_.shearRate * R / cell_.mu;
+    g.viscosityRatio = lambda_;
+    g.membraneViscosity = cell_.etam / (eta * R);
+    g.FvK = cell_.FvK;
+    g.shearStressPa = eta * flow_.shearRate;
+    return g;
+}
+
+VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& opt) {
+    checkOptions(opt);
+    const CoupledSystem sys(model, X, 0.0, opt);
+    Vertices g(3, X.cols());
+    model.membrane().evaluate(X, &g);
+    const CoupledSystem::Solution s = sys.solve(-g, 0.0, 0.0, Vertices::Zero(3, X.cols()), 0.0);
+    if (!s.gmres.converged)
+        throw NumericalError(fmt::format("cell flow: GMRES did not converge (relative residual {:.3e} after {} iterations)",
+                                         s.gmres.residual, s.gmres.iterations));
+    return {s.u, s.tension, s.gmres.iterations, s.gmres.residual};
+}
+
+CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& initial, const CellFlowOptions& opt,
+                                 const CellFlowObserver& observer) {
+    checkOptions(opt);
+    const Index nv = model.membrane().numVertices();
+    if (initial.cols() != nv || !initial.allFinite())
+        throw InputError(fmt::format("cell flow: initial shape has {} vertices (model {}) or non-finite positions",
+                                     initial.cols(), nv));
+    const auto t0 = Clock::now();
+    const Faces& F = model.faces();
+    const double A0 = model.targetArea(), V0 = model.targetVolume();
+    CellFlowResult res;
+    res.dtSmallest = std::numeric_limits<double>::infinity();
+
+    auto recordFrame = [&](double t, const Vertices& X) {
+        res.times.push_back(t);
+        res.areaDrift.push_back(totalArea(X, F) / A0 - 1.0);
+        res.volumeDrift.push_back(enclosedVolume(X, F) / V0 - 1.0);
+        if (opt.keepFrames) res.frames.push_back(X);
+        if (observer) observer(t, X);
+    };
+    Vertices X = initial, Xprev = initial, Xprev2 = initial, Xnew(3, nv);
+    Vertices U = Vertices::Zero(3, nv);  // velocity of the last accepted step
+    double tension = 0.0;                // area multiplier of the last accepted step
+    double dtPrev = 0.0, dtPrev2 = 0.0;
+    int history = 0;
+    double t = 0.0, dt = std::min(opt.dtInitial, opt.dtMax);
+    std::size_t nextFrame = 1;
+    const auto frameTime = [&](std::size_t k) { return static_cast<double>(k) * opt.frameInterval; };
+    recordFrame(0.0, X);
+
+    auto finish = [&](bool ok, std::string msg) {
+        res.completed = ok;
+        res.message = std::move(msg);
+        res.final = X;
+        res.tReached = t;
+        res.wallSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+        if (res.steps == 0) res.dtSmallest = res.dtLargest = 0.0;
+        return res;
+    };
+
+    while (t < opt.tEnd * (1.0 - 1e-12)) {
+        if (res.steps + res.rejectedSteps + res.failedSolves >= opt.maxSteps)
+            return finish(false, fmt::format("step limit {} reached at t = {:.6g}", opt.maxSteps, t));
+        double h = std::min(dt, opt.dtMax);
+        if (history >= 1) h = std::min(h, 2.4 * dtPrev);  // zero-stability of variable-step BDF2
+        if (t + h >= opt.tEnd * (1.0 - 1e-12)) h = opt.tEnd - t;
+        // BDF2 coefficients (implicit Euler for the first step) and the predictor X*.
+        double c0 = 1.0;
+        Vertices Y = X, Xpred = X;
+        if (history >= 1) {
+            const double w = h / dtPrev;
+            c0 = (1.0 + 2.0 * w) / (1.0 + w);
+            Y = ((1.0 + w) * X - (w * w / (1.0 + w)) * Xprev) / c0;
+            Xpred = X + w * (X - Xprev);
+            if (history >= 2) {
+                const double ta = -dtPrev - dtPrev2, tb = -dtPrev, tc = 0.0, tp = h;
+                const double la = (tp - tb) * (tp - tc) / ((ta - tb) * (ta - tc));
+                const double lb = (tp - ta) * (tp - tc) / ((tb - ta) * (tb - tc));
+                const double lc = (tp - ta) * (tp - tb) / ((tc - ta) * (tc - tb));
+                Xpred = la * Xprev2 + lb * Xprev + lc * X;
+            }
+        }
+        const double alpha = h / c0;
+        double stepTension = tension, stepFlux = 0.0;
+        bool solved = false;
+        std::string failure;
+        int iterations = 0;
+        try {
+            const CoupledSystem sys(model, Xpred, alpha, opt);
+            Vertices g(3, nv);
+            model.membrane().evaluate(Xpred, &g);
+            // F(X*) - H (Y - X*): the explicit part of the linearised elastic force.
+            const Vertices Fexp = -g - sys.hessianTimes(Y - Xpred);
+            // Linearised area constraint A(X*) + g_A . (Y + alpha u - X*) = A0.
+            const double areaRate =
+                (A0 - sys.area() - (sys.areaGradient().array() * (Y - Xpred).array()).sum()) / alpha;
+            const double volumeRate =
+                (V0 - sys.volume() - (sys.volumeGradient().array() * (Y - Xpred).array()).sum()) / alpha;
+            const Vertices guess = history >= 1 ? Vertices((Xpred - Y) / alpha) : U;
+            const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate, guess, tension);
+            iterations = s.gmres.iterations;
+            if (s.gmres.converged && s.u.allFinite() && std::isfinite(s.tension)) {
+                Xnew = Y + alpha * s.u;
+                U = s.u;
+                stepTension = s.tension;
+                stepFlux = s.fluxCorrection;
+                solved = Xnew.allFinite();
+                if (!solved) failure = "non-finite state";
+            } else {
+                failure = fmt::format("GMRES did not converge (relative residual {:.3e} after {} iterations)",
+                                      s.gmres.residual, s.gmres.iterations);
+            }
+        } catch (const InputError& e) {  // degenerate geometry (non-finite positions, ...)
+            failure = e.what();
+        } catch (const NumericalError& e) {
+            failure = e.what();
+        }
+        res.gmresIterations += iterations;
+        res.maxGmresIterations = std::max(res.maxGmresIterations, iterations);
+        if (!solved) {
+            ++res.failedSolves;
+            dt = 0.25 * h;
+            if (dt < opt.dtMin)
+                return finish(false, fmt::format("solver diverged at t = {:.6g} (step {:.3g} < dtMin {:.3g}): {}", t, dt,
+                                                 opt.dtMin, failure));
+            continue;
+        }
+        double err = 0.0, factor = 2.0;
+        if (history >= 2) err = (2.0 / 11.0) * maxNorm(Xnew - Xpred);  // also logged with fixed steps
+        if (opt.adaptive && history >= 2) {
+            if (!(err <= opt.errorTolerance)) {
+                ++res.rejectedSteps;
+                dt = h * std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 0.9);
+                if (dt < opt.dtMin)
+                    return finish(false, fmt::format("step size fell below dtMin = {:.3g} at t = {:.6g} (error {:.3g})",
+                                                     opt.dtMin, t, err));
+                continue;
+            }
+            factor = std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 2.0);
+        }
+        // Accept; remove the second-order area and volume drift of the linearised step.
+        const double areaCorrection = totalArea(Xnew, F) / A0 - 1.0, volumeCorrection = enclosedVolume(Xnew, F) / V0 - 1.0;
+        projectAreaVolume(Xnew, F, A0, V0);
+        tension = stepTension;
+        Xprev2.swap(Xprev);
+        Xprev.swap(X);
+        X.swap(Xnew);
+        dtPrev2 = dtPrev;
+        dtPrev = h;
+        ++history;
+        ++res.steps;
+        const double tOld = t;
+        t += h;
+        if (opt.tEnd - t < 1e-12 * opt.tEnd) t = opt.tEnd;
+        res.dtSmallest = std::min(res.dtSmallest, h);
+        res.dtLargest = std::max(res.dtLargest, h);
+        CellFlowStepRecord rec;
+        rec.t = t;
+        rec.dt = h;
+        rec.error = err;
+        rec.gmresIterations = iterations;
+        rec.tension = tension;
+        rec.fluxCorrection = stepFlux;
+        res.maxFluxCorrection = std::max(res.maxFluxCorrection, std::abs(stepFlux));
+        rec.areaDrift = totalArea(X, F) / A0 - 1.0;
+        rec.volumeDrift = enclosedVolume(X, F) / V0 - 1.0;
+        rec.areaCorrection = areaCorrection;
+        rec.volumeCorrection = volumeCorrection;
+        res.stepLog.push_back(rec);
+        res.maxAreaDrift = std::max(res.maxAreaDrift, std::abs(rec.areaDrift));
+        res.maxVolumeDrift = std::max(res.maxVolumeDrift, std::abs(rec.volumeDrift));
+        res.maxAreaCorrection = std::max(res.maxAreaCorrection, std::abs(areaCorrection));
+        res.maxVolumeCorrection = std::max(res.maxVolumeCorrection, std::abs(volumeCorrection));
+        res.sumAreaCorrection += std::abs(areaCorrection);
+        res.sumVolumeCorrection += std::abs(volumeCorrection);
+        // Frames in (tOld, t]: quadratic through the last three states (linear after one step).
+        while (frameTime(nextFrame) <= t * (1.0 + 1e-12) + 1e-14) {
+            const double ts = std::min(frameTime(nextFrame), t);
+            if (history < 2) {
+                const double a = (ts - tOld) / h;
+                recordFrame(frameTime(nextFrame), Vertices((1.0 - a) * Xprev + a * X));
+            } else {
+                const double ta = tOld - dtPrev2, tb = tOld, tc = t;
+                const double la = (ts - tb) * (ts - tc) / ((ta - tb) * (ta - tc));
+                const double lb = (ts - ta) * (ts - tc) / ((tb - ta) * (tb - tc));
+                const double lc = (ts - ta) * (ts - tb) / ((tc - ta) * (tc - tb));
+                recordFrame(frameTime(nextFrame), Vertices(la * Xprev2 + lb * Xprev + lc * X));
+            }
+            ++nextFrame;
+        }
+        if (!(std::abs(areaCorrection) <= opt.maxDrift) || !(std::abs(volumeCorrection) <= opt.maxDrift) ||
+            !(std::abs(rec.areaDrift) <= opt.maxDrift) || !(std::abs(rec.volumeDrift) <= opt.maxDrift))
+            return finish(false, fmt::format("diverged at t = {:.6g}: area change {:.3g}, volume change {:.3g} in one "
+                                             "step (limit {:.3g})",
+                                             t, areaCorrection, volumeCorrection, opt.maxDrift));
+        dt = opt.adaptive ? std::min(opt.dtMax, h * factor) : opt.dtInitial;
+    }
+    return finish(true, "completed");
+}
+
+ShearCell prepareShearCell(const CellParameters& p, int level, const std::filesystem::path& cacheDir) {
+    ShearCell c;
+    c.sfs = stressFreeState(p.v, level, cacheDir);
+    const CellMeshes meshes = cellMeshes(c.sfs);
+    ExperimentOptions eo;
+    eo.level = level;
+    eo.cacheDir = cacheDir;
+    const EquilibriumResult eq = runEquilibrium(p, meshes, eo);
+    c.faces = meshes.faces;
+    c.reference = meshes.reference;
+    c.equilibrium = eq.diagnostics;
+    // Aligned equilibrium: symmetry axis z. Rotate z -> y: (x, y, z) -> (x, z, -y).
+    Eigen::Matrix3d R;
+    R << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+    c.initial = R * eq.shape;
+    c.initial = c.initial.colwise() - centroid(c.initial);
+    return c;
+}
+
+Vertices rotateAboutVorticity(const Vertices& X, double angle) {
+    const Eigen::Vector3d c = centroid(X);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return (R * (X.colwise() - c)).colwise() + c;
+}
+
+}  // namespace trbc

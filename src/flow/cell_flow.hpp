@@ -1,0 +1,217 @@
+#pragma once
+// One deformable red cell in unbounded Stokes flow (VALIDATION.md 3, simple shear), solved with
+// the boundary-integral method of flow/stokes_solver.hpp, coupled to the membrane model of
+// MODEL.md C (Juelicher bending, Lim against the SFS, global area and volume held exactly, as
+// the experiments do, instead of the stiff penalties of C.3) and the membrane viscosity of C.4.
+//
+// Units. The user-facing quantities are physical (um, s, mPa s, pN); internally everything is
+// nondimensional with
+//   length    L = R_A = sqrt(A0 / 4 pi) (3.2776 um for A0 = 135 um^2),
+//   time      T = 1 / shear rate (or FlowConditions::timeScale in a quiescent fluid),
+//   viscosity eta_out,  force eta_out L^2 / T,  energy eta_out L^3 / T.
+// The moduli then are the dimensionless groups: mu' = 1 / Ca (Ca = eta_out rate R_A / mu),
+// kb' = kb / (eta_out rate R_A^3) = 1 / (Ca FvK), edge friction gamma' = 4 E / sqrt(3) with
+// E = eta_m / (eta_out R_A), viscosity ratio lambda = eta_in / eta_out, tension in units of
+// eta_out rate R_A. Background flow u = (y, 0, 0).
+//
+// Coupling. Membrane nodal forces F_i = -dU/dx_i (U = Juelicher bending + Lim against the SFS)
+// become the traction jump through the lumped vertex areas, Delta f_i = -(F_i + F^visc_i -
+// tau dA/dx_i) / A_i (Delta f = (sigma_out - sigma_in) . n, n outward), with the membrane-
+// viscosity force F^visc = -Gamma(X) u (edge friction matrix of C.4, depends on the unknown
+// membrane velocity u) and the membrane tension tau, the multiplier of the exact global area
+// constraint (MODEL.md G.3: equivalent to the stiff area penalty of C.3 up to O(tau / kA)). The
+// second-kind equation of solveInterfaceVelocity becomes one linear system for (u, tau, q):
+//   u - k D u + c S M^-1 (Gamma u + tau dA/dx) - q n = 2/(1+lambda) u_inf + c S M^-1 F,
+//   dA/dx . u = area rate,   dV/dx . u = volume rate,
+//   c = 1 / (4 pi (1 + lambda)), k = (1 - lambda) / (4 pi (1 + lambda)), M = diag(A_i),
+// solved by GMRES (membrane viscosity implicit). The volume needs no force: a uniform pressure
+// makes no flow (S n = 0), the continuous flow keeps V exactly and the discrete one leaks at
+// O(h^2); q is a uniform normal velocity (flux correction) that removes the leak. The area and
+// volume rates are those that bring the linearised A and V back to A0, V0 at the end of the
+// step; after each step a Gauss-Newton projection onto A = A0, V = V0 removes the second-order
+// rest (its size is reported). Right preconditioner: P = I + c B M^-1 Gamma with B the 3x3 self-
+// blocks of S (P^-1 by a sparse Cholesky factorisation of M B^-1 / c + Gamma), which takes the
+// stiff membrane-viscosity modes out of GMRES (89 -> 31 iterations at level 3, E = 7).
+//
+// Time stepping: linearly implicit, variable-step BDF2 ("semi-implicit"). With the BDF2 formula
+// c0 (X^{n+1} - Y) / h = u^{n+1} (Y, c0 from X^n, X^{n-1} and the step ratio; the first step is
+// implicit Euler) and the elastic force linearised about the predicted state X* (quadratic
+// extrapolation of the last three states),
+//   F(X^{n+1}) ~ F(X*) - H(X*) (X^{n+1} - X*),   H = d^2U/dX^2 (Hessian-vector products by
+// central differences of the gradient), the stiff elastic forces enter the same linear system
+// as Gamma -> Gamma + (h / c0) H and F -> F(X*) - H (Y - X*), with the boundary-integral
+// operators, M, Gamma and the constraint gradients frozen at X*. This is A-stable for the stiff
+// modes (bending and Lim at the grid scale; the area constraint is exact), so the step is set by
+// accuracy, not by stiffness: an explicit step would be limited to ~ eta h^3 / kb for bending
+// at mesh size h, and a stiff area penalty kA to ~ eta R_A / kA. The local error is estimated
+// against the explicit quadratic predictor (Milne's device, err = 2/11 max_i |X_i^{n+1} - X*_i|)
+// and the step adapted to errorTolerance (R_A units): h_new = h min(2, max(0.2, 0.9
+// (tol / err)^(1/3))), steps with err > tol rejected and retried with h (0.2..0.9) (tol/err)^(1/3),
+// step ratio capped at 2.4 (zero-stability of variable-step BDF2), a GMRES failure retried
+// with h / 4. The tank-treading motion itself (vertices turning at rate ~ shear rate) sets the
+// step: ~0.3-0.5 / rate at tol = 1e-3. Frames are interpolated at fixed times from the last
+// three states (BDF2 dense output).
+#include <Eigen/Core>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "experiments/experiments.hpp"
+#include "experiments/parameters.hpp"
+#include "flow/boundary_integral.hpp"
+#include "flow/stokes_solver.hpp"
+#include "membrane/model.hpp"
+#include "mesh/mesh.hpp"
+
+namespace trbc {
+
+/// Physical flow conditions of one run.
+struct FlowConditions {
+    double etaOut = 28.9;      ///< outer (suspending) viscosity, mPa s
+    double etaIn = 10.0;       ///< inner (cytosol) viscosity, mPa s (VALIDATION.md 3.1)
+    double shearRate = 0.0;    ///< 1/s; u = (rate y, 0, 0); 0 = quiescent fluid
+    double timeScale = 0.0;    ///< s; 0 = 1 / shearRate (required when shearRate = 0)
+    double A0 = cell::area;    ///< um^2
+    double V0 = cell::volume;  ///< um^3
+};
+
+/// Throws InputError naming the parameter and its valid range (viscosities positive and
+/// finite, shear rate >= 0; a time scale when the fluid is quiescent; A0, V0 > 0).
+void validateFlowConditions(const FlowConditions& f);
+
+/// Scales of the internal units (header comment).
+struct FlowScales {
+    double length = 1.0;     ///< um
+    double time = 1.0;       ///< s
+    double viscosity = 1.0;  ///< pN s / um^2 (= Pa s)
+    double force() const { return viscosity * length * length / time; }  ///< pN
+};
+
+/// Dimensionless groups of VALIDATION.md 2.
+struct FlowGroups {
+    double capillary = 0.0;          ///< Ca = eta_out rate R_A / mu
+    double viscosityRatio = 0.0;     ///< lambda = eta_in / eta_out
+    double membraneViscosity = 0.0;  ///< E = eta_m / (eta_out R_A)
+    double FvK = 0.0;
+    double shearStressPa = 0.0;      ///< eta_out rate
+};
+
+/// The nondimensional problem: membrane model, edge friction, viscosity ratio, background flow.
+class CellFlowModel {
+public:
+    /// `referenceUm`: Lim reference (stress-free state, um), same connectivity as every shape.
+    CellFlowModel(const CellParameters& cell, const FlowConditions& flow, const Faces& faces,
+                  const Vertices& referenceUm);
+
+    const FlowScales& scales() const { return scales_; }
+    FlowGroups groups() const;
+    const CellParameters& cell() const { return cell_; }
+    const FlowConditions& conditions() const { return flow_; }
+    const MembraneModel& membrane() const { return membrane_; }
+    const Faces& faces() const { return membrane_.faces(); }
+    double edgeFriction() const { return gamma_; }    ///< gamma' = 4 E / sqrt 3
+    double viscosityRatio() const { return lambda_; }
+    const LinearFlow& background() const { return background_; }
+    double targetArea() const { return area0_; }     ///< internal units
+    double targetVolume() const { return volume0_; }
+
+    Vertices toInternal(const Vertices& Xum) const { return Xum / scales_.length; }
+    Vertices toMicrons(const Vertices& X) const { return X * scales_.length; }
+
+private:
+    CellParameters cell_;
+    FlowConditions flow_;
+    FlowScales scales_;
+    Vertices internalReference_;  ///< Lim reference, internal units (initialised before membrane_)
+    MembraneModel membrane_;
+    double gamma_ = 0.0, lambda_ = 1.0, area0_ = 0.0, volume0_ = 0.0;
+    LinearFlow background_;
+};
+
+struct CellFlowOptions {
+    double tEnd = 40.0 * 3.14159265358979323846;  ///< internal time (10 rotations 4 pi / rate)
+    double frameInterval = 0.1;      ///< frames at k frameInterval (interpolated), internal time
+    bool keepFrames = true;
+    double errorTolerance = 1e-3;    ///< local error per step, max vertex displacement, R_A
+    bool adaptive = true;            ///< false: fixed steps dtInitial
+    double dtInitial = 1e-2, dtMin = 1e-8, dtMax = 1.0;  ///< internal time
+    int maxSteps = 200000;
+    double gmresTolerance = 1e-6;    ///< relative true residual of the coupled system
+    int gmresRestart = 100, gmresMaxIterations = 1000;
+    OperatorMode operators = OperatorMode::Auto;  ///< dense when 3 Nv <= denseLimit
+    Eigen::Index denseLimit = 4000;
+    QuadratureOptions quadrature;
+    double maxDrift = 0.05;          ///< |A/A0 - 1| or |V/V0 - 1| beyond this: diverged
+    bool preconditioner = true;      ///< right preconditioner P = I + c B M^-1 Gamma (cell_flow.cpp)
+    double preconditionerScale = 1.0;  ///< B = this x the self-blocks of the single layer
+};
+
+struct CellFlowStepRecord {
+    double t = 0.0, dt = 0.0, error = 0.0;  ///< internal units (t after the step)
+    int gmresIterations = 0;
+    double tension = 0.0;                   ///< area multiplier, internal units (eta_out rate R_A)
+    double fluxCorrection = 0.0;            ///< uniform normal velocity of the volume row, internal units
+    double areaDrift = 0.0, volumeDrift = 0.0;  ///< A/A0 - 1, V/V0 - 1 after the projection
+    /// A/A0 - 1 and V/V0 - 1 of the linearised step before the projection removed them (what
+    /// the step would add to the drift without the projection)
+    double areaCorrection = 0.0, volumeCorrection = 0.0;
+};
+
+struct CellFlowResult {
+    bool completed = false;
+    std::string message;
+    std::vector<double> times;             ///< frame times, internal units
+    std::vector<Vertices> frames;          ///< internal units (kept when keepFrames)
+    std::vector<double> areaDrift, volumeDrift;  ///< per frame, A/A0 - 1 and V/V0 - 1
+    std::vector<CellFlowStepRecord> stepLog;     ///< accepted steps
+    Vertices final;                        ///< state at the end (or at the failure)
+    double tReached = 0.0;
+    int steps = 0, rejectedSteps = 0, failedSolves = 0;
+    long gmresIterations = 0;              ///< accepted and rejected steps
+    int maxGmresIterations = 0;
+    double dtSmallest = 0.0, dtLargest = 0.0;
+    double maxAreaDrift = 0.0, maxVolumeDrift = 0.0;  ///< max |drift| over the accepted steps
+    /// Largest and summed |change| per step removed by the projection (the sums bound the drift
+    /// that would accumulate without it).
+    double maxAreaCorrection = 0.0, maxVolumeCorrection = 0.0;
+    double sumAreaCorrection = 0.0, sumVolumeCorrection = 0.0;
+    double maxFluxCorrection = 0.0;  ///< largest |uniform normal velocity| of the volume row (R_A rate)
+    double wallSeconds = 0.0;
+};
+
+/// Called at t = 0 and at every frame time (internal units).
+using CellFlowObserver = std::function<void(double t, const Vertices& X)>;
+
+/// Integrates dX/dt = u(X) from `initial` (internal units). Never throws on a numerical failure:
+/// returns completed = false with the reason (GMRES failure at the smallest step, step below
+/// dtMin, drift beyond maxDrift, non-finite state, maxSteps). Throws InputError for bad options.
+CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& initial, const CellFlowOptions& options,
+                                 const CellFlowObserver& observer = {});
+
+/// The interface velocity at X with the elastic forces explicit (no implicit term): the
+/// right-hand side of dX/dt = u(X). For tests and diagnostics.
+struct VelocityEvaluation {
+    Vertices velocity;
+    double tension = 0.0;
+    int gmresIterations = 0;
+    double residual = 0.0;
+};
+VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& options = {});
+
+/// The cell of VALIDATION.md 3.1 for parameters p: SFS(v) (cached in cacheDir), equilibrium
+/// shape (MODEL.md E.1) as initial condition, rotated so that its symmetry axis lies along the
+/// gradient direction y (the disc in the flow-vorticity plane), centred at the origin.
+struct ShearCell {
+    StressFreeState sfs;
+    Faces faces;
+    Vertices reference;   ///< Lim reference: SFS scaled to A0, um
+    Vertices initial;     ///< um
+    SolverDiagnostics equilibrium;
+};
+ShearCell prepareShearCell(const CellParameters& p, int level, const std::filesystem::path& cacheDir);
+
+/// Rotation about the z (vorticity) axis by `angle` radians, about the centroid.
+Vertices rotateAboutVorticity(const Vertices& X, double angle);
+
+}  // namespace trbc
