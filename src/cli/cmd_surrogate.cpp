@@ -59,6 +59,9 @@ void registerTrain(CLI::App* parent) {
     cmd->add_option("--test-fraction", o->t.testFraction, "share of the cells held out as the test set, [0, 0.5)")
         ->capture_default_str();
     cmd->add_option("--test-seed", o->t.testSeed, "seed of the choice of test cells")->capture_default_str();
+    cmd->add_option("--restarts", o->t.restarts,
+                    "trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept")
+        ->check(CLI::Range(1, 100))->capture_default_str();
     cmd->add_option("--max-epochs", o->t.network.maxEpochs, "epoch cap of each network")->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_option("--threads", o->threads, "networks trained concurrently (results do not depend on it)")
@@ -95,6 +98,7 @@ void registerTrain(CLI::App* parent) {
                             {"test_cells", rep.testCells},
                             {"test_seed", t.testSeed},
                             {"seed", t.network.seed},
+                            {"restarts", t.restarts},
                             {"split_seed", t.network.splitSeed},
                             {"wall_s", wall},
                             {"networks", nlohmann::json::object()},
@@ -108,6 +112,7 @@ void registerTrain(CLI::App* parent) {
                                        {"samples_dropped", rep.dropped[k]},
                                        {"wall_s", rep.wallSeconds[k]},
                                        {"epochs", nets[k]->history.passes()},
+                                       {"seed", nets[k]->options.seed},
                                        {"best_epoch", nets[k]->history.bestEpoch},
                                        {"best_validation_loss", nets[k]->history.bestValidationLoss},
                                        {"hit_epoch_cap", nets[k]->history.hitEpochCap}};

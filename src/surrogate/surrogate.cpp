@@ -249,7 +249,15 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
                 opt.progress(kNetworks[k], e);
             };
             const auto t0 = std::chrono::steady_clock::now();
-            results[k] = trainNetwork(data[k].X, data[k].Y, o, inNames[k], outNames[k]);
+            // Restarts from different initial weights (seeds seed, seed+1, ...); the one with the
+            // lowest validation loss is kept (the test cells play no part in the choice).
+            for (int r = 0; r < std::max(1, opt.restarts); ++r) {
+                TrainingOptions ro = o;
+                ro.seed = o.seed + std::uint64_t(r);
+                TrainingResult t = trainNetwork(data[k].X, data[k].Y, ro, inNames[k], outNames[k]);
+                if (r == 0 || t.network.history.bestValidationLoss < results[k].network.history.bestValidationLoss)
+                    results[k] = std::move(t);
+            }
             rep.wallSeconds[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             results[k].network.dataHash = rep.dataHash;
             results[k].network.command = opt.command;

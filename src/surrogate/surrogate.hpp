@@ -51,6 +51,8 @@ struct SurrogateTrainingOptions {
     TrainingOptions network;          ///< schedule of 3.4; batch size 256 is used for the equilibrium net
     double testFraction = 0.1;        ///< share of the cells held out as the test set (5.2.1)
     std::uint64_t testSeed = 20240101;
+    /// Trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept.
+    int restarts = 4;
     std::string command;              ///< stored in every network file
     std::function<void(const std::string& network, const EpochRecord&)> progress;
 };
