@@ -58,6 +58,8 @@ void registerForces(CLI::App& app);
 void registerCampaign(CLI::App& app);
 void registerSurrogate(CLI::App& app);
 void registerSobol(CLI::App& app);
+void registerInfer(CLI::App& app);
+void registerPredict(CLI::App& app);
 
 /// Shipped surrogates: $TRBC_SURROGATE_DIR, else <source>/data/surrogates.
 std::filesystem::path defaultSurrogateDirectory();

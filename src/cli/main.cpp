@@ -21,6 +21,8 @@ int main(int argc, char** argv) {
     trbc::cli::registerCampaign(app);
     trbc::cli::registerSurrogate(app);
     trbc::cli::registerSobol(app);
+    trbc::cli::registerInfer(app);
+    trbc::cli::registerPredict(app);
     trbc::cli::registerFlow(app);
     try {
         app.parse(argc, argv);

@@ -1,0 +1,132 @@
+// trbc infer: the three-phase hierarchical Bayesian inference of INFERENCE.md on the surrogates
+// (issue 6). Parses options and calls runRbcInference (src/inference/rbc_pipeline.hpp).
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "inference/rbc_pipeline.hpp"
+#include "surrogate/surrogate.hpp"
+
+namespace trbc::cli {
+namespace {
+
+/// Experimental data: $TRBC_EXPERIMENT_DATA, else <source>/../shared/data/experiments (the shared
+/// data of the project), else <source>/data/experiments.
+std::filesystem::path defaultExperimentDirectory() {
+    if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
+    const std::filesystem::path shared = std::filesystem::path(TRBC_SOURCE_DIR) / ".." / "shared" / "data" / "experiments";
+    if (std::filesystem::is_directory(shared)) return shared.lexically_normal();
+    return std::filesystem::path(TRBC_DATA_DIR) / "experiments";
+}
+
+}  // namespace
+
+void registerInfer(CLI::App& app) {
+    struct Opts {
+        std::string phase = "all", out, model, dataDir, fvk = "closed", prior3b = "support", fvk3b = "all";
+        int samples = 50000, threads = 2;
+        std::uint64_t seed = 0xC0FFEE;
+        bool resume = false, single = false, quiet = false;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "infer", "Hierarchical Bayesian inference of (v, mu, kb, b2, etam) from the seven data sets with TMCMC/BASIS on "
+                 "the surrogates (INFERENCE.md): phase 1 individual posteriors, phase 2 population hyper-parameters, "
+                 "phase 3 theta_new and each data set given all data; writes DIR/posterior_stats.csv, "
+                 "DIR/posterior_table.md, DIR/infer.json and the samples of every posterior");
+    cmd->add_option("--phase", o->phase, "phase to run: 1, 2, 3 or all (2 and 3 read the earlier phases from --out)")
+        ->check(CLI::IsMember({"1", "2", "3", "all"}))
+        ->capture_default_str();
+    cmd->add_option("--samples", o->samples, "population size N of every TMCMC run (INFERENCE.md 5: 50000)")
+        ->check(CLI::Range(2, 100000000))
+        ->capture_default_str();
+    cmd->add_option("--seed", o->seed, "run seed (each run derives its own from it and its name)")->capture_default_str();
+    cmd->add_option("--out", o->out, "output directory DIR")->required();
+    cmd->add_option("--model", o->model, "surrogate model directory (default: the shipped surrogates)");
+    cmd->add_option("--data-dir", o->dataDir,
+                    "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
+                    "else ../shared/data/experiments next to the sources)");
+    cmd->add_option("--threads", o->threads, "OpenMP threads (results do not depend on it)")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    cmd->add_flag("--resume", o->resume, "continue unfinished runs from their per-stage checkpoints and reuse finished ones");
+    cmd->add_flag("--single-precision", o->single, "evaluate the surrogate in float (about 3x faster)");
+    cmd->add_option("--fvk-density", o->fvk, "density of FvK under the population (INFERENCE.md 4.3): closed (closed form, "
+                                              "mixed precision, |d log q| < 1e-5), closed-double (closed form in double "
+                                              "precision, about 2x slower) or nodes50 (the reference's 50-node rule)")
+        ->check(CLI::IsMember({"closed", "closed-double", "nodes50"}))
+        ->capture_default_str();
+    cmd->add_option("--phase3b-prior", o->prior3b, "prior of phase 3b (4.6): support (indicator of the phase-1 support, "
+                                                   "the derivation) or reference (phase-1 priors, equilibrium sigma >= 1e-4)")
+        ->check(CLI::IsMember({"support", "reference"}))
+        ->capture_default_str();
+    cmd->add_option("--phase3b-equilibrium-fvk", o->fvk3b, "phase 3b equilibrium: q(FvK | psi) at every phase-2 sample "
+                                                           "(all, the derivation) or at the last one only (last, the reference's defect)")
+        ->check(CLI::IsMember({"all", "last"}))
+        ->capture_default_str();
+    cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
+    cmd->callback([o]() {
+        RbcInferenceOptions opt;
+        opt.outputDirectory = o->out;
+        if (o->phase == "all")
+            opt.firstPhase = 1, opt.lastPhase = 3;
+        else
+            opt.firstPhase = opt.lastPhase = std::stoi(o->phase);
+        opt.populationSize = o->samples;
+        opt.seed = o->seed;
+        opt.resume = o->resume;
+        opt.fvkRule = o->fvk == "closed"          ? FvkDensityRule::ClosedForm
+                      : o->fvk == "closed-double" ? FvkDensityRule::ClosedFormDouble
+                                                  : FvkDensityRule::Nodes50;
+        opt.phase3b.rule = opt.fvkRule;
+        opt.phase3b.referencePrior = o->prior3b == "reference";
+        opt.phase3b.referenceEquilibriumDefect = o->fvk3b == "last";
+        ensureWritableDirectory(o->out);
+
+        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
+        surrogate->precision = o->single ? Precision::Single : Precision::Double;
+        const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
+        const std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
+
+        nlohmann::json networks = nlohmann::json::object();
+        const std::pair<const char*, const TrainedNetwork*> nets[3] = {
+            {"equilibrium", &surrogate->equilibrium}, {"stretching", &surrogate->stretching}, {"relaxation", &surrogate->relaxation}};
+        for (const auto& [name, net] : nets) networks[name] = {{"data_hash", net->dataHash}, {"command", net->command}};
+        opt.provenance = {{"command", commandLine()},
+                          {"model", {{"dir", std::filesystem::absolute(modelDir).lexically_normal().string()},
+                                     {"precision", o->single ? "single" : "double"},
+                                     {"networks", networks}}},
+                          {"data_dir", std::filesystem::absolute(dataDir).lexically_normal().string()}};
+        if (!o->quiet) opt.progress = [](const std::string& line) { std::cerr << line << '\n'; };
+
+        omp_set_num_threads(o->threads);
+        const RbcInferenceResult r = runRbcInference(surrogateRbcModel(surrogate), data, opt);
+
+        std::cout << fmt::format("trbc infer: phases {} in {:.1f} s with {} thread(s)\n", o->phase, r.wallSeconds, o->threads);
+        for (int ph = 0; ph < 3; ++ph) {
+            const RbcPhaseTiming& t = r.timing[ph];
+            if (t.ran)
+                std::cout << fmt::format("  phase {}: {:7.1f} s  (surrogate {:.1f} s, population sums {:.1f} s, sampler and I/O {:.1f} s)\n",
+                                         ph + 1, t.wallSeconds, t.surrogateSeconds, t.populationSeconds, t.samplerSeconds());
+        }
+        if (!r.stats.empty()) {
+            std::cout << "theta_new (mean, median, ML, MAP, SD, q05, q95):\n";
+            for (const PosteriorStatsRow& s : r.stats)
+                if (s.posterior == "theta_new")
+                    std::cout << fmt::format("  {:<16} {:.4g}  {:.4g}  {:.4g}  {:.4g}  {:.4g}  {:.4g}  {:.4g}\n", s.parameter, s.mean,
+                                             s.median, s.ml, s.map, s.sd, s.q05, s.q95);
+            std::cout << fmt::format("statistics: {}\ntable: {}\n", (std::filesystem::path(o->out) / "posterior_stats.csv").string(),
+                                     (std::filesystem::path(o->out) / "posterior_table.md").string());
+        }
+        std::cout << fmt::format("provenance: {}\n", (std::filesystem::path(o->out) / "infer.json").string());
+    });
+}
+
+}  // namespace trbc::cli

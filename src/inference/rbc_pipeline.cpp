@@ -1,0 +1,539 @@
+#include "inference/rbc_pipeline.hpp"
+
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "core/version.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+void writeText(const fs::path& p, const std::string& text) {
+    std::ofstream out(p, std::ios::trunc);
+    out << text;
+    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
+}
+
+/// How a posterior is stored: its directory and the physical-unit columns of its samples.
+struct Posterior {
+    std::string phase, name;          ///< phase1 / phase2 / phase3, run name
+    std::vector<std::string> names;   ///< physical column names (one per sampled variable)
+    Eigen::VectorXd scale;            ///< internal -> physical factor per variable
+    bool deriveEtam = false;          ///< append etam_Pa_s_um = mu r (theta_new, 4.5)
+    std::string label() const { return phase + "/" + name; }
+};
+
+/// Samples in physical units (plus derived quantities, section 7) and their names.
+Eigen::MatrixXd physicalSamples(const Posterior& p, const Eigen::MatrixXd& s, std::vector<std::string>& names) {
+    Eigen::MatrixXd out = p.scale.asDiagonal() * s;
+    names = p.names;
+    if (p.deriveEtam) {  // eta_m = mu r, sample by sample (Pa s um = uN/m x s)
+        appendDerivedParameter(out, names, "etam_Pa_s_um", [](const Eigen::VectorXd& t) { return t[kPooledMu] * t[kPooledR]; });
+    }
+    return out;
+}
+
+struct Context {
+    const RbcInferenceOptions& o;
+    RbcModel model;  // timed
+    std::shared_ptr<ModelTimer> modelTimer;
+    std::shared_ptr<PopulationTimer> populationTimer;
+    nlohmann::json runs = nlohmann::json::object();
+    nlohmann::json extrapolation = nlohmann::json::object();
+
+    void say(const std::string& line) const {
+        if (o.progress) o.progress(line);
+    }
+    fs::path runDirectory(const Posterior& p) const { return o.outputDirectory / p.phase / p.name; }
+
+    TmcmcOptions runOptions(const Posterior& p, RbcSamplerSettings st) const {
+        TmcmcOptions opt;
+        opt.populationSize = o.populationSize;
+        opt.targetCoV = st.targetCoV;
+        opt.covarianceScaling = st.covarianceScaling;
+        opt.maxChainLength = 1;  // BASIS (5)
+        opt.seed = rbcRunSeed(o.seed, p.label());
+        opt.checkpointDirectory = (runDirectory(p) / "checkpoint").string();
+        return opt;
+    }
+};
+
+void writeStages(const fs::path& file, const TmcmcResult& r) {
+    std::string s = "stage,exponent,cov,acceptance_rate,unique_selections,ess,max_log_likelihood,log_evidence_increment,"
+                    "covariance_jitter,likelihood_evaluations,elapsed_s\n";
+    for (const TmcmcStageInfo& g : r.stages)
+        s += fmt::format("{},{:.10g},{:.6g},{:.6g},{},{:.8g},{:.10g},{:.10g},{:.6g},{},{:.4f}\n", g.stage, g.exponent,
+                         g.coefficientOfVariation, g.acceptanceRate, g.uniqueSelections, g.effectiveSampleSize,
+                         g.maxLogLikelihood, g.logEvidenceIncrement, g.covarianceJitter, g.likelihoodEvaluations,
+                         g.elapsedSeconds);
+    writeText(file, s);
+}
+
+void writeSamples(const fs::path& file, const Eigen::MatrixXd& x, const std::vector<std::string>& names,
+                  const Eigen::VectorXd& logLikelihood, const Eigen::VectorXd& logPrior) {
+    std::string s = fmt::format("{},log_likelihood,log_prior\n", fmt::join(names, ","));
+    s.reserve(static_cast<std::size_t>(x.cols()) * 20 * static_cast<std::size_t>(x.rows() + 2));
+    for (Eigen::Index k = 0; k < x.cols(); ++k) {
+        for (Eigen::Index j = 0; j < x.rows(); ++j) fmt::format_to(std::back_inserter(s), "{:.10g},", x(j, k));
+        fmt::format_to(std::back_inserter(s), "{:.10g},{:.10g}\n", logLikelihood[k], logPrior[k]);
+    }
+    writeText(file, s);
+}
+
+/// A finished run's timing record (also reused when a finished run is only loaded).
+struct RunTiming {
+    double wall = 0.0, surrogate = 0.0, population = 0.0;
+};
+
+nlohmann::json runJson(const Posterior& p, const TmcmcOptions& opt, const TmcmcResult& r, const RunTiming& t) {
+    return {{"posterior", p.name},
+            {"phase", p.phase},
+            {"seed", opt.seed},
+            {"population_size", opt.populationSize},
+            {"target_cov", opt.targetCoV},
+            {"covariance_scaling", opt.covarianceScaling},
+            {"max_chain_length", opt.maxChainLength},
+            {"completed", r.completed},
+            {"log_evidence", r.logEvidence},
+            {"stages", r.stages.size()},
+            {"likelihood_evaluations", r.likelihoodEvaluations},
+            {"parameters", p.names},
+            {"wall_s", t.wall},
+            {"surrogate_s", t.surrogate},
+            {"population_s", t.population},
+            {"sampler_s", t.wall - t.surrogate - t.population}};
+}
+
+/// Runs (or, with resume, continues / reuses) one TMCMC run and writes samples.csv, stages.csv and run.json.
+/// `mapLogPrior` (optional) gives the log prior density stored with the samples for the MAP (section
+/// 7) when it is not the sampler's prior (phase 3b).
+TmcmcResult runPosterior(Context& ctx, const Posterior& p, const TmcmcProblem& problem, RbcSamplerSettings st,
+                         const std::function<Eigen::VectorXd(const TmcmcResult&)>& mapLogPrior = {}) {
+    const fs::path dir = ctx.runDirectory(p);
+    fs::create_directories(dir);
+    TmcmcOptions opt = ctx.runOptions(p, st);
+    opt.resume = ctx.o.resume;
+    if (!ctx.o.resume) fs::remove_all(opt.checkpointDirectory);
+    int stagesRun = 0;
+    const std::string label = p.label();
+    opt.onStage = [&](const TmcmcStageInfo& g) {
+        ++stagesRun;
+        ctx.say(fmt::format("infer {}: stage {:>2}  rho {:.3e}  CoV {:.2f}  accept {:.2f}  unique {:>6}  max log L {:.5g}  {:.1f} s",
+                            label, g.stage, g.exponent, g.coefficientOfVariation, g.acceptanceRate, g.uniqueSelections,
+                            g.maxLogLikelihood, g.elapsedSeconds));
+    };
+    const double s0 = ctx.modelTimer->seconds, p0 = ctx.populationTimer->seconds;
+    const auto t0 = Clock::now();
+    TmcmcResult r = runTmcmc(problem, opt);
+    RunTiming t{secondsSince(t0), ctx.modelTimer->seconds - s0, ctx.populationTimer->seconds - p0};
+    const fs::path runFile = dir / "run.json";
+    if (stagesRun == 0 && fs::exists(runFile)) {  // a finished run was only loaded: keep its timing
+        try {
+            std::ifstream f(runFile);
+            const nlohmann::json old = nlohmann::json::parse(f);
+            t = {old.at("wall_s").get<double>(), old.at("surrogate_s").get<double>(), old.at("population_s").get<double>()};
+        } catch (const std::exception&) {
+        }
+    }
+    std::vector<std::string> names;
+    const Eigen::MatrixXd phys = physicalSamples(p, r.samples, names);
+    writeSamples(dir / "samples.csv", phys, names, r.logLikelihood, mapLogPrior ? mapLogPrior(r) : r.logPrior);
+    writeStages(dir / "stages.csv", r);
+    nlohmann::json j = runJson(p, opt, r, t);
+    j["samples_columns"] = names;
+    writeText(runFile, j.dump(2) + "\n");
+    ctx.runs[label] = j;
+    ctx.say(fmt::format("infer {}: done, {} stages, log evidence {:.4f}, {} likelihood evaluations, {:.1f} s{}", label,
+                        r.stages.size(), r.logEvidence, r.likelihoodEvaluations, t.wall, stagesRun == 0 ? " (reused)" : ""));
+    return r;
+}
+
+/// Loads a finished run of an earlier invocation (phases not selected now).
+TmcmcResult loadPosterior(Context& ctx, const Posterior& p, const TmcmcProblem& problem, RbcSamplerSettings st, int phase) {
+    TmcmcOptions opt = ctx.runOptions(p, st);
+    const fs::path header = fs::path(opt.checkpointDirectory) / "tmcmc_checkpoint.json";
+    if (!fs::exists(header))
+        throw InputError(fmt::format("{}: no results of {} (missing {}); run `trbc infer --phase {}` with this --out first",
+                                     ctx.o.outputDirectory.string(), p.label(), header.string(), phase));
+    double rho = 0.0;
+    try {
+        std::ifstream f(header);
+        const nlohmann::json h = nlohmann::json::parse(f);
+        rho = h.at("exponent").is_number() ? h.at("exponent").get<double>() : 0.0;
+    } catch (const std::exception& e) {
+        throw InputError(fmt::format("{}: cannot read {}: {}", p.label(), header.string(), e.what()));
+    }
+    if (!(rho >= 1.0))
+        throw InputError(fmt::format("{}: the run {} is unfinished (exponent {}); finish it with `trbc infer --phase {} --resume`",
+                                     ctx.o.outputDirectory.string(), p.label(), rho, phase));
+    opt.resume = true;
+    try {
+        TmcmcResult r = runTmcmc(problem, opt);
+        ctx.say(fmt::format("infer {}: loaded ({} samples, log evidence {:.4f})", p.label(), r.samples.cols(), r.logEvidence));
+        return r;
+    } catch (const InputError& e) {
+        throw InputError(fmt::format("loading {} (it must have been run with the same --samples and --seed): {}", p.label(), e.what()));
+    }
+}
+
+/// Problem stand-in for loading a finished run: the likelihood is never called.
+TmcmcProblem loadOnlyProblem(PriorPtr prior) {
+    TmcmcProblem p;
+    p.prior = std::move(prior);
+    p.batchLogLikelihood = [](const Eigen::MatrixXd&) -> Eigen::VectorXd {
+        throw InputError("internal: a finished run was about to be continued");
+    };
+    return p;
+}
+
+Posterior phase1Posterior(const RbcDataSet& d, const std::string& phase) {
+    return {phase, d.name, phase1OutputNames(d.experiment), phase1OutputScale(d.experiment), false};
+}
+
+double massOutside(const Eigen::VectorXd& r, double lo, double hi) {
+    double n = 0.0;
+    for (Eigen::Index k = 0; k < r.size(); ++k) n += (r[k] < lo || r[k] > hi) ? 1.0 : 0.0;
+    return n / static_cast<double>(std::max<Eigen::Index>(r.size(), 1));
+}
+
+std::vector<PosteriorStatsRow> statsOf(const Posterior& p, const TmcmcResult& r, const Eigen::VectorXd& mapLogPrior) {
+    std::vector<std::string> names;
+    const Eigen::MatrixXd phys = physicalSamples(p, r.samples, names);
+    return posteriorStatsRows(p.name, phys, names, r.logLikelihood, mapLogPrior);
+}
+
+/// Phase-1 prior log density of each sample (the MAP of 3b uses the phase-1 priors, section 7).
+Eigen::VectorXd phase1LogPrior(const RbcDataSet& d, const Eigen::MatrixXd& samples) {
+    const auto prior = phase1Prior(d);
+    Eigen::VectorXd lp(samples.cols());
+    for (Eigen::Index k = 0; k < samples.cols(); ++k) lp[k] = prior->logDensity(samples.col(k));
+    return lp;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Markdown table (paper's Table 1 layout)
+
+struct TableRow {
+    std::string label;  // e.g. "$\\mu$ (µN/m)"
+    std::string parameter;
+    double factor;      // physical -> table unit
+};
+
+std::string formatNumber(double x) {
+    if (x == 0.0) return "0";
+    const double a = std::abs(x);
+    if (a >= 0.01 && a < 1e4) return fmt::format("{:.3g}", x);
+    return fmt::format("{:.3e}", x);
+}
+
+std::string markdownTable(const std::vector<PosteriorStatsRow>& rows, const std::string& posterior, const std::vector<TableRow>& layout,
+                          bool twoDecimals) {
+    std::string s = "| | mean | median | ML | MAP | standard deviation | 5 % | 95 % |\n|---|---|---|---|---|---|---|---|\n";
+    for (const TableRow& t : layout)
+        for (const PosteriorStatsRow& r : rows)
+            if (r.posterior == posterior && r.parameter == t.parameter) {
+                auto f = [&](double x) { return twoDecimals ? fmt::format("{:.2f}", x * t.factor) : formatNumber(x * t.factor); };
+                s += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} |\n", t.label, f(r.mean), f(r.median), f(r.ml), f(r.map),
+                                 f(r.sd), f(r.q05), f(r.q95));
+            }
+    return s;
+}
+
+std::vector<TableRow> tableLayout(const std::vector<PosteriorStatsRow>& rows, const std::string& posterior) {
+    static const std::vector<TableRow> known = {
+        {"$v$", "v", 1.0},
+        {"$\\mu$ (µN/m)", "mu_uN_per_m", 1.0},
+        {"$\\kappa_b$ ($10^{-19}$ J)", "kb_J", 1e19},
+        {"$b_2$", "b2", 1.0},
+        {"$\\eta_m$ (Pa s µm)", "etam_Pa_s_um", 1.0},
+        {"$\\eta_m/\\mu$ (s)", "etam_over_mu_s", 1.0},
+        {"FvK", "FvK", 1.0},
+    };
+    std::vector<TableRow> out;
+    for (const TableRow& t : known)
+        for (const PosteriorStatsRow& r : rows)
+            if (r.posterior == posterior && r.parameter == t.parameter) out.push_back(t);
+    for (const PosteriorStatsRow& r : rows) {  // the remaining (error-model) parameters as they are
+        if (r.posterior != posterior) continue;
+        bool have = false;
+        for (const TableRow& t : out) have = have || t.parameter == r.parameter;
+        if (!have) out.push_back({"`" + r.parameter + "`", r.parameter, 1.0});
+    }
+    return out;
+}
+
+std::string tableMarkdown(const RbcInferenceOptions& o, const std::vector<PosteriorStatsRow>& rows, const std::vector<RbcDataSet>& data,
+                          const nlohmann::json& extrapolation, const nlohmann::json& check) {
+    std::string s = "# Posterior statistics of the t-RBC parameters\n\n";
+    s += fmt::format("Made by `{}` (trbc {}), seed {}, {} samples per TMCMC/BASIS run (INFERENCE.md).\n",
+                     o.provenance.value("command", std::string("trbc infer")), kVersion, o.seed, o.populationSize);
+    if (o.provenance.contains("model")) s += fmt::format("Model: `{}`.\n", o.provenance["model"].value("dir", std::string("?")));
+    s += "\n## $\\theta^{\\rm new}$: a new cell given all data (phase 3a) — the layout of the paper's Table 1\n\n";
+    s += "$\\mu$ in µN/m, $\\kappa_b$ in $10^{-19}$ J, $\\eta_m$ in Pa·s·µm. MAP = ML here (uniform box prior, INFERENCE.md 7).\n\n";
+    const std::vector<TableRow> table1 = {{"$v$", "v", 1.0},
+                                          {"$\\mu$", "mu_uN_per_m", 1.0},
+                                          {"$\\kappa_b$", "kb_J", 1e19},
+                                          {"$b_2$", "b2", 1.0},
+                                          {"$\\eta_m$", "etam_Pa_s_um", 1.0}};
+    s += "| | mean | median | ML | MAP | standard deviation |\n|---|---|---|---|---|---|\n";
+    for (const TableRow& t : table1)
+        for (const PosteriorStatsRow& r : rows)
+            if (r.posterior == "theta_new" && r.parameter == t.parameter)
+                s += fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", t.label, r.mean * t.factor,
+                                 r.median * t.factor, r.ml * t.factor, r.map * t.factor, r.sd * t.factor);
+    s += "\nWith the 90 % central credible intervals and $\\eta_m/\\mu$:\n\n";
+    s += markdownTable(rows, "theta_new", tableLayout(rows, "theta_new"), false);
+    if (!check.is_null() && check.contains("max_mean_difference_in_sd"))
+        s += fmt::format("\nCross-check (INFERENCE.md 4.5): ancestral sampling of the same mixture gives means within {:.3f} "
+                         "posterior SD of the TMCMC samples (largest difference over the parameters).\n",
+                         check["max_mean_difference_in_sd"].get<double>());
+    s += "\n## Each data set given all data (phase 3b)\n";
+    for (const RbcDataSet& d : data) {
+        s += fmt::format("\n### {} ({}, `{}`)\n\n", d.name, experimentName(d.experiment), d.file.filename().string());
+        s += markdownTable(rows, d.name, tableLayout(rows, d.name), false);
+    }
+    if (!extrapolation.empty()) {
+        s += "\n## Relaxation network outside its training range\n\nShare of the samples with $r=\\eta_m/\\mu$ outside "
+             "[0.025, 0.25] s, where the network input $\\eta_m=4r$ leaves [0.1, 1] (INFERENCE.md 3.3):\n\n| posterior | share |\n|---|---|\n";
+        for (const auto& [k, v] : extrapolation.items()) s += fmt::format("| {} | {:.3f} |\n", k, v.get<double>());
+    }
+    return s;
+}
+
+nlohmann::json readJsonOrEmpty(const fs::path& p) {
+    if (!fs::exists(p)) return nlohmann::json::object();
+    try {
+        std::ifstream f(p);
+        nlohmann::json j = nlohmann::json::parse(f);
+        return j.is_object() ? j : nlohmann::json::object();
+    } catch (const std::exception&) {
+        return nlohmann::json::object();
+    }
+}
+
+nlohmann::json timingJson(const RbcPhaseTiming& t) {
+    return {{"wall_s", t.wallSeconds},          {"surrogate_s", t.surrogateSeconds}, {"population_s", t.populationSeconds},
+            {"sampler_s", t.samplerSeconds()},  {"surrogate_evaluations", t.surrogateEvaluations},
+            {"population_terms", t.populationTerms}};
+}
+
+/// Mean and SD of each parameter of theta_new from TMCMC and from ancestral sampling (4.5).
+nlohmann::json ancestralCheck(const Eigen::MatrixXd& tmcmc, const Eigen::MatrixXd& ancestral, const fs::path& file) {
+    const auto& names = pooledOutputNames();
+    const Eigen::VectorXd scale = pooledOutputScale();
+    std::string csv = "parameter,tmcmc_mean,ancestral_mean,tmcmc_sd,ancestral_sd,tmcmc_q05,ancestral_q05,tmcmc_q95,ancestral_q95,mean_difference_in_sd\n";
+    nlohmann::json j = nlohmann::json::object();
+    double worst = 0.0;
+    for (int p = 0; p < kPooledDimension; ++p) {
+        const Eigen::VectorXd a = tmcmc.row(p).transpose() * scale[p], b = ancestral.row(p).transpose() * scale[p];
+        const double ma = mean(a), mb = mean(b), sa = populationSd(a), sb = populationSd(b);
+        const double diff = (ma - mb) / std::max(sb, 1e-300);
+        worst = std::max(worst, std::abs(diff));
+        csv += fmt::format("{},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.4f}\n", names[static_cast<std::size_t>(p)], ma, mb,
+                           sa, sb, quantile(a, 0.05), quantile(b, 0.05), quantile(a, 0.95), quantile(b, 0.95), diff);
+        j[names[static_cast<std::size_t>(p)]] = {{"tmcmc_mean", ma}, {"ancestral_mean", mb}, {"tmcmc_sd", sa}, {"ancestral_sd", sb},
+                                                 {"mean_difference_in_sd", diff}};
+    }
+    writeText(file, csv);
+    j["max_mean_difference_in_sd"] = worst;
+    return j;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------------
+
+std::uint64_t rbcRunSeed(std::uint64_t seed, const std::string& runName) { return splitmix64(seed ^ fnv1a(runName)); }
+
+std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, const Eigen::MatrixXd& samples,
+                                                  const std::vector<std::string>& names, const Eigen::VectorXd& logLikelihood,
+                                                  const Eigen::VectorXd& logPrior) {
+    const PosteriorSummary s = posteriorStatistics(samples, logLikelihood, logPrior, names);
+    std::vector<PosteriorStatsRow> rows;
+    for (const ParameterSummary& p : s.parameters)
+        rows.push_back({posterior, p.name, p.mean, p.median, p.ml, p.map, p.sd, p.q05, p.q95});
+    return rows;
+}
+
+void writePosteriorStats(const fs::path& file, const std::vector<PosteriorStatsRow>& rows) {
+    std::string s = "posterior,parameter,mean,median,ml,map,sd,q05,q95\n";
+    for (const PosteriorStatsRow& r : rows)
+        s += fmt::format("{},{},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g}\n", r.posterior, r.parameter, r.mean,
+                         r.median, r.ml, r.map, r.sd, r.q05, r.q95);
+    writeText(file, s);
+}
+
+RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& o) {
+    if (o.firstPhase < 1 || o.lastPhase > 3 || o.firstPhase > o.lastPhase)
+        throw InputError(fmt::format("infer: phases {}..{} are invalid: the phases are 1, 2, 3", o.firstPhase, o.lastPhase));
+    if (o.populationSize < 2) throw InputError(fmt::format("infer: --samples = {} is invalid: must be >= 2", o.populationSize));
+    if (data.empty()) throw InputError("infer: no data sets");
+    if (o.outputDirectory.empty()) throw InputError("infer: no output directory");
+    fs::create_directories(o.outputDirectory);
+
+    const auto tStart = Clock::now();
+    Context ctx{o, {}, std::make_shared<ModelTimer>(), std::make_shared<PopulationTimer>()};
+    ctx.model = timedModel(model, ctx.modelTimer);
+    RbcInferenceResult res;
+    const auto phaseBegin = [&](int) { return std::tuple{Clock::now(), ctx.modelTimer->seconds, ctx.modelTimer->evaluations,
+                                                         ctx.populationTimer->seconds, ctx.populationTimer->terms}; };
+    auto phaseEnd = [&](int phase, const auto& begin) {
+        const auto& [t0, s0, e0, p0, n0] = begin;
+        RbcPhaseTiming& t = res.timing[phase - 1];
+        t.ran = true;
+        t.wallSeconds = secondsSince(t0);
+        t.surrogateSeconds = ctx.modelTimer->seconds - s0;
+        t.surrogateEvaluations = ctx.modelTimer->evaluations - e0;
+        t.populationSeconds = ctx.populationTimer->seconds - p0;
+        t.populationTerms = ctx.populationTimer->terms - n0;
+        ctx.say(fmt::format("infer phase {}: {:.1f} s (surrogate {:.1f} s, population sums {:.1f} s, sampler and I/O {:.1f} s)",
+                            phase, t.wallSeconds, t.surrogateSeconds, t.populationSeconds, t.samplerSeconds()));
+    };
+
+    // ---- Phase 1: seven independent posteriors (3)
+    std::vector<PosteriorStatsRow> rows1;
+    {
+        const bool run = o.firstPhase <= 1;
+        const auto begin = phaseBegin(1);
+        for (const RbcDataSet& d : data) {
+            const Posterior p = phase1Posterior(d, "phase1");
+            const RbcSamplerSettings st = rbcSamplerSettings(RbcRun::Phase1, d.experiment);
+            TmcmcResult r = run ? runPosterior(ctx, p, phase1Problem(ctx.model, d), st)
+                                : loadPosterior(ctx, p, loadOnlyProblem(phase1Prior(d)), st, 1);
+            if (run) {
+                auto rows = statsOf(p, r, r.logPrior);
+                rows1.insert(rows1.end(), rows.begin(), rows.end());
+                if (d.experiment == RbcExperiment::Relaxation)
+                    ctx.extrapolation[p.label()] = massOutside(r.samples.row(0).transpose(), kRelaxationRLow, kRelaxationRHigh);
+            }
+            res.phase1.push_back(std::move(r));
+        }
+        if (run) {
+            writePosteriorStats(o.outputDirectory / "phase1" / "posterior_stats.csv", rows1);
+            phaseEnd(1, begin);
+        }
+    }
+    if (o.lastPhase >= 2) {
+        // ---- Phase 2: hyper-parameters by re-weighting the phase-1 samples (4.4)
+        std::vector<ReweightingSamples> sets;
+        for (std::size_t i = 0; i < data.size(); ++i) {
+            sets.push_back(reweightingSamples(data[i], res.phase1[i].samples));
+            ctx.say(fmt::format("infer phase2: {} enters with {} distinct of {} phase-1 samples", data[i].name, sets.back().x.cols(),
+                                sets.back().total));
+        }
+        const Posterior p{"phase2", "hyper", hyperOutputNames(), hyperOutputScale(), false};
+        const RbcSamplerSettings st = rbcSamplerSettings(RbcRun::Phase2);
+        const bool run = o.firstPhase <= 2;
+        const auto begin = phaseBegin(2);
+        res.phase2 = run ? runPosterior(ctx, p, phase2Problem(sets, o.fvkRule, ctx.populationTimer), st)
+                         : loadPosterior(ctx, p, loadOnlyProblem(hyperPrior()), st, 2);
+        if (run) {
+            writePosteriorStats(o.outputDirectory / "phase2" / "posterior_stats.csv", statsOf(p, res.phase2, res.phase2.logPrior));
+            phaseEnd(2, begin);
+        }
+
+        // ---- Phase 3: theta_new (4.5) and each data set given all data (4.6)
+        if (o.lastPhase >= 3) {
+            const auto begin3 = phaseBegin(3);
+            const Eigen::MatrixXd& psi = res.phase2.samples;
+            const Posterior pNew{"phase3", "theta_new", pooledOutputNames(), pooledOutputScale(), true};
+            res.phase3a = runPosterior(ctx, pNew, phase3aProblem(psi, ctx.populationTimer), rbcSamplerSettings(RbcRun::Phase3a));
+            std::vector<PosteriorStatsRow> rows = statsOf(pNew, res.phase3a, res.phase3a.logPrior);
+            ctx.extrapolation[pNew.label()] = massOutside(res.phase3a.samples.row(kPooledR).transpose(), kRelaxationRLow, kRelaxationRHigh);
+            res.ancestral = sampleNewCellAncestral(psi, o.populationSize, rbcRunSeed(o.seed, "phase3/theta_new_ancestral"));
+            const nlohmann::json check = ancestralCheck(res.phase3a.samples, res.ancestral,
+                                                        ctx.runDirectory(pNew) / "ancestral_check.csv");
+            ctx.say(fmt::format("infer phase3/theta_new: ancestral cross-check, largest mean difference {:.3f} SD",
+                                check["max_mean_difference_in_sd"].get<double>()));
+
+            const DistinctColumns distinctPsi = distinctColumns(psi);
+            for (std::size_t i = 0; i < data.size(); ++i) {
+                const RbcDataSet& d = data[i];
+                // log b_i(psi_m), once per distinct psi_m (4.6: M x N_i density terms)
+                const Eigen::VectorXd logBu = logReweightingFactors(sets[i], distinctPsi.columns, o.fvkRule, ctx.populationTimer.get());
+                Eigen::VectorXd logB(psi.cols());
+                for (Eigen::Index m = 0; m < psi.cols(); ++m) logB[m] = logBu[distinctPsi.index[static_cast<std::size_t>(m)]];
+                const Posterior p3 = phase1Posterior(d, "phase3");
+                const TmcmcProblem problem = phase3bProblem(ctx.model, d, psi, logB, o.phase3b, ctx.populationTimer);
+                // The MAP uses the phase-1 priors (section 7), whatever the sampler's prior.
+                auto mapPrior = [&d](const TmcmcResult& r) { return phase1LogPrior(d, r.samples); };
+                TmcmcResult r = runPosterior(ctx, p3, problem, rbcSamplerSettings(RbcRun::Phase3b, d.experiment), mapPrior);
+                auto rr = statsOf(p3, r, mapPrior(r));
+                rows.insert(rows.end(), rr.begin(), rr.end());
+                if (d.experiment == RbcExperiment::Relaxation)
+                    ctx.extrapolation[p3.label()] = massOutside(r.samples.row(0).transpose(), kRelaxationRLow, kRelaxationRHigh);
+                res.phase3b.push_back(std::move(r));
+            }
+            writePosteriorStats(o.outputDirectory / "posterior_stats.csv", rows);
+            writeText(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, check));
+            res.stats = rows;
+            phaseEnd(3, begin3);
+
+            nlohmann::json& ci = ctx.runs["phase3/theta_new"];
+            ci["ancestral_check"] = check;
+        }
+    }
+    res.wallSeconds = secondsSince(tStart);
+
+    // ---- Provenance (merged with what earlier invocations wrote)
+    const fs::path infoFile = o.outputDirectory / "infer.json";
+    nlohmann::json info = readJsonOrEmpty(infoFile);
+    for (const auto& [k, v] : o.provenance.items()) info[k] = v;
+    info["version"] = kVersion;
+    info["seed"] = o.seed;
+    info["samples"] = o.populationSize;
+    info["threads"] = omp_get_max_threads();
+    info["fvk_density"] = o.fvkRule == FvkDensityRule::ClosedForm         ? "closed form, mixed precision"
+                          : o.fvkRule == FvkDensityRule::ClosedFormDouble ? "closed form, double precision"
+                                                                          : "50-node rule";
+    info["phase3b_prior"] = o.phase3b.referencePrior ? "reference (phase-1 prior)" : "support indicator";
+    info["phase3b_equilibrium_fvk"] = o.phase3b.referenceEquilibriumDefect ? "last phase-2 sample (reference)" : "every phase-2 sample";
+    nlohmann::json files = nlohmann::json::array();
+    for (const RbcDataSet& d : data)
+        files.push_back({{"name", d.name}, {"experiment", experimentName(d.experiment)}, {"file", d.file.string()}, {"fnv1a", d.contentHash}});
+    info["data_sets"] = files;
+    if (!info.contains("phases")) info["phases"] = nlohmann::json::object();
+    if (!info.contains("runs")) info["runs"] = nlohmann::json::object();
+    for (int ph = 1; ph <= 3; ++ph)
+        if (res.timing[ph - 1].ran) {
+            nlohmann::json t = timingJson(res.timing[ph - 1]);
+            t["command"] = o.provenance.value("command", std::string());
+            info["phases"][std::to_string(ph)] = t;
+        }
+    double total = 0.0, totalSurrogate = 0.0, totalPopulation = 0.0;
+    for (const auto& [k, v] : info["phases"].items()) {
+        total += v.value("wall_s", 0.0);
+        totalSurrogate += v.value("surrogate_s", 0.0);
+        totalPopulation += v.value("population_s", 0.0);
+    }
+    info["total"] = {{"wall_s", total}, {"surrogate_s", totalSurrogate}, {"population_s", totalPopulation},
+                     {"sampler_s", total - totalSurrogate - totalPopulation},
+                     {"note", "sum over the phases recorded in this directory; sampler_s = wall - surrogate - population "
+                              "(TMCMC, statistics, I/O)"}};
+    for (const auto& [k, v] : ctx.runs.items()) info["runs"][k] = v;
+    if (!info.contains("relaxation_extrapolation")) info["relaxation_extrapolation"] = nlohmann::json::object();
+    for (const auto& [k, v] : ctx.extrapolation.items()) info["relaxation_extrapolation"][k] = v;
+    info["last_invocation"] = {{"phases", fmt::format("{}-{}", o.firstPhase, o.lastPhase)},
+                               {"wall_s", res.wallSeconds},
+                               {"surrogate_s", ctx.modelTimer->seconds},
+                               {"population_s", ctx.populationTimer->seconds},
+                               {"sampler_s", res.wallSeconds - ctx.modelTimer->seconds - ctx.populationTimer->seconds}};
+    writeText(infoFile, info.dump(2) + "\n");
+    return res;
+}
+
+}  // namespace trbc
