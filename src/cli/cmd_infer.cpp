@@ -14,18 +14,6 @@
 #include "surrogate/surrogate.hpp"
 
 namespace trbc::cli {
-namespace {
-
-/// Experimental data: $TRBC_EXPERIMENT_DATA, else <source>/../shared/data/experiments (the shared
-/// data of the project), else <source>/data/experiments.
-std::filesystem::path defaultExperimentDirectory() {
-    if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
-    const std::filesystem::path shared = std::filesystem::path(TRBC_SOURCE_DIR) / ".." / "shared" / "data" / "experiments";
-    if (std::filesystem::is_directory(shared)) return shared.lexically_normal();
-    return std::filesystem::path(TRBC_DATA_DIR) / "experiments";
-}
-
-}  // namespace
 
 void registerInfer(CLI::App& app) {
     struct Opts {

@@ -23,12 +23,6 @@ namespace fs = std::filesystem;
 
 /// Same rule as `trbc infer`: $TRBC_EXPERIMENT_DATA, else <source>/../shared/data/experiments,
 /// else <source>/data/experiments.
-fs::path experimentDirectory() {
-    if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
-    const fs::path shared = fs::path(TRBC_SOURCE_DIR) / ".." / "shared" / "data" / "experiments";
-    if (fs::is_directory(shared)) return shared.lexically_normal();
-    return fs::path(TRBC_DATA_DIR) / "experiments";
-}
 
 void writeFile(const fs::path& p, const std::string& text) {
     std::ofstream out(p, std::ios::trunc);
@@ -111,7 +105,7 @@ void registerPredict(CLI::App& app) {
         // Read everything first so that bad input fails before any work.
         std::vector<PosteriorSamples> posts;
         for (const fs::path& d : dirs) posts.push_back(readPosteriorSamples(d));
-        const fs::path dataDir = o->dataDir.empty() ? experimentDirectory() : fs::path(o->dataDir);
+        const fs::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : fs::path(o->dataDir);
         const std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
         const fs::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : fs::path(o->model);
         auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));

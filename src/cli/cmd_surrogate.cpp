@@ -206,6 +206,13 @@ std::filesystem::path defaultSurrogateDirectory() {
     return std::filesystem::path(TRBC_DATA_DIR) / "surrogates";
 }
 
+std::filesystem::path defaultExperimentDirectory() {
+    if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
+    const std::filesystem::path shared = std::filesystem::path(TRBC_SOURCE_DIR) / ".." / "shared" / "data" / "experiments";
+    if (std::filesystem::is_directory(shared)) return shared.lexically_normal();
+    return std::filesystem::path(TRBC_DATA_DIR) / "experiments";
+}
+
 void registerSurrogate(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (SURROGATE.md 3)");
     cmd->require_subcommand(1);

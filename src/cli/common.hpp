@@ -63,6 +63,11 @@ void registerPredict(CLI::App& app);
 
 /// Shipped surrogates: $TRBC_SURROGATE_DIR, else <source>/data/surrogates.
 std::filesystem::path defaultSurrogateDirectory();
+/// Experimental data: $TRBC_EXPERIMENT_DATA, else <source>/../shared/data/experiments (the shared
+/// data of the project), else <source>/data/experiments.
+std::filesystem::path defaultExperimentDirectory();
+void registerCalibrate(CLI::App& app);
+void registerExport(CLI::App& app);
 void registerSfs(CLI::App& app);
 void registerSimulate(CLI::App& app);
 void registerMesh(CLI::App& app);

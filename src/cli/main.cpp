@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
     trbc::cli::registerInfer(app);
     trbc::cli::registerPredict(app);
     trbc::cli::registerFlow(app);
+    trbc::cli::registerCalibrate(app);
+    trbc::cli::registerExport(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

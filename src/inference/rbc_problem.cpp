@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -143,7 +145,49 @@ RbcDataSet readRelaxationData(const fs::path& file, std::string name) {
     return d;
 }
 
+namespace {
+
+/// DIR/datasets.json: [{"name": ..., "experiment": "equilibrium|stretching|relaxation", "file": ...}, ...],
+/// files relative to DIR (written by `trbc calibrate`, which copies the configured CSVs there).
+std::vector<RbcDataSet> loadManifest(const fs::path& dir) {
+    const fs::path manifest = dir / kRbcDataManifest;
+    nlohmann::json j;
+    try {
+        std::ifstream f(manifest);
+        j = nlohmann::json::parse(f);
+    } catch (const std::exception& e) {
+        throw InputError(fmt::format("{}: not valid JSON: {}", manifest.string(), e.what()));
+    }
+    if (!j.is_array() || j.empty())
+        throw InputError(fmt::format("{}: must be a non-empty array of {{name, experiment, file}}", manifest.string()));
+    std::vector<RbcDataSet> sets;
+    for (const nlohmann::json& e : j) {
+        if (!e.is_object() || !e.contains("name") || !e.contains("experiment") || !e.contains("file") || !e["name"].is_string() ||
+            !e["experiment"].is_string() || !e["file"].is_string())
+            throw InputError(fmt::format("{}: every entry needs string fields name, experiment, file", manifest.string()));
+        const std::string name = e["name"], exp = e["experiment"];
+        fs::path file = e["file"].get<std::string>();
+        if (file.is_relative()) file = dir / file;
+        if (!fs::exists(file)) throw InputError(fmt::format("{}: data set '{}': file {} does not exist", manifest.string(), name, file.string()));
+        if (exp == "equilibrium")
+            sets.push_back(readEquilibriumData(file, name));
+        else if (exp == "stretching")
+            sets.push_back(readStretchingData(file, name));
+        else if (exp == "relaxation")
+            sets.push_back(readRelaxationData(file, name));
+        else
+            throw InputError(fmt::format("{}: data set '{}': experiment '{}' is not one of equilibrium, stretching, relaxation",
+                                         manifest.string(), name, exp));
+        for (std::size_t k = 0; k + 1 < sets.size(); ++k)
+            if (sets[k].name == name) throw InputError(fmt::format("{}: data set name '{}' appears twice", manifest.string(), name));
+    }
+    return sets;
+}
+
+}  // namespace
+
 std::vector<RbcDataSet> loadRbcDataSets(const fs::path& dir) {
+    if (fs::is_directory(dir) && fs::exists(dir / kRbcDataManifest)) return loadManifest(dir);
     if (!fs::is_directory(dir))
         throw InputError(fmt::format("experimental data directory '{}' does not exist (it must contain equilibrium/, "
                                      "stretching/ and relaxation/; see data/README.md)", dir.string()));

@@ -58,7 +58,12 @@ RbcDataSet readStretchingData(const std::filesystem::path& file, std::string nam
 /// Relaxation: columns t (s, >= 0), L_W (> 0), at least two rows.
 RbcDataSet readRelaxationData(const std::filesystem::path& file, std::string name);
 
-/// The seven data sets of INFERENCE.md 2, in its order, from an `experiments` directory
+/// Manifest file name of a user-assembled data directory (see loadRbcDataSets).
+inline constexpr const char* kRbcDataManifest = "datasets.json";
+/// The data sets of a directory: when it holds datasets.json (an array of {"name", "experiment":
+/// equilibrium|stretching|relaxation, "file" relative to the directory}) those, in its order (any
+/// number per experiment, names unique); otherwise the seven data sets of INFERENCE.md 2, in its
+/// order, from an `experiments` directory
 /// (equilibrium/evans_fung_1972.csv, stretching/{mills_2004,suresh_2005}/..., relaxation/hochmuth_1979/1-4.csv).
 std::vector<RbcDataSet> loadRbcDataSets(const std::filesystem::path& experimentsDirectory);
 

@@ -1,0 +1,223 @@
+#include "analysis/calibrate_config.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <limits>
+#include <toml++/toml.h>
+
+#include "core/error.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Reads the keys of one table, each checked for type and range, and rejects unknown keys.
+class TableReader {
+public:
+    TableReader(const fs::path& file, const toml::table& table, std::string context)
+        : file_(file), table_(table), context_(std::move(context)) {}
+
+    /// InputError for every key not in `allowed` (typos must not be ignored silently).
+    void allowOnly(std::initializer_list<const char*> allowed) const {
+        for (const auto& [key, node] : table_) {
+            const std::string k(key.str());
+            if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; })) {
+                std::string list;
+                for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+                fail(node, fmt::format("unknown key '{}' (valid keys: {})", qualified(k), list));
+            }
+        }
+    }
+
+    template <class Int>
+    void integer(const char* key, Int& out, long long lo, long long hi) const {
+        const toml::node* n = table_.get(key);
+        if (!n) return;
+        const auto v = n->value_exact<std::int64_t>();
+        if (!v) fail(*n, fmt::format("'{}' must be an integer in [{}, {}]", qualified(key), lo, hi));
+        if (*v < lo || *v > hi) fail(*n, fmt::format("'{}' = {} is out of range: valid range [{}, {}]", qualified(key), *v, lo, hi));
+        out = static_cast<Int>(*v);
+    }
+
+    void unsignedInteger(const char* key, std::uint64_t& out) const {
+        long long v = static_cast<long long>(out & 0x7fffffffffffffffULL);
+        integer(key, v, 0, std::numeric_limits<long long>::max());
+        out = static_cast<std::uint64_t>(v);
+    }
+
+    void real(const char* key, double& out, double lo, double hi, bool openLo = false, bool openHi = false) const {
+        const toml::node* n = table_.get(key);
+        if (!n) return;
+        const auto v = n->value<double>();  // integers convert
+        const std::string range = fmt::format("{}{}, {}{}", openLo ? "(" : "[", lo, hi, openHi ? ")" : "]");
+        if (!v) fail(*n, fmt::format("'{}' must be a number in {}", qualified(key), range));
+        const bool bad = !(openLo ? *v > lo : *v >= lo) || !(openHi ? *v < hi : *v <= hi);
+        if (bad) fail(*n, fmt::format("'{}' = {} is out of range: valid range {}", qualified(key), *v, range));
+        out = *v;
+    }
+
+    void boolean(const char* key, bool& out) const {
+        const toml::node* n = table_.get(key);
+        if (!n) return;
+        const auto v = n->value_exact<bool>();
+        if (!v) fail(*n, fmt::format("'{}' must be true or false", qualified(key)));
+        out = *v;
+    }
+
+    void string(const char* key, std::string& out, std::initializer_list<const char*> choices = {}) const {
+        const toml::node* n = table_.get(key);
+        if (!n) return;
+        const auto v = n->value_exact<std::string>();
+        if (!v) fail(*n, fmt::format("'{}' must be a string", qualified(key)));
+        if (choices.size() && std::none_of(choices.begin(), choices.end(), [&](const char* c) { return *v == c; })) {
+            std::string list;
+            for (const char* c : choices) list += (list.empty() ? "" : ", ") + std::string(c);
+            fail(*n, fmt::format("'{}' = \"{}\" is not one of: {}", qualified(key), *v, list));
+        }
+        out = *v;
+    }
+
+    [[noreturn]] void fail(const toml::node& n, const std::string& what) const {
+        throw InputError(fmt::format("{}:{}: {}", file_.string(), n.source().begin.line, what));
+    }
+
+private:
+    std::string qualified(const std::string& key) const { return context_.empty() ? key : context_ + "." + key; }
+
+    const fs::path& file_;
+    const toml::table& table_;
+    std::string context_;
+};
+
+fs::path resolveDataPath(const std::string& s, const fs::path& configDir, const fs::path& experiments) {
+    static const std::string alias = "@experiments/";
+    if (s.rfind(alias, 0) == 0) return (experiments / s.substr(alias.size())).lexically_normal();
+    const fs::path p(s);
+    return (p.is_absolute() ? p : configDir / p).lexically_normal();
+}
+
+void readData(const fs::path& file, const toml::node& node, const fs::path& experiments, CalibrateConfig& c) {
+    const toml::array* arr = node.as_array();
+    auto fail = [&](const toml::node& n, const std::string& what) {
+        throw InputError(fmt::format("{}:{}: {}", file.string(), n.source().begin.line, what));
+    };
+    if (!arr || arr->empty())
+        fail(node, "'data' must be a non-empty array of tables [[data]] with name, experiment and file");
+    c.data.clear();
+    for (const toml::node& e : *arr) {
+        const toml::table* t = e.as_table();
+        if (!t) fail(e, "every [[data]] entry must be a table with name, experiment and file");
+        TableReader r(file, *t, "data");
+        r.allowOnly({"name", "experiment", "file"});
+        CalibrateDataSet d;
+        std::string path;
+        r.string("name", d.name);
+        r.string("experiment", d.experiment, {"equilibrium", "stretching", "relaxation"});
+        r.string("file", path);
+        if (d.name.empty() || d.experiment.empty() || path.empty()) fail(e, "a [[data]] entry lacks one of name, experiment, file");
+        if (d.name.find_first_of("/\\ \t") != std::string::npos || d.name == "theta_new" || d.name == "hyper")
+            fail(e, fmt::format("data name '{}' is not allowed (no spaces or slashes; 'theta_new' and 'hyper' are reserved)", d.name));
+        for (const CalibrateDataSet& o : c.data)
+            if (o.name == d.name) fail(e, fmt::format("data name '{}' appears twice", d.name));
+        d.file = resolveDataPath(path, file.parent_path(), experiments);
+        if (!fs::is_regular_file(d.file)) fail(e, fmt::format("data '{}': file {} does not exist", d.name, d.file.string()));
+        c.data.push_back(std::move(d));
+    }
+}
+
+}  // namespace
+
+std::vector<CalibrateDataSet> defaultCalibrateData(const fs::path& dir) {
+    std::vector<CalibrateDataSet> d = {
+        {"evans_fung_1972", "equilibrium", dir / "equilibrium" / "evans_fung_1972.csv"},
+        {"mills_2004", "stretching", dir / "stretching" / "mills_2004" / "mills_2004.csv"},
+        {"suresh_2005", "stretching", dir / "stretching" / "suresh_2005" / "suresh_2005.csv"}};
+    for (int k = 1; k <= 4; ++k)
+        d.push_back({fmt::format("hochmuth_1979_cell{}", k), "relaxation", dir / "relaxation" / "hochmuth_1979" / fmt::format("{}.csv", k)});
+    return d;
+}
+
+CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experiments) {
+    if (!fs::is_regular_file(file)) throw InputError(fmt::format("configuration file {} does not exist", file.string()));
+    toml::table root;
+    try {
+        root = toml::parse_file(file.string());
+    } catch (const toml::parse_error& e) {
+        throw InputError(fmt::format("{}:{}:{}: TOML syntax error: {}", file.string(), e.source().begin.line, e.source().begin.column,
+                                     e.description()));
+    }
+    CalibrateConfig c;
+    c.file = fs::absolute(file).lexically_normal();
+    TableReader top(file, root, "");
+    top.allowOnly({"run", "data", "campaign", "surrogate", "sobol", "inference", "prediction", "cell"});
+    auto section = [&](const char* name) -> const toml::table* {
+        const toml::node* n = root.get(name);
+        if (!n) return nullptr;
+        if (!n->is_table()) top.fail(*n, fmt::format("'{}' must be a table [{}]", name, name));
+        return n->as_table();
+    };
+    if (const toml::table* t = section("run")) {
+        TableReader r(file, *t, "run");
+        r.allowOnly({"seed", "threads"});
+        r.unsignedInteger("seed", c.seed);
+        r.integer("threads", c.threads, 1, 1024);
+    }
+    if (const toml::node* n = root.get("data"))
+        readData(file, *n, experiments, c);
+    else
+        c.data = defaultCalibrateData(experiments);
+    if (const toml::table* t = section("campaign")) {
+        TableReader r(file, *t, "campaign");
+        r.allowOnly({"mode", "samples", "forces_per_cell", "design", "level"});
+        r.string("mode", c.campaignMode, {"shipped", "run"});
+        r.integer("samples", c.campaignSamples, 1, 100000000);
+        r.integer("forces_per_cell", c.campaignForcesPerCell, 1, 1000);
+        r.string("design", c.campaignDesign, {"uniform", "lhs"});
+        r.integer("level", c.campaignLevel, 1, 6);
+    }
+    if (const toml::table* t = section("surrogate")) {
+        TableReader r(file, *t, "surrogate");
+        r.allowOnly({"mode", "dir"});
+        r.string("mode", c.surrogateMode, {"shipped", "train", "path"});
+        std::string dir;
+        r.string("dir", dir);
+        if (!dir.empty()) c.surrogateDir = resolveDataPath(dir, file.parent_path(), experiments);
+        if (c.surrogateMode == "path" && c.surrogateDir.empty())
+            r.fail(*t, "surrogate.mode = \"path\" needs surrogate.dir (a directory made by `trbc surrogate train`)");
+    }
+    if (c.surrogateMode == "train" && c.campaignMode != "run")
+        throw InputError(fmt::format("{}: surrogate.mode = \"train\" needs campaign.mode = \"run\" (the shipped training set is "
+                                     "already the basis of the shipped surrogates)", file.string()));
+    if (const toml::table* t = section("sobol")) {
+        TableReader r(file, *t, "sobol");
+        r.allowOnly({"enabled", "samples", "forces", "resamples"});
+        r.boolean("enabled", c.sobolEnabled);
+        r.integer("samples", c.sobolSamples, 2, 1 << 24);
+        r.integer("forces", c.sobolForces, 2, 1000);
+        r.integer("resamples", c.sobolResamples, 2, 100000);
+    }
+    if (const toml::table* t = section("inference")) {
+        TableReader r(file, *t, "inference");
+        r.allowOnly({"samples", "fvk_density"});
+        r.integer("samples", c.inferenceSamples, 100, 10000000);
+        r.string("fvk_density", c.fvkDensity, {"closed", "closed-double", "nodes50"});
+    }
+    if (const toml::table* t = section("prediction")) {
+        TableReader r(file, *t, "prediction");
+        r.allowOnly({"max_samples", "grid"});
+        r.integer("max_samples", c.predictionMaxSamples, 0, 100000000);
+        r.integer("grid", c.predictionGrid, 2, 100000);
+    }
+    if (const toml::table* t = section("cell")) {
+        TableReader r(file, *t, "cell");
+        r.allowOnly({"enabled", "quantile", "level"});
+        r.boolean("enabled", c.cellEnabled);
+        r.real("quantile", c.cellQuantile, 0.0, 1.0, true, true);
+        r.integer("level", c.cellLevel, 1, 6);
+    }
+    return c;
+}
+
+}  // namespace trbc

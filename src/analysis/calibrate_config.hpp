@@ -1,0 +1,66 @@
+#pragma once
+// The TOML configuration of `trbc calibrate` (issue 7): which data, whether to run a campaign and
+// train surrogates or use the shipped ones, and the settings of every stage. Every key is checked:
+// a syntax error, an unknown key, a wrong type or a value outside its range is an InputError that
+// names the file, the line and the key (and the valid range). configs/paper.toml documents every
+// key with its default.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace trbc {
+
+/// One experimental data set (INFERENCE.md 2): a CSV in the format of the shipped experiments.
+struct CalibrateDataSet {
+    std::string name;        ///< unique; names the posterior directories and figures
+    std::string experiment;  ///< equilibrium | stretching | relaxation
+    std::filesystem::path file;
+};
+
+struct CalibrateConfig {
+    std::filesystem::path file;  ///< the configuration file itself
+
+    std::uint64_t seed = 20261123;  ///< [run] every stochastic stage derives its seed from it
+    int threads = 2;
+
+    std::vector<CalibrateDataSet> data;  ///< [[data]]; default: the seven data sets of INFERENCE.md 2
+
+    /// [campaign] mode: "shipped" (use the shipped surrogates' training set, nothing to run) or
+    /// "run" (trbc campaign into OUT/campaign, resumable).
+    std::string campaignMode = "shipped";
+    long campaignSamples = 20000;
+    int campaignForcesPerCell = 20;
+    std::string campaignDesign = "uniform";
+    int campaignLevel = 4;
+
+    /// [surrogate] mode: "shipped" (data/surrogates), "train" (on the campaign of this run) or
+    /// "path" (a model directory `dir`).
+    std::string surrogateMode = "shipped";
+    std::filesystem::path surrogateDir;
+
+    bool sobolEnabled = true;  ///< [sobol]
+    long sobolSamples = 1024;
+    int sobolForces = 100;
+    int sobolResamples = 100;
+
+    int inferenceSamples = 50000;          ///< [inference] population size of every TMCMC run
+    std::string fvkDensity = "closed";     ///< closed | closed-double | nodes50
+
+    int predictionMaxSamples = 5000;       ///< [prediction] posterior samples pushed forward (0 = all)
+    int predictionGrid = 100;
+
+    bool cellEnabled = true;               ///< [cell] export of the calibrated cell
+    double cellQuantile = 0.5;
+    int cellLevel = 4;
+};
+
+/// The seven data sets of INFERENCE.md 2 under an experiments directory.
+std::vector<CalibrateDataSet> defaultCalibrateData(const std::filesystem::path& experimentsDirectory);
+
+/// Parses and checks a configuration. Data file paths: relative to the configuration file's
+/// directory; a leading "@experiments/" stands for `experimentsDirectory`. Throws InputError
+/// "<file>:<line>: ..." naming the key.
+CalibrateConfig readCalibrateConfig(const std::filesystem::path& file, const std::filesystem::path& experimentsDirectory);
+
+}  // namespace trbc

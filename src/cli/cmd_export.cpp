@@ -1,0 +1,141 @@
+// trbc export: the calibrated cell for other RBC codes (issue 7 item 4): the theta_new posterior
+// summarised by a quantile of each marginal, its stress-free state and equilibrium shape (OFF and
+// PLY, um) and its parameters in physical and in dimensionless units (JSON).
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "cli/common.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+#include "experiments/experiments.hpp"
+#include "experiments/sfs.hpp"
+#include "mesh/io.hpp"
+
+namespace trbc::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// q-quantile of a sample (linear interpolation between order statistics).
+double sampleQuantile(Eigen::VectorXd x, double q) {
+    std::sort(x.data(), x.data() + x.size());
+    const double pos = q * static_cast<double>(x.size() - 1);
+    const auto i = static_cast<Eigen::Index>(std::floor(pos));
+    const double w = pos - static_cast<double>(i);
+    return i + 1 < x.size() ? (1.0 - w) * x[i] + w * x[i + 1] : x[i];
+}
+
+}  // namespace
+
+void registerExport(CLI::App& app) {
+    struct Opts {
+        std::string posterior, out;
+        double quantile = 0.5;
+        int level = 4, threads = 1;
+        ExperimentOptions exp;
+        CacheOptions cache;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "export", "Export the calibrated cell for flow solvers: the given quantile of each marginal of a theta_new posterior "
+                  "(samples.csv of `trbc infer`: DIR/phase3/theta_new), its stress-free state and equilibrium shape as OFF and "
+                  "PLY meshes (um) and OUT/cell.json with the parameters in physical units (v, mu_uN_per_m, kb_J, FvK, b2, "
+                  "etam_Pa_s_um, A0_um2, V0_um3) and in the dimensionless units of MODEL.md");
+    cmd->add_option("--posterior", o->posterior, "posterior directory with samples.csv (or the file), e.g. DIR/phase3/theta_new")->required();
+    cmd->add_option("--quantile", o->quantile, "quantile of each marginal, in (0, 1) (0.5: the medians)")
+        ->check(CLI::Range(1e-9, 1.0 - 1e-9))
+        ->capture_default_str();
+    cmd->add_option("--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2)")->check(CLI::Range(1, 6))->capture_default_str();
+    cmd->add_option("--out", o->out, "output directory")->required();
+    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    addSolverOptions(cmd, o->exp);
+    addCacheOptions(cmd, o->cache);
+    cmd->callback([o]() {
+        const fs::path in(o->posterior);
+        const fs::path file = fs::is_directory(in) ? in / "samples.csv" : in;
+        if (!fs::exists(file)) throw InputError(fmt::format("--posterior {}: no samples.csv (run `trbc infer` first)", in.string()));
+        const NumericTable t = readNumericTable(file, {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"});
+        for (const char* c : {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"})
+            if (t.find(c) < 0)
+                throw InputError(fmt::format("{}: column '{}' missing: --posterior must be a theta_new posterior (columns v, "
+                                             "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c));
+        if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
+        ensureWritableDirectory(o->out);
+        omp_set_num_threads(o->threads);
+
+        const double q = o->quantile;
+        CellParameters p;
+        p.v = sampleQuantile(t.column("v"), q);
+        p.mu = sampleQuantile(t.column("mu_uN_per_m"), q);
+        const double kbJ = sampleQuantile(t.column("kb_J"), q);
+        p.FvK = CellParameters::fvkFromKb(p.mu, kbJ);
+        p.b2 = sampleQuantile(t.column("b2"), q);
+        p.etam = sampleQuantile(t.column("etam_Pa_s_um"), q);
+        validateCellParameters(p, true);
+
+        ExperimentOptions eo = o->exp;
+        eo.level = o->level;
+        eo.cacheDir = cacheDirectory(o->cache);
+        const auto t0 = std::chrono::steady_clock::now();
+        const StressFreeState sfs = stressFreeState(p.v, o->level, eo.cacheDir);
+        const CellMeshes meshes = cellMeshes(sfs);
+        const EquilibriumResult eq = runEquilibrium(p, meshes, eo);
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+        const fs::path dir(o->out);
+        for (const char* ext : {"off", "ply"}) {
+            writeMesh((dir / fmt::format("sfs.{}", ext)).string(), Mesh{meshes.reference, meshes.faces});
+            writeMesh((dir / fmt::format("equilibrium.{}", ext)).string(), Mesh{eq.shape, meshes.faces});
+        }
+        const double RA = std::sqrt(cell::radiusSquared);
+        nlohmann::json j;
+        j["source"] = {{"posterior", fs::absolute(file).lexically_normal().string()}, {"samples", t.values.rows()}};
+        j["quantile"] = q;
+        j["note"] = "each parameter is the given quantile of its own marginal; FvK = mu R_A^2 / kb from those";
+        j["physical"] = {{"v", p.v},
+                         {"mu_uN_per_m", p.mu},
+                         {"kb_J", kbJ},
+                         {"FvK", p.FvK},
+                         {"b2", p.b2},
+                         {"etam_Pa_s_um", p.etam},
+                         {"Kalpha_uN_per_m", p.mu},
+                         {"A0_um2", cell::area},
+                         {"V0_um3", cell::volume},
+                         {"R_A_um", RA}};
+        j["dimensionless"] = {{"length_unit_um", RA},
+                              {"energy_unit_J", p.mu * cell::radiusSquared * 1e-18},
+                              {"time_unit_s", p.etam / p.mu},
+                              {"mu", 1.0},
+                              {"Kalpha", 1.0},
+                              {"kb", 1.0 / p.FvK},
+                              {"a3", cell::a3},
+                              {"a4", cell::a4},
+                              {"b1", cell::b1},
+                              {"b2", p.b2},
+                              {"reduced_volume", p.v},
+                              {"area", 4.0 * M_PI},
+                              {"volume", cell::volume / (RA * RA * RA)},
+                              {"note", "lengths in R_A = sqrt(A0 / 4 pi), moduli in mu, kb = 1 / FvK, times in etam / mu "
+                                       "(membrane relaxation scale; MODEL.md C)"}};
+        j["observables"] = {{"D_um", eq.observables.D}, {"hmin_um", eq.observables.hmin}, {"hmax_um", eq.observables.hmax}};
+        j["files"] = {{"stress_free", {"sfs.off", "sfs.ply"}},
+                      {"equilibrium", {"equilibrium.off", "equilibrium.ply"}},
+                      {"mesh", {{"level", o->level}, {"vertices", meshes.reference.cols()}, {"faces", meshes.faces.cols()}, {"units", "um"}}}};
+        j["diagnostics"] = {{"sfs_from_cache", sfs.fromCache}, {"equilibrium_converged", eq.diagnostics.converged}, {"wall_s", wall}};
+        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
+        std::ofstream out(dir / "cell.json");
+        out << j.dump(2) << '\n';
+        if (!out) throw InputError(fmt::format("cannot write {}", (dir / "cell.json").string()));
+        std::cout << j.dump(2) << std::endl;
+    });
+}
+
+}  // namespace trbc::cli
