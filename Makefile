@@ -1,8 +1,8 @@
-# trbc: make build | make test | make demo | make bench
+# trbc: make build | make test | make demo | make showcase | make bench
 BUILD ?= build
 JOBS ?= $(shell nproc)
 
-.PHONY: all build test demo bench bootstrap clean
+.PHONY: all build test demo showcase bench bootstrap clean
 
 all: build
 
@@ -22,6 +22,10 @@ test: bootstrap
 demo: bootstrap
 	$(MAKE) build
 	bash scripts/demo.sh
+
+showcase: bootstrap
+	$(MAKE) build
+	bash scripts/showcase_forward.sh
 
 bench: bootstrap
 	$(MAKE) build

@@ -16,7 +16,7 @@ figures (see docs/MODEL.md, sections B.4 and E.1-E.3):
 Usage:
   scripts/plot_forward.py DIR [--data EXPDIR] [--out OUTDIR] [--prefix forward_]
 
-Defaults: --data <repo>/../shared/data/experiments, --out <repo>/docs/figures
+Defaults: --data <repo>/data/experiments, --out <repo>/docs/figures
 (both resolved from this script's location, so they work from any directory).
 Only numpy and matplotlib are needed.
 """
@@ -36,7 +36,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-DEFAULT_DATA = (REPO / ".." / "shared" / "data" / "experiments").resolve()
+DEFAULT_DATA = (REPO / "data" / "experiments").resolve()
 DEFAULT_OUT = REPO / "docs" / "figures"
 
 # Evans & Fung (1972) biconcave shape, MODEL.md B.4

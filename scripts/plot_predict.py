@@ -73,7 +73,7 @@ def draw_bands(ax, table, xname, obs, color):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out", help="output directory of trbc predict")
-    default_data = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data", "experiments")
+    default_data = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "data", "experiments")
     ap.add_argument("--data-dir", default=os.environ.get("TRBC_EXPERIMENT_DATA", default_data))
     a = ap.parse_args()
     cov = coverage(a.out)

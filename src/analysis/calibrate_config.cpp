@@ -7,6 +7,7 @@
 #include <toml++/toml.h>
 
 #include "core/error.hpp"
+#include "inference/rbc_problem.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
@@ -168,6 +169,16 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
         readData(file, *n, experiments, c);
     else
         c.data = defaultCalibrateData(experiments);
+    // Every data file is read now, so that a malformed CSV fails before any stage runs (the
+    // readers name the file, line and column).
+    for (const CalibrateDataSet& d : c.data) {
+        if (d.experiment == "equilibrium")
+            readEquilibriumData(d.file, d.name);
+        else if (d.experiment == "stretching")
+            readStretchingData(d.file, d.name);
+        else
+            readRelaxationData(d.file, d.name);
+    }
     if (const toml::table* t = section("campaign")) {
         TableReader r(file, *t, "campaign");
         r.allowOnly({"mode", "samples", "forces_per_cell", "design", "level"});

@@ -39,7 +39,7 @@ void registerInfer(CLI::App& app) {
     cmd->add_option("--model", o->model, "surrogate model directory (default: the shipped surrogates)");
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
-                    "else ../shared/data/experiments next to the sources)");
+                    "else the shipped copy data/experiments)");
     cmd->add_option("--threads", o->threads, "OpenMP threads (results do not depend on it)")
         ->check(CLI::Range(1, 1024))
         ->capture_default_str();

@@ -21,9 +21,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// Same rule as `trbc infer`: $TRBC_EXPERIMENT_DATA, else <source>/../shared/data/experiments,
-/// else <source>/data/experiments.
-
 void writeFile(const fs::path& p, const std::string& text) {
     std::ofstream out(p, std::ios::trunc);
     out << text;
@@ -57,7 +54,7 @@ void registerPredict(CLI::App& app) {
     cmd->add_option("--model", o->model, "surrogate model directory (default: the shipped surrogates)");
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
-                    "else ../shared/data/experiments next to the sources)");
+                    "else the shipped copy data/experiments)");
     cmd->add_option("--max-samples", o->maxSamples, "use at most this many posterior samples (seeded choice; 0 = all)")
         ->check(CLI::Range(0, 100000000))
         ->capture_default_str();

@@ -208,8 +208,6 @@ std::filesystem::path defaultSurrogateDirectory() {
 
 std::filesystem::path defaultExperimentDirectory() {
     if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
-    const std::filesystem::path shared = std::filesystem::path(TRBC_SOURCE_DIR) / ".." / "shared" / "data" / "experiments";
-    if (std::filesystem::is_directory(shared)) return shared.lexically_normal();
     return std::filesystem::path(TRBC_DATA_DIR) / "experiments";
 }
 

@@ -63,8 +63,7 @@ void registerPredict(CLI::App& app);
 
 /// Shipped surrogates: $TRBC_SURROGATE_DIR, else <source>/data/surrogates.
 std::filesystem::path defaultSurrogateDirectory();
-/// Experimental data: $TRBC_EXPERIMENT_DATA, else <source>/../shared/data/experiments (the shared
-/// data of the project), else <source>/data/experiments.
+/// Experimental data: $TRBC_EXPERIMENT_DATA, else the copy shipped in <source>/data/experiments.
 std::filesystem::path defaultExperimentDirectory();
 void registerCalibrate(CLI::App& app);
 void registerExport(CLI::App& app);

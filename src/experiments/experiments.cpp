@@ -127,22 +127,28 @@ std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshe
     std::vector<StretchPoint> out;
     Vertices X = equilibrium, Xprev;
     double fPrev = 0.0, fPrevPrev = 0.0;
+    int lastIterations = 0;
     for (double f : forces) {
         const auto t0 = Clock::now();
         // Secant predictor along the force path, X(f) ~ X_k + (f - f_k) / (f_k - f_{k-1}) (X_k - X_{k-1}),
         // its step capped at the last one; the minimiser's retraction restores A and V. Falls back
         // to the plain continuation (start from X_k) when the predicted shape fails.
         const Vertices Xk = X;
+        // The predicted start gets a budget of 10x the last level's iterations (at least 1000): a
+        // prediction that lands in a poor basin is abandoned early instead of crawling to maxIterations.
         const bool predict = Xprev.size() && fPrev > fPrevPrev && f > fPrev;
         if (predict) X += std::min(1.0, (f - fPrev) / (fPrev - fPrevPrev)) * (Xk - Xprev);
         const Vertices fext = f * unit;
-        MinimizeResult r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
+        MinimizeOptions first = mo;
+        if (predict) first.maxIterations = std::min(mo.maxIterations, std::max(1000, 10 * lastIterations));
+        MinimizeResult r = minimizeEnergy(model, X, first, &fext, kCellConstraint);
         if (predict && !r.converged) {
             X = Xk;
             const int evaluations = r.evaluations;
             r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
             r.evaluations += evaluations;
         }
+        lastIterations = r.iterations;
         Xprev = Xk;
         fPrevPrev = fPrev;
         fPrev = f;

@@ -1,0 +1,244 @@
+// trbc calibrate (issue 7): configuration errors name file, line and key; malformed data fails
+// before any stage; an unchanged re-run skips every stage; changing one data CSV re-runs exactly
+// the stages that depend on it; the report and the exported cell are written.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "analysis/calibrate_config.hpp"
+#include "analysis/report.hpp"
+#include "core/error.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+using test::TempDir;
+
+const fs::path kExperiments = fs::path(TRBC_TEST_DATA) / ".." / ".." / "data" / "experiments";
+
+fs::path writeText(const fs::path& p, const std::string& text) {
+    fs::create_directories(p.parent_path());
+    std::ofstream(p) << text;
+    return p;
+}
+
+/// The InputError message of reading `toml` as a configuration ("" when it is accepted).
+std::string configError(const TempDir& dir, const std::string& toml) {
+    const fs::path file = writeText(dir.path() / "c.toml", toml);
+    try {
+        readCalibrateConfig(file, kExperiments);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(CalibrateConfig, DefaultsAreThePapersSevenDataSets) {
+    TempDir dir;
+    const CalibrateConfig c = readCalibrateConfig(writeText(dir.path() / "c.toml", "[run]\nseed = 3\n"), kExperiments);
+    ASSERT_EQ(c.data.size(), 7u);
+    EXPECT_EQ(c.data[0].name, "evans_fung_1972");
+    EXPECT_EQ(c.data[6].experiment, "relaxation");
+    EXPECT_EQ(c.seed, 3u);
+    EXPECT_EQ(c.inferenceSamples, 50000);
+    EXPECT_EQ(c.surrogateMode, "shipped");
+}
+
+TEST(CalibrateConfig, ShippedPaperConfigIsValid) {
+    const CalibrateConfig c = readCalibrateConfig(fs::path(TRBC_TEST_DATA) / ".." / ".." / "configs" / "paper.toml", kExperiments);
+    EXPECT_EQ(c.data.size(), 7u);
+    EXPECT_EQ(c.inferenceSamples, 50000);
+}
+
+TEST(CalibrateConfig, SyntaxErrorNamesFileAndLine) {
+    TempDir dir;
+    const std::string e = configError(dir, "[run]\nseed = 3\nthreads = = 2\n");
+    EXPECT_NE(e.find("c.toml:3"), std::string::npos) << e;
+    EXPECT_NE(e.find("syntax"), std::string::npos) << e;
+}
+
+TEST(CalibrateConfig, UnknownKeysAreErrorsWithLineAndValidKeys) {
+    TempDir dir;
+    std::string e = configError(dir, "[run]\nseed = 3\n\n[inference]\nsamples = 1000\nsampels = 2\n");
+    EXPECT_NE(e.find("c.toml:6"), std::string::npos) << e;
+    EXPECT_NE(e.find("inference.sampels"), std::string::npos) << e;
+    EXPECT_NE(e.find("valid keys: samples, fvk_density"), std::string::npos) << e;
+    e = configError(dir, "[priors]\nv = 1\n");
+    EXPECT_NE(e.find("unknown key 'priors'"), std::string::npos) << e;
+}
+
+TEST(CalibrateConfig, WrongTypesAndRangesNameKeyAndRange) {
+    TempDir dir;
+    std::string e = configError(dir, "[inference]\nsamples = \"many\"\n");
+    EXPECT_NE(e.find("c.toml:2: 'inference.samples' must be an integer in [100, 10000000]"), std::string::npos) << e;
+    e = configError(dir, "[inference]\nsamples = 10\n");
+    EXPECT_NE(e.find("'inference.samples' = 10 is out of range: valid range [100, 10000000]"), std::string::npos) << e;
+    e = configError(dir, "[cell]\nquantile = 1.5\n");
+    EXPECT_NE(e.find("'cell.quantile' = 1.5 is out of range: valid range (0, 1)"), std::string::npos) << e;
+    e = configError(dir, "[surrogate]\nmode = \"magic\"\n");
+    EXPECT_NE(e.find("'surrogate.mode' = \"magic\" is not one of: shipped, train, path"), std::string::npos) << e;
+    e = configError(dir, "[surrogate]\nmode = \"train\"\n");
+    EXPECT_NE(e.find("campaign.mode = \"run\""), std::string::npos) << e;
+    e = configError(dir, "[run]\nthreads = 0\n");
+    EXPECT_NE(e.find("'run.threads' = 0 is out of range"), std::string::npos) << e;
+}
+
+TEST(CalibrateConfig, DataEntriesAreChecked) {
+    TempDir dir;
+    std::string e = configError(dir, "[[data]]\nname = \"x\"\nexperiment = \"stretching\"\nfile = \"missing.csv\"\n");
+    EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
+    EXPECT_NE(e.find("missing.csv"), std::string::npos) << e;
+    e = configError(dir, "[[data]]\nname = \"x\"\nexperiment = \"bending\"\nfile = \"@experiments/equilibrium/evans_fung_1972.csv\"\n");
+    EXPECT_NE(e.find("'data.experiment' = \"bending\" is not one of: equilibrium, stretching, relaxation"), std::string::npos) << e;
+    e = configError(dir, "[[data]]\nname = \"x\"\nexperiment = \"equilibrium\"\nfile = \"@experiments/equilibrium/evans_fung_1972.csv\"\n"
+                         "[[data]]\nname = \"x\"\nexperiment = \"equilibrium\"\nfile = \"@experiments/equilibrium/evans_fung_1972.csv\"\n");
+    EXPECT_NE(e.find("c.toml:5: data name 'x' appears twice"), std::string::npos) << e;
+}
+
+TEST(CalibrateConfig, MalformedDataCsvNamesFileLineAndColumn) {
+    TempDir dir;
+    const std::string entry = "[[data]]\nname = \"mine\"\nexperiment = \"stretching\"\nfile = \"mine.csv\"\n";
+    writeText(dir.path() / "mine.csv", "Fext,D0,D1\n0,7.8,7.8\n-10,7.0,8.5\n");
+    std::string e = configError(dir, entry);
+    EXPECT_NE(e.find("mine.csv:3: column 'Fext' = -10 is out of range"), std::string::npos) << e;
+    writeText(dir.path() / "mine.csv", "Fext,D0,D1\n0,7.8,seven\n");
+    e = configError(dir, entry);
+    EXPECT_NE(e.find("mine.csv:2"), std::string::npos) << e;
+    EXPECT_NE(e.find("D1"), std::string::npos) << e;
+    writeText(dir.path() / "mine.csv", "force,width,length\n0,7.8,7.8\n");
+    e = configError(dir, entry);
+    EXPECT_NE(e.find("mine.csv"), std::string::npos) << e;
+    EXPECT_NE(e.find("Fext"), std::string::npos) << e;
+}
+
+TEST(CalibrationReport, MarkdownAndSelfContainedHtml) {
+    TempDir dir;
+    const std::string png = "\x89PNG\r\n\x1a\nabc";
+    writeText(dir.path() / "f.png", png);
+    ReportDocument d;
+    d.heading(1, "Title <x>");
+    d.paragraph("uses `code` and **bold**");
+    d.table({"a", "b|c"}, {{"1", "2"}});
+    d.image(dir.path() / "f.png", "a figure");
+    d.image(dir.path() / "none.png", "absent");
+    const std::string md = d.markdown(dir.path());
+    EXPECT_NE(md.find("# Title <x>"), std::string::npos);
+    EXPECT_NE(md.find("| a | b\\|c |"), std::string::npos);
+    EXPECT_NE(md.find("![a figure](f.png)"), std::string::npos);
+    EXPECT_NE(md.find("figure not available: none.png"), std::string::npos);
+    const std::string html = d.html("t");
+    EXPECT_NE(html.find("<h1>Title &lt;x&gt;</h1>"), std::string::npos);
+    EXPECT_NE(html.find("<code>code</code>"), std::string::npos);
+    EXPECT_NE(html.find("<b>bold</b>"), std::string::npos);
+    EXPECT_NE(html.find("data:image/png;base64," + base64Encode(png)), std::string::npos);
+    EXPECT_EQ(base64Encode("Man"), "TWFu");
+    EXPECT_EQ(base64Encode("Ma"), "TWE=");
+    EXPECT_EQ(base64Encode("M"), "TQ==");
+}
+
+/// Stage names of the last run of OUT/stages.json.
+std::set<std::string> lastRun(const fs::path& out, const char* which) {
+    std::ifstream f(out / "stages.json");
+    const nlohmann::json j = nlohmann::json::parse(f);
+    std::set<std::string> s;
+    for (const auto& x : j["last_run"][which]) s.insert(x.get<std::string>());
+    return s;
+}
+
+TEST(CalibrateCli, RerunsOnlyTheStagesThatDependOnAChangedDataFile) {
+    TempDir dir;
+    // Own copy of the relaxation data of cell 3, so that the test can change it.
+    fs::copy_file(kExperiments / "relaxation" / "hochmuth_1979" / "3.csv", dir.path() / "cell3.csv");
+    std::string toml = "[run]\nseed = 5\nthreads = 1\n";
+    for (const char* e : {"evans_fung_1972|equilibrium|@experiments/equilibrium/evans_fung_1972.csv",
+                          "mills_2004|stretching|@experiments/stretching/mills_2004/mills_2004.csv",
+                          "hochmuth_1979_cell1|relaxation|@experiments/relaxation/hochmuth_1979/1.csv",
+                          "hochmuth_1979_cell3|relaxation|cell3.csv"}) {
+        const std::string s(e);
+        const auto a = s.find('|'), b = s.rfind('|');
+        toml += "[[data]]\nname = \"" + s.substr(0, a) + "\"\nexperiment = \"" + s.substr(a + 1, b - a - 1) + "\"\nfile = \"" +
+                s.substr(b + 1) + "\"\n";
+    }
+    toml += "[sobol]\nsamples = 16\nforces = 3\nresamples = 4\n[inference]\nsamples = 300\n[prediction]\nmax_samples = 100\ngrid = 10\n"
+            "[cell]\nlevel = 1\n";
+    const fs::path cfg = writeText(dir.path() / "cal.toml", toml);
+    const fs::path out = dir.path() / "out";
+    const std::string args = "calibrate --quiet --config " + cfg.string() + " --out " + out.string();
+
+    test::CliRun r = test::runTrbc(args, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    for (const char* f : {"report.html", "report.md", "calibrate.json", "inference/posterior_stats.csv", "predict/coverage.csv",
+                          "sobol/sobol_indices.csv", "cell/cell.json", "cell/sfs.off", "cell/equilibrium.ply"})
+        EXPECT_TRUE(fs::exists(out / f)) << f;
+    const std::set<std::string> all = lastRun(out, "ran");
+    EXPECT_EQ(all.size(), 10u);  // data, sobol, 4 x phase 1, phase23, predict, cell, report
+    EXPECT_TRUE(lastRun(out, "skipped").empty());
+    const std::string md = test::slurp(out / "report.md");
+    EXPECT_NE(md.find("Calibrated parameters"), std::string::npos);
+    EXPECT_NE(md.find("data points"), std::string::npos);
+
+    r = test::runTrbc(args, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(lastRun(out, "ran").empty());
+    EXPECT_EQ(lastRun(out, "skipped"), all);
+
+    {  // one aspect ratio of cell 3 changes
+        std::string text = test::slurp(dir.path() / "cell3.csv");
+        const auto eol = text.find('\n', text.find('\n') + 1);  // end of the first data line
+        text = text.substr(0, eol) + "1" + text.substr(eol);   // append a digit to its last number
+        std::ofstream(dir.path() / "cell3.csv") << text;
+    }
+    r = test::runTrbc(args, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::set<std::string> expected = {"data", "inference.phase1.hochmuth_1979_cell3", "inference.phase23", "predict", "cell", "report"};
+    EXPECT_EQ(lastRun(out, "ran"), expected);
+    const std::set<std::string> skipped = lastRun(out, "skipped");
+    for (const char* s : {"sobol", "inference.phase1.evans_fung_1972", "inference.phase1.mills_2004", "inference.phase1.hochmuth_1979_cell1"})
+        EXPECT_TRUE(skipped.count(s)) << s;
+}
+
+TEST(CalibrateCli, BadConfigExitsWithStatus2BeforeAnyStage) {
+    TempDir dir;
+    const fs::path cfg = writeText(dir.path() / "bad.toml", "[inference]\nsamples = 1\n");
+    const test::CliRun r = test::runTrbc("calibrate --config " + cfg.string() + " --out " + (dir.path() / "o").string(), dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("bad.toml:2: 'inference.samples' = 1 is out of range"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.path() / "o" / "stages.json"));
+    const test::CliRun m = test::runTrbc("calibrate --config " + (dir.path() / "nope.toml").string() + " --out " + (dir.path() / "o").string(),
+                                         dir.path());
+    EXPECT_EQ(m.status, 2);
+    EXPECT_NE(m.err.find("nope.toml does not exist"), std::string::npos) << m.err;
+}
+
+TEST(ExportCli, WritesMeshesAndParametersAtAQuantile) {
+    TempDir dir;
+    std::string csv = "v,mu_uN_per_m,kb_J,b2,etam_Pa_s_um\n";
+    for (int k = 0; k < 11; ++k)
+        csv += std::to_string(0.85 + 0.01 * k) + "," + std::to_string(3.0 + 0.2 * k) + "," + fmt::format("{:.6e}", (1.5 + 0.1 * k) * 1e-19) + "," +
+               std::to_string(1.0 + 0.1 * k) + "," + std::to_string(0.5 + 0.02 * k) + "\n";
+    writeText(dir.path() / "post" / "samples.csv", csv);
+    const test::CliRun r = test::runTrbc("export --posterior " + (dir.path() / "post").string() + " --quantile 0.5 --level 1 --out " +
+                                             (dir.path() / "cell").string(),
+                                         dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream f(dir.path() / "cell" / "cell.json");
+    const nlohmann::json j = nlohmann::json::parse(f);
+    EXPECT_NEAR(j["physical"]["v"].get<double>(), 0.90, 1e-9);
+    EXPECT_NEAR(j["physical"]["mu_uN_per_m"].get<double>(), 4.0, 1e-9);
+    EXPECT_NEAR(j["physical"]["FvK"].get<double>(), 4.0 * 10.742958658 / 0.2, 1e-6);
+    EXPECT_NEAR(j["dimensionless"]["kb"].get<double>() * j["physical"]["FvK"].get<double>(), 1.0, 1e-12);
+    EXPECT_GT(j["observables"]["D_um"].get<double>(), 6.0);
+    for (const char* m : {"sfs.off", "sfs.ply", "equilibrium.off", "equilibrium.ply"}) EXPECT_TRUE(fs::exists(dir.path() / "cell" / m)) << m;
+    const test::CliRun bad = test::runTrbc("export --posterior " + (dir.path() / "none").string() + " --out " + (dir.path() / "c2").string(),
+                                           dir.path());
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("no samples.csv"), std::string::npos) << bad.err;
+}
+
+}  // namespace
+}  // namespace trbc
