@@ -52,7 +52,8 @@ TEST(CalibrateConfig, DefaultsAreThePapersSevenDataSets) {
 TEST(CalibrateConfig, ShippedPaperConfigIsValid) {
     const CalibrateConfig c = readCalibrateConfig(fs::path(TRBC_TEST_DATA) / ".." / ".." / "configs" / "paper.toml", kExperiments);
     EXPECT_EQ(c.data.size(), 7u);
-    EXPECT_EQ(c.inferenceSamples, 50000);
+    EXPECT_EQ(c.inferenceSamples, 20000);
+    EXPECT_EQ(c.surrogateMode, "shipped");
 }
 
 TEST(CalibrateConfig, SyntaxErrorNamesFileAndLine) {

@@ -123,7 +123,7 @@ std::string ReportDocument::html(const std::string& title) const {
                     "table{border-collapse:collapse;margin:0.8em 0;font-size:0.9em}th,td{border:1px solid #ccc;padding:3px 8px;text-align:right}"
                     "th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}\n"
                     "code{background:#f4f4f4;padding:0 3px}pre{background:#f6f6f6;padding:0.8em;overflow-x:auto;font-size:0.85em}\n"
-                    "figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:0.9em;color:#555}\n"
+                    "figure{margin:1em 0}figure img{max-width:100%;max-height:820px;border:1px solid #ddd}figcaption{font-size:0.9em;color:#555}\n"
                     ".missing{color:#a00}\n</style></head><body>\n";
     for (const Block& b : blocks_) {
         switch (b.kind) {
