@@ -132,10 +132,9 @@ TEST(RbcInference, ReadsTheSevenDataSets) {
     EXPECT_EQ(data[3].experiment, RbcExperiment::Relaxation);
 }
 
-TEST(RbcInference, ReadsTheSharedDataWhenPresent) {
-    const fs::path shared = fs::path(TRBC_TEST_DATA) / ".." / ".." / ".." / "shared" / "data" / "experiments";
-    if (!fs::is_directory(shared)) GTEST_SKIP() << "no shared data at " << shared;
-    const auto data = loadRbcDataSets(shared);
+TEST(RbcInference, ReadsTheShippedExperimentalData) {
+    const fs::path shipped = fs::path(TRBC_TEST_DATA) / ".." / ".." / "data" / "experiments";
+    const auto data = loadRbcDataSets(shipped);
     ASSERT_EQ(data.size(), 7u);
     EXPECT_DOUBLE_EQ(data[0].shape[0], 7.82);  // INFERENCE.md 2
     EXPECT_DOUBLE_EQ(data[0].shape[1], 0.81);
