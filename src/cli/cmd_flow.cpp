@@ -15,6 +15,7 @@
 #include "core/version.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/shear_observables.hpp"
+#include "flow/tube.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/io.hpp"
 
@@ -34,20 +35,13 @@ void writeText(const std::string& path, const std::string& text) {
     if (!out) throw InputError("cannot write " + path);
 }
 
+void writeShapesAndSteps(const std::string& dir, const CellFlowModel& model, const Faces& faces,
+                         const Vertices& reference, const Vertices& initial, const CellFlowResult& r, int vtkEvery);
+
 void writeOutputs(const std::string& dir, const CellFlowModel& model, const ShearCell& cell, const CellFlowResult& r,
                   int vtkEvery, const nlohmann::json& j) {
     const double L = model.scales().length, T = model.scales().time, rate = model.conditions().shearRate;
-    writeMesh(dir + "/reference_sfs.vtk", Mesh{cell.reference, cell.faces});
-    writeMesh(dir + "/initial.vtk", Mesh{cell.initial, cell.faces});
-    // Shapes over time (legacy VTK, one file per saved frame) and a ParaView collection.
-    std::string pvd = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n";
-    for (std::size_t k = 0; k < r.frames.size(); k += static_cast<std::size_t>(vtkEvery)) {
-        const std::string name = fmt::format("shape_{:05d}.vtk", k);
-        writeMesh(dir + "/" + name, Mesh{model.toMicrons(r.frames[k]), cell.faces});
-        pvd += fmt::format("<DataSet timestep=\"{:.9g}\" file=\"{}\"/>\n", r.times[k] * T, name);
-    }
-    pvd += "</Collection>\n</VTKFile>\n";
-    writeText(dir + "/shapes.pvd", pvd);
+    writeShapesAndSteps(dir, model, cell.faces, cell.reference, cell.initial, r, vtkEvery);
     // Time series per frame.
     const std::vector<double> phi = unwrappedOrientation(r.frames);
     std::string csv = "t_s,shear_strain,inclination_deg,orientation_unwrapped_deg,area_drift,volume_drift,cx_um,cy_um,cz_um\n";
@@ -58,6 +52,110 @@ void writeOutputs(const std::string& dir, const CellFlowModel& model, const Shea
                            r.areaDrift[k], r.volumeDrift[k], c.x(), c.y(), c.z());
     }
     writeText(dir + "/frames.csv", csv);
+    writeText(dir + "/flow.json", j.dump(2) + "\n");
+}
+
+/// The cell options shared by `flow shear` and `flow tube` (defaults: the paper's Table 1 means).
+struct CellOptions {
+    double v = kTable1V, mu = kTable1Mu, FvK = 0.0, kbJ = 0.0, b2 = kTable1B2, etam = kTable1Etam;
+    bool allowOutside = false;
+    CLI::Option *ov = nullptr, *omu = nullptr, *fvk = nullptr, *okb = nullptr, *ob2 = nullptr, *oetam = nullptr;
+};
+
+void addCellOptions(CLI::App* cmd, CellOptions& c) {
+    c.ov = cmd->add_option("--v", c.v, "reduced volume of the stress-free state, prior [0.65, 1]");
+    c.omu = cmd->add_option("--mu", c.mu, "shear modulus, uN/m, prior [1, 10]");
+    c.fvk = cmd->add_option("--FvK", c.FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]");
+    c.okb = cmd->add_option("--kb", c.kbJ, "bending modulus, J, replaces --FvK; prior [1.074e-19, 1.074e-18]")
+                ->excludes(c.fvk);
+    c.ob2 = cmd->add_option("--b2", c.b2, "Lim non-linear shear coefficient, prior [0, 4]");
+    c.oetam = cmd->add_option("--etam", c.etam, "membrane viscosity, Pa s um, prior [0.1, 1]");
+    cmd->add_flag("--allow-outside-prior", c.allowOutside, "accept cell parameters outside the prior box");
+}
+
+/// The cell parameters of the options (kb -> FvK), validated against the prior box.
+CellParameters cellParameters(const CellOptions& c) {
+    CellParameters p;
+    p.v = c.v;
+    p.mu = c.mu;
+    p.b2 = c.b2;
+    p.etam = c.etam;
+    if (c.FvK != 0.0 || c.fvk->count() > 0) {
+        p.FvK = c.FvK;
+    } else {
+        const double kb = c.okb->count() > 0 ? c.kbJ : kTable1KbJ;
+        if (!(kb > 0.0) || !std::isfinite(kb))
+            throw InputError(fmt::format("parameter --kb = {} J: must be positive (prior [1.074e-19, 1.074e-18] J)", kb));
+        p.FvK = CellParameters::fvkFromKb(p.mu, kb);
+    }
+    validateCellParameters(p, c.allowOutside);
+    return p;
+}
+
+nlohmann::json cellJson(const CellParameters& p) {
+    return {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()}, {"b2", p.b2},
+            {"etam_Pa_s_um", p.etam}};
+}
+
+std::string cellSource(const CellOptions& c) {
+    const bool any = c.ov->count() + c.omu->count() + c.okb->count() + c.fvk->count() + c.ob2->count() +
+                         c.oetam->count() > 0;
+    return any ? "command line (options not given: the paper's Table 1 means)"
+               : "the paper's Table 1 means of the theta_new posterior (no cell options given)";
+}
+
+void requirePositiveOption(const char* option, double value, const char* unit) {
+    if (!(value > 0.0) || !std::isfinite(value))
+        throw InputError(fmt::format("parameter {} = {} {}: must be finite and > 0 (valid range (0, inf))", option,
+                                     value, unit));
+}
+
+/// The diagnostics of the time stepping that do not depend on the flow's time unit.
+nlohmann::json stepDiagnostics(const CellFlowModel& model, const CellFlowResult& r, const ShearCell& cell) {
+    const long gm = r.gmresIterations;
+    const double L = model.scales().length, T = model.scales().time;
+    return {
+        {"steps", r.steps},
+        {"rejected_steps", r.rejectedSteps},
+        {"failed_solves", r.failedSolves},
+        {"gmres_iterations_total", gm},
+        {"gmres_iterations_mean",
+         r.steps > 0 ? static_cast<double>(gm) / (r.steps + r.rejectedSteps + r.failedSolves) : 0.0},
+        {"gmres_iterations_max", r.maxGmresIterations},
+        {"dt_min_s", r.dtSmallest * T},
+        {"dt_max_s", r.dtLargest * T},
+        {"area_drift_max", r.maxAreaDrift},
+        {"volume_drift_max", r.maxVolumeDrift},
+        {"area_projection_per_step_max", r.maxAreaCorrection},
+        {"volume_projection_per_step_max", r.maxVolumeCorrection},
+        {"area_projection_sum", r.sumAreaCorrection},
+        {"volume_flux_correction_max_um_per_s", r.maxFluxCorrection * L / T},
+        {"volume_projection_sum", r.sumVolumeCorrection},
+        {"tension_final_pN_per_um", r.stepLog.empty() ? 0.0 : r.stepLog.back().tension * model.scales().force() / L},
+        {"area_drift_final", r.areaDrift.empty() ? 0.0 : r.areaDrift.back()},
+        {"volume_drift_final", r.volumeDrift.empty() ? 0.0 : r.volumeDrift.back()},
+        {"frames", r.times.size()},
+        {"flow_wall_s", r.wallSeconds},
+        {"equilibrium", {{"converged", cell.equilibrium.converged}, {"iterations", cell.equilibrium.iterations},
+                         {"wall_s", cell.equilibrium.wallSeconds}}},
+        {"sfs", sfsJson(cell.sfs)}};
+}
+
+/// reference_sfs.vtk, initial.vtk, shape_NNNNN.vtk (every vtkEvery-th frame) + shapes.pvd, steps.csv.
+void writeShapesAndSteps(const std::string& dir, const CellFlowModel& model, const Faces& faces,
+                         const Vertices& reference, const Vertices& initial, const CellFlowResult& r, int vtkEvery) {
+    const double L = model.scales().length, T = model.scales().time;
+    writeMesh(dir + "/reference_sfs.vtk", Mesh{reference, faces});
+    writeMesh(dir + "/initial.vtk", Mesh{initial, faces});
+    // Shapes over time (legacy VTK, one file per saved frame) and a ParaView collection.
+    std::string pvd = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n";
+    for (std::size_t k = 0; k < r.frames.size(); k += static_cast<std::size_t>(vtkEvery)) {
+        const std::string name = fmt::format("shape_{:05d}.vtk", k);
+        writeMesh(dir + "/" + name, Mesh{model.toMicrons(r.frames[k]), faces});
+        pvd += fmt::format("<DataSet timestep=\"{:.9g}\" file=\"{}\"/>\n", r.times[k] * T, name);
+    }
+    pvd += "</Collection>\n</VTKFile>\n";
+    writeText(dir + "/shapes.pvd", pvd);
     const double tensionUnit = model.scales().force() / L;
     std::string steps = "t_s,dt_s,local_error_um,gmres_iterations,tension_pN_per_um,area_drift,volume_drift,"
                         "area_projection,volume_projection\n";
@@ -66,17 +164,15 @@ void writeOutputs(const std::string& dir, const CellFlowModel& model, const Shea
                              s.gmresIterations, s.tension * tensionUnit, s.areaDrift, s.volumeDrift, s.areaCorrection,
                              s.volumeCorrection);
     writeText(dir + "/steps.csv", steps);
-    writeText(dir + "/flow.json", j.dump(2) + "\n");
 }
 
 void registerShear(CLI::App* flow) {
     struct Opts {
         double etaOut = std::nan(""), shearRate = std::nan(""), etaIn = 10.0;
-        double v = kTable1V, mu = kTable1Mu, FvK = 0.0, kbJ = 0.0, b2 = kTable1B2, etam = kTable1Etam;
+        CellOptions cell;
         int level = 3, threads = 0, vtkEvery = 10, maxSteps = 200000;
         double rotations = 10.0, tol = 1e-3, dt = 0.0, frameInterval = 0.1;
         std::string out;
-        bool allowOutside = false;
         CacheOptions cache;
     };
     auto o = std::make_shared<Opts>();
@@ -89,13 +185,7 @@ void registerShear(CLI::App* flow) {
     cmd->add_option("--eta-out", o->etaOut, "outer (suspending) viscosity, mPa s (> 0)")->required();
     cmd->add_option("--shear-rate", o->shearRate, "shear rate, 1/s (> 0)")->required();
     cmd->add_option("--eta-in", o->etaIn, "inner (cytosol) viscosity, mPa s (> 0)")->capture_default_str();
-    auto* ov = cmd->add_option("--v", o->v, "reduced volume of the stress-free state, prior [0.65, 1]");
-    auto* omu = cmd->add_option("--mu", o->mu, "shear modulus, uN/m, prior [1, 10]");
-    auto* fvk = cmd->add_option("--FvK", o->FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]");
-    auto* okb = cmd->add_option("--kb", o->kbJ, "bending modulus, J, replaces --FvK; prior [1.074e-19, 1.074e-18]")
-                    ->excludes(fvk);
-    auto* ob2 = cmd->add_option("--b2", o->b2, "Lim non-linear shear coefficient, prior [0, 4]");
-    auto* oetam = cmd->add_option("--etam", o->etam, "membrane viscosity, Pa s um, prior [0.1, 1]");
+    addCellOptions(cmd, o->cell);
     cmd->add_option("--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)")
         ->check(CLI::Range(1, 5))->capture_default_str();
     cmd->add_option("--rotations", o->rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate")
@@ -111,10 +201,9 @@ void registerShear(CLI::App* flow) {
     cmd->add_option("--out", o->out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
     cmd->add_option("--vtk-every", o->vtkEvery, "write every k-th frame as VTK")
         ->check(CLI::Range(1, 1000000))->capture_default_str();
-    cmd->add_flag("--allow-outside-prior", o->allowOutside, "accept cell parameters outside the prior box");
     cmd->add_option("--threads", o->threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
     addCacheOptions(cmd, o->cache);
-    cmd->callback([o, ov, omu, okb, fvk, ob2, oetam]() {
+    cmd->callback([o]() {
         const auto tStart = std::chrono::steady_clock::now();
         FlowConditions fc;
         fc.etaOut = o->etaOut;
@@ -130,21 +219,7 @@ void registerShear(CLI::App* flow) {
             throw InputError(fmt::format("parameter --eta-in = {} mPa s: must be finite and > 0 (valid range (0, inf))",
                                          fc.etaIn));
         validateFlowConditions(fc);
-        CellParameters p;
-        p.v = o->v;
-        p.mu = o->mu;
-        p.b2 = o->b2;
-        p.etam = o->etam;
-        if (o->FvK != 0.0 || fvk->count() > 0) {
-            p.FvK = o->FvK;
-        } else {
-            const double kb = okb->count() > 0 ? o->kbJ : kTable1KbJ;
-            if (!(kb > 0.0) || !std::isfinite(kb))
-                throw InputError(fmt::format("parameter --kb = {} J: must be positive (prior [1.074e-19, 1.074e-18] J)", kb));
-            p.FvK = CellParameters::fvkFromKb(p.mu, kb);
-        }
-        validateCellParameters(p, o->allowOutside);
-        const bool anyCell = ov->count() + omu->count() + okb->count() + fvk->count() + ob2->count() + oetam->count() > 0;
+        const CellParameters p = cellParameters(o->cell);
         if (!o->out.empty()) ensureWritableDirectory(o->out);
         if (o->threads > 0) omp_set_num_threads(o->threads);
 
@@ -154,11 +229,8 @@ void registerShear(CLI::App* flow) {
             {"eta_in_mPa_s", fc.etaIn},
             {"shear_rate_per_s", fc.shearRate},
             {"shear_stress_Pa", fc.etaOut * 1e-3 * fc.shearRate},
-            {"cell",
-             {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()}, {"b2", p.b2},
-              {"etam_Pa_s_um", p.etam}}},
-            {"cell_source", anyCell ? "command line (options not given: the paper's Table 1 means)"
-                                    : "the paper's Table 1 means of the theta_new posterior (no cell options given)"},
+            {"cell", cellJson(p)},
+            {"cell_source", cellSource(o->cell)},
             {"area_volume", "exact constraints: area multiplier (membrane tension) in the coupled system, "
                             "projection onto A0, V0 after each step"},
             {"A0_um2", fc.A0},
@@ -194,39 +266,15 @@ void registerShear(CLI::App* flow) {
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         const CellFlowResult r = integrateCellFlow(model, model.toInternal(cell.initial), opt);
 
-        const double T = model.scales().time;
-        long gm = r.gmresIterations;
-        nlohmann::json diag = {
-            {"steps", r.steps},
-            {"rejected_steps", r.rejectedSteps},
-            {"failed_solves", r.failedSolves},
-            {"gmres_iterations_total", gm},
-            {"gmres_iterations_mean", r.steps > 0 ? static_cast<double>(gm) / (r.steps + r.rejectedSteps + r.failedSolves) : 0.0},
-            {"gmres_iterations_max", r.maxGmresIterations},
-            {"dt_min_s", r.dtSmallest * T},
-            {"dt_max_s", r.dtLargest * T},
-            {"dt_min_times_rate", r.dtSmallest},
-            {"dt_max_times_rate", r.dtLargest},
-            {"step_control", {{"scheme", "linearly implicit variable-step BDF2, error vs quadratic predictor"},
-                              {"local_error_tolerance_R_A", opt.adaptive ? nlohmann::json(opt.errorTolerance) : nlohmann::json(nullptr)},
-                              {"fixed_dt_times_rate", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->dt)}}},
-            {"area_drift_max", r.maxAreaDrift},
-            {"volume_drift_max", r.maxVolumeDrift},
-            {"area_projection_per_step_max", r.maxAreaCorrection},
-            {"volume_projection_per_step_max", r.maxVolumeCorrection},
-            {"area_projection_sum", r.sumAreaCorrection},
-            {"volume_flux_correction_max_um_per_s", r.maxFluxCorrection * model.scales().length / model.scales().time},
-            {"volume_projection_sum", r.sumVolumeCorrection},
-            {"tension_final_pN_per_um", r.stepLog.empty() ? 0.0 : r.stepLog.back().tension * model.scales().force() / model.scales().length},
-            {"area_drift_final", r.areaDrift.empty() ? 0.0 : r.areaDrift.back()},
-            {"volume_drift_final", r.volumeDrift.empty() ? 0.0 : r.volumeDrift.back()},
-            {"frames", r.times.size()},
-            {"setup_wall_s", setupWall},
-            {"flow_wall_s", r.wallSeconds},
-            {"wall_s_per_rotation", r.tReached > 0 ? r.wallSeconds / (r.tReached / (4.0 * kPi)) : 0.0},
-            {"equilibrium", {{"converged", cell.equilibrium.converged}, {"iterations", cell.equilibrium.iterations},
-                             {"wall_s", cell.equilibrium.wallSeconds}}},
-            {"sfs", sfsJson(cell.sfs)}};
+        nlohmann::json diag = stepDiagnostics(model, r, cell);
+        diag["dt_min_times_rate"] = r.dtSmallest;
+        diag["dt_max_times_rate"] = r.dtLargest;
+        diag["step_control"] = {
+            {"scheme", "linearly implicit variable-step BDF2, error vs quadratic predictor"},
+            {"local_error_tolerance_R_A", opt.adaptive ? nlohmann::json(opt.errorTolerance) : nlohmann::json(nullptr)},
+            {"fixed_dt_times_rate", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->dt)}};
+        diag["setup_wall_s"] = setupWall;
+        diag["wall_s_per_rotation"] = r.tReached > 0 ? r.wallSeconds / (r.tReached / (4.0 * kPi)) : 0.0;
         if (!r.completed) {
             diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
             j["status"] = "failed";
@@ -234,7 +282,7 @@ void registerShear(CLI::App* flow) {
             j["observables"] = {{"regime", nullptr}, {"inclination_deg", nullptr}, {"swing_amplitude_deg", nullptr},
                                 {"ttf_4pi_f_over_shear_rate", nullptr}};
             j["diagnostics"] = diag;
-            j["diagnostics"]["t_reached_s"] = r.tReached * T;
+            j["diagnostics"]["t_reached_s"] = r.tReached * model.scales().time;
             std::cout << j.dump(2) << std::endl;
             if (!o->out.empty()) writeOutputs(o->out, model, cell, r, o->vtkEvery, j);
             throw NumericalError("flow shear: " + r.message);
@@ -267,12 +315,313 @@ void registerShear(CLI::App* flow) {
     });
 }
 
+// ---- flow tube ----------------------------------------------------------------------------------
+
+constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
+
+/// Wall points per ring at the default resolution: wall chord ~ 1.5 x the cell's mean edge.
+int defaultWallPoints(double radiusUm, const Vertices& cellUm, const Faces& faces) {
+    const double faceArea = totalArea(cellUm, faces) / static_cast<double>(faces.cols());
+    const double edge = std::sqrt(4.0 * faceArea / std::sqrt(3.0));  // equilateral face of that area
+    return std::max(16, static_cast<int>(std::ceil(2.0 * kPi * radiusUm / (1.5 * edge))));
+}
+
+void writeTubeOutputs(const std::string& dir, const CellFlowModel& model, const ShearCell& cell,
+                      const Vertices& initialUm, const CellFlowResult& r, double radiusUm, int vtkEvery,
+                      const nlohmann::json& j) {
+    const double T = model.scales().time;
+    writeShapesAndSteps(dir, model, cell.faces, cell.reference, initialUm, r, vtkEvery);
+    std::string csv = "t_s,t_R_over_V,cx_um,cy_um,cz_um,length_um,width_y_um,width_z_um,clearance_um,area_drift,"
+                      "volume_drift\n";
+    for (std::size_t k = 0; k < r.frames.size(); ++k) {
+        const Vertices X = model.toMicrons(r.frames[k]);
+        const Eigen::Vector3d c = centroid(X), e = extents(X);
+        csv += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g},{:.6e},{:.6e}\n", r.times[k] * T,
+                           r.times[k], c.x(), c.y(), c.z(), e.x(), e.y(), e.z(), wallClearance(X, radiusUm),
+                           r.areaDrift[k], r.volumeDrift[k]);
+    }
+    writeText(dir + "/frames.csv", csv);
+    writeText(dir + "/flow.json", j.dump(2) + "\n");
+}
+
+void registerTube(CLI::App* flow) {
+    struct Opts {
+        double radius = std::nan(""), pg = std::nan(""), etaOut = 1.003, lambda = 1.0;
+        CellOptions cell;
+        int level = 3, threads = 0, vtkEvery = 10, maxSteps = 200000, wallPoints = 0;
+        double duration = 300.0, tol = 1e-3, dt = 0.0, frameInterval = 1.0, tubeLength = 0.0;
+        double repulsionRange = 0.1, repulsionPressure = 10.0;
+        std::string out;
+        CacheOptions cache;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = flow->add_subcommand(
+        "tube",
+        "One red cell in a straight circular microtube driven by a pressure gradient (VALIDATION.md 4): Poiseuille "
+        "flow plus the disturbance of the cell in the infinite tube, boundary-integral method with a no-slip wall "
+        "(viscosity ratio 1), membrane forces of MODEL.md C with membrane viscosity, semi-implicit adaptive BDF2. "
+        "Prints the cell velocity, length and width as JSON. Time unit R/V with V = (pressure gradient / 45) cm/s "
+        "(VALIDATION.md 4.1). Without cell options the cell is the paper's Table 1 posterior means");
+    cmd->add_option("--radius", o->radius, "tube radius R, um (>= the smallest radius that can hold the cell, 1.497 um "
+                                           "for A0 = 135 um^2, V0 = 94 um^3)")
+        ->required();
+    cmd->add_option("--pressure-gradient", o->pg, "pressure gradient, mmHg/mm (> 0; 1 mmHg/mm = 1.33322e5 Pa/m)")
+        ->required();
+    cmd->add_option("--eta-out", o->etaOut, "viscosity of the suspending fluid, mPa s (> 0)")->capture_default_str();
+    cmd->add_option("--viscosity-ratio", o->lambda, "cytosol / outer viscosity; the tube solver supports 1 only")
+        ->capture_default_str();
+    addCellOptions(cmd, o->cell);
+    cmd->add_option("--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)")
+        ->check(CLI::Range(1, 4))->capture_default_str();
+    cmd->add_option("--duration", o->duration, "simulated time in units of R/V")->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--frame-interval", o->frameInterval, "interval of the saved frames, units of R/V")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--step-tol", o->tol, "local error per time step, largest vertex displacement in units of R_A")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--dt", o->dt, "fixed time step in units of R/V (disables the adaptive step control)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--max-steps", o->maxSteps, "limit on time-step attempts (the run fails beyond it)")
+        ->check(CLI::Range(1, 100000000))->capture_default_str();
+    cmd->add_option("--wall-points", o->wallPoints, "wall vertices per ring (0: chord ~ 1.5 x the cell's mean edge)")
+        ->check(CLI::Range(0, 400))->capture_default_str();
+    cmd->add_option("--tube-length", o->tubeLength,
+                    "length of the discretised wall, um (0: the fitted cell's length x 1.15 plus 2 R at each end)")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    cmd->add_option("--repulsion-range", o->repulsionRange, "range of the wall repulsion on the vertices, um")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--repulsion-pressure", o->repulsionPressure,
+                    "strength p0 of the wall repulsion in units of eta_out V / R (pressure p0 (delta/d - 1)^2)")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    cmd->add_option("--out", o->out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
+    cmd->add_option("--vtk-every", o->vtkEvery, "write every k-th frame as VTK")
+        ->check(CLI::Range(1, 1000000))->capture_default_str();
+    cmd->add_option("--threads", o->threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
+    addCacheOptions(cmd, o->cache);
+    cmd->callback([o]() {
+        const auto tStart = std::chrono::steady_clock::now();
+        // ---- Input (exit 2 naming the option and its valid range).
+        requirePositiveOption("--pressure-gradient", o->pg, "mmHg/mm");
+        requirePositiveOption("--eta-out", o->etaOut, "mPa s");
+        requirePositiveOption("--viscosity-ratio", o->lambda, "");
+        if (o->lambda != 1.0)
+            throw InputError(fmt::format("parameter --viscosity-ratio = {}: the tube solver supports viscosity ratio 1 only "
+                                         "(valid range [1, 1]; the paper's production runs use 1, VALIDATION.md 4.1)",
+                                         o->lambda));
+        FlowConditions fc;
+        const double Rmin = minimumTubeRadius(fc.A0, fc.V0);
+        if (!(o->radius > 0.0) || !std::isfinite(o->radius) || o->radius < Rmin)
+            throw InputError(fmt::format(
+                "parameter --radius = {} um: must be >= {:.4f} um (valid range [{:.4f}, inf) um): a closed surface of "
+                "area A0 = {} um^2 inside a tube of radius R encloses at most R A0 / 2 - 2 pi R^3 / 3 (the capsule of "
+                "radius R), which must be >= V0 = {} um^3",
+                o->radius, Rmin, Rmin, fc.A0, fc.V0));
+        const CellParameters p = cellParameters(o->cell);
+        if (!o->out.empty()) ensureWritableDirectory(o->out);
+        if (o->threads > 0) omp_set_num_threads(o->threads);
+
+        // Units: V = pg / 45 cm/s (VALIDATION.md 4.1), time unit R / V; Poiseuille centre-line speed
+        // U_c = G R^2 / (4 eta) with G = pg x 1.33322e5 Pa/m.
+        const double Vum = o->pg / 45.0 * 1e4;  // um/s
+        const double timeUnit = o->radius / Vum;  // s
+        const double G = o->pg * kPaPerMPerMmHgPerMm;  // Pa/m
+        const double Uc = G * std::pow(o->radius * 1e-6, 2) / (4.0 * o->etaOut * 1e-3) * 1e6;  // um/s
+        fc.etaOut = o->etaOut;
+        fc.etaIn = o->etaOut * o->lambda;
+        fc.shearRate = 0.0;
+        fc.timeScale = timeUnit;
+        validateFlowConditions(fc);
+
+        nlohmann::json j;
+        j["parameters"] = {
+            {"radius_um", o->radius},
+            {"pressure_gradient_mmHg_per_mm", o->pg},
+            {"pressure_gradient_Pa_per_m", G},
+            {"eta_out_mPa_s", fc.etaOut},
+            {"eta_in_mPa_s", fc.etaIn},
+            {"viscosity_ratio", o->lambda},
+            {"velocity_scale_V_cm_per_s", Vum * 1e-4},
+            {"centre_line_velocity_cm_per_s", Uc * 1e-4},
+            {"mean_poiseuille_velocity_cm_per_s", 0.5 * Uc * 1e-4},
+            {"time_unit_R_over_V_s", timeUnit},
+            {"duration_R_over_V", o->duration},
+            {"duration_s", o->duration * timeUnit},
+            {"frame_interval_R_over_V", o->frameInterval},
+            {"cell", cellJson(p)},
+            {"cell_source", cellSource(o->cell)},
+            {"area_volume", "exact constraints: area multiplier (membrane tension) in the coupled system, "
+                            "projection onto A0, V0 after each step"},
+            {"A0_um2", fc.A0},
+            {"V0_um3", fc.V0},
+            {"minimum_radius_um", Rmin},
+            {"domain", "infinite tube (Poiseuille flux far from the cell) instead of the reference's 50 um periodic box; "
+                       "no thermal fluctuations"}};
+        j["provenance"] = {{"version", kVersion},
+                           {"command", commandLine()},
+                           {"level", o->level},
+                           {"vertices", 10 * (1 << (2 * o->level)) + 2},
+                           {"threads", omp_get_max_threads()},
+                           {"sfs_model_version", kSfsModelVersion},
+                           {"method", "boundary-integral Stokes, Poiseuille flow + disturbance, lambda = 1, no-slip "
+                                      "wall on a truncated tube re-centred on the cell (wall traction eliminated by a "
+                                      "Schur complement, S_WW LU-factorised once), membrane viscosity implicit, "
+                                      "linearly implicit adaptive BDF2 (flow/tube.hpp, flow/cell_flow.hpp)"}};
+
+        // ---- Cell: SFS, equilibrium shape with the disc plane containing the axis (x-z), fitted into the tube.
+        const ShearCell cell = prepareShearCell(p, o->level, cacheDirectory(o->cache));
+        const CellFlowModel model(p, fc, cell.faces, cell.reference);
+        const double L = model.scales().length;
+        const double clearanceUm = 0.1 * o->radius;
+        Vertices initialUm;
+        try {
+            initialUm = fitIntoTube(cell.initial, cell.faces, o->radius, clearanceUm, fc.A0, fc.V0);
+        } catch (const NumericalError& e) {
+            j["status"] = "failed";
+            j["reason"] = std::string("the cell cannot be fitted into the tube: ") + e.what();
+            std::cout << j.dump(2) << std::endl;
+            throw NumericalError(std::string("flow tube: ") + e.what());
+        }
+        const Eigen::Vector3d fitted = extents(initialUm), equilibrium = extents(cell.initial);
+        const double reachUm = initialUm.row(0).cwiseAbs().maxCoeff();
+        TubeSetup ts;
+        ts.radius = o->radius / L;
+        ts.centreLineSpeed = Uc * timeUnit / L;
+        ts.halfLength = (o->tubeLength > 0.0 ? 0.5 * o->tubeLength : 1.15 * reachUm + 2.0 * o->radius) / L;
+        ts.pointsPerRing = o->wallPoints > 0 ? o->wallPoints : defaultWallPoints(o->radius, cell.initial, cell.faces);
+        ts.repulsionRange = o->repulsionRange / L;
+        ts.repulsionPressure = o->repulsionPressure;  // the internal stress unit is eta_out / (R / V)
+        ts.vertexWeight = model.targetArea() / static_cast<double>(cell.faces.maxCoeff() + 1);
+        if (ts.halfLength - ts.endMargin * ts.radius <= reachUm / L)
+            throw InputError(fmt::format("parameter --tube-length = {} um: must exceed the fitted cell's length {:.3f} um "
+                                         "plus 2 R = {:.3f} um (valid range ({:.3f}, inf) um, or 0 for the default)",
+                                         o->tubeLength, 2.0 * reachUm, 2.0 * o->radius,
+                                         2.0 * reachUm + 2.0 * o->radius));
+        const Eigen::Index wallVertices =
+            static_cast<Eigen::Index>(tubeMesh(ts.radius, ts.halfLength, ts.pointsPerRing).numVertices());
+        if (3 * wallVertices > 12000)
+            throw InputError(fmt::format(
+                "parameters --radius = {} um / --wall-points = {}: the wall would have {} vertices (dense S_WW of {} "
+                "unknowns; at most 4000 vertices): use a smaller radius, fewer --wall-points or a shorter --tube-length",
+                o->radius, ts.pointsPerRing, wallVertices, 3 * wallVertices));
+        const auto tWall = std::chrono::steady_clock::now();
+        const TubeEnvironment env(ts);
+        const double wallSetup = std::chrono::duration<double>(std::chrono::steady_clock::now() - tWall).count();
+        const FlowGroups g = model.groups();
+        j["parameters"]["dimensionless"] = {
+            {"capillary_number", fc.etaOut * 1e-3 * (Vum / o->radius) * L / p.mu},
+            {"viscosity_ratio", o->lambda},
+            {"membrane_viscosity_ratio_E", g.membraneViscosity},
+            {"FvK", g.FvK},
+            {"confinement_R_over_R_A", o->radius / L},
+            {"centre_line_velocity_over_V", Uc / Vum}};
+        j["parameters"]["tube"] = {
+            {"wall_points_per_ring", ts.pointsPerRing},
+            {"wall_vertices", env.wall().numVertices()},
+            {"wall_length_um", 2.0 * ts.halfLength * L},
+            {"wall_length_over_R", 2.0 * ts.halfLength / ts.radius},
+            {"repulsion_range_um", o->repulsionRange},
+            {"repulsion_pressure_Pa", o->repulsionPressure * fc.etaOut * 1e-3 * Vum / o->radius},
+            {"contact_clearance_um", env.wall().sagitta() * L}};
+        j["parameters"]["initial_condition"] = {
+            {"description", "equilibrium shape (MODEL.md E.1) on the axis, disc plane containing the axis (x-z); when "
+                            "wider than the tube minus a clearance of 0.1 R, mapped by (a x, c y, b z) with b squeezing "
+                            "the disc's diameter and a, c keeping area and volume exact"},
+            {"equilibrium_extents_um", {equilibrium.x(), equilibrium.y(), equilibrium.z()}},
+            {"fitted_extents_um", {fitted.x(), fitted.y(), fitted.z()}},
+            {"clearance_um", wallClearance(initialUm, o->radius)}};
+
+        CellFlowOptions opt;
+        opt.tEnd = o->duration;
+        opt.frameInterval = o->frameInterval;
+        opt.errorTolerance = o->tol;
+        opt.maxSteps = o->maxSteps;
+        opt.dtMax = 5.0;
+        if (o->dt > 0.0) {
+            opt.adaptive = false;
+            opt.dtInitial = o->dt;
+            opt.dtMax = o->dt;
+        }
+        const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+        // Progress on stderr every tenth of the duration (frame times).
+        double nextReport = 0.1 * opt.tEnd;
+        const auto progress = [&](double t, const Vertices& X) {
+            if (t + 1e-9 < nextReport) return;
+            nextReport += 0.1 * opt.tEnd;
+            const Eigen::Vector3d c = centroid(X) * L, e = extents(X) * L;
+            std::cerr << fmt::format("flow tube: t = {:.4g} R/V, centroid x = {:.4g} um, length {:.4f} um, width {:.4f} "
+                                     "um, wall {:.1f} s\n",
+                                     t, c.x(), e.x(), e.y(),
+                                     std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count());
+        };
+        const CellFlowResult r = integrateCellFlow(model, model.toInternal(initialUm), opt, progress, &env);
+
+        nlohmann::json diag = stepDiagnostics(model, r, cell);
+        diag["dt_min_R_over_V"] = r.dtSmallest;
+        diag["dt_max_R_over_V"] = r.dtLargest;
+        diag["step_control"] = {
+            {"scheme", "linearly implicit variable-step BDF2, error vs quadratic predictor"},
+            {"local_error_tolerance_R_A", opt.adaptive ? nlohmann::json(opt.errorTolerance) : nlohmann::json(nullptr)},
+            {"fixed_dt_R_over_V", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->dt)}};
+        diag["setup_wall_s"] = setupWall;
+        diag["wall_operator_setup_s"] = wallSetup;
+        diag["wall_clearance_min_um"] = env.minClearance() * L;
+        diag["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
+        diag["t_reached_R_over_V"] = r.tReached;
+        const nlohmann::json nullObs = {{"velocity_cm_per_s", nullptr}, {"length_um", nullptr}, {"width_um", nullptr}};
+        if (!r.completed) {
+            diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+            j["status"] = "failed";
+            j["reason"] = r.message;
+            j["observables"] = nullObs;
+            j["diagnostics"] = diag;
+            std::cout << j.dump(2) << std::endl;
+            if (!o->out.empty()) writeTubeOutputs(o->out, model, cell, initialUm, r, o->radius, o->vtkEvery, j);
+            throw NumericalError("flow tube: " + r.message);
+        }
+        std::vector<double> ts_s(r.times.size());
+        std::vector<Vertices> framesUm(r.frames.size());
+        for (std::size_t k = 0; k < r.frames.size(); ++k) {
+            ts_s[k] = r.times[k] * timeUnit;
+            framesUm[k] = model.toMicrons(r.frames[k]);
+        }
+        j["status"] = "ok";
+        if (framesUm.size() < 16) {
+            j["observables"] = nullObs;
+            j["analysis"] = {{"note", "fewer than 16 frames: no observables (lengthen --duration or shorten "
+                                      "--frame-interval)"}};
+        } else {
+            const TubeObservables ob = analyzeTubeFrames(ts_s, framesUm);
+            const bool plateau = ob.lengthChange < 0.01 && ob.velocityChange < 0.01;
+            j["observables"] = {{"velocity_cm_per_s", ob.velocity * 1e-4},
+                                {"length_um", ob.length},
+                                {"width_um", ob.widthY},
+                                {"width_z_um", ob.widthZ},
+                                {"velocity_over_centre_line", ob.velocity / Uc},
+                                {"velocity_over_mean_poiseuille", ob.velocity / (0.5 * Uc)}};
+            j["analysis"] = {{"length", "extent of the vertex x (axis), mean over the second half of the frames"},
+                             {"width", "extent along y (width_um) and z (width_z_um), same window"},
+                             {"velocity", "least-squares slope of the centroid x(t) over the last eighth of the frames"},
+                             {"frames_used", ob.framesUsed}};
+            diag["plateau"] = {{"length_change_q3_vs_q4", ob.lengthChange},
+                               {"velocity_change_e7_vs_e8", ob.velocityChange},
+                               {"reached", plateau},
+                               {"criterion", "both relative changes < 1 %"}};
+        }
+        diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+        j["diagnostics"] = diag;
+        if (!o->out.empty()) writeTubeOutputs(o->out, model, cell, initialUm, r, o->radius, o->vtkEvery, j);
+        std::cout << j.dump(2) << std::endl;
+    });
+}
+
 }  // namespace
 
 void registerFlow(CLI::App& app) {
-    CLI::App* flow = app.add_subcommand("flow", "Flow validations (VALIDATION.md): one cell in simple shear flow");
+    CLI::App* flow =
+        app.add_subcommand("flow", "Flow validations (VALIDATION.md): one cell in simple shear flow or in a microtube");
     flow->require_subcommand(1);
     registerShear(flow);
+    registerTube(flow);
 }
 
 }  // namespace trbc::cli

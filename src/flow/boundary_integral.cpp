@@ -229,6 +229,14 @@ BoundaryIntegralOperators::BoundaryIntegralOperators(const Mesh& mesh, const Qua
     vertexArea_ = trbc::vertexAreas(mesh_.X, mesh_.F);
     area_ = faceArea_.sum();
     volume_ = enclosedVolume(mesh_.X, mesh_.F);
+    faceCentroid_.resize(3, nf);
+    faceLongestEdge_.resize(nf);
+    for (Index f = 0; f < nf; ++f) {
+        const Eigen::Matrix3d c = faceCorners(mesh_, f);
+        faceCentroid_.col(f) = c.rowwise().mean();
+        faceLongestEdge_[f] = std::max({(c.col(1) - c.col(0)).norm(), (c.col(2) - c.col(1)).norm(),
+                                        (c.col(0) - c.col(2)).norm()});
+    }
     buildQuadrature();
     buildCorrections();
 }
@@ -462,6 +470,84 @@ Eigen::MatrixXd BoundaryIntegralOperators::assembleDoubleLayer() const {
                 Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]);
     }
     return A;
+}
+
+void BoundaryIntegralOperators::offSurfaceBlocks(const Vec3& x0, Index f, int maxDepth, Mat3 (&blocks)[3]) const {
+    for (auto& b : blocks) b.setZero();
+    const Eigen::Matrix3d c = faceCorners(mesh_, f);
+    // Far face: the face's own rule (the precomputed quadrature points).
+    if ((faceCentroid_.col(f) - x0).norm() >= options_.nearFactor * faceLongestEdge_[f]) {
+        const Index nq = ruleWeight_.size();
+        for (Index q = 0; q < nq; ++q) {
+            const Index k = f * nq + q;
+            const Mat3 g = qw_[k] * stokes::stokeslet(Vec3(qx_[k], qy_[k], qz_[k]) - x0);
+            for (int m = 0; m < 3; ++m) blocks[m] += ruleBary_(q, m) * g;
+        }
+        return;
+    }
+    // Near face: recursive midpoint subdivision; a piece is integrated with the rule once its
+    // centroid is nearFactor x its longest edge away (or at the depth limit). Pieces are
+    // carried as barycentric corners (rows) with respect to the face.
+    const double area = faceArea_[f];
+    const auto recurse = [&](const auto& self, const Eigen::Matrix3d& b, double subArea, int depth) -> void {
+        const Eigen::Matrix3d p = c * b.transpose();  // columns: corners of the piece in space
+        const Vec3 centre = p.rowwise().mean();
+        const double edge = std::max({(p.col(1) - p.col(0)).norm(), (p.col(2) - p.col(1)).norm(),
+                                      (p.col(0) - p.col(2)).norm()});
+        if (depth >= maxDepth || (centre - x0).norm() >= options_.nearFactor * edge) {
+            for (Index q = 0; q < ruleWeight_.size(); ++q) {
+                const Eigen::RowVector3d bq = ruleBary_.row(q) * b;  // barycentric w.r.t. the face
+                const Mat3 g = (subArea * ruleWeight_[q]) * stokes::stokeslet(c * bq.transpose() - x0);
+                for (int m = 0; m < 3; ++m) blocks[m] += bq[m] * g;
+            }
+            return;
+        }
+        const Eigen::RowVector3d a0 = b.row(0), a1 = b.row(1), a2 = b.row(2);
+        const Eigen::RowVector3d m01 = 0.5 * (a0 + a1), m12 = 0.5 * (a1 + a2), m20 = 0.5 * (a2 + a0);
+        for (const auto& [u, v, w] : {std::array{a0, m01, m20}, std::array{m01, a1, m12},
+                                      std::array{m20, m12, a2}, std::array{m01, m12, m20}}) {
+            Eigen::Matrix3d s;
+            s << u, v, w;
+            self(self, s, 0.25 * subArea, depth + 1);
+        }
+    };
+    recurse(recurse, Eigen::Matrix3d::Identity(), area, 0);
+}
+
+Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, int maxDepth) const {
+    const Index nt = targets.cols(), nv = numVertices(), nf = mesh_.numFaces();
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(3 * nt, 3 * nv);
+#pragma omp parallel for schedule(dynamic, 8)
+    for (Index t = 0; t < nt; ++t) {
+        const Vec3 x0 = targets.col(t);
+        Mat3 blocks[3];
+        for (Index f = 0; f < nf; ++f) {
+            offSurfaceBlocks(x0, f, maxDepth, blocks);
+            for (int m = 0; m < 3; ++m) A.block<3, 3>(3 * t, 3 * mesh_.F(m, f)) += blocks[m];
+        }
+    }
+    return A;
+}
+
+Eigen::Matrix3Xd BoundaryIntegralOperators::singleLayerAt(const Eigen::Matrix3Xd& targets, const Eigen::Matrix3Xd& f,
+                                                          int maxDepth) const {
+    if (f.cols() != numVertices())
+        throw InputError(fmt::format("single-layer density: {} columns given, the mesh has {} vertices", f.cols(),
+                                     numVertices()));
+    const Index nt = targets.cols(), nf = mesh_.numFaces();
+    Eigen::Matrix3Xd out(3, nt);
+#pragma omp parallel for schedule(dynamic, 8)
+    for (Index t = 0; t < nt; ++t) {
+        const Vec3 x0 = targets.col(t);
+        Mat3 blocks[3];
+        Vec3 u = Vec3::Zero();
+        for (Index g = 0; g < nf; ++g) {
+            offSurfaceBlocks(x0, g, maxDepth, blocks);
+            for (int m = 0; m < 3; ++m) u += blocks[m] * f.col(mesh_.F(m, g));
+        }
+        out.col(t) = u;
+    }
+    return out;
 }
 
 Eigen::Vector3d BoundaryIntegralOperators::integrate(const Eigen::Matrix3Xd& f) const {

@@ -58,6 +58,17 @@ public:
     Eigen::MatrixXd assembleSingleLayer() const;
     Eigen::MatrixXd assembleDoubleLayer() const;
 
+    /// Single layer at points off the surface, (S f)(y_t) = int_D G(x - y_t) . f(x) dS(x), as a
+    /// dense 3 Nt x 3 Nv matrix (row 3 t + a, column 3 j + b). Faces near a target (centroid
+    /// closer than nearFactor x longest edge) are split adaptively into 4 sub-triangles until
+    /// the criterion holds for every piece (at most `maxDepth` times): accurate down to target
+    /// distances of ~ edge / 2^maxDepth. A target on the surface itself is not allowed (use
+    /// assembleSingleLayer). For the couplings between two surfaces (cell and tube wall).
+    Eigen::MatrixXd assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, int maxDepth = 7) const;
+    /// The same operator applied to a density f (3 x Nv), matrix-free.
+    Eigen::Matrix3Xd singleLayerAt(const Eigen::Matrix3Xd& targets, const Eigen::Matrix3Xd& f,
+                                   int maxDepth = 7) const;
+
     // Surface integrals of vertex densities, linear on each flat face (exact on the polyhedron).
     /// int f dS = sum_i A_i f_i (A_i: one third of the adjacent face areas).
     Eigen::Vector3d integrate(const Eigen::Matrix3Xd& f) const;
@@ -85,6 +96,9 @@ public:
     double meanCorrectionsPerTarget() const;
 
 private:
+    // Single-layer blocks (per corner vertex) of face f at an off-surface target, adaptive.
+    void offSurfaceBlocks(const Eigen::Vector3d& x0, Eigen::Index f, int maxDepth,
+                          Eigen::Matrix3d (&blocks)[3]) const;
     void buildQuadrature();
     void buildCorrections();
     // Density at the quadrature points, linear interpolation from the vertices.
@@ -96,6 +110,8 @@ private:
     double area_ = 0.0, volume_ = 0.0;
     Eigen::VectorXd faceArea_, vertexArea_;
     Eigen::Matrix3Xd faceNormal_, vertexNormal_;
+    Eigen::Matrix3Xd faceCentroid_;
+    Eigen::VectorXd faceLongestEdge_;
     // Far rule: barycentric coordinates (points x 3) and weights (sum 1) on the reference face.
     Eigen::MatrixX3d ruleBary_;
     Eigen::VectorXd ruleWeight_;

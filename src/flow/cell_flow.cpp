@@ -150,8 +150,10 @@ GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd&
 /// layer); P^-1 = (M B^-1 / c + Gamma)^-1 M B^-1 / c, a sparse SPD solve (Cholesky).
 class CoupledSystem {
 public:
-    CoupledSystem(const CellFlowModel& model, const Vertices& Xs, double alpha, const CellFlowOptions& opt)
-        : model_(model), Xs_(Xs), alpha_(alpha), opt_(opt), ops_(Mesh{Xs, model.faces()}, opt.quadrature) {
+    CoupledSystem(const CellFlowModel& model, const Vertices& Xs, double alpha, const CellFlowOptions& opt,
+                  const FlowEnvironment* env = nullptr)
+        : model_(model), Xs_(Xs), alpha_(alpha), opt_(opt), env_(env), ops_(Mesh{Xs, model.faces()}, opt.quadrature) {
+        if (env_) wall_ = env_->wallOperator(Xs, ops_);
         const double lambda = model.viscosityRatio();
         c_ = 1.0 / (4.0 * kPi * (1.0 + lambda));
         k_ = (1.0 - lambda) / (4.0 * kPi * (1.0 + lambda));
@@ -184,13 +186,20 @@ public:
     const Vertices& areaGradient() const { return areaGradient_; }
     const Vertices& volumeGradient() const { return volumeGradient_; }
 
-    /// H v (Hessian of the membrane energy at Xs times v), central differences.
+    /// Gradient of the membrane energy plus the environment's external potential at X.
+    void gradient(const Vertices& X, Vertices& g) const {
+        model_.membrane().evaluate(X, &g);
+        if (env_) env_->addExternalGradient(X, g);
+    }
+
+    /// H v (Hessian of the membrane energy, and of the external potential, at Xs times v),
+    /// central differences.
     Vertices hessianTimes(const Vertices& v) const {
         const double vmax = v.colwise().norm().maxCoeff();
         if (!(vmax > 0.0)) return Vertices::Zero(3, v.cols());
         const double eps = 1e-6 / vmax;  // largest vertex displacement 1e-6 R_A
-        model_.membrane().evaluate(Xs_ + eps * v, &gp_);
-        model_.membrane().evaluate(Xs_ - eps * v, &gm_);
+        gradient(Xs_ + eps * v, gp_);
+        gradient(Xs_ - eps * v, gm_);
         return (gp_ - gm_) / (2.0 * eps);
     }
 
@@ -209,7 +218,8 @@ public:
         const Index nv = Xs_.cols(), n = 3 * nv;
         VectorXd b(n + 2);
         Eigen::Map<Vertices>(b.data(), 3, nv) =
-            (2.0 / (1.0 + model_.viscosityRatio())) * model_.background().at(Xs_) + forceVelocity(Fexp);
+            (2.0 / (1.0 + model_.viscosityRatio())) * (env_ ? env_->background(Xs_) : model_.background().at(Xs_)) +
+            forceVelocity(Fexp);
         b[n] = areaRate / gNorm_;
         b[n + 1] = volumeRate / vNorm_;
         const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
@@ -264,8 +274,12 @@ private:
         if (alpha_ > 0.0) f -= alpha_ * hessianTimes(u);
         return f;
     }
-    /// c S M^-1 F: the velocity induced by nodal membrane forces F.
-    Vertices forceVelocity(const Vertices& F) const { return c_ * single(F * invArea_.asDiagonal()); }
+    /// c S M^-1 F: the velocity induced by nodal membrane forces F (S plus the walls' part W).
+    Vertices forceVelocity(const Vertices& F) const {
+        const Vertices f = F * invArea_.asDiagonal();
+        if (!wall_) return c_ * single(f);
+        return c_ * (single(f) + wall_(f));
+    }
 
     /// Self-block of the single layer at vertex i: from the dense matrix, or the integral over a
     /// flat disc of the star's area with a hat density, pi rho (3/2 I - 1/2 n n^T).
@@ -316,7 +330,9 @@ private:
     Vertices Xs_;
     double alpha_;
     const CellFlowOptions& opt_;
+    const FlowEnvironment* env_;
     BoundaryIntegralOperators ops_;
+    FlowEnvironment::DensityMap wall_;
     double c_ = 0.0, k_ = 0.0;
     VectorXd invArea_;
     bool dense_ = false;
@@ -401,11 +417,12 @@ FlowGroups CellFlowModel::groups() const {
     return g;
 }
 
-VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& opt) {
+VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& opt,
+                                    const FlowEnvironment* env) {
     checkOptions(opt);
-    const CoupledSystem sys(model, X, 0.0, opt);
+    const CoupledSystem sys(model, X, 0.0, opt, env);
     Vertices g(3, X.cols());
-    model.membrane().evaluate(X, &g);
+    sys.gradient(X, g);
     const CoupledSystem::Solution s = sys.solve(-g, 0.0, 0.0, Vertices::Zero(3, X.cols()), 0.0);
     if (!s.gmres.converged)
         throw NumericalError(fmt::format("cell flow: GMRES did not converge (relative residual {:.3e} after {} iterations)",
@@ -414,7 +431,7 @@ VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& 
 }
 
 CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& initial, const CellFlowOptions& opt,
-                                 const CellFlowObserver& observer) {
+                                 const CellFlowObserver& observer, const FlowEnvironment* env) {
     checkOptions(opt);
     const Index nv = model.membrane().numVertices();
     if (initial.cols() != nv || !initial.allFinite())
@@ -481,9 +498,9 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         std::string failure;
         int iterations = 0;
         try {
-            const CoupledSystem sys(model, Xpred, alpha, opt);
+            const CoupledSystem sys(model, Xpred, alpha, opt, env);
             Vertices g(3, nv);
-            model.membrane().evaluate(Xpred, &g);
+            sys.gradient(Xpred, g);
             // F(X*) - H (Y - X*): the explicit part of the linearised elastic force.
             const Vertices Fexp = -g - sys.hessianTimes(Y - Xpred);
             // Linearised area constraint A(X*) + g_A . (Y + alpha u - X*) = A0.
@@ -588,6 +605,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             return finish(false, fmt::format("diverged at t = {:.6g}: area change {:.3g}, volume change {:.3g} in one "
                                              "step (limit {:.3g})",
                                              t, areaCorrection, volumeCorrection, opt.maxDrift));
+        if (env) {
+            const std::string why = env->inadmissible(X);
+            if (!why.empty()) return finish(false, fmt::format("stopped at t = {:.6g}: {}", t, why));
+        }
         dt = opt.adaptive ? std::min(opt.dtMax, h * factor) : opt.dtInitial;
     }
     return finish(true, "completed");

@@ -1,5 +1,6 @@
 #pragma once
-// One deformable red cell in unbounded Stokes flow (VALIDATION.md 3, simple shear), solved with
+// One deformable red cell in unbounded Stokes flow (VALIDATION.md 3, simple shear) -- or, through
+// the FlowEnvironment hooks below, in a tube (flow/tube.hpp, VALIDATION.md 4) -- solved with
 // the boundary-integral method of flow/stokes_solver.hpp, coupled to the membrane model of
 // MODEL.md C (Juelicher bending, Lim against the SFS, global area and volume held exactly, as
 // the experiments do, instead of the stiff penalties of C.3) and the membrane viscosity of C.4.
@@ -183,11 +184,33 @@ struct CellFlowResult {
 /// Called at t = 0 and at every frame time (internal units).
 using CellFlowObserver = std::function<void(double t, const Vertices& X)>;
 
+/// What surrounds the cell when it is not alone in unbounded fluid (the tube of flow/tube.hpp):
+/// the hooks of the coupled system. Without an environment (nullptr) the cell is in unbounded
+/// fluid with the model's linear background flow (shear), exactly as before.
+class FlowEnvironment {
+public:
+    virtual ~FlowEnvironment() = default;
+    /// Undisturbed velocity u_inf at the vertices X (internal units). It enters the right-hand
+    /// side as 2/(1+lambda) u_inf.
+    virtual Vertices background(const Vertices& X) const = 0;
+    /// Adds the gradient of an external potential of the vertices (wall repulsion) to g. It is
+    /// treated like the membrane energy: explicit part in F, Hessian in the implicit part.
+    virtual void addExternalGradient(const Vertices& X, Vertices& g) const = 0;
+    /// The walls' part of the single layer, frozen at the state Xs (the step's predictor): a map
+    /// W with S f -> S f + W f for a vertex density f (3 x Nv). Empty function: no walls.
+    using DensityMap = std::function<Vertices(const Vertices&)>;
+    virtual DensityMap wallOperator(const Vertices& Xs, const BoundaryIntegralOperators& cellOperators) const = 0;
+    /// Empty when the accepted state X is admissible, otherwise the reason why the run must stop
+    /// (contact with a wall, the cell leaving the discretised wall, ...).
+    virtual std::string inadmissible(const Vertices& X) const = 0;
+};
+
 /// Integrates dX/dt = u(X) from `initial` (internal units). Never throws on a numerical failure:
 /// returns completed = false with the reason (GMRES failure at the smallest step, step below
-/// dtMin, drift beyond maxDrift, non-finite state, maxSteps). Throws InputError for bad options.
+/// dtMin, drift beyond maxDrift, non-finite state, maxSteps, an inadmissible state of the
+/// environment). Throws InputError for bad options.
 CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& initial, const CellFlowOptions& options,
-                                 const CellFlowObserver& observer = {});
+                                 const CellFlowObserver& observer = {}, const FlowEnvironment* environment = nullptr);
 
 /// The interface velocity at X with the elastic forces explicit (no implicit term): the
 /// right-hand side of dX/dt = u(X). For tests and diagnostics.
@@ -197,7 +220,8 @@ struct VelocityEvaluation {
     int gmresIterations = 0;
     double residual = 0.0;
 };
-VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& options = {});
+VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& options = {},
+                                    const FlowEnvironment* environment = nullptr);
 
 /// The cell of VALIDATION.md 3.1 for parameters p: SFS(v) (cached in cacheDir), equilibrium
 /// shape (MODEL.md E.1) as initial condition, rotated so that its symmetry axis lies along the

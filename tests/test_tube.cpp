@@ -1,0 +1,361 @@
+// One cell in a straight circular microtube (flow/tube.hpp, VALIDATION.md 4): the wall
+// discretisation against exact and classical results, a short coupled run, bad input.
+//  * rigid sphere translating along the axis of a tube in fluid at rest: drag
+//    F = 6 pi mu a U K(beta), beta = a / R, Haberman & Sayre (1958) wall correction
+//    K = (1 - 0.75857 b^5) / (1 - 2.1050 b + 2.0865 b^3 - 1.7068 b^5 + 0.72603 b^6);
+//  * freely suspended rigid sphere on the axis of Poiseuille flow: velocity
+//    U / U_c = (1 - 2/3 b^2 - 0.20217 b^5) / (1 - 0.75857 b^5) (Haberman & Sayre 1958; the
+//    b^2 term is Faxen's law);
+//  * no slip of the total flow u_P + u' at wall points between the collocation nodes;
+//  * truncation of the tube.
+// The table of docs/flow_verification.md comes from the disabled test TubeConvergence.Table.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "flow/boundary_integral.hpp"
+#include "flow/cell_flow.hpp"
+#include "flow/tube.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/icosphere.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+double habermanK(double b) {
+    return (1.0 - 0.75857 * std::pow(b, 5)) /
+           (1.0 - 2.1050 * b + 2.0865 * std::pow(b, 3) - 1.7068 * std::pow(b, 5) + 0.72603 * std::pow(b, 6));
+}
+double habermanFreeSpeed(double b) {
+    return (1.0 - 2.0 / 3.0 * b * b - 0.20217 * std::pow(b, 5)) / (1.0 - 0.75857 * std::pow(b, 5));
+}
+
+BoundaryIntegralOperators sphereOps(int level, double a) {
+    Mesh m = icosphere(level);
+    m.X *= a;
+    return BoundaryIntegralOperators(m);
+}
+
+/// Relative drag error of a sphere (radius beta, tube radius 1) translating along the axis.
+double dragError(const BoundaryIntegralOperators& sphere, const TubeWall& wall, double beta) {
+    const double mu = 1.0, U = 1.0;
+    const RigidBodyResult r = solveRigidBodyInTube(sphere, wall, mu, 0.0, Eigen::Vector3d::Zero(), false,
+                                                   Eigen::Vector3d(U, 0, 0));
+    const double exact = -6.0 * kPi * mu * beta * U * habermanK(beta);
+    return r.force.x() / exact - 1.0;
+}
+
+/// Relative velocity error of a free sphere on the axis of Poiseuille flow (U_c = 1).
+double freeSphereError(const BoundaryIntegralOperators& sphere, const TubeWall& wall, double beta,
+                       RigidBodyResult* out = nullptr) {
+    const RigidBodyResult r = solveRigidBodyInTube(sphere, wall, 1.0, 1.0, Eigen::Vector3d::Zero(), true);
+    if (out) *out = r;
+    return r.velocity.x() / habermanFreeSpeed(beta) - 1.0;
+}
+
+TEST(TubeGeometry, CapsuleCriterionAndMesh) {
+    // V_max(R) = R A / 2 - 2 pi R^3 / 3: a capsule of radius R and cylinder length l has
+    // A = 4 pi R^2 + 2 pi R l, V = 4/3 pi R^3 + pi R^2 l.
+    const double R = 1.2, l = 3.0, A = 4 * kPi * R * R + 2 * kPi * R * l, V = 4.0 / 3.0 * kPi * R * R * R + kPi * R * R * l;
+    EXPECT_NEAR(maxVolumeInTube(A, R), V, 1e-12 * V);
+    EXPECT_NEAR(minimumTubeRadius(A, V), R, 1e-10);
+    // The cell of VALIDATION.md (A0 = 135 um^2, V0 = 94 um^3) needs R >= 1.497 um.
+    EXPECT_NEAR(minimumTubeRadius(135.0, 94.0), 1.4966, 2e-4);
+    EXPECT_THROW(minimumTubeRadius(135.0, 200.0), InputError);
+    // The wall: a closed, outward oriented prism of 24 flat strips with two polygonal caps.
+    const Mesh m = tubeMesh(1.0, 3.0, 24);
+    EXPECT_NO_THROW(BoundaryIntegralOperators{m});  // validates the closed manifold
+    // Between the inscribed prism and the circular cylinder (staggered rings: the lateral faces
+    // are tilted, so neither bound is attained).
+    const double chord = 2.0 * std::sin(kPi / 24), polygon = 0.5 * 24 * chord * std::cos(kPi / 24);
+    const double area = totalArea(m.X, m.F), volume = enclosedVolume(m.X, m.F);
+    EXPECT_GT(area, 6.0 * 24 * chord + 2.0 * polygon);
+    EXPECT_LT(area, 6.0 * 2.0 * kPi + 2.0 * kPi);
+    EXPECT_GT(volume, 6.0 * polygon);
+    EXPECT_LT(volume, 6.0 * kPi);
+    EXPECT_NEAR(m.X.row(0).minCoeff(), -3.0, 1e-12);
+    EXPECT_NEAR(m.X.row(0).maxCoeff(), 3.0, 1e-12);
+    const Eigen::VectorXd fa = faceAreas(m.X, m.F);
+    EXPECT_GT(fa.minCoeff(), 0.2 * fa.maxCoeff());
+}
+
+TEST(TubeWallOperators, OffSurfaceSingleLayerMatchesOnSurfaceFarAndResolvesNearTargets) {
+    // Unit sphere: S[n] = int G . n dS = 0 at every point, and the uniform traction
+    // f = -3 mu U / (2 a) of a translating sphere gives its exterior flow u = -S f / (8 pi mu)
+    // (the double layer of a rigid motion vanishes outside). Targets 0.5 to 0.001 from the sphere.
+    const BoundaryIntegralOperators s = sphereOps(3, 1.0);
+    Eigen::Matrix3Xd targets(3, 4);
+    targets << 1.5, 0.0, 0.0, 1.001,  //
+        0.0, 1.2, 0.9, 0.01,             //
+        0.0, 0.0, 0.5, 0.0;              // distances 0.5, 0.2, 0.03, 0.001 from the sphere
+    const Eigen::Matrix3Xd un = s.singleLayerAt(targets, s.vertexNormals());
+    EXPECT_LT(un.cwiseAbs().maxCoeff(), 2e-2) << un;
+    const double a = 1.0;
+    const Eigen::Vector3d U(1, 0, 0);
+    const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Constant(3, s.numVertices(), 0.0).colwise() + (-1.5 / a) * U;
+    const Eigen::Matrix3Xd u = -s.singleLayerAt(targets, f) / (8.0 * kPi);
+    for (int t = 0; t < targets.cols(); ++t) {
+        const Eigen::Vector3d x = targets.col(t);
+        const double r = x.norm();
+        const Eigen::Vector3d ex = 0.75 * a / r * (U + x * x.dot(U) / (r * r)) +
+                                   0.25 * a * a * a / (r * r * r) * (U - 3.0 * x * x.dot(U) / (r * r));
+        EXPECT_LT((u.col(t) - ex).norm(), 1e-2) << t << " " << u.col(t).transpose() << " vs " << ex.transpose();
+    }
+    // The dense matrix is the same operator.
+    const Eigen::MatrixXd A = s.assembleSingleLayerAt(targets);
+    const Eigen::VectorXd v = A * Eigen::Map<const Eigen::VectorXd>(f.data(), f.size());
+    EXPECT_LT((Eigen::Map<const Eigen::VectorXd>(v.data(), v.size()) * (-1.0 / (8 * kPi)) -
+               Eigen::Map<const Eigen::VectorXd>(u.data(), u.size()))
+                  .norm(),
+              1e-12);
+}
+
+TEST(TubeWall, TranslatingSphereDragHabermanSayre) {
+    // The towed sphere pushes all the displaced fluid back through the gap against the pressure
+    // jump carried by the caps: the most demanding case for the wall (the error falls like
+    // N^-2.7 with the points per ring, docs/flow_verification.md). 32 points per ring.
+    for (const auto& [beta, tol] : {std::pair{0.3, 0.03}, std::pair{0.5, 0.05}}) {
+        const TubeWall wall(1.0, beta + 2.5, 32);
+        const double e = dragError(sphereOps(2, beta), wall, beta);
+        std::printf("drag beta %.2f: K error %.3e (wall %ld vertices)\n", beta, e, static_cast<long>(wall.numVertices()));
+        EXPECT_LT(std::abs(e), tol) << beta;
+    }
+}
+
+TEST(TubeWall, FreeSphereInPoiseuilleFlowAndNoSlip) {
+    const double beta = 0.4;
+    const TubeWall wall(1.0, beta + 2.5, 24);
+    const BoundaryIntegralOperators sphere = sphereOps(3, beta);
+    RigidBodyResult r;
+    const double e = freeSphereError(sphere, wall, beta, &r);
+    std::printf("free sphere beta %.2f: U/Uc = %.5f, error %.3e\n", beta, r.velocity.x(), e);
+    EXPECT_LT(std::abs(e), 0.01);
+    EXPECT_LT(r.velocity.tail<2>().norm(), 1e-6);
+    EXPECT_LT(r.angularVelocity.norm(), 1e-6);
+    // No slip between the collocation nodes: total flow u_P + u' at face centroids of the wall
+    // (at most 2 R from the sphere), u' = -1/(8 pi) (S_sphere f - S_wall q).
+    const auto coupling = wall.couple(sphere, 0.0);
+    const Vertices q = coupling->wallDensity(r.traction);
+    const Mesh& wm = wall.operators().mesh();
+    Eigen::Matrix3Xd targets(3, 0);
+    for (Eigen::Index f = 0; f < wm.numFaces(); ++f) {
+        Eigen::Vector3d c = Eigen::Vector3d::Zero();
+        for (int k = 0; k < 3; ++k) c += wm.X.col(wm.F(k, f)) / 3.0;
+        if (std::abs(c.x()) > 2.0) continue;
+        c.tail<2>() *= 1.0 / c.tail<2>().norm();  // on the circle (the continuous wall)
+        targets.conservativeResize(3, targets.cols() + 1);
+        targets.col(targets.cols() - 1) = c;
+    }
+    const Vertices u = poiseuilleVelocity(targets, 1.0, 1.0) -
+                       (sphere.singleLayerAt(targets, r.traction) - wall.operators().singleLayerAt(targets, q)) / (8 * kPi);
+    const double slip = u.colwise().norm().maxCoeff();
+    std::printf("no-slip: max |u| at %ld wall face centroids = %.3e U_c\n", static_cast<long>(targets.cols()), slip);
+    EXPECT_LT(slip, 0.01);
+}
+
+TEST(TubeWall, Truncation) {
+    // Free sphere (the cell is force-free too): margin 1.5 R, 2.5 R and 4 R beyond the sphere.
+    const double beta = 0.4;
+    const BoundaryIntegralOperators sphere = sphereOps(2, beta);
+    const double e15 = freeSphereError(sphere, TubeWall(1.0, beta + 1.5, 24), beta);
+    const double e25 = freeSphereError(sphere, TubeWall(1.0, beta + 2.5, 24), beta);
+    const double e40 = freeSphereError(sphere, TubeWall(1.0, beta + 4.0, 24), beta);
+    std::printf("truncation: free sphere error %.3e (margin 1.5 R), %.3e (2.5 R), %.3e (4 R)\n", e15, e25, e40);
+    EXPECT_LT(std::abs(e25 - e40), 2e-4);
+}
+
+// ---- The coupled cell ---------------------------------------------------------------------------
+
+CellParameters table1Cell() {
+    CellParameters p;
+    p.v = 0.94;
+    p.mu = 4.99;
+    p.FvK = CellParameters::fvkFromKb(4.99, 2.10e-19);
+    p.b2 = 1.84;
+    p.etam = 0.69;
+    return p;
+}
+
+const std::filesystem::path& tubeCache() {
+    static const std::filesystem::path d = [] {
+        const auto p = std::filesystem::temp_directory_path() / ("trbc_test_tube_cache_" + std::to_string(::getpid()));
+        std::filesystem::create_directories(p);
+        return p;
+    }();
+    return d;
+}
+
+TEST(TubeEnvironmentTest, RepulsionGradientAndFit) {
+    TubeSetup s;
+    s.radius = 1.0;
+    s.centreLineSpeed = 1.0;
+    s.halfLength = 2.0;
+    s.pointsPerRing = 12;
+    s.repulsionRange = 0.1;
+    s.repulsionPressure = 3.0;
+    s.vertexWeight = 0.01;
+    const TubeEnvironment env(s);
+    Vertices X(3, 3);
+    X << 0.1, 0.2, -0.3, 0.95, 0.1, 0.0, 0.0, -0.93, 0.5;  // two vertices inside the range
+    Vertices g = Vertices::Zero(3, 3);
+    env.addExternalGradient(X, g);
+    const double h = 1e-7;
+    for (int i = 0; i < 3; ++i)
+        for (int a = 0; a < 3; ++a) {
+            Vertices Xp = X, Xm = X;
+            Xp(a, i) += h;
+            Xm(a, i) -= h;
+            EXPECT_NEAR(g(a, i), (env.repulsionEnergy(Xp) - env.repulsionEnergy(Xm)) / (2 * h), 1e-5 * (1 + std::abs(g(a, i))));
+        }
+    EXPECT_GT(g(1, 0), 0.0);  // the force -g pushes the vertex at y = 0.95 towards the axis
+    EXPECT_EQ(g.col(2).norm(), 0.0);
+    // The Table 1 cell (level 2, equilibrium, disc plane x-z) fitted into a 6.6 um tube.
+    const ShearCell c = prepareShearCell(table1Cell(), 2, tubeCache());
+    const Vertices Y = fitIntoTube(c.initial, c.faces, 3.3, 0.33, cell::area, cell::volume);
+    EXPECT_GE(wallClearance(Y, 3.3), 0.33 - 1e-9);
+    EXPECT_NEAR(totalArea(Y, c.faces), cell::area, 1e-8 * cell::area);
+    EXPECT_NEAR(enclosedVolume(Y, c.faces), cell::volume, 1e-8 * cell::volume);
+    EXPECT_GT(extents(Y).x(), extents(c.initial).x());  // stretched along the axis
+    EXPECT_THROW(fitIntoTube(c.initial, c.faces, 1.4, 0.1, cell::area, cell::volume), NumericalError);
+}
+
+TEST(TubeFlow, ShortCoupledRunMovesAlongTheAxisAndKeepsAreaAndVolume) {
+    const CellParameters p = table1Cell();
+    const ShearCell c = prepareShearCell(p, 2, tubeCache());
+    const double R = 3.3, pg = 30.0, V = pg / 45.0 * 1e4, T = R / V;
+    FlowConditions fc;
+    fc.etaOut = 1.003;
+    fc.etaIn = 1.003;
+    fc.shearRate = 0.0;
+    fc.timeScale = T;
+    const CellFlowModel model(p, fc, c.faces, c.reference);
+    const double L = model.scales().length;
+    const Vertices X0 = fitIntoTube(c.initial, c.faces, R, 0.1 * R, fc.A0, fc.V0);
+    TubeSetup s;
+    s.radius = R / L;
+    s.centreLineSpeed = pg * 1.33322e5 * std::pow(R * 1e-6, 2) / (4.0 * 1.003e-3) * 1e6 * T / L;
+    s.halfLength = (1.15 * X0.row(0).cwiseAbs().maxCoeff() + 2.0 * R) / L;
+    s.pointsPerRing = 12;
+    s.repulsionRange = 0.1 / L;
+    s.vertexWeight = model.targetArea() / static_cast<double>(X0.cols());
+    const TubeEnvironment env(s);
+    CellFlowOptions opt;
+    opt.tEnd = 3.0;
+    opt.frameInterval = 0.5;
+    opt.dtMax = 5.0;
+    const CellFlowResult r = integrateCellFlow(model, model.toInternal(X0), opt, {}, &env);
+    ASSERT_TRUE(r.completed) << r.message;
+    const Eigen::Vector3d c0 = centroid(r.frames.front()), c1 = centroid(r.frames.back());
+    const double v = (c1.x() - c0.x()) / (r.times.back() - r.times.front());  // in units of R_A / (R/V)
+    std::printf("coupled run: %d steps, mean velocity %.3f cm/s, off axis %.2e um, clearance %.3f um\n", r.steps,
+                v * L / T * 1e-4, c1.tail<2>().norm() * L, env.minClearance() * L);
+    EXPECT_GT(v, 0.3 * s.centreLineSpeed);  // along +x, slower than the centre line
+    EXPECT_LT(v, s.centreLineSpeed);
+    EXPECT_LT(c1.tail<2>().norm() * L, 1e-3);  // stays on the axis (um)
+    EXPECT_LT(env.maxOffAxis() * L, 1e-3);
+    EXPECT_GT(env.minClearance(), 0.0);
+    for (std::size_t k = 0; k < r.frames.size(); ++k) {
+        EXPECT_LT(std::abs(r.areaDrift[k]), 5e-3);
+        EXPECT_LT(std::abs(r.volumeDrift[k]), 5e-3);
+    }
+}
+
+TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
+    test::TempDir dir;
+    const std::string cache = " --cache " + test::shellQuote(tubeCache().string());
+    struct Case {
+        std::string args, expect;
+    };
+    for (const Case& c : {Case{"--radius 0 --pressure-gradient 30", "--radius"},
+                          Case{"--radius -2 --pressure-gradient 30", "--radius"},
+                          Case{"--radius 1.2 --pressure-gradient 30", "1.4966"},  // cannot hold V0 with A0
+                          Case{"--radius 3.3 --pressure-gradient 0", "--pressure-gradient"},
+                          Case{"--radius 3.3 --pressure-gradient -5", "--pressure-gradient"},
+                          Case{"--radius 3.3 --pressure-gradient 30 --eta-out 0", "--eta-out"},
+                          Case{"--radius 3.3 --pressure-gradient 30 --viscosity-ratio 0", "--viscosity-ratio"},
+                          Case{"--radius 3.3 --pressure-gradient 30 --viscosity-ratio 5", "--viscosity-ratio"},
+                          Case{"--radius 3.3 --pressure-gradient 30 --mu -1", "mu"}}) {
+        const test::CliRun r = test::runTrbc("flow tube --level 2 " + c.args + cache, dir.path());
+        EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
+        EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.args << "\n" << r.err;
+        EXPECT_EQ(r.out.find("\"observables\""), std::string::npos) << c.args;
+    }
+    // A run stopped by the step limit: JSON with "status": "failed", exit 3.
+    const test::CliRun r = test::runTrbc(
+        "flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --max-steps 2" + cache, dir.path());
+    EXPECT_EQ(r.status, 3) << r.out << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j.at("status"), "failed");
+    EXPECT_NE(j.at("reason").get<std::string>().find("step limit"), std::string::npos);
+    EXPECT_TRUE(j.at("observables").at("velocity_cm_per_s").is_null());
+    EXPECT_NEAR(j.at("parameters").at("minimum_radius_um").get<double>(), 1.4966, 1e-3);
+}
+
+/// Cell velocity (mean vertex velocity, cm/s) at a fixed shape against the wall resolution:
+/// Table 1 cell fitted into the 6.6 um tube at 30 mmHg/mm (the production case's first state).
+TEST(TubeConvergence, DISABLED_CellVelocityVsWall) {
+    for (int level : {2, 3}) {
+        const CellParameters p = table1Cell();
+        const ShearCell c = prepareShearCell(p, level, tubeCache());
+        const double R = 3.3, pg = 30.0, V = pg / 45.0 * 1e4, T = R / V;
+        FlowConditions fc;
+        fc.etaOut = fc.etaIn = 1.003;
+        fc.timeScale = T;
+        const CellFlowModel model(p, fc, c.faces, c.reference);
+        const double L = model.scales().length;
+        const Vertices X0 = model.toInternal(fitIntoTube(c.initial, c.faces, R, 0.1 * R, fc.A0, fc.V0));
+        for (int N : {12, 16, 24, 32, 40}) {
+            TubeSetup s;
+            s.radius = R / L;
+            s.centreLineSpeed = pg * 1.33322e5 * std::pow(R * 1e-6, 2) / (4.0 * 1.003e-3) * 1e6 * T / L;
+            s.halfLength = 1.15 * X0.row(0).cwiseAbs().maxCoeff() + 2.0 * s.radius;
+            s.pointsPerRing = N;
+            s.vertexWeight = model.targetArea() / static_cast<double>(X0.cols());
+            const auto t0 = std::chrono::steady_clock::now();
+            const TubeEnvironment env(s);
+            const VelocityEvaluation u = membraneVelocity(model, X0, {}, &env);
+            const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            std::printf("| %d | %d | %ld | %.5f | %d | %.1f |\n", level, N, static_cast<long>(env.wall().numVertices()),
+                        u.velocity.row(0).mean() * L / T * 1e-4, u.gmresIterations, sec);
+        }
+    }
+}
+
+TEST(TubeConvergence, DISABLED_FreeSphereLarge) {
+    for (double beta : {0.6, 0.7})
+        for (int N : {16, 24, 32}) {
+            const TubeWall w(1.0, beta + 2.5, N);
+            RigidBodyResult r;
+            const double e = freeSphereError(sphereOps(3, beta), w, beta, &r);
+            std::printf("beta %.1f N %d: U/Uc %.5f (HS %.5f, error %.2e)\n", beta, N, r.velocity.x(), habermanFreeSpeed(beta), e);
+        }
+}
+
+// Level-by-resolution table for docs/flow_verification.md.
+TEST(TubeConvergence, DISABLED_Table) {
+    std::printf("| sphere level | wall points per ring | wall vertices | drag 0.3 | drag 0.5 | free sphere 0.4 | seconds |\n");
+    for (int level : {2, 3})
+        for (int N : {12, 16, 24, 32, 40}) {
+            const auto t0 = std::chrono::steady_clock::now();
+            const TubeWall w3(1.0, 0.3 + 2.5, N), w5(1.0, 0.5 + 2.5, N), w4(1.0, 0.4 + 2.5, N);
+            const double d3 = dragError(sphereOps(level, 0.3), w3, 0.3);
+            const double d5 = dragError(sphereOps(level, 0.5), w5, 0.5);
+            const double f4 = freeSphereError(sphereOps(level, 0.4), w4, 0.4);
+            const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            std::printf("| %d | %d | %ld | %.2e | %.2e | %.2e | %.1f |\n", level, N, static_cast<long>(w4.numVertices()), d3,
+                        d5, f4, s);
+        }
+}
+
+}  // namespace
+}  // namespace trbc
