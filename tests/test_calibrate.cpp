@@ -1,6 +1,7 @@
 // trbc calibrate (issue 7): configuration errors name file, line and key; malformed data fails
 // before any stage; an unchanged re-run skips every stage; changing one data CSV re-runs exactly
 // the stages that depend on it; the report and the exported cell are written.
+#include <algorithm>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -68,7 +69,7 @@ TEST(CalibrateConfig, UnknownKeysAreErrorsWithLineAndValidKeys) {
     std::string e = configError(dir, "[run]\nseed = 3\n\n[inference]\nsamples = 1000\nsampels = 2\n");
     EXPECT_NE(e.find("c.toml:6"), std::string::npos) << e;
     EXPECT_NE(e.find("inference.sampels"), std::string::npos) << e;
-    EXPECT_NE(e.find("valid keys: samples, fvk_density"), std::string::npos) << e;
+    EXPECT_NE(e.find("valid keys: samples, fvk_density, prior"), std::string::npos) << e;
     e = configError(dir, "[priors]\nv = 1\n");
     EXPECT_NE(e.find("unknown key 'priors'"), std::string::npos) << e;
 }
@@ -87,6 +88,27 @@ TEST(CalibrateConfig, WrongTypesAndRangesNameKeyAndRange) {
     EXPECT_NE(e.find("campaign.mode = \"run\""), std::string::npos) << e;
     e = configError(dir, "[run]\nthreads = 0\n");
     EXPECT_NE(e.find("'run.threads' = 0 is out of range"), std::string::npos) << e;
+}
+
+TEST(CalibrateConfig, OutOfRangePriorsNameFileLineKeyAndValidRange) {
+    TempDir dir;
+    std::string e = configError(dir, "[inference]\nsamples = 1000\n\n[inference.prior]\nv = [0.8, 1.0]\nmu_uN_per_m = [0.5, 8]\n");
+    EXPECT_NE(e.find("c.toml:6: 'inference.prior.mu_uN_per_m'"), std::string::npos) << e;
+    EXPECT_NE(e.find("[0.5, 8] is out of range"), std::string::npos) << e;
+    EXPECT_NE(e.find("[1, 10]"), std::string::npos) << e;
+    e = configError(dir, "[inference.prior]\nb2 = [3, 1]\n");
+    EXPECT_NE(e.find("c.toml:2: 'inference.prior.b2'"), std::string::npos) << e;
+    e = configError(dir, "[inference.prior]\netam_Pa_s_um = 0.5\n");
+    EXPECT_NE(e.find("c.toml:2: 'inference.prior.etam_Pa_s_um' must be an array [lo, hi] of two numbers inside [0.1, 1]"),
+              std::string::npos) << e;
+    e = configError(dir, "[inference.prior]\nkappa = [1, 2]\n");
+    EXPECT_NE(e.find("c.toml:2: unknown key 'inference.prior.kappa'"), std::string::npos) << e;
+    const fs::path ok = writeText(dir.path() / "ok.toml", "[inference.prior]\nv = [0.8, 1.0]\nkb_J = [2e-19, 5e-19]\n");
+    const CalibrateConfig c = readCalibrateConfig(ok, kExperiments);
+    ASSERT_EQ(c.inferencePrior.size(), 2u);
+    const auto kb = std::find_if(c.inferencePrior.begin(), c.inferencePrior.end(), [](const auto& p) { return p.first == "kb_J"; });
+    ASSERT_NE(kb, c.inferencePrior.end());
+    EXPECT_DOUBLE_EQ(kb->second.second, 5e-19);
 }
 
 TEST(CalibrateConfig, DataEntriesAreChecked) {
@@ -214,6 +236,19 @@ TEST(CalibrateCli, BadConfigExitsWithStatus2BeforeAnyStage) {
                                          dir.path());
     EXPECT_EQ(m.status, 2);
     EXPECT_NE(m.err.find("nope.toml does not exist"), std::string::npos) << m.err;
+}
+
+TEST(InferCli, PriorOutsideTheTrainingBoxExitsWithStatus2NamingTheRange) {
+    TempDir dir;
+    const std::string out = (dir.path() / "o").string();
+    test::CliRun r = test::runTrbc("infer --samples 100 --out " + out + " --prior etam_Pa_s_um=0.05:0.5", dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("prior of etam_Pa_s_um: [0.05, 0.5] is out of range"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("[0.1, 1]"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.path() / "o" / "phase1"));
+    r = test::runTrbc("infer --samples 100 --out " + out + " --prior v=high:1", dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("expected NAME=LO:HI"), std::string::npos) << r.err;
 }
 
 TEST(ExportCli, WritesMeshesAndParametersAtAQuantile) {

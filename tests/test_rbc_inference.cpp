@@ -299,6 +299,58 @@ TEST(RbcInference, PhaseOnePriorsUseRatioUniformDensities) {
     EXPECT_EQ(phase3bPrior(eq, ref)->component(2).lower(), 1e-4);  // reference: sigma ~ U[1e-4, 0.5]
 }
 
+TEST(RbcInference, NarrowedPriorBoxReachesEveryPhaseOnePrior) {
+    RbcPriorBox box;
+    box.set("v", 0.8, 0.95);
+    box.set("mu_uN_per_m", 2.0, 8.0);
+    box.set("kb_J", 2e-19, 5e-19);
+    box.set("b2", 1.0, 3.0);
+    box.set("etam_Pa_s_um", 0.2, 0.9);
+    EXPECT_NEAR(box.bounds("kb_J").first, 2e-19, 1e-33);
+    RbcDataSet st;
+    st.experiment = RbcExperiment::Stretching;
+    st.prior = box;
+    const auto ps = phase1Prior(st);
+    EXPECT_DOUBLE_EQ(ps->component(0).lower(), 0.8);
+    EXPECT_DOUBLE_EQ(ps->component(1).upper(), 8.0);
+    EXPECT_NEAR(ps->component(2).lower(), 0.2, 1e-14);  // kb in 1e-18 J
+    EXPECT_DOUBLE_EQ(ps->component(3).upper(), 3.0);
+    RbcDataSet eq;
+    eq.experiment = RbcExperiment::Equilibrium;
+    eq.prior = box;
+    // FvK = mu R_A^2 / kb over [2, 8] x [0.2, 0.5] 1e-18 J.
+    EXPECT_NEAR(phase1Prior(eq)->component(1).lower(), 2.0 * kRbcAreaRadius2 / 0.5, 1e-6);  // constants agree to 2e-10
+    EXPECT_NEAR(phase1Prior(eq)->component(1).upper(), 8.0 * kRbcAreaRadius2 / 0.2, 1e-5);
+    RbcDataSet re;
+    re.experiment = RbcExperiment::Relaxation;
+    re.aspect = vec({2.1, 1.9});
+    re.prior = box;
+    EXPECT_NEAR(phase1Prior(re)->component(0).lower(), 0.2 / 8.0, 1e-15);  // r = etam / mu
+    EXPECT_NEAR(phase1Prior(re)->component(0).upper(), 0.9 / 2.0, 1e-15);
+}
+
+TEST(RbcInference, PriorOutsideTheTrainingBoxIsRejectedWithTheValidRange) {
+    RbcPriorBox box;
+    auto message = [&](const std::string& name, double lo, double hi) {
+        try {
+            box.set(name, lo, hi);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    std::string e = message("v", 0.5, 1.0);
+    EXPECT_NE(e.find("prior of v: [0.5, 1] is out of range"), std::string::npos) << e;
+    EXPECT_NE(e.find("[0.65, 1]"), std::string::npos) << e;
+    e = message("mu_uN_per_m", 5.0, 12.0);
+    EXPECT_NE(e.find("[1, 10]"), std::string::npos) << e;
+    EXPECT_NE(message("b2", 3.0, 2.0), "");  // lo >= hi
+    EXPECT_NE(message("etam_Pa_s_um", 0.1, std::nan("")), "");
+    e = message("kappa", 0.0, 1.0);
+    EXPECT_NE(e.find("unknown prior parameter 'kappa'"), std::string::npos) << e;
+    EXPECT_EQ(message("kb_J", 1.074295866e-19, 1.074295866e-18), "");  // the full box itself is fine
+}
+
 // ------------------------------------------------------------------------------------------------
 // Population densities
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <optional>
 #include <toml++/toml.h>
 
 #include "core/error.hpp"
@@ -128,6 +129,31 @@ void readData(const fs::path& file, const toml::node& node, const fs::path& expe
     }
 }
 
+/// [inference.prior]: NAME = [lo, hi] in physical units, each inside the surrogates' training box.
+void readPriorBox(const fs::path& file, const toml::table& t, CalibrateConfig& c) {
+    auto fail = [&](const toml::node& n, const std::string& what) {
+        throw InputError(fmt::format("{}:{}: {}", file.string(), n.source().begin.line, what));
+    };
+    RbcPriorBox box;
+    for (const auto& [key, node] : t) {
+        const std::string name(key.str());
+        const auto& names = RbcPriorBox::parameterNames();
+        if (std::find(names.begin(), names.end(), name) == names.end())
+            fail(node, fmt::format("unknown key 'inference.prior.{}' (valid keys: v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", name));
+        const auto [dlo, dhi] = RbcPriorBox{}.bounds(name);
+        const toml::array* a = node.as_array();
+        std::optional<double> lo, hi;
+        if (a && a->size() == 2) lo = (*a)[0].value<double>(), hi = (*a)[1].value<double>();
+        if (!lo || !hi) fail(node, fmt::format("'inference.prior.{}' must be an array [lo, hi] of two numbers inside [{:g}, {:g}]", name, dlo, dhi));
+        try {
+            box.set(name, *lo, *hi);
+        } catch (const InputError& e) {
+            fail(node, fmt::format("'inference.prior.{}': {}", name, e.what()));
+        }
+        c.inferencePrior.emplace_back(name, std::pair{*lo, *hi});
+    }
+}
+
 }  // namespace
 
 std::vector<CalibrateDataSet> defaultCalibrateData(const fs::path& dir) {
@@ -211,9 +237,13 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
     }
     if (const toml::table* t = section("inference")) {
         TableReader r(file, *t, "inference");
-        r.allowOnly({"samples", "fvk_density"});
+        r.allowOnly({"samples", "fvk_density", "prior"});
         r.integer("samples", c.inferenceSamples, 100, 10000000);
         r.string("fvk_density", c.fvkDensity, {"closed", "closed-double", "nodes50"});
+        if (const toml::node* pn = t->get("prior")) {
+            if (!pn->is_table()) r.fail(*pn, "'inference.prior' must be a table [inference.prior] of NAME = [lo, hi]");
+            readPriorBox(file, *pn->as_table(), c);
+        }
     }
     if (const toml::table* t = section("prediction")) {
         TableReader r(file, *t, "prediction");

@@ -6,6 +6,7 @@
 // key with its default.
 #include <cstdint>
 #include <filesystem>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,8 @@ struct CalibrateConfig {
 
     int inferenceSamples = 50000;          ///< [inference] population size of every TMCMC run
     std::string fvkDensity = "closed";     ///< closed | closed-double | nodes50
+    /// [inference.prior]: narrowed phase-1 bounds, (canonical name, (lo, hi)) in physical units.
+    std::vector<std::pair<std::string, std::pair<double, double>>> inferencePrior;
 
     int predictionMaxSamples = 5000;       ///< [prediction] posterior samples pushed forward (0 = all)
     int predictionGrid = 100;

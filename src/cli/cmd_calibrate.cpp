@@ -228,7 +228,10 @@ void registerCalibrate(CLI::App& app) {
 
         // Inference: one stage per phase-1 data set, one for phases 2-3 (which need all of them).
         const fs::path inf = out / "inference";
-        const std::string infSettings = fingerprintOf({"inference", kVersion, modelFp, std::to_string(cfg.inferenceSamples), cfg.fvkDensity, seed});
+        std::string priorArgs;
+        for (const auto& [name, b] : cfg.inferencePrior) priorArgs += fmt::format(" --prior {}={:.17g}:{:.17g}", name, b.first, b.second);
+        const std::string infSettings =
+            fingerprintOf({"inference", kVersion, modelFp, std::to_string(cfg.inferenceSamples), cfg.fvkDensity, seed, priorArgs});
         std::vector<std::string> phase1Fps = {infSettings};
         std::vector<std::string> changed;
         for (const CalibrateDataSet& d : cfg.data) {
@@ -245,9 +248,9 @@ void registerCalibrate(CLI::App& app) {
                     fs::remove_all(e.path());
         const std::string phase23Fp = fingerprintOf(phase1Fps);
         const std::string inferCmd = P.trbc(fmt::format("infer --out {} --data-dir {} --model {} --samples {} --seed {} --fvk-density {} "
-                                                        "--threads {} --resume",
+                                                        "--threads {} --resume{}",
                                                         quote(inf), quote(out / "data"), quote(modelDir), cfg.inferenceSamples, seed,
-                                                        cfg.fvkDensity, threads));
+                                                        cfg.fvkDensity, threads, priorArgs));
         const bool phase23Current = P.ledger.upToDate("inference.phase23", phase23Fp, {inf / "posterior_stats.csv"});
         if (changed.empty() && phase23Current) {
             for (const CalibrateDataSet& d : cfg.data) P.ledger.skipped("inference.phase1." + d.name);

@@ -15,9 +15,36 @@
 
 namespace trbc::cli {
 
+namespace {
+/// --prior NAME=LO:HI, each validated by RbcPriorBox::set (the error names the parameter and its range).
+RbcPriorBox parsePriorBox(const std::vector<std::string>& specs) {
+    RbcPriorBox box;
+    for (const std::string& s : specs) {
+        const auto eq = s.find('='), colon = s.find(':', eq == std::string::npos ? 0 : eq);
+        double lo = 0.0, hi = 0.0;
+        bool ok = eq != std::string::npos && colon != std::string::npos;
+        if (ok) {
+            try {
+                std::size_t n1 = 0, n2 = 0;
+                const std::string a = s.substr(eq + 1, colon - eq - 1), b = s.substr(colon + 1);
+                lo = std::stod(a, &n1);
+                hi = std::stod(b, &n2);
+                ok = n1 == a.size() && n2 == b.size();
+            } catch (const std::exception&) {
+                ok = false;
+            }
+        }
+        if (!ok) throw InputError(fmt::format("--prior '{}': expected NAME=LO:HI, e.g. v=0.8:1", s));
+        box.set(s.substr(0, eq), lo, hi);
+    }
+    return box;
+}
+}  // namespace
+
 void registerInfer(CLI::App& app) {
     struct Opts {
         std::string phase = "all", out, model, dataDir, fvk = "closed", prior3b = "support", fvk3b = "all";
+        std::vector<std::string> priors;
         int samples = 50000, threads = 2;
         std::uint64_t seed = 0xC0FFEE;
         bool resume = false, single = false, quiet = false;
@@ -58,6 +85,11 @@ void registerInfer(CLI::App& app) {
                                                            "(all, the derivation) or at the last one only (last, the reference's defect)")
         ->check(CLI::IsMember({"all", "last"}))
         ->capture_default_str();
+    cmd->add_option("--prior", o->priors,
+                    "narrow the phase-1 prior box of one parameter, NAME=LO:HI in physical units (repeatable; NAME one of v, "
+                    "mu_uN_per_m, kb_J, b2, etam_Pa_s_um; default and widest: the surrogates' training box v [0.65, 1], "
+                    "mu [1, 10] uN/m, kb [1.074e-19, 1.074e-18] J, b2 [0, 4], etam [0.1, 1] Pa s um). Give the same "
+                    "--prior to every phase");
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     cmd->callback([o]() {
         RbcInferenceOptions opt;
@@ -75,13 +107,20 @@ void registerInfer(CLI::App& app) {
         opt.phase3b.rule = opt.fvkRule;
         opt.phase3b.referencePrior = o->prior3b == "reference";
         opt.phase3b.referenceEquilibriumDefect = o->fvk3b == "last";
+        const RbcPriorBox box = parsePriorBox(o->priors);  // before anything is written
         ensureWritableDirectory(o->out);
 
         const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
         auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
         surrogate->precision = o->single ? Precision::Single : Precision::Double;
         const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
-        const std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
+        std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
+        for (RbcDataSet& d : data) d.prior = box;
+        nlohmann::json priorJson = nlohmann::json::object();
+        for (const std::string& name : RbcPriorBox::parameterNames()) {
+            const auto [lo, hi] = box.bounds(name);
+            priorJson[name] = {lo, hi};
+        }
 
         nlohmann::json networks = nlohmann::json::object();
         const std::pair<const char*, const TrainedNetwork*> nets[3] = {
@@ -91,7 +130,8 @@ void registerInfer(CLI::App& app) {
                           {"model", {{"dir", std::filesystem::absolute(modelDir).lexically_normal().string()},
                                      {"precision", o->single ? "single" : "double"},
                                      {"networks", networks}}},
-                          {"data_dir", std::filesystem::absolute(dataDir).lexically_normal().string()}};
+                          {"data_dir", std::filesystem::absolute(dataDir).lexically_normal().string()},
+                          {"phase1_prior_box", priorJson}};
         if (!o->quiet) opt.progress = [](const std::string& line) { std::cerr << line << '\n'; };
 
         omp_set_num_threads(o->threads);

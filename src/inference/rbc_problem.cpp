@@ -238,6 +238,43 @@ RbcModel timedModel(RbcModel model, std::shared_ptr<ModelTimer> timer) {
 // ------------------------------------------------------------------------------------------------
 // Parameters and priors
 
+const std::vector<std::string>& RbcPriorBox::parameterNames() {
+    static const std::vector<std::string> names = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
+    return names;
+}
+
+namespace {
+/// The bound pair of a parameter and its factor from inference to physical units.
+std::pair<double*, double*> boxBounds(RbcPriorBox& b, const std::string& name, double& scale) {
+    scale = 1.0;
+    if (name == "v") return {&b.vLo, &b.vHi};
+    if (name == "mu_uN_per_m") return {&b.muLo, &b.muHi};
+    if (name == "kb_J") return scale = kJoulePerKbUnit, std::pair{&b.kbLo, &b.kbHi};
+    if (name == "b2") return {&b.b2Lo, &b.b2Hi};
+    if (name == "etam_Pa_s_um") return {&b.etamLo, &b.etamHi};
+    throw InputError(fmt::format("unknown prior parameter '{}' (valid: v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", name));
+}
+}  // namespace
+
+std::pair<double, double> RbcPriorBox::bounds(const std::string& name) const {
+    double scale = 1.0;
+    RbcPriorBox copy = *this;
+    const auto [lo, hi] = boxBounds(copy, name, scale);
+    return {*lo * scale, *hi * scale};
+}
+
+void RbcPriorBox::set(const std::string& name, double lo, double hi) {
+    const auto [dlo, dhi] = RbcPriorBox{}.bounds(name);
+    if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi && lo >= dlo * (1 - 1e-12) && hi <= dhi * (1 + 1e-12)))
+        throw InputError(fmt::format("prior of {}: [{:g}, {:g}] is out of range: it must satisfy lo < hi inside the surrogates' "
+                                     "training box [{:g}, {:g}] (SURROGATE.md 1; a prior may be narrowed, not widened)",
+                                     name, lo, hi, dlo, dhi));
+    double scale = 1.0;
+    const auto [plo, phi] = boxBounds(*this, name, scale);
+    *plo = std::max(lo, dlo) / scale;  // the tolerance above must not widen the box
+    *phi = std::min(hi, dhi) / scale;
+}
+
 const std::vector<std::string>& phase1ParameterNames(RbcExperiment e) {
     static const std::vector<std::string> eq = {"v", "FvK", "sigma"};
     static const std::vector<std::string> st = {"v", "mu", "kb", "b2", "sigma0", "sigma1"};
@@ -259,19 +296,21 @@ Eigen::VectorXd phase1OutputScale(RbcExperiment e) {
 }
 
 std::shared_ptr<const ProductPrior> phase1Prior(const RbcDataSet& d) {
+    const RbcPriorBox& b = d.prior;
     switch (d.experiment) {
         case RbcExperiment::Equilibrium:  // 3.1: v, FvK ~ p_RU (mu in [1, 10] over kb/R_A^2 in [0.01, 0.1]), sigma
             return std::make_shared<ProductPrior>(std::vector<ScalarPriorPtr>{
-                uniformPrior(0.65, 1.0), ratioUniformPrior(1.0, 10.0, 0.01, 0.1), uniformPrior(0.0, 0.5)});
+                uniformPrior(b.vLo, b.vHi), ratioUniformPrior(b.muLo, b.muHi, 0.01 * b.kbLo / kKbLow, 0.01 * b.kbHi / kKbLow),
+                uniformPrior(0.0, 0.5)});
         case RbcExperiment::Stretching:  // 3.2
             return std::make_shared<ProductPrior>(std::vector<ScalarPriorPtr>{
-                uniformPrior(0.65, 1.0), uniformPrior(1.0, 10.0), uniformPrior(kKbLow, kKbHigh), uniformPrior(0.0, 4.0),
+                uniformPrior(b.vLo, b.vHi), uniformPrior(b.muLo, b.muHi), uniformPrior(b.kbLo, b.kbHi), uniformPrior(b.b2Lo, b.b2Hi),
                 uniformPrior(0.0, 2.0), uniformPrior(0.0, 2.0)});
         case RbcExperiment::Relaxation: {  // 3.3: r ~ p_RU (etam in [0.1, 1] over mu in [1, 10])
             if (d.aspect.size() < 1) throw InputError(fmt::format("relaxation data set {} has no rows", d.name));
             const double y1 = d.aspect[0];
             return std::make_shared<ProductPrior>(std::vector<ScalarPriorPtr>{
-                ratioUniformPrior(0.1, 1.0, 1.0, 10.0), uniformPrior(0.0, 0.05), uniformPrior(0.05, 0.5),
+                ratioUniformPrior(b.etamLo, b.etamHi, b.muLo, b.muHi), uniformPrior(0.0, 0.05), uniformPrior(0.05, 0.5),
                 uniformPrior(y1 - 0.2, y1 + 0.2), uniformPrior(0.8, 1.5), uniformPrior(0.0, 0.5)});
         }
     }

@@ -39,6 +39,28 @@ inline double fvkFromModuli(double mu, double kb) { return mu * kRbcAreaRadius2 
 enum class RbcExperiment { Equilibrium, Stretching, Relaxation };
 const char* experimentName(RbcExperiment e);  ///< "equilibrium", "stretching", "relaxation"
 
+/// Phase-1 prior box of the physical parameters (INFERENCE.md 3.1-3.3), in inference units (kb in
+/// 1e-18 J). The default is the spec's box, which is also the surrogates' training box
+/// (SURROGATE.md 1); a user may narrow it (`trbc infer --prior`, `[inference.prior]` of a calibrate
+/// config) but never widen it, because the networks are not valid outside their training box.
+/// The equilibrium FvK prior stays ratio-uniform with X = mu in [muLo, muHi], Y = kb / R_A^2, and
+/// the relaxation ratio r = etam / mu ratio-uniform with X = etam, Y = mu.
+struct RbcPriorBox {
+    double vLo = 0.65, vHi = 1.0;
+    double muLo = 1.0, muHi = 10.0;
+    double kbLo = kKbLow, kbHi = kKbHigh;
+    double b2Lo = 0.0, b2Hi = 4.0;
+    double etamLo = 0.1, etamHi = 1.0;
+
+    /// Canonical names of the bounded parameters: v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um.
+    static const std::vector<std::string>& parameterNames();
+    /// Bounds of a parameter by canonical name, in physical units (kb in J); InputError for an unknown name.
+    std::pair<double, double> bounds(const std::string& name) const;
+    /// Sets the bounds of a parameter (physical units). InputError naming the parameter and the valid
+    /// range unless default.lo <= lo < hi <= default.hi.
+    void set(const std::string& name, double lo, double hi);
+};
+
 /// One of the seven data sets. Only the fields of its experiment are filled.
 struct RbcDataSet {
     std::string name;               ///< evans_fung_1972, mills_2004, suresh_2005, hochmuth_1979_cell1..4
@@ -48,6 +70,7 @@ struct RbcDataSet {
     Eigen::Vector3d shape = Eigen::Vector3d::Zero();  ///< equilibrium: mean D, hmin, hmax (um)
     Eigen::VectorXd force, d0, d1;  ///< stretching: bead force F_j (pN), transverse D0_j, axial D1_j (um)
     Eigen::VectorXd time, aspect;   ///< relaxation: t_k (s), z_k = L/W
+    RbcPriorBox prior;              ///< phase-1 prior box of the physical parameters
 };
 
 /// Readers; every problem is an InputError naming the file, the line and the column.
@@ -107,6 +130,7 @@ Eigen::VectorXd phase1OutputScale(RbcExperiment e);
 /// Phase-1 prior pi_i (3.1-3.3): uniform boxes, ratio-uniform FvK in [10, 1000] (X = mu in [1, 10],
 /// Y = kb / R_A^2 in [0.01, 0.1]) and ratio-uniform r in [0.01, 1] s (X = etam in [0.1, 1],
 /// Y = mu in [1, 10]); relaxation z0 ~ U[y_1 - 0.2, y_1 + 0.2] with y_1 the first L/W of the cell.
+/// The bounds of v, mu, kb, b2, etam are those of data.prior (the spec's box by default).
 std::shared_ptr<const ProductPrior> phase1Prior(const RbcDataSet& data);
 
 // ------------------------------------------------------------------------------------------------
