@@ -7,6 +7,8 @@
 #include <optional>
 #include <toml++/toml.h>
 
+#include "analysis/toml_reader.hpp"
+
 #include "core/error.hpp"
 #include "inference/rbc_problem.hpp"
 
@@ -14,84 +16,6 @@ namespace trbc {
 namespace fs = std::filesystem;
 
 namespace {
-
-/// Reads the keys of one table, each checked for type and range, and rejects unknown keys.
-class TableReader {
-public:
-    TableReader(const fs::path& file, const toml::table& table, std::string context)
-        : file_(file), table_(table), context_(std::move(context)) {}
-
-    /// InputError for every key not in `allowed` (typos must not be ignored silently).
-    void allowOnly(std::initializer_list<const char*> allowed) const {
-        for (const auto& [key, node] : table_) {
-            const std::string k(key.str());
-            if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; })) {
-                std::string list;
-                for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-                fail(node, fmt::format("unknown key '{}' (valid keys: {})", qualified(k), list));
-            }
-        }
-    }
-
-    template <class Int>
-    void integer(const char* key, Int& out, long long lo, long long hi) const {
-        const toml::node* n = table_.get(key);
-        if (!n) return;
-        const auto v = n->value_exact<std::int64_t>();
-        if (!v) fail(*n, fmt::format("'{}' must be an integer in [{}, {}]", qualified(key), lo, hi));
-        if (*v < lo || *v > hi) fail(*n, fmt::format("'{}' = {} is out of range: valid range [{}, {}]", qualified(key), *v, lo, hi));
-        out = static_cast<Int>(*v);
-    }
-
-    void unsignedInteger(const char* key, std::uint64_t& out) const {
-        long long v = static_cast<long long>(out & 0x7fffffffffffffffULL);
-        integer(key, v, 0, std::numeric_limits<long long>::max());
-        out = static_cast<std::uint64_t>(v);
-    }
-
-    void real(const char* key, double& out, double lo, double hi, bool openLo = false, bool openHi = false) const {
-        const toml::node* n = table_.get(key);
-        if (!n) return;
-        const auto v = n->value<double>();  // integers convert
-        const std::string range = fmt::format("{}{}, {}{}", openLo ? "(" : "[", lo, hi, openHi ? ")" : "]");
-        if (!v) fail(*n, fmt::format("'{}' must be a number in {}", qualified(key), range));
-        const bool bad = !(openLo ? *v > lo : *v >= lo) || !(openHi ? *v < hi : *v <= hi);
-        if (bad) fail(*n, fmt::format("'{}' = {} is out of range: valid range {}", qualified(key), *v, range));
-        out = *v;
-    }
-
-    void boolean(const char* key, bool& out) const {
-        const toml::node* n = table_.get(key);
-        if (!n) return;
-        const auto v = n->value_exact<bool>();
-        if (!v) fail(*n, fmt::format("'{}' must be true or false", qualified(key)));
-        out = *v;
-    }
-
-    void string(const char* key, std::string& out, std::initializer_list<const char*> choices = {}) const {
-        const toml::node* n = table_.get(key);
-        if (!n) return;
-        const auto v = n->value_exact<std::string>();
-        if (!v) fail(*n, fmt::format("'{}' must be a string", qualified(key)));
-        if (choices.size() && std::none_of(choices.begin(), choices.end(), [&](const char* c) { return *v == c; })) {
-            std::string list;
-            for (const char* c : choices) list += (list.empty() ? "" : ", ") + std::string(c);
-            fail(*n, fmt::format("'{}' = \"{}\" is not one of: {}", qualified(key), *v, list));
-        }
-        out = *v;
-    }
-
-    [[noreturn]] void fail(const toml::node& n, const std::string& what) const {
-        throw InputError(fmt::format("{}:{}: {}", file_.string(), n.source().begin.line, what));
-    }
-
-private:
-    std::string qualified(const std::string& key) const { return context_.empty() ? key : context_ + "." + key; }
-
-    const fs::path& file_;
-    const toml::table& table_;
-    std::string context_;
-};
 
 fs::path resolveDataPath(const std::string& s, const fs::path& configDir, const fs::path& experiments) {
     static const std::string alias = "@experiments/";

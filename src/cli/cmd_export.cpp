@@ -61,13 +61,7 @@ void registerExport(CLI::App& app) {
     cmd->callback([o]() {
         const fs::path in(o->posterior);
         const fs::path file = fs::is_directory(in) ? in / "samples.csv" : in;
-        if (!fs::exists(file)) throw InputError(fmt::format("--posterior {}: no samples.csv (run `trbc infer` first)", in.string()));
-        const NumericTable t = readNumericTable(file, {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"});
-        for (const char* c : {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"})
-            if (t.find(c) < 0)
-                throw InputError(fmt::format("{}: column '{}' missing: --posterior must be a theta_new posterior (columns v, "
-                                             "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c));
-        if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
+        const NumericTable t = readThetaNewSamples(in);
         ensureWritableDirectory(o->out);
         omp_set_num_threads(o->threads);
 

@@ -59,7 +59,9 @@ void writeOutputs(const std::string& dir, const CellFlowModel& model, const Shea
 struct CellOptions {
     double v = kTable1V, mu = kTable1Mu, FvK = 0.0, kbJ = 0.0, b2 = kTable1B2, etam = kTable1Etam;
     bool allowOutside = false;
-    CLI::Option *ov = nullptr, *omu = nullptr, *fvk = nullptr, *okb = nullptr, *ob2 = nullptr, *oetam = nullptr;
+    std::string posterior;
+    CLI::Option *ov = nullptr, *omu = nullptr, *fvk = nullptr, *okb = nullptr, *ob2 = nullptr, *oetam = nullptr,
+                *opost = nullptr;
 };
 
 void addCellOptions(CLI::App* cmd, CellOptions& c) {
@@ -71,11 +73,25 @@ void addCellOptions(CLI::App* cmd, CellOptions& c) {
     c.ob2 = cmd->add_option("--b2", c.b2, "Lim non-linear shear coefficient, prior [0, 4]");
     c.oetam = cmd->add_option("--etam", c.etam, "membrane viscosity, Pa s um, prior [0.1, 1]");
     cmd->add_flag("--allow-outside-prior", c.allowOutside, "accept cell parameters outside the prior box");
+    c.opost = cmd->add_option("--posterior", c.posterior,
+                              "take the cell from a theta_new posterior (DIR/phase3/theta_new of `trbc infer`, or its "
+                              "samples.csv): the means of v, mu, kb, b2 and etam (VALIDATION.md 1)");
+    for (CLI::Option* opt : {c.ov, c.omu, c.fvk, c.okb, c.ob2, c.oetam}) c.opost->excludes(opt);
 }
 
 /// The cell parameters of the options (kb -> FvK), validated against the prior box.
 CellParameters cellParameters(const CellOptions& c) {
     CellParameters p;
+    if (c.opost->count() > 0) {
+        const NumericTable t = readThetaNewSamples(c.posterior);
+        p.v = t.column("v").mean();
+        p.mu = t.column("mu_uN_per_m").mean();
+        p.FvK = CellParameters::fvkFromKb(p.mu, t.column("kb_J").mean());
+        p.b2 = t.column("b2").mean();
+        p.etam = t.column("etam_Pa_s_um").mean();
+        validateCellParameters(p, c.allowOutside);
+        return p;
+    }
     p.v = c.v;
     p.mu = c.mu;
     p.b2 = c.b2;
@@ -98,6 +114,7 @@ nlohmann::json cellJson(const CellParameters& p) {
 }
 
 std::string cellSource(const CellOptions& c) {
+    if (c.opost->count() > 0) return "means of the theta_new posterior " + std::filesystem::absolute(c.posterior).lexically_normal().string();
     const bool any = c.ov->count() + c.omu->count() + c.okb->count() + c.fvk->count() + c.ob2->count() +
                          c.oetam->count() > 0;
     return any ? "command line (options not given: the paper's Table 1 means)"

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <string>
 
+#include "core/csv.hpp"
 #include "membrane/model.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/sfs.hpp"
@@ -65,7 +66,11 @@ void registerPredict(CLI::App& app);
 std::filesystem::path defaultSurrogateDirectory();
 /// Experimental data: $TRBC_EXPERIMENT_DATA, else the copy shipped in <source>/data/experiments.
 std::filesystem::path defaultExperimentDirectory();
+/// Samples of a theta_new posterior (DIR/samples.csv of `trbc infer`, or the file itself), columns
+/// v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; InputError naming the file and the missing column.
+NumericTable readThetaNewSamples(const std::filesystem::path& posterior, const char* option = "--posterior");
 void registerCalibrate(CLI::App& app);
+void registerValidate(CLI::App& app);
 void registerExport(CLI::App& app);
 void registerSfs(CLI::App& app);
 void registerSimulate(CLI::App& app);

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
     trbc::cli::registerFlow(app);
     trbc::cli::registerCalibrate(app);
     trbc::cli::registerExport(app);
+    trbc::cli::registerValidate(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

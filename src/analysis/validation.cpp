@@ -1,0 +1,337 @@
+#include "analysis/validation.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <toml++/toml.h>
+
+#include "analysis/toml_reader.hpp"
+#include "core/error.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path resolvePath(const std::string& s, const fs::path& configDir, const fs::path& experiments) {
+    static const std::string alias = "@experiments/";
+    if (s.rfind(alias, 0) == 0) return (experiments / s.substr(alias.size())).lexically_normal();
+    const fs::path p(s);
+    return (p.is_absolute() ? p : configDir / p).lexically_normal();
+}
+
+/// The default sweeps of VALIDATION.md 3.2: angles at 10.7 and 23.9 mPa s (14 rates in [1, 200]),
+/// TTF at 28.9 mPa s (6 rates in [8, 264]) and the scripted threshold sweeps.
+std::vector<ShearSweep> defaultSweeps() {
+    std::vector<ShearSweep> s = {{"angle", 10.7, 1.0, 200.0, 14}, {"angle", 23.9, 1.0, 200.0, 14}, {"ttf", 28.9, 8.0, 264.0, 6}};
+    const double t[][3] = {{10, 30, 300}, {14, 7, 70}, {20, 5, 50}, {23.9, 1, 12}, {30, 1, 4}, {50, 1, 4}, {70, 0.5, 2}, {100, 0.3, 1}};
+    for (const auto& r : t) s.push_back({"threshold", r[0], r[1], r[2], 6});
+    return s;
+}
+
+void readSweeps(const fs::path& file, const toml::table& shear, const char* kind, std::vector<ShearSweep>& out) {
+    const toml::node* n = shear.get(kind);
+    if (!n) return;
+    auto fail = [&](const toml::node& at, const std::string& what) {
+        throw InputError(fmt::format("{}:{}: {}", file.string(), at.source().begin.line, what));
+    };
+    const toml::array* arr = n->as_array();
+    if (!arr || arr->empty())
+        fail(*n, fmt::format("'shear.{}' must be a non-empty array of tables [[shear.{}]] with eta_out, rate_min, rate_max, count",
+                             kind, kind));
+    for (const toml::node& e : *arr) {
+        const toml::table* t = e.as_table();
+        if (!t) fail(e, fmt::format("every [[shear.{}]] entry must be a table", kind));
+        TableReader r(file, *t, fmt::format("shear.{}", kind));
+        r.allowOnly({"eta_out", "rate_min", "rate_max", "count"});
+        ShearSweep s{kind, 0.0, 0.0, 0.0, 6};
+        r.real("eta_out", s.etaOut, 0.0, 1e6, true);
+        r.real("rate_min", s.rateMin, 0.0, 1e9, true);
+        r.real("rate_max", s.rateMax, 0.0, 1e9, true);
+        r.integer("count", s.count, 1, 1000);
+        if (s.etaOut <= 0.0 || s.rateMin <= 0.0 || s.rateMax <= 0.0)
+            fail(e, fmt::format("a [[shear.{}]] entry lacks one of eta_out (mPa s), rate_min, rate_max (1/s)", kind));
+        if (s.rateMax < s.rateMin) fail(e, fmt::format("[[shear.{}]]: rate_max = {} < rate_min = {}", kind, s.rateMax, s.rateMin));
+        out.push_back(s);
+    }
+}
+
+std::string trim(const std::string& s) {
+    const auto b = s.find_first_not_of(" \t\r"), e = s.find_last_not_of(" \t\r");
+    return b == std::string::npos ? "" : s.substr(b, e - b + 1);
+}
+
+}  // namespace
+
+ValidationConfig readValidationConfig(const fs::path& file, const fs::path& experiments) {
+    if (!fs::is_regular_file(file)) throw InputError(fmt::format("configuration file {} does not exist", file.string()));
+    toml::table root;
+    try {
+        root = toml::parse_file(file.string());
+    } catch (const toml::parse_error& e) {
+        throw InputError(fmt::format("{}:{}:{}: TOML syntax error: {}", file.string(), e.source().begin.line, e.source().begin.column,
+                                     e.description()));
+    }
+    ValidationConfig c;
+    c.file = fs::absolute(file).lexically_normal();
+    c.dataDir = experiments / "validation";
+    c.sweeps = defaultSweeps();
+    for (int k = 1; k <= 15; ++k) c.pressureGradients.push_back(5.0 * k);
+    TableReader top(file, root, "");
+    top.allowOnly({"run", "data", "cell", "shear", "tube"});
+    auto section = [&](const char* name) -> const toml::table* {
+        const toml::node* n = root.get(name);
+        if (!n) return nullptr;
+        if (!n->is_table()) top.fail(*n, fmt::format("'{}' must be a table [{}]", name, name));
+        return n->as_table();
+    };
+    const fs::path dir = file.parent_path();
+    if (const toml::table* t = section("run")) {
+        TableReader r(file, *t, "run");
+        r.allowOnly({"level", "jobs", "threads", "step_tol"});
+        r.integer("level", c.level, 1, 4);
+        r.integer("jobs", c.jobs, 1, 256);
+        r.integer("threads", c.threads, 1, 1024);
+        r.real("step_tol", c.stepTol, 0.0, 1.0, true);
+    }
+    if (const toml::table* t = section("data")) {
+        TableReader r(file, *t, "data");
+        r.allowOnly({"dir"});
+        std::string d;
+        r.string("dir", d);
+        if (!d.empty()) c.dataDir = resolvePath(d, dir, experiments);
+    }
+    if (!fs::is_directory(c.dataDir / "shear_flow") || !fs::is_directory(c.dataDir / "microtube"))
+        throw InputError(fmt::format("{}: validation data directory {} lacks shear_flow/ or microtube/ (data.dir)", file.string(),
+                                     c.dataDir.string()));
+    if (const toml::table* t = section("cell")) {
+        TableReader r(file, *t, "cell");
+        r.allowOnly({"source", "posterior", "v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"});
+        r.string("source", c.cellSource, {"table1", "posterior", "explicit"});
+        std::string post;
+        r.string("posterior", post);
+        if (!post.empty()) c.posterior = resolvePath(post, dir, experiments);
+        // Prior box of MODEL.md (SURROGATE.md 1); flow solvers accept no cell outside it.
+        r.real("v", c.v, 0.65, 1.0);
+        r.real("mu_uN_per_m", c.mu, 1.0, 10.0);
+        r.real("kb_J", c.kbJ, 1.074e-19, 1.075e-18);
+        r.real("b2", c.b2, 0.0, 4.0);
+        r.real("etam_Pa_s_um", c.etam, 0.1, 1.0);
+        if (c.cellSource == "posterior" && c.posterior.empty())
+            r.fail(*t, "cell.source = \"posterior\" needs cell.posterior (DIR/phase3/theta_new of `trbc infer`)");
+        if (c.cellSource == "posterior" && !fs::exists(c.posterior))
+            r.fail(*t->get("posterior"), fmt::format("cell.posterior {} does not exist", c.posterior.string()));
+    }
+    if (const toml::table* t = section("shear")) {
+        TableReader r(file, *t, "shear");
+        r.allowOnly({"eta_in", "rotations", "threshold_refinements", "angle", "ttf", "threshold"});
+        r.real("eta_in", c.etaIn, 0.0, 1e6, true);
+        r.real("rotations", c.rotations, 0.0, 1000.0, true);
+        r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
+        // Sweeps given in the file replace all the default ones (the kinds not given are not run).
+        if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
+        for (const char* kind : {"angle", "ttf", "threshold"}) readSweeps(file, *t, kind, c.sweeps);
+    }
+    if (const toml::table* t = section("tube")) {
+        TableReader r(file, *t, "tube");
+        r.allowOnly({"enabled", "radius", "eta_out", "duration", "level", "pressure_gradients"});
+        r.boolean("enabled", c.tubeEnabled);
+        r.real("radius", c.tubeRadius, 1.497, 1e4);
+        r.real("eta_out", c.tubeEtaOut, 0.0, 1e6, true);
+        r.real("duration", c.tubeDuration, 0.0, 1e7, true);
+        r.integer("level", c.tubeLevel, 0, 4);
+        if (const toml::node* n = t->get("pressure_gradients")) {
+            const toml::array* a = n->as_array();
+            std::vector<double> pg;
+            if (a)
+                for (const toml::node& x : *a) {
+                    const auto v = x.value<double>();
+                    if (!v || !(*v > 0.0) || !std::isfinite(*v)) {
+                        pg.clear();
+                        break;
+                    }
+                    pg.push_back(*v);
+                }
+            if (pg.empty() || (a && pg.size() != a->size()))
+                r.fail(*n, "'tube.pressure_gradients' must be a non-empty array of numbers > 0 (mmHg/mm)");
+            c.pressureGradients = pg;
+        }
+    }
+    return c;
+}
+
+std::vector<double> logSpaced(double lo, double hi, int count) {
+    std::vector<double> r;
+    if (count <= 1) return {lo};
+    for (int k = 0; k < count; ++k) r.push_back(lo * std::pow(hi / lo, static_cast<double>(k) / (count - 1)));
+    return r;
+}
+
+std::string shearCaseId(const std::string& kind, double etaOut, double rate) {
+    return fmt::format("{}_eta{:g}_rate{:.4g}", kind, etaOut, rate);
+}
+
+std::string tubeCaseId(double pg) { return fmt::format("tube_pg{:g}", pg); }
+
+std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
+    std::vector<ValidationCase> cases;
+    for (const ShearSweep& s : c.sweeps)
+        for (double rate : logSpaced(s.rateMin, s.rateMax, s.count)) {
+            const std::string id = shearCaseId(s.kind, s.etaOut, rate);
+            if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return x.id == id; }))
+                cases.push_back({id, s.kind, s.etaOut, rate, 0.0});
+        }
+    if (c.tubeEnabled)
+        for (double pg : c.pressureGradients) cases.push_back({tubeCaseId(pg), "tube", c.tubeEtaOut, 0.0, pg});
+    return cases;
+}
+
+ThresholdBracket thresholdBracket(std::vector<RegimePoint> points) {
+    std::sort(points.begin(), points.end(), [](const RegimePoint& a, const RegimePoint& b) { return a.rate < b.rate; });
+    ThresholdBracket b;
+    for (const RegimePoint& p : points) {
+        if (p.regime == "tumbling") b.gammaLo = p.rate;  // ascending: the last one is the highest
+        if (p.regime == "tank-treading" && !b.gammaHi) b.gammaHi = p.rate;
+        if (p.regime == "intermittent") b.intermittentRates.push_back(p.rate);
+    }
+    b.monotone = !(b.gammaLo && b.gammaHi) || *b.gammaLo < *b.gammaHi;
+    return b;
+}
+
+std::optional<double> refinementRate(const std::vector<RegimePoint>& points, double minRatio) {
+    if (points.empty()) return std::nullopt;
+    const ThresholdBracket b = thresholdBracket(points);
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (const RegimePoint& p : points) lo = std::min(lo, p.rate), hi = std::max(hi, p.rate);
+    if (b.gammaLo && b.gammaHi) {
+        if (!b.monotone) return std::nullopt;  // tumbling above tank-treading: reported, not bisected
+        if (*b.gammaHi / *b.gammaLo <= minRatio) return std::nullopt;
+        return std::sqrt(*b.gammaLo * *b.gammaHi);
+    }
+    // Not bracketed yet: search upwards for tank-treading (everything tumbled or was intermittent),
+    // or downwards for tumbling (everything tank-treaded).
+    if (!b.gammaHi && (b.gammaLo || !b.intermittentRates.empty())) return 2.0 * hi;
+    if (b.gammaHi && !b.gammaLo && b.intermittentRates.empty()) return 0.5 * lo;
+    if (b.gammaHi && !b.gammaLo) return std::nullopt;  // intermittent below tank-treading: the transition is gradual
+    return std::nullopt;
+}
+
+ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::string& xColumn, const std::vector<std::string>& yColumns) {
+    std::ifstream in(file);
+    if (!in) throw InputError(fmt::format("cannot read experimental data {}", file.string()));
+    std::string line;
+    std::vector<std::string> header;
+    long lineNo = 0;
+    ExperimentalPoints d;
+    std::vector<int> yIdx;
+    int xIdx = -1;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        if (trim(line).empty()) continue;
+        std::vector<std::string> fields;
+        std::stringstream ss(line);
+        std::string f;
+        while (std::getline(ss, f, ',')) fields.push_back(trim(f));
+        if (!line.empty() && line.back() == ',') fields.push_back("");
+        if (header.empty()) {
+            header = fields;
+            auto idx = [&](const std::string& name) {
+                const auto it = std::find(header.begin(), header.end(), name);
+                if (it == header.end()) throw InputError(fmt::format("{}:1: missing column '{}'", file.string(), name));
+                return static_cast<int>(it - header.begin());
+            };
+            xIdx = idx(xColumn);
+            for (const std::string& y : yColumns) yIdx.push_back(idx(y));
+            continue;
+        }
+        auto number = [&](int i, bool required) -> std::optional<double> {
+            const std::string s = i < static_cast<int>(fields.size()) ? fields[i] : "";
+            if (s.empty()) {
+                if (required) throw InputError(fmt::format("{}:{}: column '{}' is empty", file.string(), lineNo, header[i]));
+                return std::nullopt;
+            }
+            try {
+                std::size_t n = 0;
+                const double v = std::stod(s, &n);
+                if (n == s.size() && std::isfinite(v)) return v;
+            } catch (const std::exception&) {
+            }
+            throw InputError(fmt::format("{}:{}: column '{}' = '{}' is not a number", file.string(), lineNo, header[i], s));
+        };
+        d.x.push_back(*number(xIdx, true));
+        std::vector<double> ys;
+        for (int i : yIdx)
+            if (const auto v = number(i, false)) ys.push_back(*v);
+        d.y.push_back(ys);
+    }
+    if (d.x.empty()) throw InputError(fmt::format("{}: no data rows", file.string()));
+    return d;
+}
+
+ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor, double scale) {
+    ScatterComparison c;
+    c.window = fmt::format("data at x in [{:.3g}, {:.3g}] (factor {:g})", x / factor, x * factor, factor);
+    c.lo = std::numeric_limits<double>::infinity();
+    c.hi = -c.lo;
+    for (std::size_t k = 0; k < data.x.size(); ++k)
+        if (data.x[k] >= x / factor && data.x[k] <= x * factor)
+            for (double y : data.y[k]) c.lo = std::min(c.lo, y * scale), c.hi = std::max(c.hi, y * scale), ++c.points;
+    if (c.points == 0) {
+        c.verdict = "no data";
+        c.lo = c.hi = 0.0;
+        return c;
+    }
+    c.verdict = std::isfinite(predicted) && predicted >= c.lo && predicted <= c.hi ? "inside" : "outside";
+    return c;
+}
+
+ScatterComparison compareInterval(double x, std::optional<double> lo, std::optional<double> hi, const ExperimentalPoints& data,
+                                  double tolerance) {
+    ScatterComparison c;
+    c.window = fmt::format("data at x within {:g} % of {:g}", 100.0 * tolerance, x);
+    c.lo = std::numeric_limits<double>::infinity();
+    c.hi = -c.lo;
+    for (std::size_t k = 0; k < data.x.size(); ++k)
+        if (std::abs(data.x[k] - x) <= tolerance * x)
+            for (double y : data.y[k]) c.lo = std::min(c.lo, y), c.hi = std::max(c.hi, y), ++c.points;
+    if (c.points == 0) {
+        c.verdict = "no data";
+        c.lo = c.hi = 0.0;
+        return c;
+    }
+    if (!lo || !hi) {  // a one-sided bound is no prediction of the threshold
+        c.verdict = "not bracketed";
+        return c;
+    }
+    const double plo = lo.value_or(-std::numeric_limits<double>::infinity());
+    const double phi = hi.value_or(std::numeric_limits<double>::infinity());
+    c.verdict = plo <= c.hi && phi >= c.lo ? "inside" : "outside";
+    return c;
+}
+
+ScatterComparison compareWithBand(double x, double predicted, const ExperimentalPoints& data) {
+    ScatterComparison c;
+    c.window = "band [l_low, l_high] interpolated linearly in log v between the data rows";
+    std::vector<std::size_t> order(data.x.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return data.x[a] < data.x[b]; });
+    for (std::size_t k = 0; k + 1 < order.size(); ++k) {
+        const std::size_t a = order[k], b = order[k + 1];
+        if (!(x >= data.x[a] && x <= data.x[b]) || data.y[a].size() < 3 || data.y[b].size() < 3) continue;
+        const double w = data.x[b] > data.x[a] ? std::log(x / data.x[a]) / std::log(data.x[b] / data.x[a]) : 0.0;
+        const double high = (1 - w) * data.y[a][1] + w * data.y[b][1], low = (1 - w) * data.y[a][2] + w * data.y[b][2];
+        c.lo = std::min(low, high);
+        c.hi = std::max(low, high);
+        c.points = 2;
+        c.verdict = std::isfinite(predicted) && predicted >= c.lo && predicted <= c.hi ? "inside" : "outside";
+        return c;
+    }
+    c.verdict = "no data";
+    return c;
+}
+
+}  // namespace trbc

@@ -1,0 +1,107 @@
+#pragma once
+// The flow-validation set of VALIDATION.md 3.2 and 4.2 (issue 9): its configuration
+// (configs/validation.toml), the cases it expands to, the tumbling/tank-treading bracket and its
+// refinement (3.3), and the comparison of each prediction with the experimental scatter.
+// The cases themselves are `trbc flow shear|tube` runs driven by `trbc validate` (cli/cmd_validate.cpp).
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace trbc {
+
+/// One shear-rate sweep at fixed outer viscosity: `count` rates log-spaced in [rateMin, rateMax].
+struct ShearSweep {
+    std::string kind;        ///< angle | ttf | threshold
+    double etaOut = 0.0;     ///< mPa s
+    double rateMin = 0.0, rateMax = 0.0;  ///< 1/s
+    int count = 0;
+};
+
+struct ValidationConfig {
+    std::filesystem::path file;       ///< the TOML file (absolute)
+    std::filesystem::path dataDir;    ///< experimental validation data (shear_flow/, microtube/)
+    int level = 2, jobs = 1, threads = 1;
+    double stepTol = 1e-3;            ///< local error per step, R_A
+    /// Cell: "table1" (the paper's Table 1 means), "posterior" (means of a theta_new posterior) or
+    /// "explicit" (the five parameters below).
+    std::string cellSource = "table1";
+    std::filesystem::path posterior;
+    double v = 0.94, mu = 4.99, kbJ = 2.10e-19, b2 = 1.84, etam = 0.69;
+    double etaIn = 10.0, rotations = 10.0;  ///< shear flow: cytosol (mPa s), duration in rigid-sphere turns
+    std::vector<ShearSweep> sweeps;         ///< the defaults of VALIDATION.md 3.2 unless the file gives any [[shear.*]]
+    int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
+    bool tubeEnabled = true;
+    double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 300.0;  ///< um, mPa s, R/V
+    int tubeLevel = 0;                      ///< 0: the run level
+    std::vector<double> pressureGradients;  ///< mmHg/mm
+};
+
+/// Reads and checks a validation config; every error names file:line:key and the valid range.
+/// `experiments` resolves the "@experiments/" alias (the shipped data/experiments by default).
+ValidationConfig readValidationConfig(const std::filesystem::path& file, const std::filesystem::path& experiments);
+
+/// `count` values log-spaced in [lo, hi] (count 1: lo).
+std::vector<double> logSpaced(double lo, double hi, int count);
+
+/// One case of the set: a flow shear or flow tube run.
+struct ValidationCase {
+    std::string id;      ///< e.g. angle_eta23.9_rate55.4, tube_pg30
+    std::string kind;    ///< angle | ttf | threshold | tube
+    double etaOut = 0.0, rate = 0.0, pressureGradient = 0.0;
+};
+
+/// The cases of the sweeps and the tube before any refinement, in a fixed order.
+std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c);
+std::string shearCaseId(const std::string& kind, double etaOut, double rate);
+std::string tubeCaseId(double pressureGradient);
+
+/// Result of a shear case as far as the threshold needs it.
+struct RegimePoint {
+    double rate = 0.0;
+    std::string regime;  ///< tank-treading | tumbling | intermittent | "" (failed)
+};
+
+/// VALIDATION.md 3.3: gammaLo = highest rate with tumbling, gammaHi = lowest rate with tank-treading.
+struct ThresholdBracket {
+    std::optional<double> gammaLo, gammaHi;
+    bool monotone = true;                 ///< gammaLo < gammaHi (false: tumbling above tank-treading)
+    std::vector<double> intermittentRates;
+};
+ThresholdBracket thresholdBracket(std::vector<RegimePoint> points);
+
+/// The next rate to run for a bracket: the geometric mean of [gammaLo, gammaHi] when both exist and
+/// differ by more than `minRatio`; 2 max(rates) when nothing tank-treaded (tumbling or intermittent
+/// only), min(rates) / 2 when everything tank-treaded; none otherwise (also when tumbling occurs
+/// above tank-treading: reported, not bisected).
+std::optional<double> refinementRate(const std::vector<RegimePoint>& points, double minRatio = 1.05);
+
+/// A prediction against the experimental scatter around it.
+struct ScatterComparison {
+    std::string verdict;    ///< inside | outside | no data | not bracketed (threshold with a one-sided bound)
+    double lo = 0.0, hi = 0.0;  ///< the scatter interval (valid unless "no data")
+    int points = 0;         ///< experimental values in the window
+    std::string window;     ///< how the scatter was selected
+};
+
+/// Experimental table of the validation data: rows of (x, y...) as read from a CSV.
+struct ExperimentalPoints {
+    std::vector<double> x;
+    std::vector<std::vector<double>> y;  ///< per row the non-blank values (donors, or l/l_high/l_low)
+};
+/// Reads columns: x = `xColumn`, y = every other listed column (blanks allowed, skipped).
+ExperimentalPoints readExperimentalPoints(const std::filesystem::path& file, const std::string& xColumn,
+                                          const std::vector<std::string>& yColumns);
+
+/// Scatter of all y values of the rows with x in [x / factor, x * factor] (times `scale`).
+ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor,
+                                     double scale = 1.0);
+/// Interval comparison (threshold): the predicted interval [lo, hi] overlaps the data's [min, max]
+/// of the rows with x within a relative `tolerance`; "not bracketed" when either bound is missing.
+ScatterComparison compareInterval(double x, std::optional<double> lo, std::optional<double> hi, const ExperimentalPoints& data,
+                                  double tolerance);
+/// Band comparison (tube length): the band [y_low(x), y_high(x)] linearly interpolated in log x
+/// between the data rows (y columns: value, high, low); "no data" outside their x range.
+ScatterComparison compareWithBand(double x, double predicted, const ExperimentalPoints& data);
+
+}  // namespace trbc

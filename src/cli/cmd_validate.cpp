@@ -1,0 +1,438 @@
+// trbc validate: the flow-validation set of VALIDATION.md 3.2 and 4.2 (issue 9 item 3). Every
+// case is a `trbc flow shear|tube` child process whose JSON is kept in OUT/cases/<id>.json with a
+// key of its command; a killed run loses no finished case (resume = run again). The tumbling /
+// tank-treading brackets are refined by bisection; the results are tabulated against the
+// experimental scatter and drawn by scripts/plot_validation.py.
+#include <fmt/format.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "analysis/stage_ledger.hpp"
+#include "analysis/validation.hpp"
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/version.hpp"
+
+namespace trbc::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+std::string quote(const fs::path& p) {
+    std::string s = "'";
+    for (char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return s + "'";
+}
+
+std::string readFile(const fs::path& p) {
+    std::ifstream in(p);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void writeFileAtomically(const fs::path& p, const std::string& text) {
+    const fs::path tmp = p.string() + ".tmp";
+    {
+        std::ofstream out(tmp);
+        out << text;
+        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
+    }
+    fs::rename(tmp, p);
+}
+
+std::string num(const json& j) { return j.is_number() ? fmt::format("{:.6g}", j.get<double>()) : ""; }
+
+/// A numeric field of an object, NaN when absent or null (a failed or undefined observable).
+double numberOr(const json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_number() ? it->get<double>() : NAN;
+}
+
+struct Runner {
+    ValidationConfig cfg;
+    fs::path out, exe, python, scripts;
+    bool quiet = false;
+    std::mutex mutex;
+    std::map<std::string, json> results;  ///< case id -> {"key", "command", "exit", "wall_s", "result"}
+    std::vector<ValidationCase> cases;    ///< every case so far, in order
+    int done = 0, total = 0;
+    double caseSeconds = 0.0;
+    int ranHere = 0;
+    Clock::time_point start = Clock::now();
+
+    std::string cellArgs() const {
+        if (cfg.cellSource == "posterior") return "--posterior " + quote(cfg.posterior);
+        if (cfg.cellSource == "explicit")
+            return fmt::format("--v {:.17g} --mu {:.17g} --kb {:.17g} --b2 {:.17g} --etam {:.17g}", cfg.v, cfg.mu, cfg.kbJ, cfg.b2, cfg.etam);
+        return "";  // the flow commands' default: the paper's Table 1 means
+    }
+
+    /// The flow arguments of a case (without threads and output, which do not change the result).
+    std::string caseArgs(const ValidationCase& c) const {
+        if (c.kind == "tube")
+            return fmt::format("flow tube --radius {:.17g} --pressure-gradient {:.17g} --eta-out {:.17g} --level {} --duration {:.17g} "
+                               "--step-tol {:.17g} {}",
+                               cfg.tubeRadius, c.pressureGradient, cfg.tubeEtaOut, cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level,
+                               cfg.tubeDuration, cfg.stepTol, cellArgs());
+        return fmt::format("flow shear --eta-out {:.17g} --shear-rate {:.17g} --eta-in {:.17g} --level {} --rotations {:.17g} "
+                           "--step-tol {:.17g} {}",
+                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
+    }
+
+    std::string caseKey(const ValidationCase& c) const {
+        std::string cell = cellArgs();
+        if (cfg.cellSource == "posterior") cell += " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
+        return fingerprintOf({kVersion, caseArgs(c), cell});
+    }
+
+    fs::path caseFile(const ValidationCase& c) const { return out / "cases" / (c.id + ".json"); }
+
+    /// A finished case of an earlier run with the same key, if any.
+    bool loadFinished(const ValidationCase& c) {
+        const fs::path f = caseFile(c);
+        if (!fs::exists(f)) return false;
+        try {
+            json j = json::parse(readFile(f));
+            if (j.value("key", "") != caseKey(c) || !j.contains("result")) return false;
+            std::lock_guard lock(mutex);
+            results[c.id] = std::move(j);
+            return true;
+        } catch (const std::exception&) {
+            return false;  // a damaged record is run again
+        }
+    }
+
+    void runCase(const ValidationCase& c) {
+        const fs::path dir = out / "cases" / c.id;
+        fs::remove_all(dir);
+        const fs::path stdoutFile = out / "cases" / (c.id + ".stdout"), log = out / "cases" / (c.id + ".log");
+        const std::string command = fmt::format("{} {} --threads {} --out {} --vtk-every 50", quote(exe), caseArgs(c), cfg.threads, quote(dir));
+        const auto t0 = Clock::now();
+        const int status = std::system((command + " > " + quote(stdoutFile) + " 2> " + quote(log) + " < /dev/null").c_str());
+        const int rc = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        if (rc == 130 || rc == 128 + SIGINT || rc == 128 + SIGTERM || rc == 128 + SIGKILL)
+            throw NumericalError(fmt::format("validate: case {} interrupted (exit {}); run the same command again to resume", c.id, rc));
+        json result;
+        try {
+            result = json::parse(readFile(stdoutFile));
+        } catch (const std::exception&) {
+            std::string tail = readFile(log);
+            if (tail.size() > 600) tail = "..." + tail.substr(tail.size() - 600);
+            result = {{"status", "failed"}, {"reason", fmt::format("exit {} without a result: {}", rc, tail)}};
+        }
+        if (rc != 0 && result.value("status", "") == "ok") result["status"] = "failed";
+        json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
+                       {"exit", rc},         {"wall_s", wall}, {"result", result}};
+        writeFileAtomically(caseFile(c), record.dump(1) + "\n");
+        fs::remove(stdoutFile);
+        std::lock_guard lock(mutex);
+        results[c.id] = record;
+        ++done;
+        ++ranHere;
+        caseSeconds += wall;
+        if (!quiet) {
+            const json& o = result.value("observables", json::object());
+            std::string what = result.value("status", "?");
+            if (what == "ok" && c.kind != "tube")
+                what = fmt::format("{} angle {} TTF {}", o.value("regime", "?"), num(o.value("inclination_deg", json())),
+                                   num(o.value("ttf_4pi_f_over_shear_rate", json())));
+            else if (what == "ok")
+                what = fmt::format("v {} cm/s, length {} um", num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())));
+            else
+                what = "FAILED: " + result.value("reason", std::string("?")).substr(0, 160);
+            const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+            const double eta = (total - done) * (caseSeconds / ranHere) / cfg.jobs;
+            std::cerr << fmt::format("validate: [{}/{}] {} ({:.0f} s): {}; elapsed {:.0f} min, ETA {:.0f} min\n", done, total, c.id, wall, what,
+                                     elapsed / 60.0, eta / 60.0);
+        }
+    }
+
+    /// Runs the cases not finished yet, `jobs` at a time.
+    void runAll(const std::vector<ValidationCase>& batch) {
+        std::vector<ValidationCase> todo;
+        for (const ValidationCase& c : batch) {
+            cases.push_back(c);
+            ++total;
+            if (loadFinished(c))
+                ++done;
+            else
+                todo.push_back(c);
+        }
+        if (!quiet && !batch.empty())
+            std::cerr << fmt::format("validate: {} case(s), {} finished earlier, {} to run ({} at a time, {} thread(s) each)\n",
+                                     batch.size(), batch.size() - todo.size(), todo.size(), cfg.jobs, cfg.threads);
+        std::atomic<std::size_t> next{0};
+        std::exception_ptr error;
+        auto worker = [&]() {
+            for (std::size_t k; (k = next++) < todo.size();) {
+                try {
+                    runCase(todo[k]);
+                } catch (...) {
+                    std::lock_guard lock(mutex);
+                    if (!error) error = std::current_exception();
+                    next = todo.size();
+                }
+            }
+        };
+        std::vector<std::thread> pool;
+        for (int j = 0; j < std::min<int>(cfg.jobs, static_cast<int>(todo.size())); ++j) pool.emplace_back(worker);
+        for (std::thread& t : pool) t.join();
+        if (error) std::rethrow_exception(error);
+    }
+
+    const json& resultOf(const std::string& id) const { return results.at(id).at("result"); }
+
+    std::vector<RegimePoint> thresholdPoints(double eta) const {
+        std::vector<RegimePoint> p;
+        for (const ValidationCase& c : cases)
+            if (c.kind == "threshold" && c.etaOut == eta) {
+                const json& r = resultOf(c.id);
+                const json reg = r.value("observables", json::object()).value("regime", json());
+                p.push_back({c.rate, r.value("status", "") == "ok" && reg.is_string() ? reg.get<std::string>() : ""});
+            }
+        return p;
+    }
+};
+
+std::vector<double> thresholdViscosities(const ValidationConfig& c) {
+    std::vector<double> etas;
+    for (const ShearSweep& s : c.sweeps)
+        if (s.kind == "threshold" && std::find(etas.begin(), etas.end(), s.etaOut) == etas.end()) etas.push_back(s.etaOut);
+    return etas;
+}
+
+/// Tables, comparison with the experimental scatter, summary; returns the summary JSON.
+json writeTables(Runner& R) {
+    const ValidationConfig& cfg = R.cfg;
+    const fs::path& out = R.out;
+    const fs::path shearData = cfg.dataDir / "shear_flow", tubeData = cfg.dataDir / "microtube";
+    json comparisons = json::array();
+    int inside = 0, outside = 0, noData = 0, failed = 0;
+    std::string md = "| case | observable | prediction | experimental scatter | verdict |\n|---|---|---|---|---|\n";
+    auto record = [&](const std::string& id, const std::string& observable, double predicted, const ScatterComparison& s,
+                      const std::string& shown) {
+        (s.verdict == "inside" ? inside : s.verdict == "outside" ? outside : noData)++;  // no data, not bracketed
+        comparisons.push_back({{"case", id}, {"observable", observable}, {"predicted", predicted}, {"scatter_lo", s.lo},
+                               {"scatter_hi", s.hi}, {"points", s.points}, {"window", s.window}, {"verdict", s.verdict}});
+        md += fmt::format("| {} | {} | {} | {} | {} |\n", id, observable, shown,
+                          s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g} ({} values)", s.lo, s.hi, s.points),
+                          s.verdict == "outside" ? "**outside**" : s.verdict);
+    };
+
+    std::string shear =
+        "case_id,sweep,eta_out_mPa_s,shear_rate_per_s,shear_stress_Pa,regime,inclination_deg,swing_amplitude_deg,"
+        "ttf_4pi_f_over_shear_rate,status,area_drift_max,volume_drift_max,wall_s,level\n";
+    std::string tube = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,length_um,width_um,plateau,status,area_drift_max,"
+                       "volume_drift_max,wall_s,level\n";
+    std::map<double, ExperimentalPoints> angleData;
+    for (const ValidationCase& c : R.cases) {
+        const json& rec = R.results.at(c.id);
+        const json& r = rec.at("result");
+        const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
+        const std::string status = r.value("status", "failed");
+        if (status != "ok") ++failed;
+        const double wall = rec.value("wall_s", 0.0);
+        if (c.kind == "tube") {
+            const json plateau = d.value("plateau", json::object());
+            tube += fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.pressureGradient, cfg.tubeRadius,
+                                num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
+                                num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false", status,
+                                num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())), wall,
+                                cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
+            if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) continue;
+            const double v = numberOr(o, "velocity_cm_per_s"), l = numberOr(o, "length_um");
+            static const ExperimentalPoints pgv = readExperimentalPoints(tubeData / "Tomaiuolo2009_pg_v_6.6um.csv", "pg", {"v"});
+            static const ExperimentalPoints vl =
+                readExperimentalPoints(tubeData / "Tomaiuolo2009_v_l_6.6um.csv", "v", {"l", "l_high", "l_low"});
+            record(c.id, "velocity [cm/s]", v, compareWithScatter(c.pressureGradient, v, pgv, 1.25), fmt::format("{:.3g}", v));
+            record(c.id, "length [um]", l, compareWithBand(v, l, vl), fmt::format("{:.3g} (at {:.3g} cm/s)", l, v));
+            continue;
+        }
+        const std::string regime = o.value("regime", json()).is_string() ? o.at("regime").get<std::string>() : "";
+        shear += fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.kind, c.etaOut, c.rate,
+                             c.etaOut * 1e-3 * c.rate, regime, num(o.value("inclination_deg", json())),
+                             num(o.value("swing_amplitude_deg", json())), num(o.value("ttf_4pi_f_over_shear_rate", json())), status,
+                             num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())), wall, cfg.level);
+        if (status != "ok") continue;
+        if (c.kind == "angle") {
+            const fs::path f = shearData / "inclination_angle" / fmt::format("Fisher2015_eta_{:g}_mPa_s.csv", c.etaOut);
+            if (!fs::exists(f)) continue;
+            if (!angleData.count(c.etaOut))
+                angleData[c.etaOut] = readExperimentalPoints(f, "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
+            const double a = numberOr(o, "inclination_deg");
+            record(c.id, "inclination [deg]", a, compareWithScatter(c.rate, a, angleData[c.etaOut], 1.5),
+                   std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
+        } else if (c.kind == "ttf") {
+            static const ExperimentalPoints ttf = readExperimentalPoints(shearData / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
+            const double f = numberOr(o, "ttf_4pi_f_over_shear_rate");
+            record(c.id, "4 pi f / rate", f, compareWithScatter(c.rate, f, ttf, 1.25, 4.0 * M_PI),
+                   std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
+        }
+    }
+    // Threshold: the bracket per outer viscosity against Fischer 2013 and Abkarian 2007.
+    ExperimentalPoints crit = readExperimentalPoints(shearData / "tt_tb_critical_stress" / "Fischer2013.csv", "eta", {"tau"});
+    const ExperimentalPoints ab = readExperimentalPoints(shearData / "tt_tb_critical_stress" / "Abkarian2007.csv", "eta", {"tau"});
+    crit.x.insert(crit.x.end(), ab.x.begin(), ab.x.end());
+    crit.y.insert(crit.y.end(), ab.y.begin(), ab.y.end());
+    std::string thr = "eta_out_mPa_s,gamma_lo_per_s,gamma_hi_per_s,tau_lo_Pa,tau_hi_Pa,monotone,intermittent_rates_per_s\n";
+    for (double eta : thresholdViscosities(cfg)) {
+        if (R.thresholdPoints(eta).empty()) continue;  // not run (--only)
+        const ThresholdBracket b = thresholdBracket(R.thresholdPoints(eta));
+        std::string inter;
+        for (double r : b.intermittentRates) inter += (inter.empty() ? "" : ";") + fmt::format("{:.4g}", r);
+        auto opt = [](std::optional<double> v, double s) { return v ? fmt::format("{:.6g}", *v * s) : std::string(); };
+        thr += fmt::format("{:g},{},{},{},{},{},{}\n", eta, opt(b.gammaLo, 1.0), opt(b.gammaHi, 1.0), opt(b.gammaLo, eta * 1e-3),
+                           opt(b.gammaHi, eta * 1e-3), b.monotone ? "true" : "false", inter);
+        std::optional<double> tlo, thi;
+        if (b.gammaLo) tlo = *b.gammaLo * eta * 1e-3;
+        if (b.gammaHi) thi = *b.gammaHi * eta * 1e-3;
+        const ScatterComparison s = compareInterval(eta, tlo, thi, crit, 0.1);
+        record(fmt::format("threshold_eta{:g}", eta), "critical stress [Pa]", thi.value_or(NAN), s,
+               fmt::format("[{}, {}]", tlo ? fmt::format("{:.3g}", *tlo) : "–", thi ? fmt::format("{:.3g}", *thi) : "–"));
+    }
+    writeFileAtomically(out / "shear.csv", shear);
+    writeFileAtomically(out / "tube.csv", tube);
+    writeFileAtomically(out / "threshold.csv", thr);
+    std::string cmp = "case,observable,predicted,scatter_lo,scatter_hi,points,verdict,window\n";
+    for (const json& c : comparisons)
+        cmp += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{},{},\"{}\"\n", c["case"].get<std::string>(), c["observable"].get<std::string>(),
+                           c["predicted"].get<double>(), c["scatter_lo"].get<double>(), c["scatter_hi"].get<double>(),
+                           c["points"].get<int>(), c["verdict"].get<std::string>(), c["window"].get<std::string>());
+    writeFileAtomically(out / "comparison.csv", cmp);
+    const json summary = {{"cases", R.cases.size()}, {"failed", failed}, {"inside", inside}, {"outside", outside}, {"no_data", noData}};
+    md = fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
+                     "scatter, {} outside, {} without data nearby. Windows: inclination and TTF use the data at shear rates "
+                     "within a factor 1.5 (angle) or 1.25 (TTF) of the case, the velocity the data at pressure gradients within "
+                     "a factor 1.25, the length the Tomaiuolo band interpolated at the predicted velocity, the critical stress "
+                     "the data within 10 % of the outer viscosity (inside = the interval [eta gamma_lo, eta gamma_hi] overlaps "
+                     "them).\n\n",
+                     R.cases.size(), failed, inside, outside, noData) +
+         md;
+    writeFileAtomically(out / "validation.md", md);
+    return summary;
+}
+
+}  // namespace
+
+void registerValidate(CLI::App& app) {
+    struct Opts {
+        std::string config, out;
+        std::vector<std::string> only;
+        int jobs = 0, threads = 0;
+        bool quiet = false, dryRun = false;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = app.add_subcommand(
+        "validate", "Run the flow-validation set of VALIDATION.md 3.2 and 4.2 (inclination angle, tank-treading frequency, "
+                    "tumbling/tank-treading threshold in shear flow; velocity and length in a microtube) with `trbc flow`, "
+                    "compare every case with the experimental scatter and draw the paper's figures. Resumable: run the same "
+                    "command again after an interruption and only unfinished cases run. Writes OUT/shear.csv, "
+                    "threshold.csv, tube.csv, comparison.csv, validation.md, validation.json, figures/ and cases/");
+    cmd->add_option("--config", o->config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
+    cmd->add_option("--out", o->out, "output directory")->required();
+    cmd->add_option("--jobs", o->jobs, "cases run at the same time (overrides run.jobs)")->check(CLI::Range(1, 256));
+    cmd->add_option("--threads", o->threads, "OpenMP threads per case (overrides run.threads)")->check(CLI::Range(1, 1024));
+    cmd->add_option("--only", o->only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
+                                       "the tables cover what has been run")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
+    cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, run nothing");
+    cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
+    cmd->callback([o]() {
+        Runner R{};
+        R.cfg = readValidationConfig(o->config, defaultExperimentDirectory());
+        if (o->jobs > 0) R.cfg.jobs = o->jobs;
+        if (o->threads > 0) R.cfg.threads = o->threads;
+        if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
+        R.out = fs::absolute(o->out).lexically_normal();
+        R.quiet = o->quiet;
+        R.exe = fs::read_symlink("/proc/self/exe");
+        R.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
+        const char* py = std::getenv("TRBC_PYTHON");
+        R.python = py ? fs::path(py) : fs::exists("/usr/bin/python3") ? fs::path("/usr/bin/python3") : fs::path("python3");
+        std::vector<ValidationCase> initial = initialValidationCases(R.cfg);
+        const std::size_t configured = initial.size();
+        if (!o->only.empty())
+            std::erase_if(initial, [&](const ValidationCase& c) { return std::find(o->only.begin(), o->only.end(), c.kind) == o->only.end(); });
+        if (o->dryRun) {
+            for (const ValidationCase& c : initial) std::cout << c.id << ": trbc " << R.caseArgs(c) << "\n";
+            return;
+        }
+        ensureWritableDirectory(R.out.string());
+        fs::create_directories(R.out / "cases");
+        const auto t0 = Clock::now();
+        R.runAll(initial);
+        const bool thresholds = o->only.empty() || std::find(o->only.begin(), o->only.end(), "threshold") != o->only.end();
+        for (int round = 0; thresholds && round < R.cfg.thresholdRefinements; ++round) {
+            std::vector<ValidationCase> more;
+            for (double eta : thresholdViscosities(R.cfg))
+                if (const auto rate = refinementRate(R.thresholdPoints(eta))) {
+                    const std::string id = shearCaseId("threshold", eta, *rate);
+                    if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0});
+                }
+            if (more.empty()) break;
+            if (!R.quiet) std::cerr << fmt::format("validate: threshold refinement {}: {} case(s)\n", round + 1, more.size());
+            R.runAll(more);
+        }
+        const json summary = writeTables(R);
+        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        json cell = R.cfg.cellSource == "table1"
+                        ? json{{"source", "the paper's Table 1 means"}, {"v", 0.94}, {"mu_uN_per_m", 4.99}, {"kb_J", 2.10e-19}, {"b2", 1.84},
+                               {"etam_Pa_s_um", 0.69}}
+                    : R.cfg.cellSource == "explicit"
+                        ? json{{"source", "explicit"}, {"v", R.cfg.v}, {"mu_uN_per_m", R.cfg.mu}, {"kb_J", R.cfg.kbJ}, {"b2", R.cfg.b2},
+                               {"etam_Pa_s_um", R.cfg.etam}}
+                        : json{{"source", "means of " + R.cfg.posterior.string()}};
+        if (R.cfg.cellSource == "posterior" && !R.cases.empty())
+            for (const ValidationCase& c : R.cases)
+                if (R.resultOf(c.id).contains("parameters")) {
+                    cell["parameters"] = R.resultOf(c.id)["parameters"].value("cell", json());
+                    break;
+                }
+        double caseWall = 0.0;
+        for (const auto& [id, rec] : R.results) caseWall += rec.value("wall_s", 0.0);
+        const json j = {{"summary", summary},
+                        {"initial_cases_configured", configured},
+                        {"only", o->only},
+                        {"cell", cell},
+                        {"level", R.cfg.level},
+                        {"tube_level", R.cfg.tubeLevel > 0 ? R.cfg.tubeLevel : R.cfg.level},
+                        {"config", R.cfg.file.string()},
+                        {"config_text", readFile(R.cfg.file)},
+                        {"data_dir", R.cfg.dataDir.string()},
+                        {"wall_s_this_run", wall},
+                        {"case_wall_s_total", caseWall},
+                        {"cases_run_this_time", R.ranHere},
+                        {"jobs", R.cfg.jobs},
+                        {"threads_per_case", R.cfg.threads},
+                        {"provenance", {{"version", kVersion}, {"command", commandLine()}}}};
+        writeFileAtomically(R.out / "validation.json", j.dump(2) + "\n");
+        const std::string plot = quote(R.python) + " " + quote(R.scripts / "plot_validation.py") + " " + quote(R.out) + " --data " +
+                                 quote(R.cfg.dataDir) + " > " + quote(R.out / "plot.log") + " 2>&1";
+        if (std::system(plot.c_str()) != 0)
+            std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());
+        if (initial.size() < configured)
+            std::cout << fmt::format("trbc validate: --only: {} of the {} configured initial cases selected\n", initial.size(), configured);
+        std::cout << fmt::format("trbc validate: {} cases ({} failed, {} run now) in {:.1f} min; {} predictions inside the experimental "
+                                 "scatter, {} outside, {} without data\n  tables: {}/{{shear,threshold,tube,comparison}}.csv\n  "
+                                 "summary: {}\n  figures: {}\n",
+                                 summary["cases"].get<int>(), summary["failed"].get<int>(), R.ranHere, wall / 60.0,
+                                 summary["inside"].get<int>(), summary["outside"].get<int>(), summary["no_data"].get<int>(),
+                                 R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
+        if (summary["failed"].get<int>() > 0) throw NumericalError(fmt::format("validate: {} case(s) failed (see validation.md and cases/)", summary["failed"].get<int>()));
+    });
+}
+
+}  // namespace trbc::cli

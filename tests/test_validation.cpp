@@ -1,0 +1,199 @@
+// trbc validate (issue 9 item 3): configuration, the cases of VALIDATION.md 3.2/4.2, the
+// tumbling/tank-treading bracket and its refinement, the comparison with the experimental scatter,
+// and the resumable runner on a tiny set.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "analysis/validation.hpp"
+#include "core/error.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+using test::TempDir;
+
+const fs::path kRepo = fs::path(TRBC_TEST_DATA) / ".." / "..";
+const fs::path kExperiments = kRepo / "data" / "experiments";
+
+fs::path writeText(const fs::path& p, const std::string& text) {
+    fs::create_directories(p.parent_path());
+    std::ofstream(p) << text;
+    return p;
+}
+
+std::string configError(const TempDir& dir, const std::string& toml) {
+    const fs::path file = writeText(dir.path() / "v.toml", toml);
+    try {
+        readValidationConfig(file, kExperiments);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
+    const ValidationConfig c = readValidationConfig(kRepo / "configs" / "validation.toml", kExperiments);
+    const std::vector<ValidationCase> cases = initialValidationCases(c);
+    int angle = 0, ttf = 0, thr = 0, tube = 0;
+    for (const ValidationCase& x : cases)
+        (x.kind == "angle" ? angle : x.kind == "ttf" ? ttf : x.kind == "threshold" ? thr : tube)++;
+    EXPECT_EQ(angle, 28);  // 14 rates at 10.7 and 23.9 mPa s
+    EXPECT_EQ(ttf, 6);
+    EXPECT_EQ(thr, 4 * 6 + 4 * 5);  // the eight scripted sweeps
+    EXPECT_EQ(tube, 15);            // 5, 10, ..., 75 mmHg/mm
+    EXPECT_EQ(cases.front().id, "angle_eta10.7_rate1");
+    EXPECT_NEAR(cases[13].rate, 200.0, 1e-9);
+    EXPECT_EQ(cases.back().id, "tube_pg75");
+    EXPECT_DOUBLE_EQ(c.tubeRadius, 3.3);
+    EXPECT_EQ(c.cellSource, "table1");
+}
+
+TEST(ValidationConfig, ErrorsNameFileLineKeyAndRange) {
+    TempDir dir;
+    std::string e = configError(dir, "[run]\nlevel = 7\n");
+    EXPECT_NE(e.find("v.toml:2: 'run.level' = 7 is out of range: valid range [1, 4]"), std::string::npos) << e;
+    e = configError(dir, "[shear]\neta_in = -1\n");
+    EXPECT_NE(e.find("v.toml:2: 'shear.eta_in' = -1 is out of range"), std::string::npos) << e;
+    e = configError(dir, "[[shear.angle]]\neta_out = 10\nrate_min = 5\nrate_max = 1\n");
+    EXPECT_NE(e.find("rate_max = 1 < rate_min = 5"), std::string::npos) << e;
+    e = configError(dir, "[[shear.ttf]]\neta_out = 0\nrate_min = 5\nrate_max = 10\n");
+    EXPECT_NE(e.find("'shear.ttf.eta_out' = 0 is out of range"), std::string::npos) << e;
+    e = configError(dir, "[tube]\nradius = 1.0\n");
+    EXPECT_NE(e.find("v.toml:2: 'tube.radius' = 1 is out of range: valid range [1.497, 10000]"), std::string::npos) << e;
+    e = configError(dir, "[tube]\npressure_gradients = [5, -10]\n");
+    EXPECT_NE(e.find("v.toml:2: 'tube.pressure_gradients' must be a non-empty array of numbers > 0"), std::string::npos) << e;
+    e = configError(dir, "[cell]\nsource = \"posterior\"\n");
+    EXPECT_NE(e.find("needs cell.posterior"), std::string::npos) << e;
+    e = configError(dir, "[cell]\nmu_uN_per_m = 20\n");
+    EXPECT_NE(e.find("'cell.mu_uN_per_m' = 20 is out of range: valid range [1, 10]"), std::string::npos) << e;
+    e = configError(dir, "[shear]\nrotation = 3\n");
+    EXPECT_NE(e.find("unknown key 'shear.rotation'"), std::string::npos) << e;
+    e = configError(dir, "[data]\ndir = \"nowhere\"\n");
+    EXPECT_NE(e.find("lacks shear_flow/ or microtube/"), std::string::npos) << e;
+    e = configError(dir, "[run\n");
+    EXPECT_NE(e.find("TOML syntax error"), std::string::npos) << e;
+}
+
+TEST(ValidationThreshold, BracketIsHighestTumblingAndLowestTankTreading) {
+    const ThresholdBracket b = thresholdBracket(
+        {{10, "tank-treading"}, {1, "tumbling"}, {2, "tumbling"}, {3, "intermittent"}, {5, "tank-treading"}, {0.5, "tumbling"}});
+    ASSERT_TRUE(b.gammaLo && b.gammaHi);
+    EXPECT_DOUBLE_EQ(*b.gammaLo, 2.0);
+    EXPECT_DOUBLE_EQ(*b.gammaHi, 5.0);
+    EXPECT_TRUE(b.monotone);
+    ASSERT_EQ(b.intermittentRates.size(), 1u);
+    EXPECT_FALSE(thresholdBracket({{4, "tumbling"}, {2, "tank-treading"}}).monotone);
+}
+
+TEST(ValidationThreshold, RefinementBisectsGeometricallyAndSearchesOutwards) {
+    EXPECT_NEAR(*refinementRate({{1, "tumbling"}, {4, "tank-treading"}}), 2.0, 1e-12);
+    EXPECT_FALSE(refinementRate({{1, "tumbling"}, {1.04, "tank-treading"}}).has_value());  // converged
+    EXPECT_NEAR(*refinementRate({{1, "tumbling"}, {3, "tumbling"}}), 6.0, 1e-12);         // everything tumbled
+    EXPECT_NEAR(*refinementRate({{1, "tumbling"}, {3, "intermittent"}}), 6.0, 1e-12);     // no tank-treading yet
+    EXPECT_NEAR(*refinementRate({{2, "tank-treading"}, {8, "tank-treading"}}), 1.0, 1e-12);
+    EXPECT_FALSE(refinementRate({{4, "tumbling"}, {2, "tank-treading"}}).has_value());    // non-monotone
+    EXPECT_FALSE(refinementRate({{1, ""}, {2, ""}}).has_value());                         // all failed
+    EXPECT_FALSE(refinementRate({}).has_value());
+}
+
+TEST(ValidationComparison, ScatterWindowsAndBands) {
+    ExperimentalPoints d;
+    d.x = {1.0, 2.0, 4.0};
+    d.y = {{10.0, 12.0}, {11.0}, {20.0}};
+    ScatterComparison s = compareWithScatter(2.0, 11.0, d, 1.2);
+    EXPECT_EQ(s.verdict, "inside");
+    EXPECT_EQ(s.points, 1);
+    s = compareWithScatter(1.5, 11.5, d, 1.5);  // window [1, 2.25]: 10, 12, 11
+    EXPECT_EQ(s.points, 3);
+    EXPECT_DOUBLE_EQ(s.lo, 10.0);
+    EXPECT_DOUBLE_EQ(s.hi, 12.0);
+    EXPECT_EQ(compareWithScatter(1.5, 9.0, d, 1.5).verdict, "outside");
+    EXPECT_EQ(compareWithScatter(1.5, NAN, d, 1.5).verdict, "outside");  // tumbling where data show tank-treading
+    EXPECT_EQ(compareWithScatter(100.0, 1.0, d, 1.5).verdict, "no data");
+    EXPECT_NEAR(compareWithScatter(2.0, 11.0 * 4 * M_PI, d, 1.1, 4 * M_PI).hi, 11.0 * 4 * M_PI, 1e-12);
+    // Threshold intervals.
+    ExperimentalPoints t;
+    t.x = {23.9, 23.9, 104.0};
+    t.y = {{0.06}, {0.23}, {0.056}};
+    EXPECT_EQ(compareInterval(23.9, 0.1, 0.2, t, 0.1).verdict, "inside");
+    EXPECT_EQ(compareInterval(23.9, 0.3, 0.5, t, 0.1).verdict, "outside");
+    EXPECT_EQ(compareInterval(23.9, 0.03, std::nullopt, t, 0.1).verdict, "not bracketed");
+    EXPECT_EQ(compareInterval(50.0, 0.1, 0.2, t, 0.1).verdict, "no data");
+    // Length band (value, high, low) interpolated in log v.
+    ExperimentalPoints l;
+    l.x = {0.1, 1.0};
+    l.y = {{7.0, 8.0, 6.0}, {9.0, 10.0, 8.0}};
+    s = compareWithBand(std::sqrt(0.1), 8.5, l);
+    EXPECT_EQ(s.verdict, "inside");
+    EXPECT_NEAR(s.lo, 7.0, 1e-12);
+    EXPECT_NEAR(s.hi, 9.0, 1e-12);
+    EXPECT_EQ(compareWithBand(std::sqrt(0.1), 9.5, l).verdict, "outside");
+    EXPECT_EQ(compareWithBand(2.0, 9.0, l).verdict, "no data");
+}
+
+TEST(ValidationData, ShippedFilesReadWithBlanksAndBadCellsAreNamed) {
+    const ExperimentalPoints a = readExperimentalPoints(kExperiments / "validation" / "shear_flow" / "inclination_angle" /
+                                                            "Fisher2015_eta_23.9_mPa_s.csv",
+                                                        "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
+    ASSERT_GT(a.x.size(), 10u);
+    EXPECT_NEAR(a.x[0], 2.5942, 1e-12);
+    EXPECT_EQ(a.y[0].size(), 1u);  // one donor at the lowest rate, blanks skipped
+    TempDir dir;
+    const fs::path bad = writeText(dir.path() / "bad.csv", "pg,v\n1,0.1\n2,fast\n");
+    try {
+        readExperimentalPoints(bad, "pg", {"v"});
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("bad.csv:3: column 'v' = 'fast' is not a number"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(readExperimentalPoints(bad, "pressure", {"v"}), InputError);
+}
+
+TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
+    TempDir dir;
+    const fs::path cfg = writeText(dir.path() / "tiny.toml",
+                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
+                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
+                                   "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
+                                   "[tube]\nenabled = false\n");
+    const std::string out = (dir.path() / "o").string();
+    test::CliRun r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("[4/4]"), std::string::npos) << r.err;
+    for (const char* f : {"shear.csv", "threshold.csv", "tube.csv", "comparison.csv", "validation.md", "validation.json"})
+        EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
+    const nlohmann::json j = nlohmann::json::parse(test::slurp(fs::path(out) / "validation.json"));
+    const int cases = j["summary"]["cases"].get<int>();
+    EXPECT_GE(cases, 4);  // plus the threshold refinement
+    EXPECT_EQ(j["summary"]["failed"].get<int>(), 0);
+    const std::string shear = test::slurp(fs::path(out) / "shear.csv");
+    EXPECT_NE(shear.find("angle_eta23.9_rate20,angle,23.9,20,"), std::string::npos) << shear;
+    // Resume: nothing runs again; a lost case record (a run killed before it finished) runs again alone.
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("0 run now"), std::string::npos) << r.out;
+    fs::remove(fs::path(out) / "cases" / "angle_eta23.9_rate60.json");
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("1 run now"), std::string::npos) << r.out;
+    // Another cell changes every case's key: everything runs again.
+    const fs::path cfg2 = writeText(dir.path() / "tiny2.toml", test::slurp(cfg) + "[cell]\nsource = \"explicit\"\netam_Pa_s_um = 0.3\n");
+    r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("--etam 0.29999999999999999"), std::string::npos) << r.out;
+    // Bad config: exit 2 naming the key, nothing written.
+    const fs::path bad = writeText(dir.path() / "bad.toml", "[run]\njobs = 0\n");
+    r = test::runTrbc("validate --config " + bad.string() + " --out " + (dir.path() / "b").string(), dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("bad.toml:2: 'run.jobs' = 0 is out of range"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.path() / "b"));
+}
+
+}  // namespace
+}  // namespace trbc
