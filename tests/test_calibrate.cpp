@@ -111,6 +111,38 @@ TEST(CalibrateConfig, OutOfRangePriorsNameFileLineKeyAndValidRange) {
     EXPECT_DOUBLE_EQ(kb->second.second, 5e-19);
 }
 
+TEST(CalibrateConfig, ValidationSectionIsChecked) {
+    TempDir dir;
+    std::string e = configError(dir, "[validation]\nenabled = true\nonly = [\"angle\", \"tube2\"]\n");
+    EXPECT_NE(e.find("c.toml:3: 'validation.only' must be an array of"), std::string::npos) << e;
+    e = configError(dir, "[validation]\nconfig = \"missing.toml\"\n");
+    EXPECT_NE(e.find("c.toml:2: validation.config"), std::string::npos) << e;
+    EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
+    const fs::path ok = writeText(dir.path() / "ok.toml", "[validation]\nenabled = true\nonly = [\"ttf\"]\n");
+    const CalibrateConfig c = readCalibrateConfig(ok, kExperiments);
+    EXPECT_TRUE(c.validationEnabled);
+    ASSERT_EQ(c.validationOnly.size(), 1u);
+    EXPECT_EQ(c.validationOnly[0], "ttf");
+}
+
+TEST(CalibrationReport, TransferabilitySectionFromValidateOutputs) {
+    TempDir dir;
+    CalibrationReportInputs in;
+    in.outputDirectory = dir.path();
+    in.configFile = writeText(dir.path() / "c.toml", "");
+    in.version = "test";
+    std::string md = writeCalibrationReport(in).markdown(dir.path());
+    EXPECT_NE(md.find("The flow validations did not run"), std::string::npos);
+    writeText(dir.path() / "validation" / "validation.json",
+              R"({"summary": {"cases": 3, "failed": 0, "inside": 2, "outside": 1, "no_data": 0}, "level": 2})");
+    writeText(dir.path() / "validation" / "comparison.csv",
+              "case,observable,predicted,scatter_lo,scatter_hi,points,verdict,window\n"
+              "ttf_eta28.9_rate65.19,4 pi f / rate,0.346,0.27,0.39,7,inside,\"w\"\n");
+    md = writeCalibrationReport(in).markdown(dir.path());
+    EXPECT_NE(md.find("3 cases (0 failed); 2 predictions inside the experimental scatter, 1 outside"), std::string::npos) << md;
+    EXPECT_NE(md.find("| ttf_eta28.9_rate65.19 | 4 pi f / rate | 0.346 | 0.27 – 0.39 | inside |"), std::string::npos) << md;
+}
+
 TEST(CalibrateConfig, DataEntriesAreChecked) {
     TempDir dir;
     std::string e = configError(dir, "[[data]]\nname = \"x\"\nexperiment = \"stretching\"\nfile = \"missing.csv\"\n");

@@ -102,7 +102,7 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
     CalibrateConfig c;
     c.file = fs::absolute(file).lexically_normal();
     TableReader top(file, root, "");
-    top.allowOnly({"run", "data", "campaign", "surrogate", "sobol", "inference", "prediction", "cell"});
+    top.allowOnly({"run", "data", "campaign", "surrogate", "sobol", "inference", "prediction", "cell", "validation"});
     auto section = [&](const char* name) -> const toml::table* {
         const toml::node* n = root.get(name);
         if (!n) return nullptr;
@@ -181,6 +181,25 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
         r.boolean("enabled", c.cellEnabled);
         r.real("quantile", c.cellQuantile, 0.0, 1.0, true, true);
         r.integer("level", c.cellLevel, 1, 6);
+    }
+    if (const toml::table* t = section("validation")) {
+        TableReader r(file, *t, "validation");
+        r.allowOnly({"enabled", "config", "only"});
+        r.boolean("enabled", c.validationEnabled);
+        std::string cfg;
+        r.string("config", cfg);
+        if (!cfg.empty()) c.validationConfig = resolveDataPath(cfg, file.parent_path(), experiments);
+        if (!c.validationConfig.empty() && !fs::is_regular_file(c.validationConfig))
+            r.fail(*t->get("config"), fmt::format("validation.config {} does not exist", c.validationConfig.string()));
+        if (const toml::node* n = t->get("only")) {
+            const toml::array* a = n->as_array();
+            const auto valid = [](const std::string& k) { return k == "angle" || k == "ttf" || k == "threshold" || k == "tube"; };
+            if (a)
+                for (const toml::node& x : *a)
+                    if (const auto v = x.value_exact<std::string>(); v && valid(*v)) c.validationOnly.push_back(*v);
+            if (!a || c.validationOnly.size() != a->size())
+                r.fail(*n, "'validation.only' must be an array of: \"angle\", \"ttf\", \"threshold\", \"tube\"");
+        }
     }
     return c;
 }

@@ -56,6 +56,9 @@ struct CalibrateConfig {
     bool cellEnabled = true;               ///< [cell] export of the calibrated cell
     double cellQuantile = 0.5;
     int cellLevel = 4;
+    bool validationEnabled = false;        ///< [validation] trbc validate with the theta_new means (transferability)
+    std::filesystem::path validationConfig;  ///< its configuration (default: configs/validation.toml of the source tree)
+    std::vector<std::string> validationOnly; ///< kinds of case to run (empty: all)
 };
 
 /// The seven data sets of INFERENCE.md 2 under an experiments directory.

@@ -367,6 +367,38 @@ void meshSection(ReportDocument& doc, const fs::path& dir) {
     doc.table(header, table);
 }
 
+void transferabilitySection(ReportDocument& doc, const fs::path& out) {
+    doc.heading(2, "Transferability: flows the calibration never saw");
+    const fs::path dir = out / "validation";
+    const nlohmann::json v = readJson(dir / "validation.json");
+    if (v.is_null() || !v.contains("summary")) {
+        doc.paragraph("The flow validations did not run: enable `[validation]` in the configuration (hours on 2 cores; "
+                      "`trbc validate` keeps finished cases across runs). Shipped results with the paper's Table 1 cell: "
+                      "docs/VALIDATION_RESULTS.md.");
+        return;
+    }
+    const nlohmann::json& s = v["summary"];
+    doc.paragraph(fmt::format("`trbc validate` (VALIDATION.md 3.2 and 4.2) with the θ_new posterior means, level {}: {} cases "
+                              "({} failed); {} predictions inside the experimental scatter, {} outside, {} without data or "
+                              "not bracketed. Nothing was tuned to these data. Tables in `validation/`.",
+                              v.value("level", 0), s.value("cases", 0), s.value("failed", 0), s.value("inside", 0),
+                              s.value("outside", 0), s.value("no_data", 0)));
+    std::vector<std::vector<std::string>> table;
+    const auto rows = readCsvRows(dir / "comparison.csv");
+    for (std::size_t k = 1; k < rows.size(); ++k)
+        if (rows[k].size() >= 7)
+            table.push_back({rows[k][0], rows[k][1], rows[k][2],
+                             rows[k][5] == "0" ? std::string("–") : rows[k][3] + " – " + rows[k][4], rows[k][6]});
+    if (!table.empty()) doc.table({"case", "observable", "prediction", "experimental scatter", "verdict"}, table);
+    for (const auto& [file, caption] : std::vector<std::pair<const char*, const char*>>{
+             {"angle_vs_shear_rate.png", "Inclination angle against shear rate (Fischer 2015 donors)"},
+             {"ttf_vs_shear_rate.png", "Tank-treading frequency at 28.9 mPa s"},
+             {"critical_stress_vs_eta.png", "Tumbling / tank-treading critical stress against outer viscosity"},
+             {"tube_velocity_vs_pg.png", "Cell velocity against pressure gradient, 6.6 um tube (Tomaiuolo 2009)"},
+             {"tube_length_vs_velocity.png", "Cell length against velocity (Tomaiuolo 2009, Hochmuth 1970)"}})
+        if (fs::exists(dir / "figures" / file)) doc.image(dir / "figures" / file, caption);
+}
+
 void cellSection(ReportDocument& doc, const fs::path& out) {
     doc.heading(2, "The calibrated cell (for flow solvers)");
     const nlohmann::json c = readJson(out / "cell" / "cell.json");
@@ -435,6 +467,7 @@ ReportDocument writeCalibrationReport(const CalibrationReportInputs& in) {
     sobolSection(doc, out);
     surrogateSection(doc, in.surrogateDirectory);
     meshSection(doc, in.meshConvergenceDirectory);
+    transferabilitySection(doc, out);
     cellSection(doc, out);
     provenanceSection(doc, in);
     auto write = [](const fs::path& p, const std::string& text) {

@@ -311,6 +311,20 @@ void registerCalibrate(CLI::App& app) {
                     {}, {out / "cell"});
         }
 
+        // Transferability (issue 9): the flow validations with the theta_new means; optional (hours).
+        std::string validationFp = "disabled";
+        if (cfg.validationEnabled) {
+            const fs::path vcfg = cfg.validationConfig.empty() ? fs::path(TRBC_SOURCE_DIR) / "configs" / "validation.toml" : cfg.validationConfig;
+            std::string only;
+            for (const std::string& k : cfg.validationOnly) only += (only.empty() ? " --only " : ",") + k;
+            validationFp = fingerprintOf({"validation", kVersion, phase23Fp, fileFingerprint(vcfg), only});
+            // Not skipped on a changed fingerprint alone: trbc validate keeps every finished case whose
+            // command and cell are unchanged, so a re-run costs only the new cases.
+            P.stage("validation", validationFp, {out / "validation" / "validation.json"},
+                    {}, {P.trbc(fmt::format("validate --config {} --posterior {} --out {} --threads {}{} --quiet", quote(vcfg),
+                                            quote(inf / "phase3" / "theta_new"), quote(out / "validation"), 1, only))});
+        }
+
         // The report: cheap, but recorded like a stage so that an unchanged run leaves it alone.
         CalibrationReportInputs ri;
         ri.outputDirectory = out;
@@ -320,7 +334,7 @@ void registerCalibrate(CLI::App& app) {
         ri.version = kVersion;
         for (const CalibrateDataSet& d : cfg.data) ri.dataSets.push_back(fmt::format("{} ({}): {}", d.name, d.experiment, d.file.string()));
         const std::string reportFp = fingerprintOf({"report", kVersion, fileFingerprint(cfg.file), allDataFp, modelFp, phase23Fp, predictFp,
-                                                    cellFp, P.ledger.fingerprint("sobol")});
+                                                    cellFp, P.ledger.fingerprint("sobol"), validationFp});
         if (P.ledger.upToDate("report", reportFp, {out / "report.html", out / "report.md"})) {
             P.ledger.skipped("report");
             P.say(fmt::format("calibrate: {:<28} up to date (skipped)", "report"));

@@ -328,7 +328,7 @@ json writeTables(Runner& R) {
 
 void registerValidate(CLI::App& app) {
     struct Opts {
-        std::string config, out;
+        std::string config, out, posterior;
         std::vector<std::string> only;
         int jobs = 0, threads = 0;
         bool quiet = false, dryRun = false;
@@ -342,6 +342,8 @@ void registerValidate(CLI::App& app) {
                     "threshold.csv, tube.csv, comparison.csv, validation.md, validation.json, figures/ and cases/");
     cmd->add_option("--config", o->config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
     cmd->add_option("--out", o->out, "output directory")->required();
+    cmd->add_option("--posterior", o->posterior,
+                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
     cmd->add_option("--jobs", o->jobs, "cases run at the same time (overrides run.jobs)")->check(CLI::Range(1, 256));
     cmd->add_option("--threads", o->threads, "OpenMP threads per case (overrides run.threads)")->check(CLI::Range(1, 1024));
     cmd->add_option("--only", o->only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
@@ -353,6 +355,7 @@ void registerValidate(CLI::App& app) {
     cmd->callback([o]() {
         Runner R{};
         R.cfg = readValidationConfig(o->config, defaultExperimentDirectory());
+        if (!o->posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o->posterior).lexically_normal();
         if (o->jobs > 0) R.cfg.jobs = o->jobs;
         if (o->threads > 0) R.cfg.threads = o->threads;
         if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
