@@ -17,12 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path resolveDataPath(const std::string& s, const fs::path& configDir, const fs::path& experiments) {
-    static const std::string alias = "@experiments/";
-    if (s.rfind(alias, 0) == 0) return (experiments / s.substr(alias.size())).lexically_normal();
-    const fs::path p(s);
-    return (p.is_absolute() ? p : configDir / p).lexically_normal();
-}
 
 void readData(const fs::path& file, const toml::node& node, const fs::path& experiments, CalibrateConfig& c) {
     const toml::array* arr = node.as_array();
@@ -47,7 +41,7 @@ void readData(const fs::path& file, const toml::node& node, const fs::path& expe
             fail(e, fmt::format("data name '{}' is not allowed (no spaces or slashes; 'theta_new' and 'hyper' are reserved)", d.name));
         for (const CalibrateDataSet& o : c.data)
             if (o.name == d.name) fail(e, fmt::format("data name '{}' appears twice", d.name));
-        d.file = resolveDataPath(path, file.parent_path(), experiments);
+        d.file = resolveConfigPath(path, file.parent_path(), experiments);
         if (!fs::is_regular_file(d.file)) fail(e, fmt::format("data '{}': file {} does not exist", d.name, d.file.string()));
         c.data.push_back(std::move(d));
     }
@@ -91,14 +85,7 @@ std::vector<CalibrateDataSet> defaultCalibrateData(const fs::path& dir) {
 }
 
 CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experiments) {
-    if (!fs::is_regular_file(file)) throw InputError(fmt::format("configuration file {} does not exist", file.string()));
-    toml::table root;
-    try {
-        root = toml::parse_file(file.string());
-    } catch (const toml::parse_error& e) {
-        throw InputError(fmt::format("{}:{}:{}: TOML syntax error: {}", file.string(), e.source().begin.line, e.source().begin.column,
-                                     e.description()));
-    }
+    const toml::table root = parseTomlFile(file);
     CalibrateConfig c;
     c.file = fs::absolute(file).lexically_normal();
     TableReader top(file, root, "");
@@ -144,7 +131,7 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
         r.string("mode", c.surrogateMode, {"shipped", "train", "path"});
         std::string dir;
         r.string("dir", dir);
-        if (!dir.empty()) c.surrogateDir = resolveDataPath(dir, file.parent_path(), experiments);
+        if (!dir.empty()) c.surrogateDir = resolveConfigPath(dir, file.parent_path(), experiments);
         if (c.surrogateMode == "path" && c.surrogateDir.empty())
             r.fail(*t, "surrogate.mode = \"path\" needs surrogate.dir (a directory made by `trbc surrogate train`)");
     }
@@ -188,7 +175,7 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
         r.boolean("enabled", c.validationEnabled);
         std::string cfg;
         r.string("config", cfg);
-        if (!cfg.empty()) c.validationConfig = resolveDataPath(cfg, file.parent_path(), experiments);
+        if (!cfg.empty()) c.validationConfig = resolveConfigPath(cfg, file.parent_path(), experiments);
         if (!c.validationConfig.empty() && !fs::is_regular_file(c.validationConfig))
             r.fail(*t->get("config"), fmt::format("validation.config {} does not exist", c.validationConfig.string()));
         if (const toml::node* n = t->get("only")) {

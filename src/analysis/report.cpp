@@ -10,6 +10,7 @@
 #include <regex>
 #include <sstream>
 
+#include "core/file_io.hpp"
 #include "core/error.hpp"
 
 namespace trbc {
@@ -470,17 +471,8 @@ ReportDocument writeCalibrationReport(const CalibrationReportInputs& in) {
     transferabilitySection(doc, out);
     cellSection(doc, out);
     provenanceSection(doc, in);
-    auto write = [](const fs::path& p, const std::string& text) {
-        const fs::path tmp = p.string() + ".tmp";
-        {
-            std::ofstream o(tmp, std::ios::trunc | std::ios::binary);
-            o << text;
-            if (!o) throw InputError(fmt::format("cannot write {}", tmp.string()));
-        }
-        fs::rename(tmp, p);
-    };
-    write(out / "report.md", doc.markdown(out));
-    write(out / "report.html", doc.html("trbc calibration report"));
+    writeFileAtomically(out / "report.md", doc.markdown(out));
+    writeFileAtomically(out / "report.html", doc.html("trbc calibration report"));
     return doc;
 }
 

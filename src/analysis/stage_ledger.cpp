@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/file_io.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
 
@@ -76,13 +77,7 @@ void StageLedger::invalidate(const std::string& stage) {
 void StageLedger::save() const {
     nlohmann::json j = j_;
     j["last_run"] = {{"ran", ran_}, {"skipped", skipped_}};
-    const fs::path tmp = file_.string() + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::trunc);
-        out << j.dump(2) << '\n';
-        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
-    }
-    fs::rename(tmp, file_);
+    writeFileAtomically(file_, j.dump(2) + "\n");
 }
 
 }  // namespace trbc

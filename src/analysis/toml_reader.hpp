@@ -95,5 +95,26 @@ private:
     std::string context_;
 };
 
+/// Parses a TOML file; a missing file or a syntax error is an InputError "file:line:column: ...".
+inline toml::table parseTomlFile(const std::filesystem::path& file) {
+    if (!std::filesystem::is_regular_file(file))
+        throw InputError(fmt::format("configuration file {} does not exist", file.string()));
+    try {
+        return toml::parse_file(file.string());
+    } catch (const toml::parse_error& e) {
+        throw InputError(fmt::format("{}:{}:{}: TOML syntax error: {}", file.string(), e.source().begin.line, e.source().begin.column,
+                                     e.description()));
+    }
+}
+
+/// A path of a configuration file: "@experiments/X" is X in the experimental data directory,
+/// a relative path is relative to the configuration's directory.
+inline std::filesystem::path resolveConfigPath(const std::string& s, const std::filesystem::path& configDir,
+                                               const std::filesystem::path& experiments) {
+    static const std::string alias = "@experiments/";
+    if (s.rfind(alias, 0) == 0) return (experiments / s.substr(alias.size())).lexically_normal();
+    const std::filesystem::path p(s);
+    return (p.is_absolute() ? p : configDir / p).lexically_normal();
+}
 
 }  // namespace trbc

@@ -17,12 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path resolvePath(const std::string& s, const fs::path& configDir, const fs::path& experiments) {
-    static const std::string alias = "@experiments/";
-    if (s.rfind(alias, 0) == 0) return (experiments / s.substr(alias.size())).lexically_normal();
-    const fs::path p(s);
-    return (p.is_absolute() ? p : configDir / p).lexically_normal();
-}
 
 /// The default sweeps of VALIDATION.md 3.2: angles at 10.7 and 23.9 mPa s (14 rates in [1, 200]),
 /// TTF at 28.9 mPa s (6 rates in [8, 264]) and the scripted threshold sweeps.
@@ -68,14 +62,7 @@ std::string trim(const std::string& s) {
 }  // namespace
 
 ValidationConfig readValidationConfig(const fs::path& file, const fs::path& experiments) {
-    if (!fs::is_regular_file(file)) throw InputError(fmt::format("configuration file {} does not exist", file.string()));
-    toml::table root;
-    try {
-        root = toml::parse_file(file.string());
-    } catch (const toml::parse_error& e) {
-        throw InputError(fmt::format("{}:{}:{}: TOML syntax error: {}", file.string(), e.source().begin.line, e.source().begin.column,
-                                     e.description()));
-    }
+    const toml::table root = parseTomlFile(file);
     ValidationConfig c;
     c.file = fs::absolute(file).lexically_normal();
     c.dataDir = experiments / "validation";
@@ -103,7 +90,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         r.allowOnly({"dir"});
         std::string d;
         r.string("dir", d);
-        if (!d.empty()) c.dataDir = resolvePath(d, dir, experiments);
+        if (!d.empty()) c.dataDir = resolveConfigPath(d, dir, experiments);
     }
     if (!fs::is_directory(c.dataDir / "shear_flow") || !fs::is_directory(c.dataDir / "microtube"))
         throw InputError(fmt::format("{}: validation data directory {} lacks shear_flow/ or microtube/ (data.dir)", file.string(),
@@ -114,7 +101,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         r.string("source", c.cellSource, {"table1", "posterior", "explicit"});
         std::string post;
         r.string("posterior", post);
-        if (!post.empty()) c.posterior = resolvePath(post, dir, experiments);
+        if (!post.empty()) c.posterior = resolveConfigPath(post, dir, experiments);
         // Prior box of MODEL.md (SURROGATE.md 1); flow solvers accept no cell outside it.
         r.real("v", c.v, 0.65, 1.0);
         r.real("mu_uN_per_m", c.mu, 1.0, 10.0);

@@ -38,12 +38,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-std::string quote(const fs::path& p) {
-    std::string s = "'";
-    for (char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return s + "'";
-}
-
 std::string lastLines(const fs::path& file, int n) {
     std::ifstream in(file);
     std::vector<std::string> lines;
@@ -76,7 +70,7 @@ struct Pipeline {
             std::ofstream l(log, std::ios::app);
             l << "$ " << command << '\n';
         }
-        const int status = std::system((command + " >> " + quote(log) + " 2>&1").c_str());
+        const int status = std::system((command + " >> " + shellQuote(log) + " 2>&1").c_str());
         const int rc = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
         if (rc == 0) return true;
         if (required)
@@ -111,9 +105,9 @@ struct Pipeline {
         return true;
     }
 
-    std::string trbc(const std::string& args) const { return quote(exe) + " " + args; }
+    std::string trbc(const std::string& args) const { return shellQuote(exe) + " " + args; }
     std::string script(const std::string& name, const std::string& args) const {
-        return quote(python) + " " + quote(scripts / name) + " " + args;
+        return shellQuote(python) + " " + shellQuote(scripts / name) + " " + args;
     }
 };
 
@@ -186,9 +180,7 @@ void registerCalibrate(CLI::App& app) {
         Pipeline P(cfg, out);
         P.exe = fs::read_symlink("/proc/self/exe");
         P.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
-        // Debian's python3 (python3-matplotlib, scripts/bootstrap) unless TRBC_PYTHON names another.
-        const char* py = std::getenv("TRBC_PYTHON");
-        P.python = py ? fs::path(py) : fs::exists("/usr/bin/python3") ? fs::path("/usr/bin/python3") : fs::path("python3");
+        P.python = pythonInterpreter();
         P.threads = o->threads > 0 ? o->threads : cfg.threads;
         P.quiet = o->quiet;
         fs::copy_file(cfg.file, out / "config.toml", fs::copy_options::overwrite_existing);
@@ -205,14 +197,14 @@ void registerCalibrate(CLI::App& app) {
                     {P.trbc(fmt::format("campaign --samples {} --forces-per-cell {} --design {} --seed {} --level {} --threads {} "
                                         "--out {} --resume",
                                         cfg.campaignSamples, cfg.campaignForcesPerCell, cfg.campaignDesign, seed, cfg.campaignLevel,
-                                        threads, quote(out / "campaign")))});
+                                        threads, shellQuote(out / "campaign")))});
         }
         fs::path modelDir = cfg.surrogateMode == "path" ? cfg.surrogateDir : defaultSurrogateDirectory();
         if (cfg.surrogateMode == "train") {
             modelDir = out / "surrogate";
             P.stage("surrogate", fingerprintOf({"surrogate", kVersion, campaignFp, seed}), {modelDir / "relaxation.json"},
-                    {P.trbc(fmt::format("surrogate train --data {} --out {} --seed {} --threads {}", quote(out / "campaign"),
-                                        quote(modelDir), seed, threads))});
+                    {P.trbc(fmt::format("surrogate train --data {} --out {} --seed {} --threads {}", shellQuote(out / "campaign"),
+                                        shellQuote(modelDir), seed, threads))});
         }
         const std::string modelFp = modelFingerprint(modelDir);
 
@@ -222,9 +214,9 @@ void registerCalibrate(CLI::App& app) {
                                    std::to_string(cfg.sobolResamples), seed}),
                     {out / "sobol" / "sobol_indices.csv"},
                     {P.trbc(fmt::format("sobol --model {} --samples {} --forces {} --resamples {} --seed {} --threads {} --no-plot --out {}",
-                                        quote(modelDir), cfg.sobolSamples, cfg.sobolForces, cfg.sobolResamples, seed, threads,
-                                        quote(out / "sobol")))},
-                    {P.script("plot_sobol.py", quote(out / "sobol"))}, {out / "sobol"});
+                                        shellQuote(modelDir), cfg.sobolSamples, cfg.sobolForces, cfg.sobolResamples, seed, threads,
+                                        shellQuote(out / "sobol")))},
+                    {P.script("plot_sobol.py", shellQuote(out / "sobol"))}, {out / "sobol"});
 
         // Inference: one stage per phase-1 data set, one for phases 2-3 (which need all of them).
         const fs::path inf = out / "inference";
@@ -249,7 +241,7 @@ void registerCalibrate(CLI::App& app) {
         const std::string phase23Fp = fingerprintOf(phase1Fps);
         const std::string inferCmd = P.trbc(fmt::format("infer --out {} --data-dir {} --model {} --samples {} --seed {} --fvk-density {} "
                                                         "--threads {} --resume{}",
-                                                        quote(inf), quote(out / "data"), quote(modelDir), cfg.inferenceSamples, seed,
+                                                        shellQuote(inf), shellQuote(out / "data"), shellQuote(modelDir), cfg.inferenceSamples, seed,
                                                         cfg.fvkDensity, threads, priorArgs));
         const bool phase23Current = P.ledger.upToDate("inference.phase23", phase23Fp, {inf / "posterior_stats.csv"});
         if (changed.empty() && phase23Current) {
@@ -271,7 +263,7 @@ void registerCalibrate(CLI::App& app) {
             fs::remove(out / "logs" / "inference.log");
             const auto ti = Clock::now();
             P.shell("inference", inferCmd);
-            P.shell("inference", P.script("plot_posterior.py", quote(inf) + " --out " + quote(out / "figures")), false);
+            P.shell("inference", P.script("plot_posterior.py", shellQuote(inf) + " --out " + shellQuote(out / "figures")), false);
             const double wall = std::chrono::duration<double>(Clock::now() - ti).count();
             for (std::size_t k = 0; k < cfg.data.size(); ++k) {
                 const CalibrateDataSet& d = cfg.data[k];
@@ -298,16 +290,16 @@ void registerCalibrate(CLI::App& app) {
         P.stage("predict", predictFp, {out / "predict" / "coverage.csv"},
                 {P.trbc(fmt::format("predict --inference {} --out {} --data-dir {} --model {} --max-samples {} --grid {} --seed {} "
                                     "--threads {} --quiet",
-                                    quote(inf), quote(out / "predict"), quote(out / "data"), quote(modelDir), cfg.predictionMaxSamples,
+                                    shellQuote(inf), shellQuote(out / "predict"), shellQuote(out / "data"), shellQuote(modelDir), cfg.predictionMaxSamples,
                                     cfg.predictionGrid, seed, threads))},
-                {P.script("plot_predict.py", quote(out / "predict") + " --data-dir " + quote(out / "data"))}, {out / "predict"});
+                {P.script("plot_predict.py", shellQuote(out / "predict") + " --data-dir " + shellQuote(out / "data"))}, {out / "predict"});
 
         std::string cellFp = "disabled";
         if (cfg.cellEnabled) {
             cellFp = fingerprintOf({"cell", kVersion, phase23Fp, fmt::format("{:.17g}", cfg.cellQuantile), std::to_string(cfg.cellLevel)});
             P.stage("cell", cellFp, {out / "cell" / "cell.json"},
                     {P.trbc(fmt::format("export --posterior {} --quantile {:.17g} --level {} --threads {} --out {} > /dev/null",
-                                        quote(inf / "phase3" / "theta_new"), cfg.cellQuantile, cfg.cellLevel, threads, quote(out / "cell")))},
+                                        shellQuote(inf / "phase3" / "theta_new"), cfg.cellQuantile, cfg.cellLevel, threads, shellQuote(out / "cell")))},
                     {}, {out / "cell"});
         }
 
@@ -321,8 +313,8 @@ void registerCalibrate(CLI::App& app) {
             // Not skipped on a changed fingerprint alone: trbc validate keeps every finished case whose
             // command and cell are unchanged, so a re-run costs only the new cases.
             P.stage("validation", validationFp, {out / "validation" / "validation.json"},
-                    {}, {P.trbc(fmt::format("validate --config {} --posterior {} --out {} --threads {}{} --quiet", quote(vcfg),
-                                            quote(inf / "phase3" / "theta_new"), quote(out / "validation"), 1, only))});
+                    {}, {P.trbc(fmt::format("validate --config {} --posterior {} --out {} --threads {}{} --quiet", shellQuote(vcfg),
+                                            shellQuote(inf / "phase3" / "theta_new"), shellQuote(out / "validation"), 1, only))});
         }
 
         // The report: cheap, but recorded like a stage so that an unchanged run leaves it alone.

@@ -21,6 +21,7 @@
 #include "analysis/validation.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 
 namespace trbc::cli {
@@ -30,25 +31,9 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-std::string quote(const fs::path& p) {
-    std::string s = "'";
-    for (char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return s + "'";
-}
-
 std::string readFile(const fs::path& p) {
     std::ifstream in(p);
     return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void writeFileAtomically(const fs::path& p, const std::string& text) {
-    const fs::path tmp = p.string() + ".tmp";
-    {
-        std::ofstream out(tmp);
-        out << text;
-        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
-    }
-    fs::rename(tmp, p);
 }
 
 std::string num(const json& j) { return j.is_number() ? fmt::format("{:.6g}", j.get<double>()) : ""; }
@@ -72,7 +57,7 @@ struct Runner {
     Clock::time_point start = Clock::now();
 
     std::string cellArgs() const {
-        if (cfg.cellSource == "posterior") return "--posterior " + quote(cfg.posterior);
+        if (cfg.cellSource == "posterior") return "--posterior " + shellQuote(cfg.posterior);
         if (cfg.cellSource == "explicit")
             return fmt::format("--v {:.17g} --mu {:.17g} --kb {:.17g} --b2 {:.17g} --etam {:.17g}", cfg.v, cfg.mu, cfg.kbJ, cfg.b2, cfg.etam);
         return "";  // the flow commands' default: the paper's Table 1 means
@@ -117,9 +102,9 @@ struct Runner {
         const fs::path dir = out / "cases" / c.id;
         fs::remove_all(dir);
         const fs::path stdoutFile = out / "cases" / (c.id + ".stdout"), log = out / "cases" / (c.id + ".log");
-        const std::string command = fmt::format("{} {} --threads {} --out {} --vtk-every 50", quote(exe), caseArgs(c), cfg.threads, quote(dir));
+        const std::string command = fmt::format("{} {} --threads {} --out {} --vtk-every 50", shellQuote(exe), caseArgs(c), cfg.threads, shellQuote(dir));
         const auto t0 = Clock::now();
-        const int status = std::system((command + " > " + quote(stdoutFile) + " 2> " + quote(log) + " < /dev/null").c_str());
+        const int status = std::system((command + " > " + shellQuote(stdoutFile) + " 2> " + shellQuote(log) + " < /dev/null").c_str());
         const int rc = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
         const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
         if (rc == 130 || rc == 128 + SIGINT || rc == 128 + SIGTERM || rc == 128 + SIGKILL)
@@ -363,8 +348,7 @@ void registerValidate(CLI::App& app) {
         R.quiet = o->quiet;
         R.exe = fs::read_symlink("/proc/self/exe");
         R.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
-        const char* py = std::getenv("TRBC_PYTHON");
-        R.python = py ? fs::path(py) : fs::exists("/usr/bin/python3") ? fs::path("/usr/bin/python3") : fs::path("python3");
+        R.python = pythonInterpreter();
         std::vector<ValidationCase> initial = initialValidationCases(R.cfg);
         const std::size_t configured = initial.size();
         if (!o->only.empty())
@@ -422,8 +406,8 @@ void registerValidate(CLI::App& app) {
                         {"threads_per_case", R.cfg.threads},
                         {"provenance", {{"version", kVersion}, {"command", commandLine()}}}};
         writeFileAtomically(R.out / "validation.json", j.dump(2) + "\n");
-        const std::string plot = quote(R.python) + " " + quote(R.scripts / "plot_validation.py") + " " + quote(R.out) + " --data " +
-                                 quote(R.cfg.dataDir) + " > " + quote(R.out / "plot.log") + " 2>&1";
+        const std::string plot = shellQuote(R.python) + " " + shellQuote(R.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
+                                 shellQuote(R.cfg.dataDir) + " > " + shellQuote(R.out / "plot.log") + " 2>&1";
         if (std::system(plot.c_str()) != 0)
             std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());
         if (initial.size() < configured)

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdlib>
 
 #include "core/error.hpp"
 
@@ -124,6 +125,17 @@ NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* op
                                          "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c, option));
     if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
     return t;
+}
+
+std::string shellQuote(const std::filesystem::path& p) {
+    std::string s = "'";
+    for (char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return s + "'";
+}
+
+std::filesystem::path pythonInterpreter() {
+    if (const char* py = std::getenv("TRBC_PYTHON")) return py;
+    return std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
 }
 
 }  // namespace trbc::cli

@@ -66,6 +66,11 @@ void registerPredict(CLI::App& app);
 std::filesystem::path defaultSurrogateDirectory();
 /// Experimental data: $TRBC_EXPERIMENT_DATA, else the copy shipped in <source>/data/experiments.
 std::filesystem::path defaultExperimentDirectory();
+/// A path quoted for /bin/sh.
+std::string shellQuote(const std::filesystem::path& p);
+/// The Python of the figure scripts: $TRBC_PYTHON, else Debian's /usr/bin/python3 (with
+/// python3-matplotlib, scripts/bootstrap), else python3 on PATH.
+std::filesystem::path pythonInterpreter();
 /// Samples of a theta_new posterior (DIR/samples.csv of `trbc infer`, or the file itself), columns
 /// v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; InputError naming the file and the missing column.
 NumericTable readThetaNewSamples(const std::filesystem::path& posterior, const char* option = "--posterior");

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 
+#include "core/file_io.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
 
@@ -50,16 +51,7 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
             {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
 }
 
-void writeJsonAtomically(const fs::path& path, const nlohmann::json& j) {
-    fs::path tmp = path;
-    tmp += ".tmp";
-    {
-        std::ofstream out(tmp);
-        out << j.dump(2) << '\n';
-        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
-    }
-    fs::rename(tmp, path);
-}
+void writeJsonAtomically(const fs::path& path, const nlohmann::json& j) { writeFileAtomically(path, j.dump(2) + "\n"); }
 
 void validateOptions(const CampaignOptions& o) {
     if (o.samples < 1 || o.samples > 100'000'000)
@@ -109,14 +101,7 @@ int openPartFile(const CampaignOptions& o, int rank, const std::map<long, Campai
         for (const CampaignRow& r : readCampaignCsv(part, true))
             if (finished.count(r.point.sampleId)) keep += formatCampaignRow(r) + "\n";
     }
-    fs::path tmp = part;
-    tmp += ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        out << keep;
-        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
-    }
-    fs::rename(tmp, part);
+    writeFileAtomically(part, keep);
     const int fd = ::open(part.c_str(), O_WRONLY | O_APPEND);
     if (fd < 0) throw InputError(fmt::format("cannot open {} for appending", part.string()));
     return fd;
@@ -322,15 +307,9 @@ CampaignSummary finalizeCampaign(const CampaignOptions& o, double wallSeconds) {
         j = nlohmann::json::parse(in);
     }
     if (s.complete) {
-        fs::path tmp = samplesPath(o);
-        tmp += ".tmp";
-        {
-            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-            out << campaignCsvHeader() << '\n';
-            for (const auto& [id, r] : rows) out << formatCampaignRow(r) << '\n';
-            if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
-        }
-        fs::rename(tmp, samplesPath(o));
+        std::string csv = campaignCsvHeader() + "\n";
+        for (const auto& [id, r] : rows) csv += formatCampaignRow(r) + "\n";
+        writeFileAtomically(samplesPath(o), csv);
         j["status"] = "complete";
     } else {
         j["status"] = "incomplete";

@@ -1,0 +1,13 @@
+#pragma once
+// Whole-file writes that a kill cannot leave half done: the text goes to PATH.tmp, which then
+// replaces PATH by rename(2) (atomic on POSIX file systems). Used for every record that a resumed
+// run trusts (campaign parts and provenance, stage ledgers, validation cases, reports).
+#include <filesystem>
+#include <string_view>
+
+namespace trbc {
+
+/// Writes `text` to `path` atomically; InputError naming the file when it cannot be written.
+void writeFileAtomically(const std::filesystem::path& path, std::string_view text);
+
+}  // namespace trbc
