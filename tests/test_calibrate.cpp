@@ -55,6 +55,12 @@ TEST(CalibrateConfig, ShippedPaperConfigIsValid) {
     EXPECT_EQ(c.data.size(), 7u);
     EXPECT_EQ(c.inferenceSamples, 20000);
     EXPECT_EQ(c.surrogateMode, "shipped");
+    EXPECT_FALSE(c.validationEnabled);
+    const CalibrateConfig v = readCalibrateConfig(fs::path(TRBC_TEST_DATA) / ".." / ".." / "configs" / "paper_validated.toml", kExperiments);
+    EXPECT_TRUE(v.validationEnabled);
+    EXPECT_EQ(v.validationConfig.filename(), "validation.toml");
+    EXPECT_EQ(v.validationOnly.size(), 3u);
+    EXPECT_EQ(v.inferenceSamples, c.inferenceSamples);
 }
 
 TEST(CalibrateConfig, SyntaxErrorNamesFileAndLine) {
