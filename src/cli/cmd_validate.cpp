@@ -315,7 +315,7 @@ void registerValidate(CLI::App& app) {
     struct Opts {
         std::string config, out, posterior;
         std::vector<std::string> only;
-        int jobs = 0, threads = 0;
+        int jobs = 0, threads = 0, level = 0;
         bool quiet = false, dryRun = false;
     };
     auto o = std::make_shared<Opts>();
@@ -329,6 +329,9 @@ void registerValidate(CLI::App& app) {
     cmd->add_option("--out", o->out, "output directory")->required();
     cmd->add_option("--posterior", o->posterior,
                     "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
+    cmd->add_option("--level", o->level, "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level "
+                                         "unless that is 0)")
+        ->check(CLI::Range(1, 4));
     cmd->add_option("--jobs", o->jobs, "cases run at the same time (overrides run.jobs)")->check(CLI::Range(1, 256));
     cmd->add_option("--threads", o->threads, "OpenMP threads per case (overrides run.threads)")->check(CLI::Range(1, 1024));
     cmd->add_option("--only", o->only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
@@ -342,6 +345,7 @@ void registerValidate(CLI::App& app) {
         R.cfg = readValidationConfig(o->config, defaultExperimentDirectory());
         if (!o->posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o->posterior).lexically_normal();
         if (o->jobs > 0) R.cfg.jobs = o->jobs;
+        if (o->level > 0) R.cfg.level = o->level;
         if (o->threads > 0) R.cfg.threads = o->threads;
         if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
         R.out = fs::absolute(o->out).lexically_normal();
