@@ -187,6 +187,8 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("--etam 0.29999999999999999"), std::string::npos) << r.out;
+    r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run --level 3", dir.path());
+    EXPECT_NE(r.out.find("--level 3"), std::string::npos) << r.out;
     // Bad config: exit 2 naming the key, nothing written.
     const fs::path bad = writeText(dir.path() / "bad.toml", "[run]\njobs = 0\n");
     r = test::runTrbc("validate --config " + bad.string() + " --out " + (dir.path() / "b").string(), dir.path());
