@@ -287,6 +287,12 @@ TEST(InferCli, PriorOutsideTheTrainingBoxExitsWithStatus2NamingTheRange) {
     r = test::runTrbc("infer --samples 100 --out " + out + " --prior v=high:1", dir.path());
     EXPECT_EQ(r.status, 2);
     EXPECT_NE(r.err.find("expected NAME=LO:HI"), std::string::npos) << r.err;
+    // Resuming or running phase 2 on phase-1 posteriors of another prior box is refused.
+    r = test::runTrbc("infer --phase 1 --samples 200 --quiet --out " + out + " --prior v=0.8:1", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = test::runTrbc("infer --phase 2 --samples 200 --quiet --out " + out, dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("were made with the prior box"), std::string::npos) << r.err;
 }
 
 TEST(ExportCli, WritesMeshesAndParametersAtAQuantile) {

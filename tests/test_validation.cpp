@@ -47,6 +47,11 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
     EXPECT_EQ(ttf, 6);
     EXPECT_EQ(thr, 4 * 6 + 4 * 5);  // the eight scripted sweeps
     EXPECT_EQ(tube, 15);            // 5, 10, ..., 75 mmHg/mm
+    TempDir dir;
+    const fs::path dup = writeText(dir.path() / "dup.toml", "[tube]\npressure_gradients = [10, 10, 20]\n");
+    int tubes = 0;
+    for (const ValidationCase& x : initialValidationCases(readValidationConfig(dup, kExperiments))) tubes += x.kind == "tube";
+    EXPECT_EQ(tubes, 2);
     EXPECT_EQ(cases.front().id, "angle_eta10.7_rate1");
     EXPECT_NEAR(cases[13].rate, 200.0, 1e-9);
     EXPECT_EQ(cases.back().id, "tube_pg75");
@@ -100,6 +105,12 @@ TEST(ValidationThreshold, RefinementBisectsGeometricallyAndSearchesOutwards) {
     EXPECT_FALSE(refinementRate({{4, "tumbling"}, {2, "tank-treading"}}).has_value());    // non-monotone
     EXPECT_FALSE(refinementRate({{1, ""}, {2, ""}}).has_value());                         // all failed
     EXPECT_FALSE(refinementRate({}).has_value());
+    // Intermittent rates inside the bracket are gap edges: the widest gap is bisected, never a rate run before.
+    EXPECT_NEAR(*refinementRate({{1, "tumbling"}, {2, "intermittent"}, {8, "tank-treading"}}), 4.0, 1e-12);
+    EXPECT_NEAR(*refinementRate({{1, "tumbling"}, {2, "intermittent"}, {4, "intermittent"}, {8, "tank-treading"}}),
+                std::sqrt(2.0), 1e-12);
+    // Intermittent below tank-treading and no tumbling yet: search downwards.
+    EXPECT_NEAR(*refinementRate({{2, "intermittent"}, {4, "tank-treading"}}), 1.0, 1e-12);
 }
 
 TEST(ValidationComparison, ScatterWindowsAndBands) {
@@ -124,6 +135,7 @@ TEST(ValidationComparison, ScatterWindowsAndBands) {
     EXPECT_EQ(compareInterval(23.9, 0.1, 0.2, t, 0.1).verdict, "inside");
     EXPECT_EQ(compareInterval(23.9, 0.3, 0.5, t, 0.1).verdict, "outside");
     EXPECT_EQ(compareInterval(23.9, 0.03, std::nullopt, t, 0.1).verdict, "not bracketed");
+    EXPECT_EQ(compareInterval(23.9, 0.3, 0.1, t, 0.1).verdict, "not monotone");
     EXPECT_EQ(compareInterval(50.0, 0.1, 0.2, t, 0.1).verdict, "no data");
     // Length band (value, high, low) interpolated in log v.
     ExperimentalPoints l;

@@ -380,10 +380,10 @@ void transferabilitySection(ReportDocument& doc, const fs::path& out) {
     }
     const nlohmann::json& s = v["summary"];
     doc.paragraph(fmt::format("`trbc validate` (VALIDATION.md 3.2 and 4.2) with the θ_new posterior means, level {}: {} cases "
-                              "({} failed); {} predictions inside the experimental scatter, {} outside, {} without data or "
-                              "not bracketed. Nothing was tuned to these data. Tables in `validation/`.",
+                              "({} failed); {} predictions inside the experimental scatter, {} outside, {} without data nearby, {} "
+                              "neither (threshold not bracketed). Nothing was tuned to these data. Tables in `validation/`.",
                               v.value("level", 0), s.value("cases", 0), s.value("failed", 0), s.value("inside", 0),
-                              s.value("outside", 0), s.value("no_data", 0)));
+                              s.value("outside", 0), s.value("no_data", 0), s.value("other", 0)));
     std::vector<std::vector<std::string>> table;
     const auto rows = readCsvRows(dir / "comparison.csv");
     for (std::size_t k = 1; k < rows.size(); ++k)

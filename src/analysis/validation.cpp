@@ -105,7 +105,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         // Prior box of MODEL.md (SURROGATE.md 1); flow solvers accept no cell outside it.
         r.real("v", c.v, 0.65, 1.0);
         r.real("mu_uN_per_m", c.mu, 1.0, 10.0);
-        r.real("kb_J", c.kbJ, 1.074e-19, 1.075e-18);
+        r.real("kb_J", c.kbJ, 1.0742958e-19, 1.0742959e-18);
         r.real("b2", c.b2, 0.0, 4.0);
         r.real("etam_Pa_s_um", c.etam, 0.1, 1.0);
         if (c.cellSource == "posterior" && c.posterior.empty())
@@ -173,7 +173,9 @@ std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
                 cases.push_back({id, s.kind, s.etaOut, rate, 0.0});
         }
     if (c.tubeEnabled)
-        for (double pg : c.pressureGradients) cases.push_back({tubeCaseId(pg), "tube", c.tubeEtaOut, 0.0, pg});
+        for (double pg : c.pressureGradients)
+            if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return x.id == tubeCaseId(pg); }))
+                cases.push_back({tubeCaseId(pg), "tube", c.tubeEtaOut, 0.0, pg});
     return cases;
 }
 
@@ -196,14 +198,22 @@ std::optional<double> refinementRate(const std::vector<RegimePoint>& points, dou
     for (const RegimePoint& p : points) lo = std::min(lo, p.rate), hi = std::max(hi, p.rate);
     if (b.gammaLo && b.gammaHi) {
         if (!b.monotone) return std::nullopt;  // tumbling above tank-treading: reported, not bisected
-        if (*b.gammaHi / *b.gammaLo <= minRatio) return std::nullopt;
-        return std::sqrt(*b.gammaLo * *b.gammaHi);
+        // The widest gap between neighbouring rates already run inside [gammaLo, gammaHi]
+        // (intermittent and failed cases are gap edges, so the new rate is never one run before).
+        std::vector<double> inside;
+        for (const RegimePoint& p : points)
+            if (p.rate >= *b.gammaLo && p.rate <= *b.gammaHi) inside.push_back(p.rate);
+        std::sort(inside.begin(), inside.end());
+        double bestRatio = minRatio, best = 0.0;
+        for (std::size_t k = 0; k + 1 < inside.size(); ++k)
+            if (inside[k + 1] / inside[k] > bestRatio) bestRatio = inside[k + 1] / inside[k], best = std::sqrt(inside[k] * inside[k + 1]);
+        if (best > 0.0) return best;
+        return std::nullopt;
     }
-    // Not bracketed yet: search upwards for tank-treading (everything tumbled or was intermittent),
-    // or downwards for tumbling (everything tank-treaded).
+    // Not bracketed yet: search upwards for tank-treading (nothing tank-treaded), downwards for
+    // tumbling (something tank-treaded, nothing tumbled).
     if (!b.gammaHi && (b.gammaLo || !b.intermittentRates.empty())) return 2.0 * hi;
-    if (b.gammaHi && !b.gammaLo && b.intermittentRates.empty()) return 0.5 * lo;
-    if (b.gammaHi && !b.gammaLo) return std::nullopt;  // intermittent below tank-treading: the transition is gradual
+    if (b.gammaHi && !b.gammaLo) return 0.5 * lo;
     return std::nullopt;
 }
 
@@ -294,9 +304,11 @@ ScatterComparison compareInterval(double x, std::optional<double> lo, std::optio
         c.verdict = "not bracketed";
         return c;
     }
-    const double plo = lo.value_or(-std::numeric_limits<double>::infinity());
-    const double phi = hi.value_or(std::numeric_limits<double>::infinity());
-    c.verdict = plo <= c.hi && phi >= c.lo ? "inside" : "outside";
+    if (*lo > *hi) {  // tumbling above tank-treading
+        c.verdict = "not monotone";
+        return c;
+    }
+    c.verdict = *lo <= c.hi && *hi >= c.lo ? "inside" : "outside";
     return c;
 }
 

@@ -70,15 +70,18 @@ struct ThresholdBracket {
 };
 ThresholdBracket thresholdBracket(std::vector<RegimePoint> points);
 
-/// The next rate to run for a bracket: the geometric mean of [gammaLo, gammaHi] when both exist and
-/// differ by more than `minRatio`; 2 max(rates) when nothing tank-treaded (tumbling or intermittent
-/// only), min(rates) / 2 when everything tank-treaded; none otherwise (also when tumbling occurs
-/// above tank-treading: reported, not bisected).
+/// The next rate to run for a bracket: inside [gammaLo, gammaHi] the geometric mean of the widest
+/// gap between neighbouring rates already run (intermittent or failed ones included) when it
+/// exceeds `minRatio`; 2 max(rates) when nothing tank-treaded yet, min(rates) / 2 when something
+/// tank-treaded and nothing tumbled; none otherwise (also when tumbling occurs above
+/// tank-treading: reported, not bisected).
 std::optional<double> refinementRate(const std::vector<RegimePoint>& points, double minRatio = 1.05);
 
 /// A prediction against the experimental scatter around it.
 struct ScatterComparison {
-    std::string verdict;    ///< inside | outside | no data | not bracketed (threshold with a one-sided bound)
+    /// inside | outside | no data | not bracketed (threshold with a one-sided bound) | not monotone
+    /// (tumbling above tank-treading) | no prediction (set by the caller: tank-treading without a TTF)
+    std::string verdict;
     double lo = 0.0, hi = 0.0;  ///< the scatter interval (valid unless "no data")
     int points = 0;         ///< experimental values in the window
     std::string window;     ///< how the scatter was selected

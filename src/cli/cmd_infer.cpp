@@ -4,11 +4,13 @@
 #include <omp.h>
 
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <memory>
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "inference/rbc_pipeline.hpp"
 #include "surrogate/surrogate.hpp"
@@ -109,6 +111,22 @@ void registerInfer(CLI::App& app) {
         opt.phase3b.referenceEquilibriumDefect = o->fvk3b == "last";
         const RbcPriorBox box = parsePriorBox(o->priors);  // before anything is written
         ensureWritableDirectory(o->out);
+        // Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box.
+        nlohmann::json boxJson = nlohmann::json::object();
+        for (const std::string& name : RbcPriorBox::parameterNames()) {
+            const auto [lo, hi] = box.bounds(name);
+            boxJson[name] = {lo, hi};
+        }
+        const std::filesystem::path boxFile = std::filesystem::path(o->out) / "phase1_prior_box.json";
+        if ((o->resume || opt.firstPhase > 1) && std::filesystem::exists(boxFile)) {
+            std::ifstream in(boxFile);
+            const nlohmann::json previous = nlohmann::json::parse(in, nullptr, false);
+            if (previous != boxJson)
+                throw InputError(fmt::format("{}: the phase-1 posteriors in {} were made with the prior box {}, not {}; give the same "
+                                             "--prior or use another --out",
+                                             boxFile.string(), o->out, previous.dump(), boxJson.dump()));
+        }
+        if (opt.firstPhase == 1) writeFileAtomically(boxFile, boxJson.dump(1) + "\n");
 
         const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
         auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
@@ -116,11 +134,6 @@ void registerInfer(CLI::App& app) {
         const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
         std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
         for (RbcDataSet& d : data) d.prior = box;
-        nlohmann::json priorJson = nlohmann::json::object();
-        for (const std::string& name : RbcPriorBox::parameterNames()) {
-            const auto [lo, hi] = box.bounds(name);
-            priorJson[name] = {lo, hi};
-        }
 
         nlohmann::json networks = nlohmann::json::object();
         const std::pair<const char*, const TrainedNetwork*> nets[3] = {
@@ -131,7 +144,7 @@ void registerInfer(CLI::App& app) {
                                      {"precision", o->single ? "single" : "double"},
                                      {"networks", networks}}},
                           {"data_dir", std::filesystem::absolute(dataDir).lexically_normal().string()},
-                          {"phase1_prior_box", priorJson}};
+                          {"phase1_prior_box", boxJson}};
         if (!o->quiet) opt.progress = [](const std::string& line) { std::cerr << line << '\n'; };
 
         omp_set_num_threads(o->threads);

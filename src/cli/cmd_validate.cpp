@@ -47,7 +47,7 @@ double numberOr(const json& o, const char* key) {
 struct Runner {
     ValidationConfig cfg;
     fs::path out, exe, python, scripts;
-    bool quiet = false;
+    bool quiet = false, retryFailed = false;
     std::mutex mutex;
     std::map<std::string, json> results;  ///< case id -> {"key", "command", "exit", "wall_s", "result"}
     std::vector<ValidationCase> cases;    ///< every case so far, in order
@@ -63,6 +63,15 @@ struct Runner {
         return "";  // the flow commands' default: the paper's Table 1 means
     }
 
+    /// What the cell is, for the key: the arguments, the posterior's bytes, or the Table 1 values
+    /// the flow commands use by default.
+    std::string cellKey() const {
+        if (cfg.cellSource == "posterior")
+            return cellArgs() + " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
+        if (cfg.cellSource == "explicit") return cellArgs();
+        return "table1 v=0.94 mu=4.99 kb=2.10e-19 b2=1.84 etam=0.69";
+    }
+
     /// The flow arguments of a case (without threads and output, which do not change the result).
     std::string caseArgs(const ValidationCase& c) const {
         if (c.kind == "tube")
@@ -75,11 +84,7 @@ struct Runner {
                            c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
     }
 
-    std::string caseKey(const ValidationCase& c) const {
-        std::string cell = cellArgs();
-        if (cfg.cellSource == "posterior") cell += " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
-        return fingerprintOf({kVersion, caseArgs(c), cell});
-    }
+    std::string caseKey(const ValidationCase& c) const { return fingerprintOf({kVersion, caseArgs(c), cellKey()}); }
 
     fs::path caseFile(const ValidationCase& c) const { return out / "cases" / (c.id + ".json"); }
 
@@ -90,6 +95,7 @@ struct Runner {
         try {
             json j = json::parse(readFile(f));
             if (j.value("key", "") != caseKey(c) || !j.contains("result")) return false;
+            if (retryFailed && j["result"].value("status", "") != "ok") return false;
             std::lock_guard lock(mutex);
             results[c.id] = std::move(j);
             return true;
@@ -107,7 +113,9 @@ struct Runner {
         const int status = std::system((command + " > " + shellQuote(stdoutFile) + " 2> " + shellQuote(log) + " < /dev/null").c_str());
         const int rc = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
         const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-        if (rc == 130 || rc == 128 + SIGINT || rc == 128 + SIGTERM || rc == 128 + SIGKILL)
+        // Ctrl-C reaches the whole process group: stop, the case runs again on resume. A case killed
+        // alone (out of memory, a kill of the child) is recorded as failed with the signal.
+        if (rc == 130 || rc == 128 + SIGINT)
             throw NumericalError(fmt::format("validate: case {} interrupted (exit {}); run the same command again to resume", c.id, rc));
         json result;
         try {
@@ -115,7 +123,9 @@ struct Runner {
         } catch (const std::exception&) {
             std::string tail = readFile(log);
             if (tail.size() > 600) tail = "..." + tail.substr(tail.size() - 600);
-            result = {{"status", "failed"}, {"reason", fmt::format("exit {} without a result: {}", rc, tail)}};
+            result = {{"status", "failed"},
+                      {"reason", rc > 128 ? fmt::format("killed by signal {} without a result: {}", rc - 128, tail)
+                                          : fmt::format("exit {} without a result: {}", rc, tail)}};
         }
         if (rc != 0 && result.value("status", "") == "ok") result["status"] = "failed";
         json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
@@ -204,11 +214,11 @@ json writeTables(Runner& R) {
     const fs::path& out = R.out;
     const fs::path shearData = cfg.dataDir / "shear_flow", tubeData = cfg.dataDir / "microtube";
     json comparisons = json::array();
-    int inside = 0, outside = 0, noData = 0, failed = 0;
+    int inside = 0, outside = 0, noData = 0, other = 0, failed = 0;
     std::string md = "| case | observable | prediction | experimental scatter | verdict |\n|---|---|---|---|---|\n";
     auto record = [&](const std::string& id, const std::string& observable, double predicted, const ScatterComparison& s,
                       const std::string& shown) {
-        (s.verdict == "inside" ? inside : s.verdict == "outside" ? outside : noData)++;  // no data, not bracketed
+        (s.verdict == "inside" ? inside : s.verdict == "outside" ? outside : s.verdict == "no data" ? noData : other)++;
         comparisons.push_back({{"case", id}, {"observable", observable}, {"predicted", predicted}, {"scatter_lo", s.lo},
                                {"scatter_hi", s.hi}, {"points", s.points}, {"window", s.window}, {"verdict", s.verdict}});
         md += fmt::format("| {} | {} | {} | {} | {} |\n", id, observable, shown,
@@ -257,13 +267,15 @@ json writeTables(Runner& R) {
             if (!angleData.count(c.etaOut))
                 angleData[c.etaOut] = readExperimentalPoints(f, "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
             const double a = numberOr(o, "inclination_deg");
-            record(c.id, "inclination [deg]", a, compareWithScatter(c.rate, a, angleData[c.etaOut], 1.5),
-                   std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
+            ScatterComparison s = compareWithScatter(c.rate, a, angleData[c.etaOut], 1.5);
+            if (regime == "tank-treading" && !std::isfinite(a) && s.points > 0) s.verdict = "no prediction";
+            record(c.id, "inclination [deg]", a, s, std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
         } else if (c.kind == "ttf") {
             static const ExperimentalPoints ttf = readExperimentalPoints(shearData / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
             const double f = numberOr(o, "ttf_4pi_f_over_shear_rate");
-            record(c.id, "4 pi f / rate", f, compareWithScatter(c.rate, f, ttf, 1.25, 4.0 * M_PI),
-                   std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
+            ScatterComparison s = compareWithScatter(c.rate, f, ttf, 1.25, 4.0 * M_PI);
+            if (regime == "tank-treading" && !std::isfinite(f) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
+            record(c.id, "4 pi f / rate", f, s, std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
         }
     }
     // Threshold: the bracket per outer viscosity against Fischer 2013 and Abkarian 2007.
@@ -296,14 +308,17 @@ json writeTables(Runner& R) {
                            c["predicted"].get<double>(), c["scatter_lo"].get<double>(), c["scatter_hi"].get<double>(),
                            c["points"].get<int>(), c["verdict"].get<std::string>(), c["window"].get<std::string>());
     writeFileAtomically(out / "comparison.csv", cmp);
-    const json summary = {{"cases", R.cases.size()}, {"failed", failed}, {"inside", inside}, {"outside", outside}, {"no_data", noData}};
+    const json summary = {{"cases", R.cases.size()}, {"failed", failed}, {"inside", inside},       {"outside", outside},
+                          {"no_data", noData},      {"other", other},   {"comparisons", comparisons.size()}};
     md = fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
-                     "scatter, {} outside, {} without data nearby. Windows: inclination and TTF use the data at shear rates "
+                     "scatter, {} outside, {} without data nearby, {} neither (threshold not bracketed or not monotone, "
+                     "tank-treading without a TTF). A tumbling or intermittent cell where the donors tank-tread counts as "
+                     "outside. Windows: inclination and TTF use the data at shear rates "
                      "within a factor 1.5 (angle) or 1.25 (TTF) of the case, the velocity the data at pressure gradients within "
                      "a factor 1.25, the length the Tomaiuolo band interpolated at the predicted velocity, the critical stress "
                      "the data within 10 % of the outer viscosity (inside = the interval [eta gamma_lo, eta gamma_hi] overlaps "
                      "them).\n\n",
-                     R.cases.size(), failed, inside, outside, noData) +
+                     R.cases.size(), failed, inside, outside, noData, other) +
          md;
     writeFileAtomically(out / "validation.md", md);
     return summary;
@@ -316,7 +331,7 @@ void registerValidate(CLI::App& app) {
         std::string config, out, posterior;
         std::vector<std::string> only;
         int jobs = 0, threads = 0, level = 0;
-        bool quiet = false, dryRun = false;
+        bool quiet = false, dryRun = false, retryFailed = false;
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
@@ -338,6 +353,8 @@ void registerValidate(CLI::App& app) {
                                        "the tables cover what has been run")
         ->delimiter(',')
         ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
+    cmd->add_flag("--retry-failed", o->retryFailed, "run again the cases recorded as failed (a transient failure; "
+                                                   "by default a failed case is kept like a finished one)");
     cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, run nothing");
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     cmd->callback([o]() {
@@ -350,6 +367,7 @@ void registerValidate(CLI::App& app) {
         if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
         R.out = fs::absolute(o->out).lexically_normal();
         R.quiet = o->quiet;
+        R.retryFailed = o->retryFailed;
         R.exe = fs::read_symlink("/proc/self/exe");
         R.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
         R.python = pythonInterpreter();
@@ -417,10 +435,11 @@ void registerValidate(CLI::App& app) {
         if (initial.size() < configured)
             std::cout << fmt::format("trbc validate: --only: {} of the {} configured initial cases selected\n", initial.size(), configured);
         std::cout << fmt::format("trbc validate: {} cases ({} failed, {} run now) in {:.1f} min; {} predictions inside the experimental "
-                                 "scatter, {} outside, {} without data\n  tables: {}/{{shear,threshold,tube,comparison}}.csv\n  "
+                                 "scatter, {} outside, {} without data, {} neither\n  tables: {}/{{shear,threshold,tube,comparison}}.csv\n  "
                                  "summary: {}\n  figures: {}\n",
                                  summary["cases"].get<int>(), summary["failed"].get<int>(), R.ranHere, wall / 60.0,
                                  summary["inside"].get<int>(), summary["outside"].get<int>(), summary["no_data"].get<int>(),
+                                 summary["other"].get<int>(),
                                  R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
         if (summary["failed"].get<int>() > 0) throw NumericalError(fmt::format("validate: {} case(s) failed (see validation.md and cases/)", summary["failed"].get<int>()));
     });

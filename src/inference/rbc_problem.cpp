@@ -267,7 +267,7 @@ void RbcPriorBox::set(const std::string& name, double lo, double hi) {
     const auto [dlo, dhi] = RbcPriorBox{}.bounds(name);
     if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi && lo >= dlo * (1 - 1e-12) && hi <= dhi * (1 + 1e-12)))
         throw InputError(fmt::format("prior of {}: [{:g}, {:g}] is out of range: it must satisfy lo < hi inside the surrogates' "
-                                     "training box [{:g}, {:g}] (SURROGATE.md 1; a prior may be narrowed, not widened)",
+                                     "training box [{:.10g}, {:.10g}] (SURROGATE.md 1; a prior may be narrowed, not widened)",
                                      name, lo, hi, dlo, dhi));
     double scale = 1.0;
     const auto [plo, phi] = boxBounds(*this, name, scale);
