@@ -133,15 +133,6 @@ TEST(CellFlowObservables, BadInputThrows) {
 
 // ---- The coupled solver ------------------------------------------------------------------------
 
-CellParameters table1Cell() {
-    CellParameters p;
-    p.v = 0.94;
-    p.mu = 4.99;
-    p.FvK = CellParameters::fvkFromKb(4.99, 2.10e-19);
-    p.b2 = 1.84;
-    p.etam = 0.69;
-    return p;
-}
 
 const std::filesystem::path& flowCache() {
     static const std::filesystem::path d = [] {
@@ -153,7 +144,7 @@ const std::filesystem::path& flowCache() {
 }
 
 const ShearCell& cellL2() {
-    static const ShearCell c = prepareShearCell(table1Cell(), 2, flowCache());
+    static const ShearCell c = prepareShearCell(paperTable1Cell(), 2, flowCache());
     return c;
 }
 
@@ -167,7 +158,7 @@ FlowConditions shear(double etaOut, double rate) {
 
 TEST(CellFlow, ModelUnitsAndDimensionlessGroups) {
     const ShearCell& c = cellL2();
-    const CellParameters p = table1Cell();
+    const CellParameters p = paperTable1Cell();
     const CellFlowModel m(p, shear(23.9, 50.0), c.faces, c.reference);
     const double RA = std::sqrt(cell::area / (4.0 * kPi)), eta = 23.9e-3;
     EXPECT_NEAR(m.scales().length, RA, 1e-12);
@@ -212,8 +203,8 @@ TEST(CellFlow, BadFlowConditionsThrowInputErrorNamingTheParameter) {
     EXPECT_NE(message(shear(10.0, 0.0)).find("time_scale"), std::string::npos);  // quiescent needs a time scale
     EXPECT_TRUE(message(shear(10.0, 1.0)).empty());
     const ShearCell& c = cellL2();
-    EXPECT_THROW(CellFlowModel(table1Cell(), shear(0.0, 1.0), c.faces, c.reference), InputError);
-    const CellFlowModel m(table1Cell(), shear(10.0, 1.0), c.faces, c.reference);
+    EXPECT_THROW(CellFlowModel(paperTable1Cell(), shear(0.0, 1.0), c.faces, c.reference), InputError);
+    const CellFlowModel m(paperTable1Cell(), shear(10.0, 1.0), c.faces, c.reference);
     CellFlowOptions o;
     o.tEnd = -1.0;
     EXPECT_THROW(integrateCellFlow(m, m.toInternal(c.initial), o), InputError);
@@ -223,7 +214,7 @@ TEST(CellFlow, BadFlowConditionsThrowInputErrorNamingTheParameter) {
 TEST(CellFlow, SphericalCapsuleAtRestInQuiescentFluidStaysAtRest) {
     const Mesh s = icosphere(2);
     const Vertices X = scaleToArea(s.X, s.F, cell::area);
-    CellParameters p = table1Cell();
+    CellParameters p = paperTable1Cell();
     FlowConditions f;
     f.etaOut = 1.0;
     f.etaIn = 1.0;
@@ -250,7 +241,7 @@ TEST(CellFlow, EquilibriumCellAtRestInQuiescentFluidStaysAtRest) {
     const ShearCell& c = cellL2();
     FlowConditions f = shear(10.0, 0.0);
     f.timeScale = 0.1;
-    const CellFlowModel m(table1Cell(), f, c.faces, c.reference);
+    const CellFlowModel m(paperTable1Cell(), f, c.faces, c.reference);
     const Vertices X0 = m.toInternal(c.initial);
     CellFlowOptions o;
     o.tEnd = 5.0;
@@ -269,7 +260,7 @@ TEST(CellFlow, LargeMembraneViscosityMakesASphereRotateRigidlyInShear) {
     // u = (y, 0, 0) turns with Omega = -1/2 e_z. Checks the sign and the implicit coupling.
     const Mesh s = icosphere(2);
     const Vertices X = scaleToArea(s.X, s.F, cell::area);
-    CellParameters p = table1Cell();
+    CellParameters p = paperTable1Cell();
     p.etam = 1000.0;
     FlowConditions f = shear(28.9, 1.0);
     f.A0 = totalArea(X, s.F);
@@ -300,7 +291,7 @@ CellFlowOptions tankTreadingOptions() {
 const CellFlowResult& tankTreadingRun() {
     static const CellFlowResult r = [] {
         const ShearCell& c = cellL2();
-        const CellFlowModel m(table1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+        const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
         return integrateCellFlow(m, m.toInternal(c.initial), tankTreadingOptions());
     }();
     return r;
@@ -340,7 +331,7 @@ TEST(CellFlow, CellTankTreadsAtHighShearRateWithAreaAndVolumeHeld) {
 TEST(CellFlow, TurningTheInitialCellByPiAboutTheVorticityAxisIsAnExactSymmetry) {
     // u = (y, 0, 0) is invariant under the rotation by pi about z; the discrete problem is too.
     const ShearCell& c = cellL2();
-    const CellFlowModel m(table1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
     CellFlowOptions o;
     o.tEnd = 2.0 * kPi;
     const Vertices X0 = m.toInternal(rotateAboutVorticity(c.initial, 0.4));
@@ -358,7 +349,7 @@ TEST(CellFlow, TurningTheInitialCellChangesTheTankTreadingStateLittle) {
     // 30 degrees about the vorticity axis (the disc tilted in the shear plane): after the
     // transient, the same tank-treading state up to the discretisation error of level 2.
     const ShearCell& c = cellL2();
-    const CellFlowModel m(table1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
     const CellFlowOptions o = tankTreadingOptions();
     const Eigen::Matrix3d R = Eigen::AngleAxisd(30.0 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
                               Eigen::AngleAxisd(0.63, Eigen::Vector3d::UnitY()).toRotationMatrix();
@@ -378,7 +369,7 @@ TEST(CellFlow, TurningTheInitialCellChangesTheTankTreadingStateLittle) {
 
 TEST(CellFlow, HalvingTheTimeStepChangesLittle) {
     const ShearCell& c = cellL2();
-    const CellFlowModel m(table1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
     auto run = [&](double dt) {
         CellFlowOptions o;
         o.tEnd = kPi;

@@ -176,15 +176,6 @@ TEST(TubeWall, Truncation) {
 
 // ---- The coupled cell ---------------------------------------------------------------------------
 
-CellParameters table1Cell() {
-    CellParameters p;
-    p.v = 0.94;
-    p.mu = 4.99;
-    p.FvK = CellParameters::fvkFromKb(4.99, 2.10e-19);
-    p.b2 = 1.84;
-    p.etam = 0.69;
-    return p;
-}
 
 const std::filesystem::path& tubeCache() {
     static const std::filesystem::path d = [] {
@@ -220,7 +211,7 @@ TEST(TubeEnvironmentTest, RepulsionGradientAndFit) {
     EXPECT_GT(g(1, 0), 0.0);  // the force -g pushes the vertex at y = 0.95 towards the axis
     EXPECT_EQ(g.col(2).norm(), 0.0);
     // The Table 1 cell (level 2, equilibrium, disc plane x-z) fitted into a 6.6 um tube.
-    const ShearCell c = prepareShearCell(table1Cell(), 2, tubeCache());
+    const ShearCell c = prepareShearCell(paperTable1Cell(), 2, tubeCache());
     const Vertices Y = fitIntoTube(c.initial, c.faces, 3.3, 0.33, cell::area, cell::volume);
     EXPECT_GE(wallClearance(Y, 3.3), 0.33 - 1e-9);
     EXPECT_NEAR(totalArea(Y, c.faces), cell::area, 1e-8 * cell::area);
@@ -230,7 +221,7 @@ TEST(TubeEnvironmentTest, RepulsionGradientAndFit) {
 }
 
 TEST(TubeFlow, ShortCoupledRunMovesAlongTheAxisAndKeepsAreaAndVolume) {
-    const CellParameters p = table1Cell();
+    const CellParameters p = paperTable1Cell();
     const ShearCell c = prepareShearCell(p, 2, tubeCache());
     const double R = 3.3, pg = 30.0, V = pg / 45.0 * 1e4, T = R / V;
     FlowConditions fc;
@@ -305,7 +296,7 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
 /// Table 1 cell fitted into the 6.6 um tube at 30 mmHg/mm (the production case's first state).
 TEST(TubeConvergence, DISABLED_CellVelocityVsWall) {
     for (int level : {2, 3}) {
-        const CellParameters p = table1Cell();
+        const CellParameters p = paperTable1Cell();
         const ShearCell c = prepareShearCell(p, level, tubeCache());
         const double R = 3.3, pg = 30.0, V = pg / 45.0 * 1e4, T = R / V;
         FlowConditions fc;

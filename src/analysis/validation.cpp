@@ -11,6 +11,7 @@
 
 #include "analysis/toml_reader.hpp"
 #include "core/error.hpp"
+#include "inference/rbc_problem.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
@@ -103,11 +104,12 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         r.string("posterior", post);
         if (!post.empty()) c.posterior = resolveConfigPath(post, dir, experiments);
         // Prior box of MODEL.md (SURROGATE.md 1); flow solvers accept no cell outside it.
-        r.real("v", c.v, 0.65, 1.0);
-        r.real("mu_uN_per_m", c.mu, 1.0, 10.0);
-        r.real("kb_J", c.kbJ, 1.0742958e-19, 1.0742959e-18);
-        r.real("b2", c.b2, 0.0, 4.0);
-        r.real("etam_Pa_s_um", c.etam, 0.1, 1.0);
+        const RbcPriorBox box;
+        for (const auto& [key, value] : {std::pair{"v", &c.v}, {"mu_uN_per_m", &c.mu}, {"kb_J", &c.kbJ}, {"b2", &c.b2},
+                                        {"etam_Pa_s_um", &c.etam}}) {
+            const auto [lo, hi] = box.bounds(key);
+            r.real(key, *value, lo, hi);
+        }
         if (c.cellSource == "posterior" && c.posterior.empty())
             r.fail(*t, "cell.source = \"posterior\" needs cell.posterior (DIR/phase3/theta_new of `trbc infer`)");
         if (c.cellSource == "posterior" && !fs::exists(c.posterior))

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "experiments/parameters.hpp"
+
 namespace trbc {
 
 /// One shear-rate sweep at fixed outer viscosity: `count` rates log-spaced in [rateMin, rateMax].
@@ -27,7 +29,7 @@ struct ValidationConfig {
     /// "explicit" (the five parameters below).
     std::string cellSource = "table1";
     std::filesystem::path posterior;
-    double v = 0.94, mu = 4.99, kbJ = 2.10e-19, b2 = 1.84, etam = 0.69;
+    double v = table1::v, mu = table1::mu, kbJ = table1::kbJ, b2 = table1::b2, etam = table1::etam;
     double etaIn = 10.0, rotations = 10.0;  ///< shear flow: cytosol (mPa s), duration in rigid-sphere turns
     std::vector<ShearSweep> sweeps;         ///< the defaults of VALIDATION.md 3.2 unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket

@@ -24,8 +24,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-/// The paper's Table 1 (posterior of theta_new): means of v, mu, kb, b2, eta_m.
-constexpr double kTable1V = 0.94, kTable1Mu = 4.99, kTable1KbJ = 2.10e-19, kTable1B2 = 1.84, kTable1Etam = 0.69;
 
 nlohmann::json nullable(bool ok, double v) { return ok ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
@@ -57,7 +55,7 @@ void writeOutputs(const std::string& dir, const CellFlowModel& model, const Shea
 
 /// The cell options shared by `flow shear` and `flow tube` (defaults: the paper's Table 1 means).
 struct CellOptions {
-    double v = kTable1V, mu = kTable1Mu, FvK = 0.0, kbJ = 0.0, b2 = kTable1B2, etam = kTable1Etam;
+    double v = table1::v, mu = table1::mu, FvK = 0.0, kbJ = 0.0, b2 = table1::b2, etam = table1::etam;
     bool allowOutside = false;
     std::string posterior;
     CLI::Option *ov = nullptr, *omu = nullptr, *fvk = nullptr, *okb = nullptr, *ob2 = nullptr, *oetam = nullptr,
@@ -99,7 +97,7 @@ CellParameters cellParameters(const CellOptions& c) {
     if (c.FvK != 0.0 || c.fvk->count() > 0) {
         p.FvK = c.FvK;
     } else {
-        const double kb = c.okb->count() > 0 ? c.kbJ : kTable1KbJ;
+        const double kb = c.okb->count() > 0 ? c.kbJ : table1::kbJ;
         if (!(kb > 0.0) || !std::isfinite(kb))
             throw InputError(fmt::format("parameter --kb = {} J: must be positive (prior [1.074e-19, 1.074e-18] J)", kb));
         p.FvK = CellParameters::fvkFromKb(p.mu, kb);

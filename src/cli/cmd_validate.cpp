@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "analysis/stage_ledger.hpp"
@@ -23,6 +24,7 @@
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
+#include "experiments/parameters.hpp"
 
 namespace trbc::cli {
 namespace {
@@ -69,7 +71,7 @@ struct Runner {
         if (cfg.cellSource == "posterior")
             return cellArgs() + " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
         if (cfg.cellSource == "explicit") return cellArgs();
-        return "table1 v=0.94 mu=4.99 kb=2.10e-19 b2=1.84 etam=0.69";
+        return fmt::format("table1 v={} mu={} kb={} b2={} etam={}", table1::v, table1::mu, table1::kbJ, table1::b2, table1::etam);
     }
 
     /// The flow arguments of a case (without threads and output, which do not change the result).
@@ -232,6 +234,7 @@ json writeTables(Runner& R) {
     std::string tube = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,length_um,width_um,plateau,status,area_drift_max,"
                        "volume_drift_max,wall_s,level\n";
     std::map<double, ExperimentalPoints> angleData;
+    std::optional<ExperimentalPoints> pgv, vl, ttf;  // read when the first case needs them
     for (const ValidationCase& c : R.cases) {
         const json& rec = R.results.at(c.id);
         const json& r = rec.at("result");
@@ -248,11 +251,10 @@ json writeTables(Runner& R) {
                                 cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
             if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) continue;
             const double v = numberOr(o, "velocity_cm_per_s"), l = numberOr(o, "length_um");
-            static const ExperimentalPoints pgv = readExperimentalPoints(tubeData / "Tomaiuolo2009_pg_v_6.6um.csv", "pg", {"v"});
-            static const ExperimentalPoints vl =
-                readExperimentalPoints(tubeData / "Tomaiuolo2009_v_l_6.6um.csv", "v", {"l", "l_high", "l_low"});
-            record(c.id, "velocity [cm/s]", v, compareWithScatter(c.pressureGradient, v, pgv, 1.25), fmt::format("{:.3g}", v));
-            record(c.id, "length [um]", l, compareWithBand(v, l, vl), fmt::format("{:.3g} (at {:.3g} cm/s)", l, v));
+            if (!pgv) pgv = readExperimentalPoints(tubeData / "Tomaiuolo2009_pg_v_6.6um.csv", "pg", {"v"});
+            if (!vl) vl = readExperimentalPoints(tubeData / "Tomaiuolo2009_v_l_6.6um.csv", "v", {"l", "l_high", "l_low"});
+            record(c.id, "velocity [cm/s]", v, compareWithScatter(c.pressureGradient, v, *pgv, 1.25), fmt::format("{:.3g}", v));
+            record(c.id, "length [um]", l, compareWithBand(v, l, *vl), fmt::format("{:.3g} (at {:.3g} cm/s)", l, v));
             continue;
         }
         const std::string regime = o.value("regime", json()).is_string() ? o.at("regime").get<std::string>() : "";
@@ -271,9 +273,9 @@ json writeTables(Runner& R) {
             if (regime == "tank-treading" && !std::isfinite(a) && s.points > 0) s.verdict = "no prediction";
             record(c.id, "inclination [deg]", a, s, std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
         } else if (c.kind == "ttf") {
-            static const ExperimentalPoints ttf = readExperimentalPoints(shearData / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
+            if (!ttf) ttf = readExperimentalPoints(shearData / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
             const double f = numberOr(o, "ttf_4pi_f_over_shear_rate");
-            ScatterComparison s = compareWithScatter(c.rate, f, ttf, 1.25, 4.0 * M_PI);
+            ScatterComparison s = compareWithScatter(c.rate, f, *ttf, 1.25, 4.0 * M_PI);
             if (regime == "tank-treading" && !std::isfinite(f) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
             record(c.id, "4 pi f / rate", f, s, std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
         }
@@ -398,8 +400,8 @@ void registerValidate(CLI::App& app) {
         const json summary = writeTables(R);
         const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
         json cell = R.cfg.cellSource == "table1"
-                        ? json{{"source", "the paper's Table 1 means"}, {"v", 0.94}, {"mu_uN_per_m", 4.99}, {"kb_J", 2.10e-19}, {"b2", 1.84},
-                               {"etam_Pa_s_um", 0.69}}
+                        ? json{{"source", "the paper's Table 1 means"}, {"v", table1::v}, {"mu_uN_per_m", table1::mu}, {"kb_J", table1::kbJ},
+                               {"b2", table1::b2}, {"etam_Pa_s_um", table1::etam}}
                     : R.cfg.cellSource == "explicit"
                         ? json{{"source", "explicit"}, {"v", R.cfg.v}, {"mu_uN_per_m", R.cfg.mu}, {"kb_J", R.cfg.kbJ}, {"b2", R.cfg.b2},
                                {"etam_Pa_s_um", R.cfg.etam}}

@@ -35,6 +35,15 @@ struct CellParameters {
     static double fvkFromKb(double mu, double kbJoule) { return mu * cell::radiusSquared / (kbJoule * cell::joule); }
 };
 
+/// The paper's Table 1: means of the theta_new posterior, the default cell of the flow validations
+/// (VALIDATION.md 1) until a calibration of trbc's own is given.
+namespace table1 {
+inline constexpr double v = 0.94, mu = 4.99, kbJ = 2.10e-19, b2 = 1.84, etam = 0.69;
+}  // namespace table1
+inline CellParameters paperTable1Cell() {
+    return {table1::v, table1::mu, CellParameters::fvkFromKb(table1::mu, table1::kbJ), table1::b2, table1::etam};
+}
+
 /// The prior box of MODEL.md F.2 (FvK support [10, 1000], Fext [0, 200] pN).
 struct PriorRange {
     const char* name;

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "experiments/parameters.hpp"
 #include "inference/priors.hpp"
 #include "inference/tmcmc.hpp"
 
@@ -46,11 +47,11 @@ const char* experimentName(RbcExperiment e);  ///< "equilibrium", "stretching", 
 /// The equilibrium FvK prior stays ratio-uniform with X = mu in [muLo, muHi], Y = kb / R_A^2, and
 /// the relaxation ratio r = etam / mu ratio-uniform with X = etam, Y = mu.
 struct RbcPriorBox {
-    double vLo = 0.65, vHi = 1.0;
-    double muLo = 1.0, muHi = 10.0;
+    double vLo = kPriorV.lo, vHi = kPriorV.hi;
+    double muLo = kPriorMu.lo, muHi = kPriorMu.hi;
     double kbLo = kKbLow, kbHi = kKbHigh;
-    double b2Lo = 0.0, b2Hi = 4.0;
-    double etamLo = 0.1, etamHi = 1.0;
+    double b2Lo = kPriorB2.lo, b2Hi = kPriorB2.hi;
+    double etamLo = kPriorEtam.lo, etamHi = kPriorEtam.hi;
 
     /// Canonical names of the bounded parameters: v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um.
     static const std::vector<std::string>& parameterNames();
