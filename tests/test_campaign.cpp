@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <map>
 #include <thread>
 
@@ -223,6 +224,20 @@ TEST(CampaignRunner, ResumeRefusesOtherSettings) {
         "campaign --samples 4 --forces-per-cell 4 --level 2 --seed 6 --no-cache --resume --out " + shellQuote(a.string()), tmp.path());
     EXPECT_EQ(r.status, 2);
     EXPECT_NE(r.err.find("seed (was 5, now 6)"), std::string::npos) << r.err;
+
+    // A campaign of an earlier forward-model revision (no such key, revision 1) is not continued.
+    const fs::path file = a / "campaign.json";
+    nlohmann::json j;
+    {
+        std::ifstream in(file);
+        j = nlohmann::json::parse(in);
+    }
+    j["settings"].erase("forward_model_revision");
+    std::ofstream(file) << j.dump(2);
+    const CliRun old = runTrbc(
+        "campaign --samples 4 --forces-per-cell 4 --level 2 --seed 5 --no-cache --resume --out " + shellQuote(a.string()), tmp.path());
+    EXPECT_EQ(old.status, 2);
+    EXPECT_NE(old.err.find("forward_model_revision (was null, now 2)"), std::string::npos) << old.err;
 }
 
 TEST(CampaignRunner, RowsOfACellMatchTheDirectForwardModel) {

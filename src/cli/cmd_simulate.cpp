@@ -172,7 +172,7 @@ void registerSimulate(CLI::App& app) {
         nlohmann::json j;
         j["parameters"] = {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()},
                            {"b2", p.b2}, {"etam_Pa_s_um", p.etam}, {"Fext_pN", o->fext}};
-        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}, {"level", o->level},
+        j["provenance"] = {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"command", commandLine()}, {"level", o->level},
                            {"vertices", 10 * (1 << (2 * o->level)) + 2}, {"sfs_model_version", kSfsModelVersion},
                            {"threads", o->threads}};
         const auto t0 = std::chrono::steady_clock::now();

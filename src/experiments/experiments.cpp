@@ -193,7 +193,7 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     for (int k = 1; k <= opt.relaxSamples; ++k) times.push_back(opt.relaxDuration * k / opt.relaxSamples);
     Vertices X = res.released;
     const DynamicsObserver observe = [&](double t, const Vertices& Y) {
-        const Eigen::Vector3d e = extents(alignPrincipalAxes(Y));
+        const Eigen::Vector3d e = sortedExtents(Y);  // E.3: L = largest extent, W = second largest
         res.t.push_back(t);
         res.L.push_back(e[0]);
         res.W.push_back(e[1]);

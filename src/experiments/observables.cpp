@@ -91,7 +91,8 @@ private:
 
 int sign(double y) { return (y > 0.0) - (y < 0.0); }
 
-/// Extents of the aligned vertices sorted in decreasing order (E.0, E.2, E.3).
+}  // namespace
+
 Eigen::Vector3d sortedExtents(const Vertices& X) {
     if (X.cols() == 0) throw InputError("observables: the mesh has no vertices");
     if (!X.allFinite()) throw NumericalError("observables: non-finite vertex positions");
@@ -99,8 +100,6 @@ Eigen::Vector3d sortedExtents(const Vertices& X) {
     std::sort(e.data(), e.data() + 3, std::greater<>());
     return e;
 }
-
-}  // namespace
 
 ThicknessProfile thicknessProfile(const Vertices& alignedX, const Faces& F, double radius, int rays) {
     if (rays < 2) throw InputError(fmt::format("thicknessProfile: rays = {} must be >= 2", rays));

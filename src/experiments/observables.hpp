@@ -27,6 +27,10 @@ struct EquilibriumObservables {
 /// Optionally returns the profile. Throws NumericalError if no ray hits.
 EquilibriumObservables equilibriumObservables(const Vertices& X, const Faces& F, ThicknessProfile* profile = nullptr);
 
+/// E.0: align, then the three extents sorted in decreasing order (not in the order of the principal
+/// axes: near a round shape the axis of largest variance need not carry the largest extent).
+Eigen::Vector3d sortedExtents(const Vertices& X);
+
 struct StretchObservables {
     double D0 = 0, D1 = 0;
 };

@@ -47,6 +47,7 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
             {"isotropic_friction", e.isotropicFriction},
             {"relax_duration_s", e.relaxDuration},
             {"relax_samples", e.relaxSamples},
+            {"forward_model_revision", kForwardModelRevision},
             {"sfs_gradient_tolerance", e.sfs.gradientTolerance},
             {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
 }
