@@ -4,9 +4,14 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "analysis/validation.hpp"
 #include "core/error.hpp"
@@ -207,6 +212,58 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     EXPECT_EQ(r.status, 2);
     EXPECT_NE(r.err.find("bad.toml:2: 'run.jobs' = 0 is out of range"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir.path() / "b"));
+}
+
+/// Processes whose command line mentions `needle` (other than this test).
+int processesMentioning(const std::string& needle) {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator("/proc")) {
+        const std::string name = e.path().filename().string();
+        if (name.find_first_not_of("0123456789") != std::string::npos || std::stoi(name) == ::getpid()) continue;
+        std::string cmd = test::slurp(e.path() / "cmdline");
+        std::replace(cmd.begin(), cmd.end(), '\0', ' ');
+        if (cmd.find(needle) != std::string::npos) ++n;
+    }
+    return n;
+}
+
+// A second validate on the same OUT is refused while the first runs; SIGTERM to validate reaches
+// the `trbc flow` cases it started (their own process groups) and leaves none running.
+TEST(ValidateCli, LockAndSignalForwarding) {
+    using namespace std::chrono_literals;
+    TempDir dir;
+    const fs::path cfg = writeText(dir.path() / "slow.toml",
+                                   "[run]\nlevel = 2\njobs = 2\n[shear]\nrotations = 1000\n"
+                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
+                                   "[tube]\nenabled = false\n");
+    const fs::path out = dir.path() / "o";
+    const fs::path pidFile = dir.path() / "pid";
+    ASSERT_EQ(std::system(("(" + test::shellQuote(TRBC_CLI) + " validate --only angle --config " + test::shellQuote(cfg.string()) +
+                           " --out " + test::shellQuote(out.string()) + " > " + test::shellQuote((dir.path() / "log").string()) +
+                           " 2>&1 & echo $! > " + test::shellQuote(pidFile.string()) + ")")
+                              .c_str()),
+              0);
+    std::this_thread::sleep_for(200ms);
+    const pid_t pid = std::stoi(test::slurp(pidFile));
+    // Wait until both cases run (their logs exist).
+    for (int i = 0; i < 300 && !(fs::exists(out / "cases" / "angle_eta23.9_rate20.log") && fs::exists(out / "cases" / "angle_eta23.9_rate60.log")); ++i)
+        std::this_thread::sleep_for(50ms);
+    ASSERT_TRUE(fs::exists(out / "cases" / "angle_eta23.9_rate60.log")) << test::slurp(dir.path() / "log");
+    ASSERT_GE(processesMentioning((out / "cases" / "angle_eta23.9_rate").string()), 2);
+
+    const test::CliRun second = test::runTrbc("validate --only angle --config " + cfg.string() + " --out " + out.string(), dir.path());
+    EXPECT_EQ(second.status, 2);
+    EXPECT_NE(second.err.find("another process (pid " + std::to_string(pid) + ") is working in"), std::string::npos) << second.err;
+
+    ASSERT_EQ(::kill(pid, SIGTERM), 0);
+    int left = -1;
+    for (int i = 0; i < 100; ++i) {
+        std::this_thread::sleep_for(50ms);
+        left = processesMentioning(out.string());
+        if (left == 0) break;
+    }
+    EXPECT_EQ(left, 0) << "cases still running after SIGTERM to validate";
+    EXPECT_FALSE(fs::exists(out / "cases" / "angle_eta23.9_rate20.json")) << test::slurp(out / "cases" / "angle_eta23.9_rate20.json");  // interrupted: runs again on resume
 }
 
 }  // namespace

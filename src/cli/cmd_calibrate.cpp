@@ -27,6 +27,7 @@
 #include "analysis/calibrate_config.hpp"
 #include "analysis/report.hpp"
 #include "analysis/stage_ledger.hpp"
+#include "cli/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
@@ -70,8 +71,7 @@ struct Pipeline {
             std::ofstream l(log, std::ios::app);
             l << "$ " << command << '\n';
         }
-        const int status = std::system((command + " >> " + shellQuote(log) + " 2>&1").c_str());
-        const int rc = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        const int rc = childExitCode(runChildProcess(command + " >> " + shellQuote(log) + " 2>&1"));
         if (rc == 0) return true;
         if (required)
             throw NumericalError(fmt::format("calibrate: stage '{}' failed (exit {}) running\n  {}\nlast lines of {}:\n{}", stage, rc,
@@ -177,6 +177,8 @@ void registerCalibrate(CLI::App& app) {
         ensureWritableDirectory(o->out);
         const fs::path out = fs::absolute(o->out).lexically_normal();
         fs::create_directories(out / "logs");
+        const DirectoryLock lock(out, ".calibrate.lock", "calibrate");
+        forwardSignalsToChildren();
         Pipeline P(cfg, out);
         P.exe = fs::read_symlink("/proc/self/exe");
         P.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";

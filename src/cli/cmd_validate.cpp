@@ -20,6 +20,7 @@
 
 #include "analysis/stage_ledger.hpp"
 #include "analysis/validation.hpp"
+#include "cli/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -112,12 +113,13 @@ struct Runner {
         const fs::path stdoutFile = out / "cases" / (c.id + ".stdout"), log = out / "cases" / (c.id + ".log");
         const std::string command = fmt::format("{} {} --threads {} --out {} --vtk-every 50", shellQuote(exe), caseArgs(c), cfg.threads, shellQuote(dir));
         const auto t0 = Clock::now();
-        const int status = std::system((command + " > " + shellQuote(stdoutFile) + " 2> " + shellQuote(log) + " < /dev/null").c_str());
-        const int rc = status == -1 ? -1 : WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + " 2> " + shellQuote(log) + " < /dev/null"));
         const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-        // Ctrl-C reaches the whole process group: stop, the case runs again on resume. A case killed
-        // alone (out of memory, a kill of the child) is recorded as failed with the signal.
-        if (rc == 130 || rc == 128 + SIGINT)
+        // SIGINT/SIGTERM/SIGHUP of validate are forwarded to the cases and end validate itself
+        // (child_process.hpp): those cases run again on resume. A case interrupted on its own is not
+        // recorded either; one killed alone otherwise (out of memory, a kill of the child) is recorded
+        // as failed with the signal.
+        if (rc == 130 || rc == 128 + SIGINT || forwardedSignal() != 0)
             throw NumericalError(fmt::format("validate: case {} interrupted (exit {}); run the same command again to resume", c.id, rc));
         json result;
         try {
@@ -383,6 +385,8 @@ void registerValidate(CLI::App& app) {
         }
         ensureWritableDirectory(R.out.string());
         fs::create_directories(R.out / "cases");
+        const DirectoryLock lock(R.out, ".validate.lock", "validate");
+        forwardSignalsToChildren();
         const auto t0 = Clock::now();
         R.runAll(initial);
         const bool thresholds = o->only.empty() || std::find(o->only.begin(), o->only.end(), "threshold") != o->only.end();
