@@ -181,13 +181,52 @@ void writeShapesAndSteps(const std::string& dir, const CellFlowModel& model, con
     writeText(dir + "/steps.csv", steps);
 }
 
+/// Time stepping and output options shared by `flow shear` and `flow tube`; times in the flow's
+/// own unit (1/rate for shear, R/V for the tube).
+struct SteppingOptions {
+    int threads = 0, vtkEvery = 10, maxSteps = 200000;
+    double tol = 1e-3, dt = 0.0, frameInterval = 0.1;
+    std::string out;
+};
+
+void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& unit) {
+    cmd->add_option("--frame-interval", s.frameInterval, "interval of the saved frames, units of " + unit)
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--step-tol", s.tol, "local error per time step, largest vertex displacement in units of R_A")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--dt", s.dt, "fixed time step in units of " + unit + " (disables the adaptive step control)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--max-steps", s.maxSteps, "limit on time-step attempts (the run fails beyond it)")
+        ->check(CLI::Range(1, 100000000))->capture_default_str();
+    cmd->add_option("--out", s.out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
+    cmd->add_option("--vtk-every", s.vtkEvery, "write every k-th frame as VTK")
+        ->check(CLI::Range(1, 1000000))->capture_default_str();
+    cmd->add_option("--threads", s.threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
+}
+
+/// The integrator options of SteppingOptions (a fixed --dt switches the step control off).
+CellFlowOptions cellFlowOptions(const SteppingOptions& s, double tEnd, double dtMax) {
+    CellFlowOptions opt;
+    opt.tEnd = tEnd;
+    opt.frameInterval = s.frameInterval;
+    opt.errorTolerance = s.tol;
+    opt.maxSteps = s.maxSteps;
+    if (dtMax > 0.0) opt.dtMax = dtMax;
+    if (s.dt > 0.0) {
+        opt.adaptive = false;
+        opt.dtInitial = s.dt;
+        opt.dtMax = s.dt;
+    }
+    return opt;
+}
+
 void registerShear(CLI::App* flow) {
     struct Opts {
         double etaOut = std::nan(""), shearRate = std::nan(""), etaIn = 10.0;
         CellOptions cell;
-        int level = 3, threads = 0, vtkEvery = 10, maxSteps = 200000;
-        double rotations = 10.0, tol = 1e-3, dt = 0.0, frameInterval = 0.1;
-        std::string out;
+        int level = 3;
+        double rotations = 10.0;
+        SteppingOptions step;
         CacheOptions cache;
     };
     auto o = std::make_shared<Opts>();
@@ -205,18 +244,7 @@ void registerShear(CLI::App* flow) {
         ->check(CLI::Range(1, 5))->capture_default_str();
     cmd->add_option("--rotations", o->rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate")
         ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--step-tol", o->tol, "local error per time step, largest vertex displacement in units of R_A")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--dt", o->dt, "fixed time step in units of 1/rate (disables the adaptive step control)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--max-steps", o->maxSteps, "limit on time-step attempts (the run fails beyond it)")
-        ->check(CLI::Range(1, 100000000))->capture_default_str();
-    cmd->add_option("--frame-interval", o->frameInterval, "interval of the saved frames, units of 1/rate")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--out", o->out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
-    cmd->add_option("--vtk-every", o->vtkEvery, "write every k-th frame as VTK")
-        ->check(CLI::Range(1, 1000000))->capture_default_str();
-    cmd->add_option("--threads", o->threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
+    addSteppingOptions(cmd, o->step, "1/rate");
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
         const auto tStart = std::chrono::steady_clock::now();
@@ -224,19 +252,13 @@ void registerShear(CLI::App* flow) {
         fc.etaOut = o->etaOut;
         fc.etaIn = o->etaIn;
         fc.shearRate = o->shearRate;
-        if (!(fc.shearRate > 0.0) || !std::isfinite(fc.shearRate))
-            throw InputError(fmt::format("parameter --shear-rate = {} 1/s: must be finite and > 0 (valid range (0, inf))",
-                                         fc.shearRate));
-        if (!(fc.etaOut > 0.0) || !std::isfinite(fc.etaOut))
-            throw InputError(fmt::format("parameter --eta-out = {} mPa s: must be finite and > 0 (valid range (0, inf))",
-                                         fc.etaOut));
-        if (!(fc.etaIn > 0.0) || !std::isfinite(fc.etaIn))
-            throw InputError(fmt::format("parameter --eta-in = {} mPa s: must be finite and > 0 (valid range (0, inf))",
-                                         fc.etaIn));
+        requirePositiveOption("--shear-rate", fc.shearRate, "1/s");
+        requirePositiveOption("--eta-out", fc.etaOut, "mPa s");
+        requirePositiveOption("--eta-in", fc.etaIn, "mPa s");
         validateFlowConditions(fc);
         const CellParameters p = cellParameters(o->cell);
-        if (!o->out.empty()) ensureWritableDirectory(o->out);
-        if (o->threads > 0) omp_set_num_threads(o->threads);
+        if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
+        if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
 
         nlohmann::json j;
         j["parameters"] = {
@@ -268,16 +290,7 @@ void registerShear(CLI::App* flow) {
                                             {"viscosity_ratio", g.viscosityRatio},
                                             {"membrane_viscosity_ratio_E", g.membraneViscosity},
                                             {"FvK", g.FvK}};
-        CellFlowOptions opt;
-        opt.tEnd = o->rotations * 4.0 * kPi;
-        opt.frameInterval = o->frameInterval;
-        opt.errorTolerance = o->tol;
-        opt.maxSteps = o->maxSteps;
-        if (o->dt > 0.0) {
-            opt.adaptive = false;
-            opt.dtInitial = o->dt;
-            opt.dtMax = o->dt;
-        }
+        const CellFlowOptions opt = cellFlowOptions(o->step, o->rotations * 4.0 * kPi, 0.0);
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         const CellFlowResult r = integrateCellFlow(model, model.toInternal(cell.initial), opt);
 
@@ -287,7 +300,7 @@ void registerShear(CLI::App* flow) {
         diag["step_control"] = {
             {"scheme", "linearly implicit variable-step BDF2, error vs quadratic predictor"},
             {"local_error_tolerance_R_A", opt.adaptive ? nlohmann::json(opt.errorTolerance) : nlohmann::json(nullptr)},
-            {"fixed_dt_times_rate", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->dt)}};
+            {"fixed_dt_times_rate", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->step.dt)}};
         diag["setup_wall_s"] = setupWall;
         diag["wall_s_per_rotation"] = r.tReached > 0 ? r.wallSeconds / (r.tReached / (4.0 * kPi)) : 0.0;
         if (!r.completed) {
@@ -299,7 +312,7 @@ void registerShear(CLI::App* flow) {
             j["diagnostics"] = diag;
             j["diagnostics"]["t_reached_s"] = r.tReached * model.scales().time;
             std::cout << j.dump(2) << std::endl;
-            if (!o->out.empty()) writeOutputs(o->out, model, cell, r, o->vtkEvery, j);
+            if (!o->step.out.empty()) writeOutputs(o->step.out, model, cell, r, o->step.vtkEvery, j);
             throw NumericalError("flow shear: " + r.message);
         }
         const ShearObservables obs = analyzeShearFrames(r.times, r.frames, 1.0);
@@ -325,7 +338,7 @@ void registerShear(CLI::App* flow) {
                          {"membrane_advance_4pi_f_over_shear_rate", obs.membraneAdvance4piFOverRate}};
         diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         j["diagnostics"] = diag;
-        if (!o->out.empty()) writeOutputs(o->out, model, cell, r, o->vtkEvery, j);
+        if (!o->step.out.empty()) writeOutputs(o->step.out, model, cell, r, o->step.vtkEvery, j);
         std::cout << j.dump(2) << std::endl;
     });
 }
@@ -359,14 +372,20 @@ void writeTubeOutputs(const std::string& dir, const CellFlowModel& model, const 
     writeText(dir + "/flow.json", j.dump(2) + "\n");
 }
 
+SteppingOptions tubeStepping() {
+    SteppingOptions s;
+    s.frameInterval = 1.0;  // R/V
+    return s;
+}
+
 void registerTube(CLI::App* flow) {
     struct Opts {
         double radius = std::nan(""), pg = std::nan(""), etaOut = 1.003, lambda = 1.0;
         CellOptions cell;
-        int level = 3, threads = 0, vtkEvery = 10, maxSteps = 200000, wallPoints = 0;
-        double duration = 300.0, tol = 1e-3, dt = 0.0, frameInterval = 1.0, tubeLength = 0.0;
+        int level = 3, wallPoints = 0;
+        double duration = 300.0, tubeLength = 0.0;
         double repulsionRange = 0.1, repulsionPressure = 10.0;
-        std::string out;
+        SteppingOptions step = tubeStepping();
         CacheOptions cache;
     };
     auto o = std::make_shared<Opts>();
@@ -390,14 +409,6 @@ void registerTube(CLI::App* flow) {
         ->check(CLI::Range(1, 4))->capture_default_str();
     cmd->add_option("--duration", o->duration, "simulated time in units of R/V")->check(CLI::PositiveNumber)
         ->capture_default_str();
-    cmd->add_option("--frame-interval", o->frameInterval, "interval of the saved frames, units of R/V")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--step-tol", o->tol, "local error per time step, largest vertex displacement in units of R_A")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--dt", o->dt, "fixed time step in units of R/V (disables the adaptive step control)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--max-steps", o->maxSteps, "limit on time-step attempts (the run fails beyond it)")
-        ->check(CLI::Range(1, 100000000))->capture_default_str();
     cmd->add_option("--wall-points", o->wallPoints, "wall vertices per ring (0: chord ~ 1.5 x the cell's mean edge)")
         ->check(CLI::Range(0, 400))->capture_default_str();
     cmd->add_option("--tube-length", o->tubeLength,
@@ -408,10 +419,7 @@ void registerTube(CLI::App* flow) {
     cmd->add_option("--repulsion-pressure", o->repulsionPressure,
                     "strength p0 of the wall repulsion in units of eta_out V / R (pressure p0 (delta/d - 1)^2)")
         ->check(CLI::NonNegativeNumber)->capture_default_str();
-    cmd->add_option("--out", o->out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
-    cmd->add_option("--vtk-every", o->vtkEvery, "write every k-th frame as VTK")
-        ->check(CLI::Range(1, 1000000))->capture_default_str();
-    cmd->add_option("--threads", o->threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
+    addSteppingOptions(cmd, o->step, "R/V");
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
         const auto tStart = std::chrono::steady_clock::now();
@@ -432,8 +440,8 @@ void registerTube(CLI::App* flow) {
                 "radius R), which must be >= V0 = {} um^3",
                 o->radius, Rmin, Rmin, fc.A0, fc.V0));
         const CellParameters p = cellParameters(o->cell);
-        if (!o->out.empty()) ensureWritableDirectory(o->out);
-        if (o->threads > 0) omp_set_num_threads(o->threads);
+        if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
+        if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
 
         // Units: V = pg / 45 cm/s (VALIDATION.md 4.1), time unit R / V; Poiseuille centre-line speed
         // U_c = G R^2 / (4 eta) with G = pg x 1.33322e5 Pa/m.
@@ -461,7 +469,7 @@ void registerTube(CLI::App* flow) {
             {"time_unit_R_over_V_s", timeUnit},
             {"duration_R_over_V", o->duration},
             {"duration_s", o->duration * timeUnit},
-            {"frame_interval_R_over_V", o->frameInterval},
+            {"frame_interval_R_over_V", o->step.frameInterval},
             {"cell", cellJson(p)},
             {"cell_source", cellSource(o->cell)},
             {"area_volume", "exact constraints: area multiplier (membrane tension) in the coupled system, "
@@ -545,17 +553,7 @@ void registerTube(CLI::App* flow) {
             {"fitted_extents_um", {fitted.x(), fitted.y(), fitted.z()}},
             {"clearance_um", wallClearance(initialUm, o->radius)}};
 
-        CellFlowOptions opt;
-        opt.tEnd = o->duration;
-        opt.frameInterval = o->frameInterval;
-        opt.errorTolerance = o->tol;
-        opt.maxSteps = o->maxSteps;
-        opt.dtMax = 5.0;
-        if (o->dt > 0.0) {
-            opt.adaptive = false;
-            opt.dtInitial = o->dt;
-            opt.dtMax = o->dt;
-        }
+        const CellFlowOptions opt = cellFlowOptions(o->step, o->duration, 5.0);
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         // Progress on stderr every tenth of the duration (frame times).
         double nextReport = 0.1 * opt.tEnd;
@@ -576,7 +574,7 @@ void registerTube(CLI::App* flow) {
         diag["step_control"] = {
             {"scheme", "linearly implicit variable-step BDF2, error vs quadratic predictor"},
             {"local_error_tolerance_R_A", opt.adaptive ? nlohmann::json(opt.errorTolerance) : nlohmann::json(nullptr)},
-            {"fixed_dt_R_over_V", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->dt)}};
+            {"fixed_dt_R_over_V", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->step.dt)}};
         diag["setup_wall_s"] = setupWall;
         diag["wall_operator_setup_s"] = wallSetup;
         diag["wall_clearance_min_um"] = env.minClearance() * L;
@@ -590,7 +588,7 @@ void registerTube(CLI::App* flow) {
             j["observables"] = nullObs;
             j["diagnostics"] = diag;
             std::cout << j.dump(2) << std::endl;
-            if (!o->out.empty()) writeTubeOutputs(o->out, model, cell, initialUm, r, o->radius, o->vtkEvery, j);
+            if (!o->step.out.empty()) writeTubeOutputs(o->step.out, model, cell, initialUm, r, o->radius, o->step.vtkEvery, j);
             throw NumericalError("flow tube: " + r.message);
         }
         std::vector<double> ts_s(r.times.size());
@@ -624,7 +622,7 @@ void registerTube(CLI::App* flow) {
         }
         diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         j["diagnostics"] = diag;
-        if (!o->out.empty()) writeTubeOutputs(o->out, model, cell, initialUm, r, o->radius, o->vtkEvery, j);
+        if (!o->step.out.empty()) writeTubeOutputs(o->step.out, model, cell, initialUm, r, o->radius, o->step.vtkEvery, j);
         std::cout << j.dump(2) << std::endl;
     });
 }
