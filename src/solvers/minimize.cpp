@@ -21,19 +21,22 @@ namespace {
 struct Pair {
     Eigen::VectorXd s, y;
     double rho;
+    double yHy;  ///< y.H0 y (y.y without a preconditioner)
 };
 
-// Two-loop recursion: d = -H g, H0 = (s.y / y.y) I from the newest pair.
-Eigen::VectorXd lbfgsDirection(const std::deque<Pair>& mem, const Eigen::VectorXd& g) {
+// Two-loop recursion: d = -H g, H0 = (s.y / y.H0 y) P from the newest pair (P = I without a
+// preconditioner).
+Eigen::VectorXd lbfgsDirection(const std::deque<Pair>& mem, const Eigen::VectorXd& g, const Preconditioner* pre) {
     Eigen::VectorXd q = -g;
     std::vector<double> alpha(mem.size());
     for (int k = static_cast<int>(mem.size()) - 1; k >= 0; --k) {
         alpha[k] = mem[k].rho * mem[k].s.dot(q);
         q -= alpha[k] * mem[k].y;
     }
+    if (pre) (*pre)(q);
     if (!mem.empty()) {
         const auto& last = mem.back();
-        q *= last.s.dot(last.y) / last.y.squaredNorm();
+        q *= 1.0 / (last.rho * last.yHy);
     }
     for (std::size_t k = 0; k < mem.size(); ++k) {
         const double beta = mem[k].rho * mem[k].y.dot(q);
@@ -91,7 +94,7 @@ private:
 }  // namespace
 
 MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& opt,
-                             const EqualityConstraints* constraints) {
+                             const EqualityConstraints* constraints, const Preconditioner* pre) {
     MinimizeResult res;
     const Eigen::Index n = x.size();
     Manifold manifold(constraints);
@@ -116,6 +119,21 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         pg -= manifold.jacobian() * lambda;
     }
     std::deque<Pair> mem;
+    // Adds a pair if its curvature s.y is positive (keeps the L-BFGS matrix positive definite).
+    const auto remember = [&](Pair p) {
+        const double sy = p.s.dot(p.y);
+        if (!(sy > 1e-12 * p.s.norm() * p.y.norm())) return;
+        p.rho = 1.0 / sy;
+        if (pre) {
+            Eigen::VectorXd hy = p.y;
+            (*pre)(hy);
+            p.yHy = p.y.dot(hy);
+        } else {
+            p.yHy = p.y.squaredNorm();
+        }
+        mem.push_back(std::move(p));
+        if (static_cast<int>(mem.size()) > opt.memory) mem.pop_front();
+    };
     constexpr double c1 = 1e-4;
     constexpr double eps = std::numeric_limits<double>::epsilon();
 
@@ -125,7 +143,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
             res.converged = true;
             break;
         }
-        Eigen::VectorXd d = lbfgsDirection(mem, pg);
+        Eigen::VectorXd d = lbfgsDirection(mem, pg, pre);
         if (manifold.active()) manifold.project(d);
         double slope = pg.dot(d);
         if (!(slope < 0)) {  // not a descent direction: restart from steepest descent
@@ -134,7 +152,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
             slope = -pg.squaredNorm();
         }
         double t = 1.0;
-        if (mem.empty()) t = std::min(1.0, 1.0 / pg.norm());  // first step or restart
+        if (mem.empty() && !pre) t = std::min(1.0, 1.0 / pg.norm());  // first step or restart
         if (opt.maxVertexStep > 0) {
             const double dm = maxVertexNorm(d);
             if (t * dm > opt.maxVertexStep) t = opt.maxVertexStep / dm;
@@ -176,7 +194,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
             break;
         }
         // y = grad L(xNew, lambdaNew) - grad L(x, lambdaNew): the Lagrangian's curvature.
-        Pair p{xNew - x, gNew - g, 0.0};
+        Pair p{xNew - x, gNew - g, 0.0, 0.0};
         Eigen::VectorXd pgNew = gNew;
         if (manifold.active()) {
             // The manifold state is at xNew (last retraction); Jx is J(x).
@@ -186,12 +204,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
             Jx = manifold.jacobian();
             lambda = lambdaNew;
         }
-        const double sy = p.s.dot(p.y);
-        if (sy > 1e-12 * p.s.norm() * p.y.norm()) {
-            p.rho = 1.0 / sy;
-            mem.push_back(std::move(p));
-            if (static_cast<int>(mem.size()) > opt.memory) mem.pop_front();
-        }
+        remember(std::move(p));
         x.swap(xNew);
         g.swap(gNew);
         pg.swap(pgNew);

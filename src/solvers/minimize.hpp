@@ -40,13 +40,19 @@ struct EqualityConstraints {
     int maxNewtonIterations = 20;
 };
 
+/// An approximation H0 of the inverse Hessian applied in place (v <- H0 v), symmetric positive
+/// definite: the L-BFGS two-loop recursion starts from it, scaled by s.y / y.H0 y of the newest
+/// pair (Nocedal & Wright 7.2 with a non-scalar H0). Without one, H0 = (s.y / y.y) I.
+using Preconditioner = std::function<void(Eigen::VectorXd& v)>;
+
 /// Minimises f starting from x (overwritten with the best point found). With constraints, x is
 /// first projected onto the manifold c = 0 and every trial point is pulled back onto it
 /// (retraction by Gauss-Newton steps x -= J (J^T J)^{-1} c); the L-BFGS pairs use the gradient of
 /// the Lagrangian and the search directions are projected onto the tangent space, so the stiffness
 /// of penalties never enters and the multipliers come out as by-products.
 MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& options,
-                             const EqualityConstraints* constraints = nullptr);
+                             const EqualityConstraints* constraints = nullptr,
+                             const Preconditioner* preconditioner = nullptr);
 
 /// Exact global constraints A(X) = area, V(X) = volume (MODEL.md G.3: equivalent to the stiff
 /// penalties of C.3 up to relative area/volume errors of order tension / kA). A zero leaves that

@@ -10,6 +10,24 @@
 namespace trbc {
 namespace {
 
+// Inverses of the 3x3 vertex blocks of kGamma(X) + shift I: vertex i's block is
+// kGamma sum_{j in N(i)} e_ij e_ij^T + shift I (C.4; the edge dashpots resist only the edge-direction
+// component of the relative velocity, so the block is stiff along the edges and soft along the
+// normal, where the shift carries the elastic and inertial stiffness).
+std::vector<Eigen::Matrix3d> frictionBlockInverses(const Vertices& X, const Topology& T, double kGamma, double shift) {
+    const Eigen::Index nv = X.cols();
+    std::vector<Eigen::Matrix3d> B(std::size_t(nv), shift * Eigen::Matrix3d::Identity());
+    for (Eigen::Index e = 0; e < T.numEdges(); ++e) {
+        const int a = T.edges(0, e), b = T.edges(1, e);
+        const Eigen::Vector3d u = (X.col(a) - X.col(b)).normalized();
+        const Eigen::Matrix3d uu = kGamma * u * u.transpose();
+        B[std::size_t(a)] += uu;
+        B[std::size_t(b)] += uu;
+    }
+    for (auto& m : B) m = m.inverse().eval();
+    return B;
+}
+
 // One variational BDF step: minimise
 //   U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xf) + eps) (X-Y) + m c0^2/(2 dt^2) |X - Y - dt Yv / c0|^2,
 // with the friction matrix taken at the extrapolated state Xf (second order; Gamma(X_n) would be
@@ -39,12 +57,22 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
         g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
         return u;
     };
+    std::vector<Eigen::Matrix3d> blocks;
+    Preconditioner pre;
+    if (opt.preconditionerStiffness > 0) {
+        blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
+                                       k * opt.isotropicFriction + km + opt.preconditionerStiffness);
+        pre = [&blocks](Eigen::VectorXd& v) {
+            for (std::size_t i = 0; i < blocks.size(); ++i) v.segment<3>(3 * Eigen::Index(i)) = blocks[i] * v.segment<3>(3 * Eigen::Index(i));
+        };
+    }
+    const Preconditioner* h0 = pre ? &pre : nullptr;
     MinimizeResult r;
     if (opt.constraint.active()) {
         const EqualityConstraints con = areaVolumeConstraints(model.faces(), nv, opt.constraint);
-        r = lbfgsMinimize(phi, x, opt.inner, &con);
+        r = lbfgsMinimize(phi, x, opt.inner, &con, h0);
     } else {
-        r = lbfgsMinimize(phi, x, opt.inner);
+        r = lbfgsMinimize(phi, x, opt.inner, nullptr, h0);
     }
     X = Eigen::Map<const Vertices>(x.data(), 3, nv);
     return r;

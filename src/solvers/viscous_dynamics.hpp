@@ -34,6 +34,10 @@ struct ViscousDynamicsOptions {
     /// false: steps are shortened to land on every sample time; true: steps follow the error
     /// control alone and samples are interpolated (BDF2 quadratic through the last three states)
     bool interpolateSamples = false;
+    /// sigma > 0: the per-step minimisation is preconditioned by the inverse of the 3x3 vertex
+    /// blocks of k [Gamma + eps I] + m k^2 I + sigma I (k = c0/dt), sigma an estimate of the elastic
+    /// stiffness per vertex (force/length); 0 = plain L-BFGS
+    double preconditionerStiffness = 0.0;
     MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
     AreaVolumeConstraint constraint;  ///< exact area/volume constraints during the motion (none by default)
 };
