@@ -47,6 +47,7 @@ SurrogateTrainingOptions quickOptions() {
     SurrogateTrainingOptions o;
     o.network.maxEpochs = 400;
     o.testFraction = 0.1;
+    o.restarts = 4;
     return o;
 }
 
