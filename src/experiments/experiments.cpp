@@ -190,12 +190,13 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     vo.interpolateSamples = true;
     vo.constraint = kCellConstraint;
     // Block-Jacobi H0 of the inner L-BFGS: friction and inertia blocks plus an elastic stiffness
-    // per vertex of 8 (mu + kb / l0^2) (in-plane and bending scales). Level 4, force evaluations of
-    // the relaxation without -> with: reference point 4356 -> 2977, stiff corner 5886 -> 4548,
-    // (v, mu, FvK, b2, etam) = (0.8, 2, 600, 1, 0.2) 4453 -> 2641, soft corner 4341 -> 4708; the
-    // factor 8 was the best of 8, 16, 32 over these four points.
+    // per vertex of 12 (mu + kb / l0^2) (in-plane and bending scales). Relaxation force
+    // evaluations summed over the reference point, both prior corners and (v, mu, FvK, b2, etam) =
+    // (0.8, 2, 600, 1, 0.2): factor 6 / 8 / 12 / 16 gave 7391 / 7670 / 7246 / 7332 at level 3 and
+    // 14985 / 15110 / 14381 / 14409 at level 4; none: 19036 at level 4 (the single points scatter
+    // by +-10 % between factors: the inner tolerance decides where each step stops).
     const double l0 = meanEdgeLength(equilibrium, model.topology());
-    vo.preconditionerStiffness = 8.0 * (p.mu + p.kbPnUm() / (l0 * l0));
+    vo.preconditionerStiffness = 12.0 * (p.mu + p.kbPnUm() / (l0 * l0));
     std::vector<double> times;
     for (int k = 1; k <= opt.relaxSamples; ++k) times.push_back(opt.relaxDuration * k / opt.relaxSamples);
     Vertices X = res.released;
