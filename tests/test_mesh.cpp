@@ -95,6 +95,10 @@ TEST(Geometry, AreaVolumeGradientsMatchFiniteDifferences) {
         const AreaVolume av = areaVolumeWithGradients(m.X, m.F);
         EXPECT_NEAR(av.area, totalArea(m.X, m.F), 1e-12 * av.area) << "level " << level;
         EXPECT_NEAR(av.volume, enclosedVolume(m.X, m.F), 1e-12 * av.volume) << "level " << level;
+        const AreaVolume values = areaAndVolume(m.X, m.F);  // the values-only pass of the retraction
+        EXPECT_NEAR(values.area, av.area, 1e-14 * av.area) << "level " << level;
+        EXPECT_NEAR(values.volume, av.volume, 1e-14 * av.volume) << "level " << level;
+        EXPECT_EQ(values.areaGradient.size(), 0);
         const double h = 1e-6;
         double errA = 0.0, errV = 0.0;
         for (Eigen::Index i = 0; i < m.X.cols(); i += 7)

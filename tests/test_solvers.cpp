@@ -102,6 +102,46 @@ TEST(Minimizer, SphereRelaxesToBiconcaveDiscocyteAtReducedVolume064) {
     EXPECT_GT(argMax, 8);            // thickest part towards the rim
 }
 
+// The retraction's values-only check (EqualityConstraints::values) keeps the Jacobian of the point
+// it stepped from; the constrained minimum, its multipliers and the constraints' accuracy must be
+// those of the retraction that recomputes the Jacobian after every Newton step.
+TEST(Minimizer, ValuesOnlyRetractionCheckReachesTheSameConstrainedMinimum) {
+    const Mesh sphere = icosphere(3);
+    const Vertices ref = sphere.X;
+    MembraneParameters p;
+    p.bending.kb = 0.05;
+    p.lim = {2.0, -2.0, 8.0, 1.0, 0.7, 1.5};
+    const MembraneModel model(sphere.F, sphere.numVertices(), p, &ref);
+    const AreaVolumeConstraint target{totalArea(ref, sphere.F), 0.8 * enclosedVolume(ref, sphere.F)};
+    const EqualityConstraints withValues = areaVolumeConstraints(sphere.F, sphere.numVertices(), target);
+    EqualityConstraints jacobianEveryStep = withValues;
+    jacobianEveryStep.values = nullptr;
+    ASSERT_TRUE(static_cast<bool>(withValues.values));
+    const Eigen::Index nv = sphere.numVertices();
+    Vertices G(3, nv);
+    const Objective f = [&](const Eigen::VectorXd& x, Eigen::VectorXd& g) {
+        const double u = loadedEnergy(model, Eigen::Map<const Vertices>(x.data(), 3, nv), nullptr, G);
+        g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
+        return u;
+    };
+    Vertices X0 = ref;
+    X0.row(2) *= 0.7;
+    MinimizeOptions opt;
+    opt.gradientTolerance = 1e-9;
+    opt.maxIterations = 20000;
+    Eigen::VectorXd a = Eigen::Map<const Eigen::VectorXd>(X0.data(), 3 * nv), b = a;
+    const MinimizeResult ra = lbfgsMinimize(f, a, opt, &withValues);
+    const MinimizeResult rb = lbfgsMinimize(f, b, opt, &jacobianEveryStep);
+    ASSERT_TRUE(ra.converged) << ra.message;
+    ASSERT_TRUE(rb.converged) << rb.message;
+    EXPECT_LE(ra.constraintError, withValues.tolerance);
+    EXPECT_LE(rb.constraintError, withValues.tolerance);
+    EXPECT_NEAR(ra.energy, rb.energy, 1e-10 * std::abs(rb.energy));
+    EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-6);
+    EXPECT_NEAR(ra.multipliers[0], rb.multipliers[0], 1e-6 * std::abs(rb.multipliers[0]));
+    EXPECT_NEAR(ra.multipliers[1], rb.multipliers[1], 1e-6 * std::abs(rb.multipliers[1]));
+}
+
 // --- Viscous dynamics ----------------------------------------------------------------------------
 
 struct Relaxation {

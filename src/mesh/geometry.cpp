@@ -37,7 +37,9 @@ double reducedVolume(const Vertices& X, const Faces& F) {
     return reducedVolume(totalArea(X, F), enclosedVolume(X, F));
 }
 
-AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) {
+namespace {
+template <bool Gradients>
+AreaVolume blockedAreaVolume(const Vertices& X, const Faces& F) {
     // Faces are processed in blocks of B: gather the corners a, b, c (relative to the vertex
     // centroid o) into structure-of-arrays buffers, evaluate the per-face terms in vectorisable
     // loops, then scatter them into a per-vertex accumulator [dA/dx (3), 6 dV/dx (3)].
@@ -48,7 +50,7 @@ AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) {
     const double* __restrict x = X.data();
     const int* __restrict fc = F.data();
     thread_local std::vector<double> accumulator;
-    accumulator.assign(6 * nv, 0.0);
+    if constexpr (Gradients) accumulator.assign(6 * nv, 0.0);
     double* __restrict acc = accumulator.data();
     alignas(64) double in[9][B];     // a, b, c by component
     alignas(64) double len[B];       // |m|, m = (b - a) x (c - a)
@@ -78,6 +80,15 @@ AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) {
         // Eigen's packet sqrt: std::sqrt in the loop above would not vectorise (errno).
         Eigen::Map<Eigen::Array<double, B, 1>, Eigen::Aligned64> lenMap(len);
         lenMap = lenMap.sqrt();
+        if constexpr (!Gradients) {
+            for (int l = 0; l < nb; ++l) {  // 6 V_t = a.(b x c)
+                const double bx = in[3][l], by = in[4][l], bz = in[5][l];
+                const double cx = in[6][l], cy = in[7][l], cz = in[8][l];
+                twiceArea += len[l];
+                sixVolume += in[0][l] * (by * cz - bz * cy) + in[1][l] * (bz * cx - bx * cz) + in[2][l] * (bx * cy - by * cx);
+            }
+            continue;
+        }
         for (int l = 0; l < B; ++l) {  // dA/da = n x (c - b) / 2 cyclic, n = m / |m|
             const double ax = in[0][l], ay = in[1][l], az = in[2][l];
             const double bx = in[3][l], by = in[4][l], bz = in[5][l];
@@ -115,6 +126,7 @@ AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) {
     AreaVolume r;
     r.area = 0.5 * twiceArea;
     r.volume = sixVolume / 6.0;
+    if constexpr (!Gradients) return r;
     r.areaGradient.resize(3, nv);
     r.volumeGradient.resize(3, nv);
     double* __restrict gA = r.areaGradient.data();
@@ -128,6 +140,11 @@ AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) {
     }
     return r;
 }
+}  // namespace
+
+AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F) { return blockedAreaVolume<true>(X, F); }
+
+AreaVolume areaAndVolume(const Vertices& X, const Faces& F) { return blockedAreaVolume<false>(X, F); }
 
 Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F) {
     const Eigen::VectorXd af = faceAreas(X, F);

@@ -23,6 +23,8 @@ struct AreaVolume {
     Vertices areaGradient, volumeGradient;
 };
 AreaVolume areaVolumeWithGradients(const Vertices& X, const Faces& F);
+/// A and V alone (gradients left empty), same summation as areaVolumeWithGradients.
+AreaVolume areaAndVolume(const Vertices& X, const Faces& F);
 /// A_i = 1/3 sum of the areas of the faces around vertex i.
 Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F);
 /// Unweighted vertex centroid.

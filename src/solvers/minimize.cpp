@@ -79,6 +79,10 @@ public:
             if (!c_.allFinite()) return false;
             if (error() <= con_->tolerance) return true;
             x -= J_ * gram_.solve(c_);
+            if (con_->values) {
+                con_->values(x, c_);
+                if (c_.allFinite() && error() <= con_->tolerance) return true;
+            }
             at(x);
         }
         return c_.allFinite() && error() <= con_->tolerance;
@@ -245,6 +249,12 @@ EqualityConstraints areaVolumeConstraints(const Faces& faces, Eigen::Index nv, c
             c[m - 1] = av.volume - target.volume;
             J.col(m - 1) = Eigen::Map<const Eigen::VectorXd>(av.volumeGradient.data(), 3 * nv);
         }
+    };
+    con.values = [&faces, nv, target, area, volume, m](const Eigen::VectorXd& x, Eigen::VectorXd& c) {
+        const AreaVolume av = areaAndVolume(Eigen::Map<const Vertices>(x.data(), 3, nv), faces);
+        c.resize(m);
+        if (area) c[0] = av.area - target.area;
+        if (volume) c[m - 1] = av.volume - target.volume;
     };
     return con;
 }

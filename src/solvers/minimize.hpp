@@ -35,6 +35,10 @@ using Objective = std::function<double(const Eigen::VectorXd& x, Eigen::VectorXd
 struct EqualityConstraints {
     /// Writes the values c (m) and the Jacobian columns J = [dc_1/dx ... dc_m/dx] (n x m).
     std::function<void(const Eigen::VectorXd& x, Eigen::VectorXd& c, Eigen::MatrixXd& J)> evaluate;
+    /// Optional: the values c alone, cheaper than evaluate. The retraction then checks a Newton
+    /// step with them and keeps the Jacobian of the point it stepped from when the step lands
+    /// within the tolerance (that Jacobian differs from the exact one by the step, i.e. by O(|c|)).
+    std::function<void(const Eigen::VectorXd& x, Eigen::VectorXd& c)> values;
     Eigen::VectorXd scale;            ///< c is satisfied when |c_k| <= tolerance * scale_k
     double tolerance = 1e-10;
     int maxNewtonIterations = 20;
