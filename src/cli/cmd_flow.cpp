@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <numbers>
@@ -189,6 +190,22 @@ struct SteppingOptions {
     std::string out;
 };
 
+// Progress on stderr at every tenth of the simulated duration (at frame times): simulated time,
+// wall time and the ETA from the mean rate so far, plus what `detail` says about the shape.
+CellFlowObserver progressReporter(const std::string& name, double tEnd, const std::string& unit,
+                                  std::chrono::steady_clock::time_point tStart,
+                                  std::function<std::string(const Vertices&)> detail) {
+    auto next = std::make_shared<double>(0.1 * tEnd);
+    return [=](double t, const Vertices& X) {
+        if (t + 1e-9 < *next) return;
+        while (*next <= t + 1e-9) *next += 0.1 * tEnd;
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+        const double eta = t > 0 ? wall * (tEnd - t) / t : 0.0;
+        std::cerr << fmt::format("{}: t = {:.4g} of {:.4g} {}, {}wall {:.1f} s, ETA {:.0f} s\n", name, t, tEnd, unit,
+                                 detail ? detail(X) + ", " : std::string(), wall, eta);
+    };
+}
+
 void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& unit) {
     cmd->add_option("--frame-interval", s.frameInterval, "interval of the saved frames, units of " + unit)
         ->check(CLI::PositiveNumber)->capture_default_str();
@@ -292,7 +309,8 @@ void registerShear(CLI::App* flow) {
                                             {"FvK", g.FvK}};
         const CellFlowOptions opt = cellFlowOptions(o->step, o->rotations * 4.0 * kPi, 0.0);
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
-        const CellFlowResult r = integrateCellFlow(model, model.toInternal(cell.initial), opt);
+        const CellFlowResult r = integrateCellFlow(model, model.toInternal(cell.initial), opt,
+                                                   progressReporter("flow shear", opt.tEnd, "/rate", tStart, {}));
 
         nlohmann::json diag = stepDiagnostics(model, r, cell);
         diag["dt_min_times_rate"] = r.dtSmallest;
@@ -555,18 +573,12 @@ void registerTube(CLI::App* flow) {
 
         const CellFlowOptions opt = cellFlowOptions(o->step, o->duration, 5.0);
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
-        // Progress on stderr every tenth of the duration (frame times).
-        double nextReport = 0.1 * opt.tEnd;
-        const auto progress = [&](double t, const Vertices& X) {
-            if (t + 1e-9 < nextReport) return;
-            nextReport += 0.1 * opt.tEnd;
+        const auto shape = [L](const Vertices& X) {
             const Eigen::Vector3d c = centroid(X) * L, e = extents(X) * L;
-            std::cerr << fmt::format("flow tube: t = {:.4g} R/V, centroid x = {:.4g} um, length {:.4f} um, width {:.4f} "
-                                     "um, wall {:.1f} s\n",
-                                     t, c.x(), e.x(), e.y(),
-                                     std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count());
+            return fmt::format("centroid x = {:.4g} um, length {:.4f} um, width {:.4f} um", c.x(), e.x(), e.y());
         };
-        const CellFlowResult r = integrateCellFlow(model, model.toInternal(initialUm), opt, progress, &env);
+        const CellFlowResult r = integrateCellFlow(model, model.toInternal(initialUm), opt,
+                                                   progressReporter("flow tube", opt.tEnd, "R/V", tStart, shape), &env);
 
         nlohmann::json diag = stepDiagnostics(model, r, cell);
         diag["dt_min_R_over_V"] = r.dtSmallest;
