@@ -263,13 +263,28 @@ TEST(ForwardModel, ObservablesInvariantUnderRotationAndRelabellingOfTheInputMesh
     for (Eigen::Index f = 0; f < base.faces.cols(); ++f)
         for (int k = 0; k < 3; ++k) moved.faces(k, f) = perm[base.faces(k, f)];
 
-    const EquilibriumResult a = runEquilibrium(p, base, opt), b = runEquilibrium(p, moved, opt);
-    EXPECT_NEAR(a.observables.D, b.observables.D, 2e-3);
-    EXPECT_NEAR(a.observables.hmin, b.observables.hmin, 2e-3);
-    EXPECT_NEAR(a.observables.hmax, b.observables.hmax, 2e-3);
-    const auto sa = runStretching(p, base, a.shape, {100.0}, opt), sb = runStretching(p, moved, b.shape, {100.0}, opt);
-    EXPECT_NEAR(sa[0].observables.D0, sb[0].observables.D0, 2e-3);
-    EXPECT_NEAR(sa[0].observables.D1, sb[0].observables.D1, 2e-3);
+    // Both rules for the bead axis (ExperimentOptions::inPlaneAxis).
+    for (InPlaneAxis axis : {InPlaneAxis::FarthestVertex, InPlaneAxis::LargestVariance}) {
+        SCOPED_TRACE(inPlaneAxisName(axis));
+        ExperimentOptions o = opt;
+        o.inPlaneAxis = axis;
+        const EquilibriumResult a = runEquilibrium(p, base, o), b = runEquilibrium(p, moved, o);
+        EXPECT_NEAR(a.observables.D, b.observables.D, 2e-3);
+        EXPECT_NEAR(a.observables.hmin, b.observables.hmin, 2e-3);
+        EXPECT_NEAR(a.observables.hmax, b.observables.hmax, 2e-3);
+        const auto sa = runStretching(p, base, a.shape, {100.0}, o), sb = runStretching(p, moved, b.shape, {100.0}, o);
+        EXPECT_NEAR(sa[0].observables.D0, sb[0].observables.D0, 2e-3);
+        EXPECT_NEAR(sa[0].observables.D1, sb[0].observables.D1, 2e-3);
+        if (axis == InPlaneAxis::LargestVariance) {
+            // E.0: x is the in-plane axis of largest variance, the vertex with the largest |x| on +x.
+            const Eigen::Matrix3d cov = a.shape * a.shape.transpose();
+            EXPECT_LT(std::abs(cov(0, 1)), 1e-9 * cov(0, 0));
+            EXPECT_GT(cov(0, 0), cov(1, 1));
+            Eigen::Index far = 0;
+            a.shape.row(0).cwiseAbs().maxCoeff(&far);
+            EXPECT_GT(a.shape(0, far), 0.0);
+        }
+    }
 }
 
 // --- Cost of the reference protocol (G.1) ------------------------------------------------------

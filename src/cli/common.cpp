@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <map>
+#include <string>
 
 #include "core/error.hpp"
 
@@ -111,6 +113,13 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
         ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_flag("--overdamped", e.overdamped,
                   "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
+    static const std::map<std::string, InPlaneAxis> axes = {{"farthest-vertex", InPlaneAxis::FarthestVertex},
+                                                            {"largest-variance", InPlaneAxis::LargestVariance}};
+    cmd->add_option("--in-plane-axis", e.inPlaneAxis,
+                    "bead axis of the resting cell: through the vertex farthest from the symmetry axis (forward-model "
+                    "revision 2) or E.0's in-plane axis of largest variance (docs/FORWARD_MODEL.md)")
+        ->transform(CLI::CheckedTransformer(axes, CLI::ignore_case))
+        ->default_str("farthest-vertex");
 }
 
 NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* option) {

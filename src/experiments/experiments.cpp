@@ -68,7 +68,22 @@ Vertices canonicalInPlaneOrientation(const Vertices& aligned) {
     return R * aligned;
 }
 
+// E.0 literally: x = the in-plane axis of largest variance (alignPrincipalAxes), its sign fixed so
+// that the vertex with the largest |x| lies on +x (a rotation by pi about z otherwise).
+Vertices largestVarianceOrientation(const Vertices& aligned) {
+    Eigen::Index far = 0;
+    aligned.row(0).cwiseAbs().maxCoeff(&far);
+    if (aligned(0, far) >= 0) return aligned;
+    Vertices flipped = aligned;
+    flipped.topRows<2>() *= -1.0;
+    return flipped;
+}
+
 }  // namespace
+
+const char* inPlaneAxisName(InPlaneAxis a) {
+    return a == InPlaneAxis::LargestVariance ? "largest-variance" : "farthest-vertex";
+}
 
 CellMeshes cellMeshes(const StressFreeState& sfs) {
     CellMeshes m;
@@ -89,7 +104,8 @@ EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& mesh
     const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint);
     res.diagnostics = staticDiagnostics(r, t0);
     requireConverged(res.diagnostics, "equilibrium shape");
-    res.shape = canonicalInPlaneOrientation(alignPrincipalAxes(X));
+    res.shape = opt.inPlaneAxis == InPlaneAxis::LargestVariance ? largestVarianceOrientation(alignPrincipalAxes(X))
+                                                                : canonicalInPlaneOrientation(alignPrincipalAxes(X));
     res.observables = equilibriumObservables(res.shape, meshes.faces, &res.profile);
     res.diagnostics.wallSeconds = secondsSince(t0);
     return res;

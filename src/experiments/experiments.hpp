@@ -17,6 +17,11 @@
 
 namespace trbc {
 
+/// How the resting cell's in-plane axes are fixed before stretching (E.0, E.2; see
+/// docs/FORWARD_MODEL.md "In-plane orientation"): the axis through the vertex farthest from the
+/// symmetry axis (forward-model revision 2, the default), or E.0's axis of largest in-plane variance.
+enum class InPlaneAxis { FarthestVertex, LargestVariance };
+
 struct ExperimentOptions {
     int level = 4;                       ///< icosphere level of every mesh (Nv = 10 4^L + 2)
     /// Static states stop when the largest tangential vertex force is below
@@ -37,9 +42,13 @@ struct ExperimentOptions {
     double isotropicFriction = 1e-5;
     double relaxDuration = 1.0;          ///< s
     int relaxSamples = 100;              ///< at t = k duration / samples, k = 1..samples
+    InPlaneAxis inPlaneAxis = InPlaneAxis::FarthestVertex;
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
     SfsOptions sfs;
 };
+
+/// "farthest-vertex" or "largest-variance" (CLI and provenance spelling).
+const char* inPlaneAxisName(InPlaneAxis a);
 
 struct SolverDiagnostics {
     bool converged = false;

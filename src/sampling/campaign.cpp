@@ -33,7 +33,7 @@ fs::path samplesPath(const CampaignOptions& o) { return o.outDir / "samples.csv"
 /// Everything that decides the rows; a resume must match it exactly.
 nlohmann::json settingsJson(const CampaignOptions& o) {
     const ExperimentOptions& e = o.experiment;
-    return {{"design", designName(o.design)},
+    nlohmann::json j = {{"design", designName(o.design)},
             {"samples", o.samples},
             {"forces_per_cell", o.forcesPerCell},
             {"seed", o.seed},
@@ -50,6 +50,9 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
             {"forward_model_revision", kForwardModelRevision},
             {"sfs_gradient_tolerance", e.sfs.gradientTolerance},
             {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
+    // Only when not the default, so that campaigns made before the option existed still resume.
+    if (e.inPlaneAxis != InPlaneAxis::FarthestVertex) j["in_plane_axis"] = inPlaneAxisName(e.inPlaneAxis);
+    return j;
 }
 
 void writeJsonAtomically(const fs::path& path, const nlohmann::json& j) { writeFileAtomically(path, j.dump(2) + "\n"); }
