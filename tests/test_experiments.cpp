@@ -339,6 +339,12 @@ TEST(SimulateCli, RejectsBadParametersWithTheValidRange) {
         {"--force-curve 10,x", "'x' is not a number"},
         {"--save-shapes /proc/forbidden/dir", "cannot create the output directory"},
     };
+    // Option values that CLI11 checks itself exit non-zero naming the option and the valid values.
+    const CliRun axis = runSimulate("--level 2 --in-plane-axis sideways");
+    EXPECT_NE(axis.status, 0);
+    EXPECT_NE(axis.out.find("--in-plane-axis"), std::string::npos) << axis.out;
+    EXPECT_NE(axis.out.find("largest-variance"), std::string::npos) << axis.out;
+    EXPECT_EQ(axis.out.find("\"observables\""), std::string::npos);
     for (const Case& c : cases) {
         const CliRun r = runSimulate("--level 2 " + c.args);
         EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out;

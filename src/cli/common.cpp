@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <map>
 #include <string>
 
 #include "core/error.hpp"
@@ -113,12 +112,14 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
         ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_flag("--overdamped", e.overdamped,
                   "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
-    static const std::map<std::string, InPlaneAxis> axes = {{"farthest-vertex", InPlaneAxis::FarthestVertex},
-                                                            {"largest-variance", InPlaneAxis::LargestVariance}};
-    cmd->add_option("--in-plane-axis", e.inPlaneAxis,
-                    "bead axis of the resting cell: through the vertex farthest from the symmetry axis (forward-model "
-                    "revision 2) or E.0's in-plane axis of largest variance (docs/FORWARD_MODEL.md)")
-        ->transform(CLI::CheckedTransformer(axes, CLI::ignore_case))
+    cmd->add_option_function<std::string>(
+           "--in-plane-axis",
+           [&e](const std::string& a) {
+               e.inPlaneAxis = a == "largest-variance" ? InPlaneAxis::LargestVariance : InPlaneAxis::FarthestVertex;
+           },
+           "bead axis of the resting cell: through the vertex farthest from the symmetry axis (forward-model "
+           "revision 2) or E.0's in-plane axis of largest variance (docs/FORWARD_MODEL.md)")
+        ->check(CLI::IsMember({"farthest-vertex", "largest-variance"}))
         ->default_str("farthest-vertex");
 }
 
