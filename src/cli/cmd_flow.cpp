@@ -195,10 +195,9 @@ struct SteppingOptions {
 CellFlowObserver progressReporter(const std::string& name, double tEnd, const std::string& unit,
                                   std::chrono::steady_clock::time_point tStart,
                                   std::function<std::string(const Vertices&)> detail) {
-    auto next = std::make_shared<double>(0.1 * tEnd);
-    return [=](double t, const Vertices& X) {
-        if (t + 1e-9 < *next) return;
-        while (*next <= t + 1e-9) *next += 0.1 * tEnd;
+    return [=, next = 0.1 * tEnd](double t, const Vertices& X) mutable {
+        if (t + 1e-9 < next) return;
+        while (next <= t + 1e-9) next += 0.1 * tEnd;
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         const double eta = t > 0 ? wall * (tEnd - t) / t : 0.0;
         std::cerr << fmt::format("{}: t = {:.4g} of {:.4g} {}, {}wall {:.1f} s, ETA {:.0f} s\n", name, t, tEnd, unit,

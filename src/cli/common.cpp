@@ -115,12 +115,13 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
     cmd->add_option_function<std::string>(
            "--in-plane-axis",
            [&e](const std::string& a) {
-               e.inPlaneAxis = a == "largest-variance" ? InPlaneAxis::LargestVariance : InPlaneAxis::FarthestVertex;
+               e.inPlaneAxis = a == inPlaneAxisName(InPlaneAxis::LargestVariance) ? InPlaneAxis::LargestVariance
+                                                                                  : InPlaneAxis::FarthestVertex;
            },
            "bead axis of the resting cell: through the vertex farthest from the symmetry axis (forward-model "
            "revision 2) or E.0's in-plane axis of largest variance (docs/FORWARD_MODEL.md)")
-        ->check(CLI::IsMember({"farthest-vertex", "largest-variance"}))
-        ->default_str("farthest-vertex");
+        ->check(CLI::IsMember({inPlaneAxisName(InPlaneAxis::FarthestVertex), inPlaneAxisName(InPlaneAxis::LargestVariance)}))
+        ->default_str(inPlaneAxisName(InPlaneAxis::FarthestVertex));
 }
 
 NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* option) {

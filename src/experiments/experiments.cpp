@@ -104,8 +104,9 @@ EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& mesh
     const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint);
     res.diagnostics = staticDiagnostics(r, t0);
     requireConverged(res.diagnostics, "equilibrium shape");
-    res.shape = opt.inPlaneAxis == InPlaneAxis::LargestVariance ? largestVarianceOrientation(alignPrincipalAxes(X))
-                                                                : canonicalInPlaneOrientation(alignPrincipalAxes(X));
+    const Vertices aligned = alignPrincipalAxes(X);
+    res.shape = opt.inPlaneAxis == InPlaneAxis::LargestVariance ? largestVarianceOrientation(aligned)
+                                                                : canonicalInPlaneOrientation(aligned);
     res.observables = equilibriumObservables(res.shape, meshes.faces, &res.profile);
     res.diagnostics.wallSeconds = secondsSince(t0);
     return res;
