@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <map>
 
 #include "core/error.hpp"
 #include "sampling/design.hpp"
@@ -135,6 +136,54 @@ TEST(SurrogateTraining, DataHashIgnoresWallTimeAndTracksValues) {
     rows[7].D0 += 1e-9;
     EXPECT_NE(trainSurrogate(rows, opt).dataHash, h1);
     rows.resize(20);  // 5 cells
+    EXPECT_THROW(trainSurrogate(rows, opt), InputError);
+}
+
+TEST_F(TrainedFixture, RelaxationNetworkWorksOnLogScaleParameters) {
+    using T = VariableTransform;
+    EXPECT_EQ(report->model.relaxation.inputTransforms, (std::vector<T>{T::Identity, T::Log, T::Log, T::Identity, T::Log}));
+    EXPECT_EQ(report->model.relaxation.outputTransforms, (std::vector<T>{T::Log}));
+    EXPECT_TRUE(report->model.stretching.inputTransforms.empty());
+    auto opt = quickOptions();
+    opt.logRelaxation = false;
+    opt.network.maxEpochs = 2;
+    const auto linear = trainSurrogate(fakeCampaign(400, 8), opt);
+    EXPECT_TRUE(linear.model.relaxation.inputTransforms.empty() && linear.model.relaxation.outputTransforms.empty());
+}
+
+TEST(SurrogateTraining, CrossValidationPredictsEveryCellOnceWithoutIt) {
+    const auto rows = fakeCampaign(480, 8, 3);  // 60 cells, one failed relaxation
+    auto opt = quickOptions();
+    opt.network.maxEpochs = 30;
+    opt.restarts = 1;
+    // One fold: its test cells are the positions p % 4 == 1 of the seeded permutation.
+    opt.folds = 4;
+    opt.fold = 1;
+    const auto one = trainSurrogate(rows, opt);
+    EXPECT_EQ(one.testCells, 15);
+    EXPECT_EQ(one.used[1], (60 - 15) * 8);
+
+    const CrossValidationReport cv = crossValidateSurrogate(rows, opt, 4);
+    ASSERT_EQ(cv.perFold.size(), 4u);
+    EXPECT_EQ(cv.cellIds.size(), rows.size());  // every row exactly once
+    std::map<long, int> seen;
+    for (long id : cv.cellIds) ++seen[id];
+    EXPECT_EQ(seen.size(), 60u);
+    for (const auto& [id, n] : seen) EXPECT_EQ(n, 8) << "cell " << id;
+    // fold 1 of the pooled set is the single-fold run above, prediction for prediction
+    const Eigen::Index start = cv.perFold[0][0].n * 8;
+    EXPECT_TRUE(cv.predicted.middleCols(start, one.testPredicted.cols()) == one.testPredicted);
+    // pooled accuracy: per cell for tc (the failed relaxation skipped), per row for D1
+    EXPECT_EQ(cv.pooled[5].n, 59);
+    EXPECT_EQ(cv.pooled[4].n, 480);
+    double ss = 0;
+    long n = 0;
+    for (Eigen::Index j = 0; j < cv.truth.cols(); ++j)
+        if (j == 0 || cv.cellIds[j] != cv.cellIds[j - 1])
+            if (std::isfinite(cv.truth(5, j))) ss += std::pow(cv.predicted(5, j) / cv.truth(5, j) - 1, 2), ++n;
+    EXPECT_NEAR(cv.pooled[5].relativeRmse, std::sqrt(ss / n), 1e-12);
+    EXPECT_THROW(crossValidateSurrogate(rows, opt, 1), InputError);
+    opt.fold = 4;
     EXPECT_THROW(trainSurrogate(rows, opt), InputError);
 }
 

@@ -40,11 +40,28 @@ void writeText(const std::filesystem::path& p, const std::string& text) {
     if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
 }
 
+/// Held-out rows with truth and prediction: inputs, outputs, outputs_pred.
+void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
+                         const Eigen::MatrixXd& predicted) {
+    std::string text =
+        "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,"
+        "D_um_pred,hmin_um_pred,hmax_um_pred,D0_um_pred,D1_um_pred,tc_s_pred\n";
+    for (Eigen::Index c = 0; c < inputs.cols(); ++c) {
+        std::string line;
+        for (const Eigen::MatrixXd* m : {&inputs, &truth, &predicted})
+            for (Eigen::Index r = 0; r < 6; ++r) line += fmt::format("{}{:.10g}", line.empty() ? "" : ",", (*m)(r, c));
+        text += line + '\n';
+    }
+    writeText(p, text);
+}
+
 void registerTrain(CLI::App* parent) {
     struct Opts {
         std::string data, out;
         SurrogateTrainingOptions t;
         int threads = 2;
+        int cvFolds = 0;
+        std::string relaxationVariables = "log";
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = parent->add_subcommand(
@@ -66,7 +83,16 @@ void registerTrain(CLI::App* parent) {
         ->capture_default_str();
     cmd->add_option("--threads", o->threads, "networks trained concurrently (results do not depend on it)")
         ->check(CLI::Range(1, 3))->capture_default_str();
+    cmd->add_option("--relaxation-variables", o->relaxationVariables,
+                    "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
+                    "variables (networks before 2026-11-24)")
+        ->check(CLI::IsMember({"log", "linear"}))->capture_default_str();
+    cmd->add_option("--cv-folds", o->cvFolds,
+                    "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
+                    "writes cv.md, cv.json, cv_predictions.csv); 0: off")
+        ->check(CLI::Range(0, 100))->capture_default_str();
     cmd->callback([o]() {
+        if (o->cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
         ensureWritableDirectory(o->out);
         bool complete = true;
         const auto rows = readCampaignRows(o->data, &complete);
@@ -75,6 +101,7 @@ void registerTrain(CLI::App* parent) {
                                      o->data, rows.size());
         SurrogateTrainingOptions t = o->t;
         t.command = commandLine();
+        t.logRelaxation = o->relaxationVariables == "log";
         t.progress = [](const std::string& net, const EpochRecord& e) {
             if (e.reduced || e.last || e.epoch % 100 == 0)
                 std::cerr << fmt::format("  {:<11} epoch {:>4}  train {:.3e}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
@@ -99,6 +126,7 @@ void registerTrain(CLI::App* parent) {
                             {"test_seed", t.testSeed},
                             {"seed", t.network.seed},
                             {"restarts", t.restarts},
+                            {"relaxation_variables", o->relaxationVariables},
                             {"split_seed", t.network.splitSeed},
                             {"wall_s", wall},
                             {"networks", nlohmann::json::object()},
@@ -128,18 +156,34 @@ void registerTrain(CLI::App* parent) {
                               rep.wallSeconds[k]);
         if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
         writeText(dir / "accuracy.md", md);
-        {
-            std::ofstream out(dir / "test_predictions.csv");
-            out << "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,"
-                   "D_um_pred,hmin_um_pred,hmax_um_pred,D0_um_pred,D1_um_pred,tc_s_pred\n";
-            for (Eigen::Index c = 0; c < rep.testInputs.cols(); ++c) {
-                std::string line;
-                for (const Eigen::MatrixXd* m : {&rep.testInputs, &rep.testTruth, &rep.testPredicted})
-                    for (Eigen::Index r = 0; r < 6; ++r) line += fmt::format("{}{:.10g}", line.empty() ? "" : ",", (*m)(r, c));
-                out << line << '\n';
-            }
-        }
+        writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);
         std::cout << md;
+        if (o->cvFolds >= 2) {
+            std::cerr << fmt::format("surrogate train: {}-fold cross-validation ({} more trainings)\n", o->cvFolds, o->cvFolds);
+            SurrogateTrainingOptions c = t;
+            c.progress = nullptr;
+            const CrossValidationReport cv = crossValidateSurrogate(rows, c, o->cvFolds);
+            nlohmann::json cj = {{"command", commandLine()}, {"version", kVersion},     {"data_hash", rep.dataHash},
+                                 {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
+                                 {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
+            for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
+            writeText(dir / "cv.json", cj.dump(2) + "\n");
+            std::string cmd = fmt::format("# Surrogate cross-validation\n\nMade by `{}` (trbc {}), data hash {}: {} folds of whole cells "
+                                          "(seeded permutation, test seed {}); every cell is predicted once, by the networks "
+                                          "trained without it. {:.0f} s.\n\n## Pooled out-of-fold predictions\n\n",
+                                          commandLine(), kVersion, rep.dataHash, cv.folds, t.testSeed, cv.wallSeconds);
+            cmd += accuracyMarkdown(cv.pooled) + "\n## Relative RMSE per fold (%)\n\n| fold |";
+            for (const auto& a : cv.pooled) cmd += " " + a.name + " |";
+            cmd += "\n|---|---|---|---|---|---|---|\n";
+            for (std::size_t f = 0; f < cv.perFold.size(); ++f) {
+                cmd += fmt::format("| {} |", f);
+                for (const auto& a : cv.perFold[f]) cmd += fmt::format(" {:.3f} |", 100 * a.relativeRmse);
+                cmd += "\n";
+            }
+            writeText(dir / "cv.md", cmd);
+            writePredictionsCsv(dir / "cv_predictions.csv", cv.inputs, cv.truth, cv.predicted);
+            std::cout << "\n" << cmd;
+        }
         std::cout << fmt::format("\nmodel: {}\n", dir.string());
     });
 }

@@ -19,6 +19,12 @@ constexpr int kFormatVersion = 1;
 
 json vectorToJson(const Eigen::Ref<const Eigen::VectorXd>& v) { return std::vector<double>(v.begin(), v.end()); }
 
+json transformsToJson(const std::vector<VariableTransform>& t, std::size_t n) {
+    json a = json::array();
+    for (std::size_t i = 0; i < n; ++i) a.push_back(i < t.size() && t[i] == VariableTransform::Log ? "log" : "identity");
+    return a;
+}
+
 /// Loss values: NaN/inf (no value) as null.
 json lossesToJson(const std::vector<double>& v) {
     json a = json::array();
@@ -216,6 +222,8 @@ json networkToJson(const TrainedNetwork& tn) {
     j["input_sd"] = vectorToJson(tn.inputScaling.sd);
     j["output_mean"] = vectorToJson(tn.outputScaling.mean);
     j["output_sd"] = vectorToJson(tn.outputScaling.sd);
+    j["input_transform"] = transformsToJson(tn.inputTransforms, tn.inputNames.size());
+    j["output_transform"] = transformsToJson(tn.outputTransforms, tn.outputNames.size());
     j["input_names"] = tn.inputNames;
     j["output_names"] = tn.outputNames;
     j["data_hash"] = tn.dataHash;
@@ -275,6 +283,18 @@ TrainedNetwork networkFromJson(const json& j, const std::string& source) {
     tn.inputScaling = readScaling(r, j, "input", nIn);
     tn.outputScaling = readScaling(r, j, "output", nOut);
     tn.inputNames = r.strings(r.key(j, "input_names"), "input_names", nIn);
+    // Optional (files written before the transforms existed: identity).
+    const auto transforms = [&](const char* key, std::size_t n) {
+        std::vector<VariableTransform> t;
+        if (!j.contains(key)) return t;
+        for (const std::string& name : r.strings(j.at(key), key, n)) {
+            if (name != "identity" && name != "log") r.fail(key, "entries must be \"identity\" or \"log\", found \"" + name + "\"");
+            t.push_back(name == "log" ? VariableTransform::Log : VariableTransform::Identity);
+        }
+        return t;
+    };
+    tn.inputTransforms = transforms("input_transform", nIn);
+    tn.outputTransforms = transforms("output_transform", nOut);
     tn.outputNames = r.strings(r.key(j, "output_names"), "output_names", nOut);
     tn.dataHash = r.string(r.key(j, "data_hash"), "data_hash");
     tn.command = r.string(r.key(j, "command"), "command");

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -154,6 +155,9 @@ std::vector<std::string> describeDropped(const std::vector<const CampaignRow*>& 
 SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt) {
     if (!(opt.testFraction >= 0.0 && opt.testFraction < 0.5))
         throw InputError(fmt::format("surrogate training: test fraction {} is outside [0, 0.5)", opt.testFraction));
+    if (opt.folds == 1 || opt.folds < 0 || (opt.folds >= 2 && (opt.fold < 0 || opt.fold >= opt.folds)))
+        throw InputError(fmt::format("surrogate training: fold {} of {} folds (folds must be 0 or >= 2, fold in [0, folds))", opt.fold,
+                                     opt.folds));
     SurrogateTrainingReport rep;
     rep.rows = long(rows.size());
     std::uint64_t h = fnv1a("");
@@ -169,9 +173,14 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     std::vector<long> cellIds;
     for (const auto& [id, v] : byCell) cellIds.push_back(id);
     const auto perm = seededPermutation(Eigen::Index(cellIds.size()), opt.testSeed);
-    rep.testCells = long(std::ceil(opt.testFraction * double(cellIds.size())));
     std::vector<bool> isTest(cellIds.size(), false);
-    for (long k = 0; k < rep.testCells; ++k) isTest[perm[k]] = true;
+    if (opt.folds >= 2) {
+        for (std::size_t k = 0; k < cellIds.size(); ++k) isTest[perm[Eigen::Index(k)]] = int(k % std::size_t(opt.folds)) == opt.fold;
+        rep.testCells = long(std::count(isTest.begin(), isTest.end(), true));
+    } else {
+        rep.testCells = long(std::ceil(opt.testFraction * double(cellIds.size())));
+        for (long k = 0; k < rep.testCells; ++k) isTest[perm[k]] = true;
+    }
 
     auto eqOk = [](const CampaignRow& r) { return std::isfinite(r.D) && std::isfinite(r.hmin) && std::isfinite(r.hmax); };
     auto stOk = [](const CampaignRow& r) { return std::isfinite(r.D0) && std::isfinite(r.D1); };
@@ -244,6 +253,14 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             const double batchesPerEpoch = std::max(1.0, 0.8 * double(data[k].X.cols()) / o.batchSize);
             o.patience = std::max(o.patience, int(std::ceil(3000.0 / batchesPerEpoch)));
             o.testFraction = 0.0;              // the test cells are already out
+            if (k == 2 && opt.logRelaxation) {
+                // tc mu / eta_m > 0 spans two decades and depends on mu and eta_m through tc's
+                // sampling window and the vertex-mass group Pi ~ mu / eta_m^2 (MODEL.md E.3): products
+                // and powers that are sums in log space.
+                using T = VariableTransform;
+                o.inputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log};
+                o.outputTransforms = {T::Log};
+            }
             if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
 #pragma omp critical(trbc_surrogate_progress)
                 opt.progress(kNetworks[k], e);
@@ -295,24 +312,62 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             const CampaignRow& r = *testRows[j];
             rep.testInputs.col(Eigen::Index(j)) = rowInputs(r);
             rep.testTruth.col(Eigen::Index(j)) << r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc;
+            rep.testCellIds.push_back(r.point.cellId);
         }
         rep.testPredicted = rep.model.evaluate(rep.testInputs);
-        for (int o = 0; o < 6; ++o) {
-            std::vector<double> t, p;
-            long lastCell = -1;
-            for (std::size_t j = 0; j < testRows.size(); ++j) {
-                const bool perCell = o < 3 || o == 5;
-                if (perCell && testRows[j]->point.cellId == lastCell) continue;
-                lastCell = testRows[j]->point.cellId;
-                if (!std::isfinite(rep.testTruth(o, Eigen::Index(j)))) continue;
-                t.push_back(rep.testTruth(o, Eigen::Index(j)));
-                p.push_back(rep.testPredicted(o, Eigen::Index(j)));
-            }
-            rep.test.push_back(outputAccuracy(surrogateOutputNames()[o], Eigen::Map<Eigen::VectorXd>(t.data(), Eigen::Index(t.size())),
-                                              Eigen::Map<Eigen::VectorXd>(p.data(), Eigen::Index(p.size()))));
-        }
+        rep.test = heldOutAccuracy(rep.testCellIds, rep.testTruth, rep.testPredicted);
     }
     return rep;
+}
+
+std::vector<OutputAccuracy> heldOutAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& truth,
+                                            const Eigen::MatrixXd& predicted) {
+    std::vector<OutputAccuracy> acc;
+    for (int o = 0; o < 6; ++o) {
+        const bool perCell = o < 3 || o == 5;
+        std::vector<double> t, p;
+        for (std::size_t j = 0; j < cellIds.size(); ++j) {
+            if (perCell && j > 0 && cellIds[j] == cellIds[j - 1]) continue;
+            if (!std::isfinite(truth(o, Eigen::Index(j)))) continue;
+            t.push_back(truth(o, Eigen::Index(j)));
+            p.push_back(predicted(o, Eigen::Index(j)));
+        }
+        acc.push_back(outputAccuracy(surrogateOutputNames()[o], Eigen::Map<Eigen::VectorXd>(t.data(), Eigen::Index(t.size())),
+                                     Eigen::Map<Eigen::VectorXd>(p.data(), Eigen::Index(p.size()))));
+    }
+    return acc;
+}
+
+CrossValidationReport crossValidateSurrogate(const std::vector<CampaignRow>& rows, SurrogateTrainingOptions opt, int folds) {
+    if (folds < 2) throw InputError(fmt::format("surrogate cross-validation: {} folds; at least 2 are needed", folds));
+    const auto t0 = std::chrono::steady_clock::now();
+    CrossValidationReport cv;
+    cv.folds = folds;
+    std::vector<Eigen::MatrixXd> in, truth, pred;
+    for (int f = 0; f < folds; ++f) {
+        opt.folds = folds;
+        opt.fold = f;
+        SurrogateTrainingReport rep = trainSurrogate(rows, opt);
+        cv.perFold.push_back(rep.test);
+        in.push_back(std::move(rep.testInputs));
+        truth.push_back(std::move(rep.testTruth));
+        pred.push_back(std::move(rep.testPredicted));
+        cv.cellIds.insert(cv.cellIds.end(), rep.testCellIds.begin(), rep.testCellIds.end());
+    }
+    const auto stack = [](const std::vector<Eigen::MatrixXd>& parts) {
+        Eigen::Index n = 0;
+        for (const auto& m : parts) n += m.cols();
+        Eigen::MatrixXd out(6, n);
+        Eigen::Index c = 0;
+        for (const auto& m : parts) out.middleCols(c, m.cols()) = m, c += m.cols();
+        return out;
+    };
+    cv.inputs = stack(in);
+    cv.truth = stack(truth);
+    cv.predicted = stack(pred);
+    cv.pooled = heldOutAccuracy(cv.cellIds, cv.truth, cv.predicted);
+    cv.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return cv;
 }
 
 }  // namespace trbc

@@ -1,5 +1,7 @@
 #include "surrogate/training.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -217,6 +219,19 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
     };
     defaultNames(inputNames, X.rows(), 'x');  // x0, x1, ...
     defaultNames(outputNames, Y.rows(), 'y');
+    const auto checkTransforms = [](const std::vector<VariableTransform>& t, const Eigen::MatrixXd& data,
+                                    const std::vector<std::string>& names, const char* what) {
+        if (!t.empty() && Eigen::Index(t.size()) != data.rows())
+            throw InputError(fmt::format("training: {} {} transforms for {} {}s", t.size(), what, data.rows(), what));
+        for (std::size_t i = 0; i < t.size(); ++i)
+            if (t[i] == VariableTransform::Log)
+                for (Eigen::Index j = 0; j < data.cols(); ++j)
+                    if (!(data(Eigen::Index(i), j) > 0))
+                        throw InputError(fmt::format("training: {} '{}' is trained as log({}) but sample {} has {} (must be > 0)",
+                                                     what, names[i], names[i], j, data(Eigen::Index(i), j)));
+    };
+    checkTransforms(options.inputTransforms, X, inputNames, "input");
+    checkTransforms(options.outputTransforms, Y, outputNames, "output");
 
     TrainingResult result;
     TrainedNetwork& tn = result.network;
@@ -224,10 +239,13 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
     tn.outputNames = std::move(outputNames);
     tn.options = options;
     tn.options.progress = nullptr;
-    // 3.2: scaling over all rows of the data
-    tn.inputScaling = Standardisation::fit(X, tn.inputNames);
-    tn.outputScaling = Standardisation::fit(Y, tn.outputNames);
-    const Eigen::MatrixXd Xs = tn.inputScaling.apply(X), Ys = tn.outputScaling.apply(Y);
+    tn.inputTransforms = options.inputTransforms;
+    tn.outputTransforms = options.outputTransforms;
+    // 3.2: scaling over all rows of the (transformed) data
+    const Eigen::MatrixXd Xt = applyTransforms(X, tn.inputTransforms), Yt = applyTransforms(Y, tn.outputTransforms);
+    tn.inputScaling = Standardisation::fit(Xt, tn.inputNames);
+    tn.outputScaling = Standardisation::fit(Yt, tn.outputNames);
+    const Eigen::MatrixXd Xs = tn.inputScaling.apply(Xt), Ys = tn.outputScaling.apply(Yt);
 
     result.split = splitRows(X.cols(), options);
     const DataSplit& s = result.split;
@@ -241,9 +259,24 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
     return result;
 }
 
+Eigen::MatrixXd applyTransforms(const Eigen::Ref<const Eigen::MatrixXd>& x, const std::vector<VariableTransform>& transforms) {
+    Eigen::MatrixXd out = x;
+    for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < x.rows(); ++i)
+        if (transforms[i] == VariableTransform::Log)
+            out.row(Eigen::Index(i)) = x.row(Eigen::Index(i)).unaryExpr([](double v) { return v > 0 ? std::log(v) : NAN; });
+    return out;
+}
+
+void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<VariableTransform>& transforms) {
+    for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < y.rows(); ++i)
+        if (transforms[i] == VariableTransform::Log) y.row(Eigen::Index(i)) = y.row(Eigen::Index(i)).array().exp().matrix();
+}
+
 Eigen::MatrixXd TrainedNetwork::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& X, Precision precision) const {
-    Eigen::MatrixXd Y = net.forward(inputScaling.apply(X), precision);
+    Eigen::MatrixXd Y = net.forward(inputScaling.apply(inputTransforms.empty() ? Eigen::MatrixXd(X) : applyTransforms(X, inputTransforms)),
+                                    precision);
     outputScaling.invertInPlace(Y);
+    invertTransformsInPlace(Y, outputTransforms);
     return Y;
 }
 

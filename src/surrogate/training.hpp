@@ -48,8 +48,16 @@ struct EpochRecord {
     bool last = false;                ///< training ends with this record
 };
 
+/// Transform of one network variable before its z-score scaling: the network sees log(x) for
+/// `Log` (x > 0; scale parameters spanning decades such as mu, eta_m and FvK, and positive outputs
+/// whose relative error matters). Applied inside TrainedNetwork::evaluate, so callers always pass
+/// and receive physical values.
+enum class VariableTransform { Identity, Log };
+
 struct TrainingOptions {
     std::vector<int> hiddenLayers{32, 32, 32};  ///< SURROGATE 3.3
+    /// Per input / output row; empty means Identity for every row.
+    std::vector<VariableTransform> inputTransforms, outputTransforms;
     int batchSize = 128;                        ///< B (3.1: 256 equilibrium, 128 otherwise)
     std::uint64_t splitSeed = 12345;            ///< permutation of the rows (3.4)
     std::uint64_t seed = 1;                     ///< initial weights and mini-batch order
@@ -88,10 +96,12 @@ struct TrainingHistory {
 };
 
 /// A trained network with everything needed to evaluate it in physical units and to trace it back
-/// (SURROGATE 3.6): y = s_y .* NN((x - m_x) ./ s_x) + m_y.
+/// (SURROGATE 3.6): y = T_y^-1(s_y .* NN((T_x(x) - m_x) ./ s_x) + m_y), T the per-variable
+/// transforms (identity unless the network was trained with log variables).
 struct TrainedNetwork {
     Mlp net;
-    Standardisation inputScaling, outputScaling;
+    Standardisation inputScaling, outputScaling;  ///< of the transformed variables
+    std::vector<VariableTransform> inputTransforms, outputTransforms;  ///< one per row, or empty (identity)
     std::vector<std::string> inputNames, outputNames;
     std::string dataHash;  ///< hash of the data file the network was trained on
     std::string command;   ///< command line that made it
@@ -132,7 +142,11 @@ TrainingHistory trainMlp(Mlp& net, const Eigen::Ref<const Eigen::MatrixXd>& Xtra
                          const Eigen::Ref<const Eigen::MatrixXd>& Xval,
                          const Eigen::Ref<const Eigen::MatrixXd>& Yval, const TrainingOptions& options);
 
-/// Whole procedure on physical data X (inputs x n), Y (outputs x n): standardisation over all n
+/// `x` with row i replaced by log(x_i) where transforms[i] is Log (NaN for x <= 0), and the inverse.
+Eigen::MatrixXd applyTransforms(const Eigen::Ref<const Eigen::MatrixXd>& x, const std::vector<VariableTransform>& transforms);
+void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<VariableTransform>& transforms);
+
+/// Whole procedure on physical data X (inputs x n), Y (outputs x n): options' transforms, then standardisation over all n
 /// columns (3.2), split, Glorot initialisation with options.seed, trainMlp, test loss. Names are
 /// stored with the network (and used in error messages; default x0.., y0..); dataHash/command are left empty for the
 /// caller. Throws InputError on inconsistent sizes, non-finite values or constant columns.
