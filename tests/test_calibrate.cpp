@@ -149,6 +149,31 @@ TEST(CalibrationReport, TransferabilitySectionFromValidateOutputs) {
     EXPECT_NE(md.find("| ttf_eta28.9_rate65.19 | 4 pi f / rate | 0.346 | 0.27 – 0.39 | inside |"), std::string::npos) << md;
 }
 
+TEST(CalibrationReport, SurrogateSectionShowsCrossValidationOfTheSameData) {
+    TempDir dir;
+    CalibrationReportInputs in;
+    in.outputDirectory = dir.path();
+    in.configFile = writeText(dir.path() / "c.toml", "");
+    in.version = "test";
+    in.surrogateDirectory = dir.path() / "model";
+    const std::string acc = R"({"command": "trbc surrogate train", "rows": 20, "cells": 10, "data_hash": "fnv1a:1",
+        "test": [{"output": "tc_s", "n": 1, "rmse": 0.01, "relative_rmse": 0.036, "max_abs": 0.01, "r2": 0.99}]})";
+    writeText(dir.path() / "model" / "accuracy.json", acc);
+    std::string md = writeCalibrationReport(in).markdown(dir.path());
+    EXPECT_NE(md.find("3.60 %"), std::string::npos) << md;
+    EXPECT_EQ(md.find("cross-validation"), std::string::npos) << md;
+    const std::string cv = R"({"folds": 10, "data_hash": "fnv1a:1",
+        "pooled": [{"output": "tc_s", "n": 10, "rmse": 0.02, "relative_rmse": 0.069, "max_abs": 0.08, "r2": 0.98}]})";
+    writeText(dir.path() / "model" / "cv.json", cv);
+    md = writeCalibrationReport(in).markdown(dir.path());
+    EXPECT_NE(md.find("10-fold cross-validation"), std::string::npos) << md;
+    EXPECT_NE(md.find("6.90 %"), std::string::npos) << md;
+    // a cross-validation of other data is not shown
+    writeText(dir.path() / "model" / "cv.json", R"({"folds": 10, "data_hash": "fnv1a:2", "pooled": []})");
+    md = writeCalibrationReport(in).markdown(dir.path());
+    EXPECT_EQ(md.find("cross-validation"), std::string::npos) << md;
+}
+
 TEST(CalibrateConfig, DataEntriesAreChecked) {
     TempDir dir;
     std::string e = configError(dir, "[[data]]\nname = \"x\"\nexperiment = \"stretching\"\nfile = \"missing.csv\"\n");

@@ -320,16 +320,27 @@ void surrogateSection(ReportDocument& doc, const fs::path& modelDir) {
         doc.paragraph(fmt::format("No accuracy record (`{}/accuracy.json`).", modelDir.string()));
         return;
     }
-    std::vector<std::vector<std::string>> table;
-    for (const auto& r : a["test"])
-        table.push_back({r.value("output", "?"), std::to_string(r.value("n", 0)), num(r.value("rmse", NAN)),
-                         fmt::format("{:.2f} %", 100.0 * r.value("relative_rmse", NAN)), num(r.value("max_abs", NAN)),
-                         fmt::format("{:.4f}", r.value("r2", NAN))});
+    const auto accuracyTable = [](const nlohmann::json& rows) {
+        std::vector<std::vector<std::string>> table;
+        for (const auto& r : rows)
+            table.push_back({r.value("output", "?"), std::to_string(r.value("n", 0)), num(r.value("rmse", NAN)),
+                             fmt::format("{:.2f} %", 100.0 * r.value("relative_rmse", NAN)), num(r.value("max_abs", NAN)),
+                             fmt::format("{:.4f}", r.value("r2", NAN))});
+        return table;
+    };
+    const std::vector<std::string> header = {"output", "n", "RMSE", "relative RMSE", "max abs error", "R²"};
     doc.paragraph(fmt::format("Networks of `{}`, trained by `{}` on {} rows in {} cells{}; held-out test set of whole cells "
                               "never used in training or early stopping:",
                               modelDir.string(), a.value("command", "?"), a.value("rows", 0), a.value("cells", 0),
                               a.value("data_complete", true) ? "" : " (finished part of a campaign)"));
-    doc.table({"output", "n", "RMSE", "relative RMSE", "max abs error", "R²"}, table);
+    doc.table(header, accuracyTable(a["test"]));
+    const nlohmann::json cv = readJson(modelDir / "cv.json");
+    if (cv.is_object() && cv.contains("pooled") && cv.value("data_hash", "") == a.value("data_hash", "?")) {
+        doc.paragraph(fmt::format("{}-fold cross-validation over whole cells (every cell predicted by the networks trained "
+                                  "without it; the estimate to quote, a single split of few cells can be far from typical):",
+                                  cv.value("folds", 0)));
+        doc.table(header, accuracyTable(cv["pooled"]));
+    }
 }
 
 void meshSection(ReportDocument& doc, const fs::path& dir) {
