@@ -85,7 +85,7 @@ void registerTrain(CLI::App* parent) {
         ->check(CLI::Range(1, 3))->capture_default_str();
     cmd->add_option("--relaxation-variables", o->relaxationVariables,
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
-                    "variables (networks before 2026-11-24)")
+                    "variables (networks before session 7 (2026-11-23))")
         ->check(CLI::IsMember({"log", "linear"}))->capture_default_str();
     cmd->add_option("--cv-folds", o->cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "

@@ -56,7 +56,7 @@ struct SurrogateTrainingOptions {
     /// 8 found one with 0.029 %; 16 found nothing better than 8.
     int restarts = 8;
     /// Relaxation network on log(mu), log(FvK), log(eta_m) with output log(tc mu / eta_m) (true), or on
-    /// the raw variables (false, the networks shipped before 2026-11-24). Over 10-fold cross-validation
+    /// the raw variables (false, the networks shipped before session 7 (2026-11-23)). Over 10-fold cross-validation
     /// on the shipped campaign the log variables lowered the tc error from 7.6 % to 6.9 % (bulk of the
     /// box 5.0 % -> 2.9 %; docs/CAMPAIGN_AND_SURROGATE.md).
     bool logRelaxation = true;
