@@ -55,6 +55,23 @@ void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& 
     writeText(p, text);
 }
 
+/// cv.md: pooled out-of-fold accuracy and the relative RMSE of every output per fold.
+std::string crossValidationMarkdown(const CrossValidationReport& cv, const std::string& dataHash, std::uint64_t testSeed) {
+    std::string md = fmt::format("# Surrogate cross-validation\n\nMade by `{}` (trbc {}), data hash {}: {} folds of whole cells "
+                                 "(seeded permutation, test seed {}); every cell is predicted once, by the networks "
+                                 "trained without it. {:.0f} s.\n\n## Pooled out-of-fold predictions\n\n",
+                                 commandLine(), kVersion, dataHash, cv.folds, testSeed, cv.wallSeconds);
+    md += accuracyMarkdown(cv.pooled) + "\n## Relative RMSE per fold (%)\n\n| fold |";
+    for (const auto& a : cv.pooled) md += " " + a.name + " |";
+    md += "\n|---|---|---|---|---|---|---|\n";
+    for (std::size_t f = 0; f < cv.perFold.size(); ++f) {
+        md += fmt::format("| {} |", f);
+        for (const auto& a : cv.perFold[f]) md += fmt::format(" {:.3f} |", 100 * a.relativeRmse);
+        md += "\n";
+    }
+    return md;
+}
+
 void registerTrain(CLI::App* parent) {
     struct Opts {
         std::string data, out;
@@ -168,21 +185,10 @@ void registerTrain(CLI::App* parent) {
                                  {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
             for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
             writeText(dir / "cv.json", cj.dump(2) + "\n");
-            std::string cmd = fmt::format("# Surrogate cross-validation\n\nMade by `{}` (trbc {}), data hash {}: {} folds of whole cells "
-                                          "(seeded permutation, test seed {}); every cell is predicted once, by the networks "
-                                          "trained without it. {:.0f} s.\n\n## Pooled out-of-fold predictions\n\n",
-                                          commandLine(), kVersion, rep.dataHash, cv.folds, t.testSeed, cv.wallSeconds);
-            cmd += accuracyMarkdown(cv.pooled) + "\n## Relative RMSE per fold (%)\n\n| fold |";
-            for (const auto& a : cv.pooled) cmd += " " + a.name + " |";
-            cmd += "\n|---|---|---|---|---|---|---|\n";
-            for (std::size_t f = 0; f < cv.perFold.size(); ++f) {
-                cmd += fmt::format("| {} |", f);
-                for (const auto& a : cv.perFold[f]) cmd += fmt::format(" {:.3f} |", 100 * a.relativeRmse);
-                cmd += "\n";
-            }
-            writeText(dir / "cv.md", cmd);
+            const std::string cvMd = crossValidationMarkdown(cv, rep.dataHash, t.testSeed);
+            writeText(dir / "cv.md", cvMd);
             writePredictionsCsv(dir / "cv_predictions.csv", cv.inputs, cv.truth, cv.predicted);
-            std::cout << "\n" << cmd;
+            std::cout << "\n" << cvMd;
         }
         std::cout << fmt::format("\nmodel: {}\n", dir.string());
     });

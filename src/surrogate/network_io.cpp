@@ -299,6 +299,8 @@ TrainedNetwork networkFromJson(const json& j, const std::string& source) {
     tn.dataHash = r.string(r.key(j, "data_hash"), "data_hash");
     tn.command = r.string(r.key(j, "command"), "command");
     tn.options = readTraining(r, j);
+    tn.options.inputTransforms = tn.inputTransforms;  // the run's settings, as in a freshly trained network
+    tn.options.outputTransforms = tn.outputTransforms;
     tn.options.splitSeed = r.unsignedInteger(r.key(j, "split_seed"), "split_seed");
     tn.options.hiddenLayers.assign(sizes.begin() + 1, sizes.end() - 1);
     tn.history = readHistory(r, j);

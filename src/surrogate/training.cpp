@@ -219,7 +219,7 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
     };
     defaultNames(inputNames, X.rows(), 'x');  // x0, x1, ...
     defaultNames(outputNames, Y.rows(), 'y');
-    const auto checkTransforms = [](const std::vector<VariableTransform>& t, const Eigen::MatrixXd& data,
+    const auto checkTransforms = [](const std::vector<VariableTransform>& t, const Eigen::Ref<const Eigen::MatrixXd>& data,
                                     const std::vector<std::string>& names, const char* what) {
         if (!t.empty() && Eigen::Index(t.size()) != data.rows())
             throw InputError(fmt::format("training: {} {} transforms for {} {}s", t.size(), what, data.rows(), what));
@@ -273,8 +273,9 @@ void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<Va
 }
 
 Eigen::MatrixXd TrainedNetwork::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& X, Precision precision) const {
-    Eigen::MatrixXd Y = net.forward(inputScaling.apply(inputTransforms.empty() ? Eigen::MatrixXd(X) : applyTransforms(X, inputTransforms)),
-                                    precision);
+    // No copy of X for untransformed inputs (the batched evaluation path of the inference).
+    Eigen::MatrixXd Y = inputTransforms.empty() ? net.forward(inputScaling.apply(X), precision)
+                                                : net.forward(inputScaling.apply(applyTransforms(X, inputTransforms)), precision);
     outputScaling.invertInPlace(Y);
     invertTransformsInPlace(Y, outputTransforms);
     return Y;
