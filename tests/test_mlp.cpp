@@ -610,5 +610,65 @@ TEST(NetworkIo, TransformsRoundTripAndOlderFilesMeanIdentity) {
     EXPECT_NE(m.find("sqrt"), std::string::npos) << m;
 }
 
+
+TEST(NetworkEnsemble, PredictsTheMeanOfItsMembersInTheTransformedSpace) {
+    Eigen::MatrixXd X, Y, Xt, Yt;
+    powerLawData(600, 44, X, Y);
+    powerLawData(300, 45, Xt, Yt);
+    TrainingOptions o;
+    o.hiddenLayers = {6};
+    o.maxEpochs = 40;  // short trainings: members that differ
+    o.inputTransforms = {VariableTransform::Log, VariableTransform::Log};
+    o.outputTransforms = {VariableTransform::Log};
+    std::vector<TrainedNetwork> singles;
+    for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+        o.seed = seed;
+        singles.push_back(trainNetwork(X, Y, o, {"a", "b"}, {"y"}).network);
+    }
+    TrainedNetwork ens = singles[0];
+    for (std::size_t k = 1; k < singles.size(); ++k)
+        ens.ensemble.push_back({singles[k].net, singles[k].options.seed, singles[k].history.bestValidationLoss});
+    // log output: the geometric mean of the members' predictions
+    Eigen::ArrayXXd logMean = Eigen::ArrayXXd::Zero(1, Xt.cols());
+    for (const TrainedNetwork& s : singles) logMean += s.evaluate(Xt).array().log();
+    logMean /= double(singles.size());
+    const Eigen::MatrixXd pe = ens.evaluate(Xt);
+    EXPECT_TRUE(pe.isApprox(logMean.exp().matrix(), 1e-12));
+    EXPECT_FALSE(pe.isApprox(singles[0].evaluate(Xt), 1e-6));  // the members do differ
+    // Jensen: the squared error of the mean prediction (log space) is at most the members' mean
+    const auto logMse = [&](const Eigen::MatrixXd& p) { return (p.array().log() - Yt.array().log()).square().mean(); };
+    double memberMean = 0;
+    for (const TrainedNetwork& s : singles) memberMean += logMse(s.evaluate(Xt)) / double(singles.size());
+    std::cout << "log-space MSE: ensemble " << logMse(pe) << ", members' mean " << memberMean << "\n";
+    EXPECT_LE(logMse(pe), memberMean);
+    // identity output: the arithmetic mean
+    TrainedNetwork lin = ens;
+    lin.outputTransforms.clear();
+    Eigen::MatrixXd mean = Eigen::MatrixXd::Zero(1, Xt.cols());
+    for (const TrainedNetwork& s : singles) {
+        TrainedNetwork t = s;
+        t.outputTransforms.clear();
+        mean += t.evaluate(Xt) / double(singles.size());
+    }
+    EXPECT_TRUE(lin.evaluate(Xt).isApprox(mean, 1e-12));
+
+    // the members travel with the file and give bit-identical outputs
+    const std::string path = tempPath("ensemble.json");
+    saveNetwork(ens, path);
+    const TrainedNetwork back = loadNetwork(path);
+    ASSERT_EQ(back.ensemble.size(), 3u);
+    EXPECT_EQ(back.ensemble[1].seed, 3u);
+    EXPECT_EQ(back.ensemble[1].bestValidationLoss, singles[2].history.bestValidationLoss);
+    EXPECT_TRUE(back.evaluate(Xt) == pe);
+    std::filesystem::remove(path);
+    const std::string m = loadErrorAfter(
+        [&](nlohmann::json& j) {
+            j = networkToJson(ens);
+            j["ensemble"][1]["biases"][0].erase(0);
+        },
+        "bad_ensemble.json");
+    EXPECT_NE(m.find("'ensemble[1].biases[0]'"), std::string::npos) << m;
+}
+
 }  // namespace
 }  // namespace trbc

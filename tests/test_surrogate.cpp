@@ -3,6 +3,7 @@
 // sobol commands on bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -149,6 +150,39 @@ TEST_F(TrainedFixture, RelaxationNetworkWorksOnLogScaleParameters) {
     opt.network.maxEpochs = 2;
     const auto linear = trainSurrogate(fakeCampaign(400, 8), opt);
     EXPECT_TRUE(linear.model.relaxation.inputTransforms.empty() && linear.model.relaxation.outputTransforms.empty());
+}
+
+TEST_F(TrainedFixture, RelaxationNetworkAveragesAllItsRestarts) {
+    // restarts 4 (quickOptions): the best network plus the other three as ensemble members;
+    // the equilibrium and stretching networks keep only their best restart.
+    const TrainedNetwork& rx = report->model.relaxation;
+    ASSERT_EQ(rx.ensemble.size(), 3u);
+    std::vector<std::uint64_t> seeds{rx.options.seed};
+    for (const EnsembleMember& m : rx.ensemble) {
+        seeds.push_back(m.seed);
+        EXPECT_GE(m.bestValidationLoss, rx.history.bestValidationLoss);  // the kept network is the best
+        EXPECT_EQ(m.net.layerSizes(), rx.net.layerSizes());
+    }
+    std::sort(seeds.begin(), seeds.end());
+    EXPECT_EQ(seeds, (std::vector<std::uint64_t>{1, 2, 3, 4}));
+    EXPECT_TRUE(report->model.equilibrium.ensemble.empty());
+    EXPECT_TRUE(report->model.stretching.ensemble.empty());
+    // the tc of the model is the ensemble's: not the best member's alone
+    TrainedNetwork best = rx;
+    best.ensemble.clear();
+    const Eigen::MatrixXd x = report->testInputs.topRows(5);
+    EXPECT_FALSE(rx.evaluate(x).isApprox(best.evaluate(x), 1e-9));
+    // and it is saved with the model
+    TempDir tmp;
+    report->model.save(tmp.path() / "m");
+    const Surrogate back = Surrogate::load(tmp.path() / "m");
+    EXPECT_EQ(back.relaxation.ensemble.size(), 3u);
+    EXPECT_TRUE(back.evaluate(report->testInputs) == report->model.evaluate(report->testInputs));
+    // --ensemble none: a single network
+    auto opt = quickOptions();
+    opt.ensemble[2] = false;
+    opt.network.maxEpochs = 2;
+    EXPECT_TRUE(trainSurrogate(fakeCampaign(400, 8), opt).model.relaxation.ensemble.empty());
 }
 
 TEST(SurrogateTraining, CrossValidationPredictsEveryCellOnceWithoutIt) {

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <iostream>
@@ -79,6 +80,7 @@ void registerTrain(CLI::App* parent) {
         int threads = 2;
         int cvFolds = 0;
         std::string relaxationVariables = "log";
+        std::vector<std::string> ensemble{"relaxation"};
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = parent->add_subcommand(
@@ -104,6 +106,10 @@ void registerTrain(CLI::App* parent) {
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
                     "variables (networks before session 7 (2026-11-23))")
         ->check(CLI::IsMember({"log", "linear"}))->capture_default_str();
+    cmd->add_option("--ensemble", o->ensemble,
+                    "networks that keep all their restarts and predict with the members' mean (geometric mean for log "
+                    "outputs): any of equilibrium, stretching, relaxation, or none")
+        ->check(CLI::IsMember({"none", "equilibrium", "stretching", "relaxation"}))->delimiter(',')->capture_default_str();
     cmd->add_option("--cv-folds", o->cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
                     "writes cv.md, cv.json, cv_predictions.csv); 0: off")
@@ -119,6 +125,11 @@ void registerTrain(CLI::App* parent) {
         SurrogateTrainingOptions t = o->t;
         t.command = commandLine();
         t.logRelaxation = o->relaxationVariables == "log";
+        const char* networkNames[3] = {"equilibrium", "stretching", "relaxation"};
+        for (int k = 0; k < 3; ++k)
+            t.ensemble[k] = std::find(o->ensemble.begin(), o->ensemble.end(), networkNames[k]) != o->ensemble.end();
+        if (std::find(o->ensemble.begin(), o->ensemble.end(), "none") != o->ensemble.end() && o->ensemble.size() > 1)
+            throw InputError("surrogate train: --ensemble none cannot be combined with network names");
         t.progress = [](const std::string& net, const EpochRecord& e) {
             if (e.reduced || e.last || e.epoch % 100 == 0)
                 std::cerr << fmt::format("  {:<11} epoch {:>4}  train {:.3e}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
@@ -144,6 +155,7 @@ void registerTrain(CLI::App* parent) {
                             {"seed", t.network.seed},
                             {"restarts", t.restarts},
                             {"relaxation_variables", o->relaxationVariables},
+                            {"ensemble", o->ensemble},
                             {"split_seed", t.network.splitSeed},
                             {"wall_s", wall},
                             {"networks", nlohmann::json::object()},
@@ -158,6 +170,7 @@ void registerTrain(CLI::App* parent) {
                                        {"wall_s", rep.wallSeconds[k]},
                                        {"epochs", nets[k]->history.passes()},
                                        {"seed", nets[k]->options.seed},
+                                       {"ensemble_members", 1 + nets[k]->ensemble.size()},
                                        {"best_epoch", nets[k]->history.bestEpoch},
                                        {"best_validation_loss", nets[k]->history.bestValidationLoss},
                                        {"hit_epoch_cap", nets[k]->history.hitEpochCap}};
@@ -167,10 +180,10 @@ void registerTrain(CLI::App* parent) {
                                      commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
                                      complete ? "" : " (finished part of an unfinished campaign)", rep.testCells);
         md += accuracyMarkdown(rep.test) + "\n## Validation split (used for early stopping)\n\n" + accuracyMarkdown(rep.validation);
-        md += "\n## Training\n\n| network | samples | dropped | epochs | wall s |\n|---|---|---|---|---|\n";
+        md += "\n## Training\n\n| network | samples | dropped | epochs | members | wall s |\n|---|---|---|---|---|---|\n";
         for (int k = 0; k < 3; ++k)
-            md += fmt::format("| {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
-                              rep.wallSeconds[k]);
+            md += fmt::format("| {} | {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
+                              1 + nets[k]->ensemble.size(), rep.wallSeconds[k]);
         if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
         writeText(dir / "accuracy.md", md);
         writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);

@@ -196,10 +196,8 @@ TrainingHistory readHistory(const Reader& r, const json& j) {
     return out;
 }
 
-}  // namespace
-
-json networkToJson(const TrainedNetwork& tn) {
-    const Mlp& net = tn.net;
+/// Writes net's layers as obj["weights"], obj["biases"] (format in network_io.hpp).
+void writeLayers(const Mlp& net, json& obj) {
     json weights = json::array(), biases = json::array();
     for (int l = 0; l < net.numLayers(); ++l) {
         json rows = json::array();
@@ -208,6 +206,35 @@ json networkToJson(const TrainedNetwork& tn) {
         weights.push_back(std::move(rows));
         biases.push_back(vectorToJson(net.biases(l)));
     }
+    obj["weights"] = std::move(weights);
+    obj["biases"] = std::move(biases);
+}
+
+/// A network of the given layer sizes from obj["weights"], obj["biases"]; key paths below `parent`.
+Mlp readLayers(const Reader& r, const json& obj, const std::vector<int>& sizes, const std::string& parent) {
+    const std::size_t L = sizes.size() - 1;
+    const auto path = [&](const char* name) { return parent.empty() ? std::string(name) : parent + "." + name; };
+    Mlp net(sizes);
+    // weights[l]: n_{l+1} rows of n_l numbers; biases[l]: n_{l+1} numbers
+    const json& weights = r.array(r.key(obj, "weights", parent), path("weights"), L);
+    const json& biases = r.array(r.key(obj, "biases", parent), path("biases"), L);
+    for (std::size_t l = 0; l < L; ++l) {
+        const int li = static_cast<int>(l);
+        const std::string wp = index(path("weights"), l);
+        const json& rows = r.array(weights[l], wp, static_cast<std::size_t>(sizes[l + 1]));
+        auto W = net.weights(li);
+        for (std::size_t i = 0; i < rows.size(); ++i)
+            W.row(static_cast<Eigen::Index>(i)) =
+                r.vector(rows[i], index(wp, i), static_cast<std::size_t>(sizes[l])).transpose();
+        net.biases(li) = r.vector(biases[l], index(path("biases"), l), static_cast<std::size_t>(sizes[l + 1]));
+    }
+    return net;
+}
+
+}  // namespace
+
+json networkToJson(const TrainedNetwork& tn) {
+    const Mlp& net = tn.net;
     const TrainingOptions& o = tn.options;
     const TrainingHistory& h = tn.history;
     json j;
@@ -216,8 +243,7 @@ json networkToJson(const TrainedNetwork& tn) {
     j["trbc_version"] = trbc::kVersion;  // provenance only, not read back
     j["layer_sizes"] = net.layerSizes();
     j["activation"] = "tanh";
-    j["weights"] = std::move(weights);
-    j["biases"] = std::move(biases);
+    writeLayers(net, j);
     j["input_mean"] = vectorToJson(tn.inputScaling.mean);
     j["input_sd"] = vectorToJson(tn.inputScaling.sd);
     j["output_mean"] = vectorToJson(tn.outputScaling.mean);
@@ -245,6 +271,15 @@ json networkToJson(const TrainedNetwork& tn) {
                     {"best_validation_loss", lossToJson(h.bestValidationLoss)},
                     {"hit_epoch_cap", h.hitEpochCap},
                     {"test_loss", lossToJson(h.testLoss)}};
+    if (!tn.ensemble.empty()) {
+        json members = json::array();
+        for (const EnsembleMember& m : tn.ensemble) {
+            json e = {{"seed", m.seed}, {"best_validation_loss", lossToJson(m.bestValidationLoss)}};
+            writeLayers(m.net, e);
+            members.push_back(std::move(e));
+        }
+        j["ensemble"] = std::move(members);
+    }
     return j;
 }
 
@@ -261,22 +296,20 @@ TrainedNetwork networkFromJson(const json& j, const std::string& source) {
     std::vector<int> sizes;
     for (std::size_t i = 0; i < ls.size(); ++i)
         sizes.push_back(static_cast<int>(r.integer(ls[i], index("layer_sizes", i), 1, 1 << 20)));
-    const std::size_t L = sizes.size() - 1;
 
     TrainedNetwork tn;
-    tn.net = Mlp(sizes);
-    // weights[l]: n_{l+1} rows of n_l numbers; biases[l]: n_{l+1} numbers
-    const json& weights = r.array(r.key(j, "weights"), "weights", L);
-    const json& biases = r.array(r.key(j, "biases"), "biases", L);
-    for (std::size_t l = 0; l < L; ++l) {
-        const int li = static_cast<int>(l);
-        const std::string wp = index("weights", l);
-        const json& rows = r.array(weights[l], wp, static_cast<std::size_t>(sizes[l + 1]));
-        auto W = tn.net.weights(li);
-        for (std::size_t i = 0; i < rows.size(); ++i)
-            W.row(static_cast<Eigen::Index>(i)) =
-                r.vector(rows[i], index(wp, i), static_cast<std::size_t>(sizes[l])).transpose();
-        tn.net.biases(li) = r.vector(biases[l], index("biases", l), static_cast<std::size_t>(sizes[l + 1]));
+    tn.net = readLayers(r, j, sizes, "");
+    // Optional (single networks have none): further members with the same layer sizes.
+    if (j.contains("ensemble")) {
+        const json& members = r.anyArray(j.at("ensemble"), "ensemble");
+        for (std::size_t k = 0; k < members.size(); ++k) {
+            const std::string p = index("ensemble", k);
+            EnsembleMember m;
+            m.net = readLayers(r, members[k], sizes, p);
+            m.seed = r.unsignedInteger(r.key(members[k], "seed", p), p + ".seed");
+            m.bestValidationLoss = r.loss(r.key(members[k], "best_validation_loss", p), p + ".best_validation_loss");
+            tn.ensemble.push_back(std::move(m));
+        }
     }
 
     const auto nIn = static_cast<std::size_t>(sizes.front()), nOut = static_cast<std::size_t>(sizes.back());

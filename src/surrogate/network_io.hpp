@@ -16,6 +16,9 @@
 //   history       {train_loss, validation_loss, learning_rate (per epoch), reduction_epochs,
 //                  restored_validation_loss, best_epoch, best_validation_loss, hit_epoch_cap,
 //                  test_loss}; a NaN loss (no pass in the last epoch, no test set) is written as null
+//   ensemble      optional: further members [{seed, best_validation_loss, weights, biases}, ...] with
+//                 the same layer sizes, scalings and transforms; the network's output is the mean of
+//                 all members' standardised outputs (TrainedNetwork)
 // Doubles are written with the shortest representation that reads back exactly, so a loaded
 // network gives bit-identical outputs.
 #include <nlohmann/json_fwd.hpp>

@@ -267,14 +267,20 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             };
             const auto t0 = std::chrono::steady_clock::now();
             // Restarts from different initial weights (seeds seed, seed+1, ...); the one with the
-            // lowest validation loss is kept (the test cells play no part in the choice).
+            // lowest validation loss is the network (the test cells play no part in the choice), the
+            // others are its ensemble members when opt.ensemble[k].
+            std::vector<EnsembleMember> others;
             for (int r = 0; r < std::max(1, opt.restarts); ++r) {
                 TrainingOptions ro = o;
                 ro.seed = o.seed + std::uint64_t(r);
                 TrainingResult t = trainNetwork(data[k].X, data[k].Y, ro, inNames[k], outNames[k]);
                 if (r == 0 || t.network.history.bestValidationLoss < results[k].network.history.bestValidationLoss)
-                    results[k] = std::move(t);
+                    std::swap(results[k], t);
+                if (r > 0 && opt.ensemble[k])
+                    others.push_back({std::move(t.network.net), t.network.options.seed, t.network.history.bestValidationLoss});
             }
+            std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
+            results[k].network.ensemble = std::move(others);
             rep.wallSeconds[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             results[k].network.dataHash = rep.dataHash;
             results[k].network.command = opt.command;

@@ -274,8 +274,16 @@ void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<Va
 
 Eigen::MatrixXd TrainedNetwork::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& X, Precision precision) const {
     // No copy of X for untransformed inputs (the batched evaluation path of the inference).
-    Eigen::MatrixXd Y = inputTransforms.empty() ? net.forward(inputScaling.apply(X), precision)
-                                                : net.forward(inputScaling.apply(applyTransforms(X, inputTransforms)), precision);
+    const Eigen::MatrixXd Xs = inputTransforms.empty() ? inputScaling.apply(X) : inputScaling.apply(applyTransforms(X, inputTransforms));
+    Eigen::MatrixXd Y = net.forward(Xs, precision);
+    if (!ensemble.empty()) {
+        Eigen::MatrixXd Yk(Y.rows(), Y.cols());
+        for (const EnsembleMember& m : ensemble) {
+            m.net.forward(Xs, Yk, precision);
+            Y += Yk;
+        }
+        Y /= double(1 + ensemble.size());
+    }
     outputScaling.invertInPlace(Y);
     invertTransformsInPlace(Y, outputTransforms);
     return Y;

@@ -95,11 +95,23 @@ struct TrainingHistory {
     int passes() const { return static_cast<int>(trainLoss.size()) - 1; }  ///< training passes run
 };
 
+/// A further member of an ensemble network: another training of the same data, scalings and
+/// transforms from other initial weights.
+struct EnsembleMember {
+    Mlp net;
+    std::uint64_t seed = 0;                 ///< its initial-weight seed
+    double bestValidationLoss = 0.0;        ///< its early-stopping loss (standardised MSE)
+};
+
 /// A trained network with everything needed to evaluate it in physical units and to trace it back
 /// (SURROGATE 3.6): y = T_y^-1(s_y .* NN((T_x(x) - m_x) ./ s_x) + m_y), T the per-variable
 /// transforms (identity unless the network was trained with log variables).
+/// With ensemble members, NN is the mean of the K = 1 + ensemble.size() networks' standardised
+/// outputs, NN = (NN_net + sum_k NN_k) / K: the arithmetic mean of the members' predictions of an
+/// identity output, their geometric mean for a log output.
 struct TrainedNetwork {
-    Mlp net;
+    Mlp net;                              ///< the member with the lowest validation loss
+    std::vector<EnsembleMember> ensemble;  ///< further members (empty: a single network)
     Standardisation inputScaling, outputScaling;  ///< of the transformed variables
     std::vector<VariableTransform> inputTransforms, outputTransforms;  ///< one per row, or empty (identity)
     std::vector<std::string> inputNames, outputNames;
