@@ -7,12 +7,15 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <cstdlib>
 #include <ctime>
 #include <cmath>
 #include <numbers>
 #include <random>
 
+#include "experiments/parameters.hpp"
 #include "surrogate/mlp.hpp"
+#include "surrogate/surrogate.hpp"
 #include "surrogate/training.hpp"
 
 namespace {
@@ -52,6 +55,42 @@ void BM_MlpForward(benchmark::State& state) {
     omp_set_num_threads(saved);
     state.SetItemsProcessed(state.iterations() * n);
     state.counters["threads"] = threads;
+}
+
+// The shipped model (data/surrogates, or $TRBC_SURROGATE_DIR) as the inference calls it:
+// Surrogate::evaluate of all six outputs (argument 1 = 0), or the relaxation time alone (1),
+// for n samples uniform in the prior box, one thread. items/s = samples per second. Since
+// session 8 the relaxation network is an ensemble of 8, so a tc costs 8 network evaluations.
+void BM_ShippedSurrogate(benchmark::State& state) {
+    const char* env = std::getenv("TRBC_SURROGATE_DIR");
+    Surrogate model;
+    try {
+        model = Surrogate::load(env ? env : TRBC_BENCH_SURROGATE_DIR);
+    } catch (const std::exception& e) {
+        state.SkipWithError(e.what());
+        return;
+    }
+    model.precision = state.range(2) == 0 ? Precision::Double : Precision::Single;
+    const Eigen::Index n = state.range(0);
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const PriorRange box[6] = {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam, kPriorFext};
+    Eigen::MatrixXd X = uniformMatrix(6, n, 5);
+    for (int k = 0; k < 6; ++k) X.row(k) = (box[k].lo + (box[k].hi - box[k].lo) * X.row(k).array()).matrix();
+    const bool tcOnly = state.range(1) == 1;
+    for (auto _ : state) {
+        if (tcOnly) {
+            const Eigen::VectorXd tc = model.relaxationTime(X.topRows(5));
+            benchmark::DoNotOptimize(tc.data());
+        } else {
+            const Eigen::MatrixXd Y = model.evaluate(X);
+            benchmark::DoNotOptimize(Y.data());
+        }
+        benchmark::ClobberMemory();
+    }
+    omp_set_num_threads(saved);
+    state.SetItemsProcessed(state.iterations() * n);
+    state.counters["relaxation_members"] = double(1 + model.relaxation.ensemble.size());
 }
 
 // The vectorised tanh alone; items/s = tanh evaluations per second.
@@ -131,6 +170,10 @@ BENCHMARK(BM_MlpForward)
     ->ArgNames({"n", "threads", "single"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+BENCHMARK(BM_ShippedSurrogate)
+    ->ArgsProduct({{65536}, {0, 1}, {0, 1}})
+    ->ArgNames({"n", "tc_only", "single"})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_TanhInPlace)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TrainingEpoch50k)->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK(BM_TrainSmoothFunction50k)->Unit(benchmark::kSecond)->Iterations(1);

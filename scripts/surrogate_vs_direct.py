@@ -6,6 +6,7 @@ for each and `trbc surrogate eval` on all of them, and writes OUT/points.csv (in
 surrogate outputs) and OUT/summary.md (per output: RMSE, relative RMSE, max error).
 
 Usage: scripts/surrogate_vs_direct.py [--n 20] [--seed 99] [--level 4] [--model DIR] [--out DIR]
+       [--reuse-direct]   (re-evaluate the surrogate only; direct values from OUT/points.csv)
 """
 import argparse
 import csv
@@ -29,13 +30,22 @@ def main():
     ap.add_argument("--model", default="")
     ap.add_argument("--trbc", default=os.path.join(os.path.dirname(__file__), "..", "build", "trbc"))
     ap.add_argument("--out", default="out/surrogate_vs_direct")
+    ap.add_argument("--reuse-direct", action="store_true",
+                    help="take the points and direct outputs from OUT/points.csv (they do not depend on the surrogate)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     rng = random.Random(a.seed)
     pts = [[lo + (hi - lo) * rng.random() for _, lo, hi in BOX] for _ in range(a.n)]
     env = dict(os.environ, OMP_NUM_THREADS="1")
     direct = []
-    for i, p in enumerate(pts):
+    if a.reuse_direct:
+        with open(os.path.join(a.out, "points.csv")) as f:
+            old = list(csv.DictReader(f))
+        olds = [[float(r[b[0]]) for b in BOX] for r in old]
+        if len(olds) != a.n or any(abs(x - y) > 1e-12 * max(1.0, abs(y)) for p, q in zip(pts, olds) for x, y in zip(p, q)):
+            sys.exit(f"{a.out}/points.csv: its points are not those of --n {a.n} --seed {a.seed}")
+        direct = [[float(r[k + "_direct"]) for k in OUTS] for r in old]
+    for i, p in enumerate([] if a.reuse_direct else pts):
         args = [a.trbc, "simulate", "--level", str(a.level), "--no-cache"]
         for (name, _, _), x in zip(BOX, p):
             flag = {"v": "--v", "mu_uN_per_m": "--mu", "FvK": "--FvK", "b2": "--b2", "etam_Pa_s_um": "--etam",
