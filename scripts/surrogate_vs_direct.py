@@ -39,8 +39,15 @@ def main():
     env = dict(os.environ, OMP_NUM_THREADS="1")
     direct = []
     if a.reuse_direct:
-        with open(os.path.join(a.out, "points.csv")) as f:
-            old = list(csv.DictReader(f))
+        try:
+            with open(os.path.join(a.out, "points.csv")) as f:
+                old = list(csv.DictReader(f))
+            with open(os.path.join(a.out, "summary.md")) as f:
+                head = f.readline()
+        except OSError as e:
+            sys.exit(f"--reuse-direct: {e}")
+        if f"(level {a.level}," not in head:
+            sys.exit(f"{a.out}/summary.md: its direct runs are not at --level {a.level}: {head.strip()}")
         olds = [[float(r[b[0]]) for b in BOX] for r in old]
         if len(olds) != a.n or any(abs(x - y) > 1e-12 * max(1.0, abs(y)) for p, q in zip(pts, olds) for x, y in zip(p, q)):
             sys.exit(f"{a.out}/points.csv: its points are not those of --n {a.n} --seed {a.seed}")

@@ -178,11 +178,18 @@ TEST_F(TrainedFixture, RelaxationNetworkAveragesAllItsRestarts) {
     const Surrogate back = Surrogate::load(tmp.path() / "m");
     EXPECT_EQ(back.relaxation.ensemble.size(), 3u);
     EXPECT_TRUE(back.evaluate(report->testInputs) == report->model.evaluate(report->testInputs));
-    // --ensemble none: a single network
+    // ensemble off: a single network
     auto opt = quickOptions();
     opt.ensemble[2] = false;
     opt.network.maxEpochs = 2;
     EXPECT_TRUE(trainSurrogate(fakeCampaign(400, 8), opt).model.relaxation.ensemble.empty());
+    // the command line rejects "none" together with a network, and an unknown network, before reading data
+    auto r = runTrbc("surrogate train --data missing.csv --out m --ensemble none,relaxation", tmp.path());
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.err.find("--ensemble none cannot be combined"), std::string::npos) << r.err;
+    r = runTrbc("surrogate train --data missing.csv --out m --ensemble relaxaton", tmp.path());
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.err.find("relaxaton"), std::string::npos) << r.err;
 }
 
 TEST(SurrogateTraining, CrossValidationPredictsEveryCellOnceWithoutIt) {

@@ -96,7 +96,8 @@ void registerTrain(CLI::App* parent) {
         ->capture_default_str();
     cmd->add_option("--test-seed", o->t.testSeed, "seed of the choice of test cells")->capture_default_str();
     cmd->add_option("--restarts", o->t.restarts,
-                    "trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept")
+                    "trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept, or all of "
+                    "them for the networks of --ensemble")
         ->check(CLI::Range(1, 100))->capture_default_str();
     cmd->add_option("--max-epochs", o->t.network.maxEpochs, "epoch cap of each network")->check(CLI::PositiveNumber)
         ->capture_default_str();
@@ -116,6 +117,8 @@ void registerTrain(CLI::App* parent) {
         ->check(CLI::Range(0, 100))->capture_default_str();
     cmd->callback([o]() {
         if (o->cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
+        if (std::find(o->ensemble.begin(), o->ensemble.end(), "none") != o->ensemble.end() && o->ensemble.size() > 1)
+            throw InputError("surrogate train: --ensemble none cannot be combined with network names");
         ensureWritableDirectory(o->out);
         bool complete = true;
         const auto rows = readCampaignRows(o->data, &complete);
@@ -125,11 +128,11 @@ void registerTrain(CLI::App* parent) {
         SurrogateTrainingOptions t = o->t;
         t.command = commandLine();
         t.logRelaxation = o->relaxationVariables == "log";
-        const char* networkNames[3] = {"equilibrium", "stretching", "relaxation"};
+        const char* names[3] = {"equilibrium", "stretching", "relaxation"};
         for (int k = 0; k < 3; ++k)
-            t.ensemble[k] = std::find(o->ensemble.begin(), o->ensemble.end(), networkNames[k]) != o->ensemble.end();
-        if (std::find(o->ensemble.begin(), o->ensemble.end(), "none") != o->ensemble.end() && o->ensemble.size() > 1)
-            throw InputError("surrogate train: --ensemble none cannot be combined with network names");
+            t.ensemble[k] = std::find(o->ensemble.begin(), o->ensemble.end(), names[k]) != o->ensemble.end();
+        if (t.restarts < 2 && (t.ensemble[0] || t.ensemble[1] || t.ensemble[2]))
+            std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
         t.progress = [](const std::string& net, const EpochRecord& e) {
             if (e.reduced || e.last || e.epoch % 100 == 0)
                 std::cerr << fmt::format("  {:<11} epoch {:>4}  train {:.3e}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
@@ -162,7 +165,6 @@ void registerTrain(CLI::App* parent) {
                             {"dropped_where", rep.droppedWhere},
                             {"test", accuracyJson(rep.test)},
                             {"validation", accuracyJson(rep.validation)}};
-        const char* names[3] = {"equilibrium", "stretching", "relaxation"};
         const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
         for (int k = 0; k < 3; ++k)
             j["networks"][names[k]] = {{"samples_used", rep.used[k]},

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <stdexcept>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -16,6 +17,9 @@ namespace {
 
 constexpr const char* kFormat = "trbc-mlp";
 constexpr int kFormatVersion = 1;
+/// Files with ensemble members: an older reader, which would silently use the first member
+/// alone, rejects them by the version instead.
+constexpr int kEnsembleFormatVersion = 2;
 
 json vectorToJson(const Eigen::Ref<const Eigen::VectorXd>& v) { return std::vector<double>(v.begin(), v.end()); }
 
@@ -239,7 +243,7 @@ json networkToJson(const TrainedNetwork& tn) {
     const TrainingHistory& h = tn.history;
     json j;
     j["format"] = kFormat;
-    j["version"] = kFormatVersion;
+    j["version"] = tn.ensemble.empty() ? kFormatVersion : kEnsembleFormatVersion;
     j["trbc_version"] = trbc::kVersion;  // provenance only, not read back
     j["layer_sizes"] = net.layerSizes();
     j["activation"] = "tanh";
@@ -274,6 +278,8 @@ json networkToJson(const TrainedNetwork& tn) {
     if (!tn.ensemble.empty()) {
         json members = json::array();
         for (const EnsembleMember& m : tn.ensemble) {
+            if (m.net.layerSizes() != net.layerSizes())
+                throw std::invalid_argument("networkToJson: an ensemble member's layer sizes differ from the network's");
             json e = {{"seed", m.seed}, {"best_validation_loss", lossToJson(m.bestValidationLoss)}};
             writeLayers(m.net, e);
             members.push_back(std::move(e));
@@ -286,8 +292,10 @@ json networkToJson(const TrainedNetwork& tn) {
 TrainedNetwork networkFromJson(const json& j, const std::string& source) {
     const Reader r(source);
     if (r.string(r.key(j, "format"), "format") != kFormat) r.fail("format", std::string("must be \"") + kFormat + "\"");
-    if (r.integer(r.key(j, "version"), "version", 0, 1 << 30) != kFormatVersion)
-        r.fail("version", "unsupported, expected " + std::to_string(kFormatVersion));
+    const long long version = r.integer(r.key(j, "version"), "version", 0, 1 << 30);
+    if (version != kFormatVersion && version != kEnsembleFormatVersion)
+        r.fail("version", "unsupported, expected " + std::to_string(kFormatVersion) + " or " + std::to_string(kEnsembleFormatVersion));
+    if (version == kFormatVersion && j.contains("ensemble")) r.fail("ensemble", "needs format version 2");
     if (r.string(r.key(j, "activation"), "activation") != "tanh") r.fail("activation", "must be \"tanh\"");
 
     // layer sizes

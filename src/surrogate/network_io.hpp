@@ -1,7 +1,7 @@
 #pragma once
 // Saving and loading a trained surrogate network as JSON (SURROGATE.md 3.6).
 //
-// Format (one object, format "trbc-mlp", version 1):
+// Format (one object, format "trbc-mlp", version 1; version 2 = the same plus "ensemble"):
 //   layer_sizes   [n_0, ..., n_L]
 //   activation    "tanh" (hidden layers; output linear)
 //   weights       L arrays; weights[l] has n_{l+1} rows of n_l numbers, W_l(i, j) = weights[l][i][j]

@@ -274,9 +274,10 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
                 TrainingOptions ro = o;
                 ro.seed = o.seed + std::uint64_t(r);
                 TrainingResult t = trainNetwork(data[k].X, data[k].Y, ro, inNames[k], outNames[k]);
-                if (r == 0 || t.network.history.bestValidationLoss < results[k].network.history.bestValidationLoss)
-                    std::swap(results[k], t);
-                if (r > 0 && opt.ensemble[k])
+                const double loss = t.network.history.bestValidationLoss, best = results[k].network.history.bestValidationLoss;
+                if (r == 0 || loss < best || (!std::isfinite(best) && std::isfinite(loss))) std::swap(results[k], t);
+                // a diverged restart (non-finite validation loss) is not averaged in
+                if (r > 0 && opt.ensemble[k] && std::isfinite(t.network.history.bestValidationLoss))
                     others.push_back({std::move(t.network.net), t.network.options.seed, t.network.history.bestValidationLoss});
             }
             std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
