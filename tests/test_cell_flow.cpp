@@ -341,7 +341,9 @@ TEST(CellFlow, TurningTheInitialCellByPiAboutTheVorticityAxisIsAnExactSymmetry) 
     ASSERT_EQ(a.times.size(), b.times.size());
     for (std::size_t k = 0; k < a.times.size(); ++k)
         EXPECT_NEAR(inclinationAngle(a.frames[k]), inclinationAngle(b.frames[k]), 1e-7) << k;
-    EXPECT_LT((rotateAboutVorticity(a.final, kPi) - b.final).cwiseAbs().maxCoeff(), 1e-6);
+    // Positions: equal up to what GMRES leaves (relative residual 1e-6 per step, accumulated over
+    // the run): 5.1e-6 with the multigrid-relaxed initial cell, below 1e-6 before it.
+    EXPECT_LT((rotateAboutVorticity(a.final, kPi) - b.final).cwiseAbs().maxCoeff(), 2e-5);
 }
 
 TEST(CellFlow, TurningTheInitialCellChangesTheTankTreadingStateLittle) {

@@ -135,6 +135,50 @@ TEST(ReferencePoint, Level4MatchesTheReferenceImplementation) {
     EXPECT_NEAR(s.relaxation.fit.tc, ref.tc, 0.05 * ref.tc);
 }
 
+// The multigrid H0 (docs/FORWARD_MODEL.md "Multigrid H0") changes how the solvers get there, not
+// where: the same observables within the solver tolerances, with fewer force evaluations in the
+// SFS and the static states (level 3, reference point, a 5-force curve; the relaxation uses it from
+// level 4 up, next test).
+TEST(ForwardModel, MultigridPreconditionerGivesTheSameObservablesWithFewerEvaluations) {
+    ExperimentOptions mg = optionsAt(3), plain = optionsAt(3);
+    mg.cacheDir.clear();
+    plain.cacheDir.clear();
+    plain.multigrid = plain.sfs.multigrid = false;
+    ASSERT_TRUE(mg.multigrid && mg.sfs.multigrid);
+    const std::vector<double> curve{25, 50, 100, 150, 200};
+    const SampleResult a = runSample(CellParameters{}, 100.0, {}, mg, curve);
+    const SampleResult b = runSample(CellParameters{}, 100.0, {}, plain, curve);
+    EXPECT_NEAR(a.sfs.reducedVolume, b.sfs.reducedVolume, 1e-8);
+    EXPECT_NEAR(a.equilibrium.observables.D, b.equilibrium.observables.D, 1e-3);
+    EXPECT_NEAR(a.equilibrium.observables.hmin, b.equilibrium.observables.hmin, 1e-3);
+    EXPECT_NEAR(a.equilibrium.observables.hmax, b.equilibrium.observables.hmax, 1e-3);
+    ASSERT_EQ(a.stretching.size(), b.stretching.size());
+    int evalsA = 0, evalsB = 0;
+    for (std::size_t k = 0; k < a.stretching.size(); ++k) {
+        EXPECT_NEAR(a.stretching[k].observables.D0, b.stretching[k].observables.D0, 2e-3) << k;
+        EXPECT_NEAR(a.stretching[k].observables.D1, b.stretching[k].observables.D1, 2e-3) << k;
+        evalsA += a.stretching[k].diagnostics.evaluations;
+        evalsB += b.stretching[k].diagnostics.evaluations;
+    }
+    // tc: the relaxation's inner tolerance moves it by ~1 % between solvers (docs/PERFORMANCE.md).
+    EXPECT_NEAR(a.relaxation.fit.tc, b.relaxation.fit.tc, 0.02 * b.relaxation.fit.tc);
+    EXPECT_LT(a.sfs.evaluations, b.sfs.evaluations / 2);
+    EXPECT_LT(a.equilibrium.diagnostics.evaluations, b.equilibrium.diagnostics.evaluations / 2);
+    EXPECT_LT(evalsA, evalsB);
+}
+
+TEST(Relaxation, MultigridStepsAtLevel4GiveTheSameTimeWithFewerEvaluations) {
+    ExperimentOptions mg = optionsAt(4), plain = optionsAt(4);
+    plain.multigrid = false;
+    const CellParameters p;
+    const CellMeshes meshes = cellMeshes(stressFreeState(p.v, 4, mg.cacheDir, mg.sfs));
+    const EquilibriumResult eq = runEquilibrium(p, meshes, mg);
+    const RelaxationResult a = runRelaxation(p, meshes, eq.shape, mg);
+    const RelaxationResult b = runRelaxation(p, meshes, eq.shape, plain);
+    EXPECT_NEAR(a.fit.tc, b.fit.tc, 0.02 * b.fit.tc);  // measured 0.1681 vs 0.1665 s
+    EXPECT_LT(a.dynamics.evaluations, 0.75 * b.dynamics.evaluations);  // measured 1299 vs 2273
+}
+
 // --- Physics ------------------------------------------------------------------------------------
 
 TEST(Stretching, DiametersAreMonotoneInForceAndEqualTheRestingDiameterAtZero) {

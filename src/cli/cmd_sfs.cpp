@@ -48,6 +48,7 @@ void registerSfs(CLI::App& app) {
         std::string out;
         CacheOptions cache;
         double tolerance = SfsOptions{}.gradientTolerance;
+        std::string preconditioner = "multigrid";
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
@@ -56,6 +57,9 @@ void registerSfs(CLI::App& app) {
     cmd->add_option("--v", o->v, "reduced volume v in (0, 1] (prior [0.65, 1])")->required();
     cmd->add_option("--level", o->level, "icosphere level (Nv = 10 4^L + 2)")->check(CLI::Range(1, 6))->capture_default_str();
     cmd->add_option("--out", o->out, "output mesh (.off, .ply or .vtk), in um at area 135 um^2")->required();
+    cmd->add_option("--preconditioner", o->preconditioner,
+                    "H0 of the L-BFGS: multigrid on the icosphere hierarchy, or none (docs/FORWARD_MODEL.md)")
+        ->check(CLI::IsMember({"multigrid", "none"}))->capture_default_str();
     cmd->add_option("--tol", o->tolerance, "stop when the largest tangential force is below this (kappa / R'_A)")
         ->check(CLI::PositiveNumber)->capture_default_str();
     addCacheOptions(cmd, o->cache);
@@ -63,6 +67,7 @@ void registerSfs(CLI::App& app) {
         ensureWritableFile(o->out);
         SfsOptions so;
         so.gradientTolerance = o->tolerance;
+        so.multigrid = o->preconditioner == "multigrid";
         const StressFreeState s = stressFreeState(o->v, o->level, cacheDirectory(o->cache), so);
         Mesh out = s.mesh;
         out.X = scaleToArea(out.X, out.F, cell::area);

@@ -113,6 +113,13 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
     cmd->add_flag("--overdamped", e.overdamped,
                   "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
     cmd->add_option_function<std::string>(
+           "--preconditioner", [&e](const std::string& a) { e.multigrid = e.sfs.multigrid = a == "multigrid"; },
+           "H0 of the L-BFGS of the SFS, the static states and the relaxation's implicit steps: multigrid on the "
+           "icosphere hierarchy, or none (scaled identity, block-Jacobi in the relaxation; forward-model "
+           "revision 2; docs/FORWARD_MODEL.md)")
+        ->check(CLI::IsMember({"multigrid", "none"}))
+        ->default_str("multigrid");
+    cmd->add_option_function<std::string>(
            "--in-plane-axis",
            [&e](const std::string& a) {
                e.inPlaneAxis = a == inPlaneAxisName(InPlaneAxis::LargestVariance) ? InPlaneAxis::LargestVariance

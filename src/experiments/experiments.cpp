@@ -5,12 +5,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <optional>
 
 #include "core/error.hpp"
 #include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
 #include "solvers/minimize.hpp"
+#include "solvers/multigrid.hpp"
 #include "solvers/viscous_dynamics.hpp"
 
 namespace trbc {
@@ -48,6 +51,30 @@ MinimizeOptions staticOptions(const CellParameters& p, const MembraneModel& mode
     mo.gradientTolerance = opt.staticTolerance * p.mu * meanEdgeLength(X, model.topology());
     mo.maxIterations = opt.maxIterations;
     return mo;
+}
+
+// The scale R_c of membraneStiffness (solvers/multigrid.hpp): the rim's radius of curvature.
+// Force evaluations of an equilibrium plus a 20-force stretching curve at level 4
+// (docs/FORWARD_MODEL.md "Multigrid H0"): reference point 1910 / 1730 / 2370 for R_c = 0.35 / 0.5 /
+// 0.7 um; stiff corner 2560 / 1950 / 1920; soft corner 45700 / 21600 / 15600 (without the
+// multigrid: 10380, 9380 and 19810).
+constexpr double kStiffnessCurvatureRadius = 0.5;  // um
+
+StiffnessModel cellStiffness(const CellParameters& p, const Vertices& X, const Topology& topo) {
+    return membraneStiffness(p.mu, p.mu, p.kbPnUm(), cell::area / static_cast<double>(X.cols()), meanEdgeLength(X, topo),
+                             kStiffnessCurvatureRadius);
+}
+
+// Multigrid H0 (ExperimentOptions::multigrid); empty when switched off or the mesh is not an icosphere.
+std::optional<IcosphereMultigrid> cellMultigrid(const CellParameters& p, const MembraneModel& model, const Vertices& X,
+                                                const ExperimentOptions& opt) {
+    if (!opt.multigrid) return std::nullopt;
+    return IcosphereMultigrid::build(model.faces(), cellStiffness(p, X, model.topology()));
+}
+
+Preconditioner asPreconditioner(const std::optional<IcosphereMultigrid>& mg) {
+    if (!mg) return {};
+    return [&mg](Eigen::VectorXd& v) { mg->apply(v); };
 }
 
 void requireConverged(const SolverDiagnostics& d, const std::string& what) {
@@ -101,7 +128,10 @@ EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& mesh
     const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
     EquilibriumResult res;
     Vertices X = meshes.initial;
-    const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint);
+    const auto mg = cellMultigrid(p, model, X, opt);
+    const Preconditioner pre = asPreconditioner(mg);
+    const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint,
+                                            pre ? &pre : nullptr);
     res.diagnostics = staticDiagnostics(r, t0);
     requireConverged(res.diagnostics, "equilibrium shape");
     const Vertices aligned = alignPrincipalAxes(X);
@@ -141,6 +171,9 @@ std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshe
     const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
     const Vertices unit = beadForces(equilibrium, meshes.faces, 1.0);
     const MinimizeOptions mo = staticOptions(p, model, equilibrium, opt);
+    const auto mg = cellMultigrid(p, model, equilibrium, opt);
+    const Preconditioner pre = asPreconditioner(mg);
+    const Preconditioner* h0 = pre ? &pre : nullptr;
     std::vector<StretchPoint> out;
     Vertices X = equilibrium, Xprev;
     double fPrev = 0.0, fPrevPrev = 0.0;
@@ -158,11 +191,11 @@ std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshe
         const Vertices fext = f * unit;
         MinimizeOptions first = mo;
         if (predict) first.maxIterations = std::min(mo.maxIterations, std::max(1000, 10 * lastIterations));
-        MinimizeResult r = minimizeEnergy(model, X, first, &fext, kCellConstraint);
+        MinimizeResult r = minimizeEnergy(model, X, first, &fext, kCellConstraint, h0);
         if (predict && !r.converged) {
             X = Xk;
             const int evaluations = r.evaluations;
-            r = minimizeEnergy(model, X, mo, &fext, kCellConstraint);
+            r = minimizeEnergy(model, X, mo, &fext, kCellConstraint, h0);
             r.evaluations += evaluations;
         }
         lastIterations = r.iterations;
@@ -214,6 +247,21 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     // by +-10 % between factors: the inner tolerance decides where each step stops).
     const double l0 = meanEdgeLength(equilibrium, model.topology());
     vo.preconditionerStiffness = 12.0 * (p.mu + p.kbPnUm() / (l0 * l0));
+    // From level 4 up (Nv >= 2562), the multigrid replaces the blocks: H0 of
+    // (a0 + k eps + m k^2) I + (mu + k gamma / 2) L + kb/l0^2 L^2 at its physical scale (the edge
+    // dashpots as half a scalar Laplacian, their in-plane average). Relaxation wall time at level 4
+    // (force evaluations): reference point 1.51 -> 1.23 s (2273 -> 1299), stiff corner 3.22 -> 1.71 s,
+    // soft corner 2.09 -> 0.74 s, (0.8, 2, 600, 1, 0.2) 1.65 -> 1.60 s; at level 3 the blocks are
+    // as fast (1.29 s against 1.39 s summed over the same four points).
+    constexpr Eigen::Index kMultigridRelaxationVertices = 2562;
+    auto mg = equilibrium.cols() >= kMultigridRelaxationVertices ? cellMultigrid(p, model, equilibrium, opt)
+                                                                   : std::nullopt;
+    if (mg) {
+        vo.multigrid = &*mg;
+        vo.elasticStiffness = cellStiffness(p, equilibrium, model.topology());
+        vo.frictionLaplacianFactor = 0.5;
+        vo.inner.scalePreconditioner = false;
+    }
     std::vector<double> times;
     for (int k = 1; k <= opt.relaxSamples; ++k) times.push_back(opt.relaxDuration * k / opt.relaxSamples);
     Vertices X = res.released;

@@ -43,6 +43,10 @@ struct ExperimentOptions {
     double relaxDuration = 1.0;          ///< s
     int relaxSamples = 100;              ///< at t = k duration / samples, k = 1..samples
     InPlaneAxis inPlaneAxis = InPlaneAxis::FarthestVertex;
+    /// Static states (equilibrium, stretching): L-BFGS starts from a multigrid H0 of the scalar
+    /// stiffness 0.05 mu I + mu L + kb/l0^2 L^2 on the icosphere hierarchy (solvers/multigrid.hpp);
+    /// false: the plain scaled-identity H0 (forward-model revision 2 and earlier).
+    bool multigrid = true;
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
     SfsOptions sfs;
 };

@@ -9,18 +9,22 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <thread>
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/version.hpp"
+#include "experiments/parameters.hpp"
 #include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
 #include "mesh/io.hpp"
+#include "mesh/topology.hpp"
 #include "mesh/validate.hpp"
 #include "solvers/minimize.hpp"
+#include "solvers/multigrid.hpp"
 
 namespace trbc {
 namespace {
@@ -180,7 +184,21 @@ StressFreeState generateStressFreeState(double v, int level, const SfsOptions& o
     MinimizeOptions mo;
     mo.gradientTolerance = opt.gradientTolerance;
     mo.maxIterations = opt.maxIterations;
-    const MinimizeResult r = minimizeEnergy(model, s.mesh.X, mo, nullptr, {kFourPi, kFourPi * s.vTarget / 3.0});
+    // Multigrid H0 with the stiffness model of the experiments (R_c = 0.5 um in units of R'_A).
+    std::optional<IcosphereMultigrid> mg;
+    if (opt.multigrid) {
+        const MembraneParameters mp = sfsMembrane();
+        const Topology topo = buildTopology(ico.F, ico.X.cols());
+        double l0 = 0.0;
+        for (Eigen::Index e = 0; e < topo.numEdges(); ++e)
+            l0 += (sphere.col(topo.edges(0, e)) - sphere.col(topo.edges(1, e))).norm() / double(topo.numEdges());
+        mg = IcosphereMultigrid::build(ico.F, membraneStiffness(mp.lim.Kalpha, mp.lim.mu, mp.bending.kb,
+                                                                 kFourPi / double(ico.X.cols()), l0,
+                                                                 0.5 / std::sqrt(cell::area / kFourPi)));
+    }
+    const Preconditioner pre = mg ? Preconditioner([&mg](Eigen::VectorXd& v) { mg->apply(v); }) : Preconditioner();
+    const MinimizeResult r = minimizeEnergy(model, s.mesh.X, mo, nullptr, {kFourPi, kFourPi * s.vTarget / 3.0},
+                                            mg ? &pre : nullptr);
     s.converged = r.converged;
     s.iterations = r.iterations;
     s.evaluations = r.evaluations;

@@ -19,6 +19,7 @@ struct SfsOptions {
     /// (bending modulus over the SFS radius, D.2).
     double gradientTolerance = 1e-5;
     int maxIterations = 100000;
+    bool multigrid = true;  ///< multigrid H0 for the L-BFGS (as ExperimentOptions::multigrid)
 };
 
 struct StressFreeState {

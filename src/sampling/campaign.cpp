@@ -52,6 +52,8 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
             {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
     // Only when not the default, so that campaigns made before the option existed still resume.
     if (e.inPlaneAxis != InPlaneAxis::FarthestVertex) j["in_plane_axis"] = inPlaneAxisName(e.inPlaneAxis);
+    // Campaigns made before the multigrid H0 existed have no key and resume with --preconditioner none.
+    if (e.multigrid) j["preconditioner"] = "multigrid";
     return j;
 }
 

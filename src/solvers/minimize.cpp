@@ -128,7 +128,9 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         const double sy = p.s.dot(p.y);
         if (!(sy > 1e-12 * p.s.norm() * p.y.norm())) return;
         p.rho = 1.0 / sy;
-        if (pre) {
+        if (pre && !opt.scalePreconditioner) {
+            p.yHy = sy;  // unit scale: rho * yHy = 1 in the two-loop recursion
+        } else if (pre) {
             Eigen::VectorXd hy = p.y;
             (*pre)(hy);
             p.yHy = p.y.dot(hy);
@@ -269,7 +271,8 @@ double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertice
 }
 
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
-                              const Vertices* externalForces, const AreaVolumeConstraint& constraint) {
+                              const Vertices* externalForces, const AreaVolumeConstraint& constraint,
+                              const Preconditioner* preconditioner) {
     const Eigen::Index nv = X.cols();
     Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
     Vertices Xv(3, nv), G(3, nv);
@@ -282,9 +285,9 @@ MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const Min
     MinimizeResult r;
     if (constraint.active()) {
         const EqualityConstraints con = areaVolumeConstraints(model.faces(), nv, constraint);
-        r = lbfgsMinimize(f, x, options, &con);
+        r = lbfgsMinimize(f, x, options, &con, preconditioner);
     } else {
-        r = lbfgsMinimize(f, x, options);
+        r = lbfgsMinimize(f, x, options, nullptr, preconditioner);
     }
     X = Eigen::Map<const Vertices>(x.data(), 3, nv);
     return r;

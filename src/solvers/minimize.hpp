@@ -15,6 +15,10 @@ struct MinimizeOptions {
     int maxIterations = 100000;
     int memory = 12;                  ///< number of L-BFGS correction pairs
     double maxVertexStep = 0.0;       ///< cap on any vertex's displacement per iteration (0 = none)
+    /// With a preconditioner: scale it by s.y / y.H0 y of the newest pair (true), or take it as
+    /// it is when it already has the Hessian's physical scale (false; saves one application per
+    /// iteration).
+    bool scalePreconditioner = true;
 };
 
 struct MinimizeResult {
@@ -74,8 +78,10 @@ EqualityConstraints areaVolumeConstraints(const Faces& faces, Eigen::Index numVe
 double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertices* externalForces, Vertices& grad);
 
 /// Minimises U(X) - sum_i f_ext_i . x_i for a membrane model, X updated in place.
+/// A preconditioner (H0 of L-BFGS) may be given.
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
-                              const Vertices* externalForces = nullptr, const AreaVolumeConstraint& constraint = {});
+                              const Vertices* externalForces = nullptr, const AreaVolumeConstraint& constraint = {},
+                              const Preconditioner* preconditioner = nullptr);
 
 /// max_i |g_i| over the 3-vectors of a flattened gradient.
 double maxVertexNorm(const Eigen::VectorXd& g);

@@ -59,7 +59,11 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
     };
     std::vector<Eigen::Matrix3d> blocks;
     Preconditioner pre;
-    if (opt.preconditionerStiffness > 0) {
+    if (opt.multigrid) {
+        const StiffnessModel& e = opt.elasticStiffness;
+        opt.multigrid->setStiffness({e.a0 + k * opt.isotropicFriction + km, e.a1 + opt.frictionLaplacianFactor * k * opt.gamma, e.a2});
+        pre = [&opt](Eigen::VectorXd& v) { opt.multigrid->apply(v); };
+    } else if (opt.preconditionerStiffness > 0) {
         blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
                                        k * opt.isotropicFriction + km + opt.preconditionerStiffness);
         pre = [&blocks](Eigen::VectorXd& v) {

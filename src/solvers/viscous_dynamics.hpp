@@ -18,6 +18,7 @@
 
 #include "membrane/model.hpp"
 #include "solvers/minimize.hpp"
+#include "solvers/multigrid.hpp"
 
 namespace trbc {
 
@@ -38,6 +39,12 @@ struct ViscousDynamicsOptions {
     /// blocks of k [Gamma + eps I] + m k^2 I + sigma I (k = c0/dt), sigma an estimate of the elastic
     /// stiffness per vertex (force/length); 0 = plain L-BFGS
     double preconditionerStiffness = 0.0;
+    /// Instead of the blocks (when set): a multigrid H0 (solvers/multigrid.hpp) of the scalar
+    /// operator (a0 + k eps + m k^2) I + (a1 + c k gamma) L + a2 L^2, with (a0, a1, a2) =
+    /// elasticStiffness and c = frictionLaplacianFactor (the edge dashpots as a scalar Laplacian).
+    IcosphereMultigrid* multigrid = nullptr;
+    StiffnessModel elasticStiffness;
+    double frictionLaplacianFactor = 0.5;
     MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
     AreaVolumeConstraint constraint;  ///< exact area/volume constraints during the motion (none by default)
 };
