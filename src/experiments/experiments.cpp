@@ -22,12 +22,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-double meanEdgeLength(const Vertices& X, const Topology& topo) {
-    double sum = 0.0;
-    for (Eigen::Index e = 0; e < topo.edges.cols(); ++e) sum += (X.col(topo.edges(0, e)) - X.col(topo.edges(1, e))).norm();
-    return sum / static_cast<double>(topo.edges.cols());
-}
-
 const AreaVolumeConstraint kCellConstraint{cell::area, cell::volume};
 
 SolverDiagnostics staticDiagnostics(const MinimizeResult& r, Clock::time_point t0) {

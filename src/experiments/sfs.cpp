@@ -189,9 +189,7 @@ StressFreeState generateStressFreeState(double v, int level, const SfsOptions& o
     if (opt.multigrid) {
         const MembraneParameters mp = sfsMembrane();
         const Topology topo = buildTopology(ico.F, ico.X.cols());
-        double l0 = 0.0;
-        for (Eigen::Index e = 0; e < topo.numEdges(); ++e)
-            l0 += (sphere.col(topo.edges(0, e)) - sphere.col(topo.edges(1, e))).norm() / double(topo.numEdges());
+        const double l0 = meanEdgeLength(sphere, topo);
         mg = IcosphereMultigrid::build(ico.F, membraneStiffness(mp.lim.Kalpha, mp.lim.mu, mp.bending.kb,
                                                                  kFourPi / double(ico.X.cols()), l0,
                                                                  0.5 / std::sqrt(cell::area / kFourPi)));

@@ -180,4 +180,10 @@ Vertices scaleToArea(const Vertices& X, const Faces& F, double area) {
     return ((X.colwise() - c) * s).colwise() + c;
 }
 
+double meanEdgeLength(const Vertices& X, const Topology& topo) {
+    double sum = 0.0;
+    for (Eigen::Index e = 0; e < topo.edges.cols(); ++e) sum += (X.col(topo.edges(0, e)) - X.col(topo.edges(1, e))).norm();
+    return sum / static_cast<double>(topo.edges.cols());
+}
+
 }  // namespace trbc

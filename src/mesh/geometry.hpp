@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 
 #include "mesh/mesh.hpp"
+#include "mesh/topology.hpp"
 
 namespace trbc {
 
@@ -41,5 +42,8 @@ Eigen::Vector3d extents(const Vertices& X);
 
 /// Uniform scaling about the centroid so that the total area equals `area`.
 Vertices scaleToArea(const Vertices& X, const Faces& F, double area);
+
+/// Mean edge length l0 of the mesh.
+double meanEdgeLength(const Vertices& X, const Topology& topo);
 
 }  // namespace trbc
