@@ -386,13 +386,19 @@ VertexDiagnostics MembraneModel::vertexDiagnostics(const Vertices& X) const {
     return {probe.s_.vertexArea.head(numVertices_), probe.s_.vertexH.head(numVertices_)};
 }
 
-Vertices membraneViscousForce(const Vertices& X, const Vertices& V, double gamma, const Topology& T) {
-    const auto ne = T.numEdges(), nv = X.cols();
+Eigen::Matrix3Xd unitEdgeVectors(const Vertices& X, const Topology& T) {
+    Eigen::Matrix3Xd e(3, T.numEdges());
+    for (Eigen::Index k = 0; k < T.numEdges(); ++k) e.col(k) = (X.col(T.edges(0, k)) - X.col(T.edges(1, k))).normalized();
+    return e;
+}
+
+Vertices membraneViscousForceAlong(const Eigen::Matrix3Xd& unitEdges, const Vertices& V, double gamma, const Topology& T) {
+    const auto ne = T.numEdges(), nv = V.cols();
     Eigen::Matrix<double, 3, Eigen::Dynamic> fe(3, ne);
 #pragma omp parallel for schedule(static) if (ne >= 3000)
     for (Eigen::Index e = 0; e < ne; ++e) {
         const int a = T.edges(0, e), b = T.edges(1, e);
-        fe.col(e) = kernels::edgeViscousForce(gamma, X.col(a), X.col(b), V.col(a), V.col(b));
+        fe.col(e) = kernels::edgeViscousForceAlong(gamma, unitEdges.col(e), V.col(a), V.col(b));
     }
     Vertices f(3, nv);
 #pragma omp parallel for schedule(static) if (nv >= 1000)
@@ -405,6 +411,10 @@ Vertices membraneViscousForce(const Vertices& X, const Vertices& V, double gamma
         f.col(i) = s;
     }
     return f;
+}
+
+Vertices membraneViscousForce(const Vertices& X, const Vertices& V, double gamma, const Topology& T) {
+    return membraneViscousForceAlong(unitEdgeVectors(X, T), V, gamma, T);
 }
 
 }  // namespace trbc

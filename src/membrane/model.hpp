@@ -93,5 +93,10 @@ private:
 /// Membrane-viscosity forces (MODEL.md C.4) for velocities V at positions X:
 /// f_i = -gamma sum_j [(v_i - v_j).e_ij] e_ij. Equals -Gamma(X) V, Gamma the edge-friction matrix.
 Vertices membraneViscousForce(const Vertices& X, const Vertices& V, double gamma, const Topology& topo);
+/// Unit edge vectors e = (x_a - x_b) / |x_a - x_b| of the edges (a, b) of topo.
+Eigen::Matrix3Xd unitEdgeVectors(const Vertices& X, const Topology& topo);
+/// The same force with the edge directions given (an implicit time step keeps Gamma fixed over
+/// its solve, so the directions are computed once per step).
+Vertices membraneViscousForceAlong(const Eigen::Matrix3Xd& unitEdges, const Vertices& V, double gamma, const Topology& topo);
 
 }  // namespace trbc

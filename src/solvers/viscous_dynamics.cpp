@@ -41,12 +41,13 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
     const Vertices inertialTarget = opt.vertexMass > 0 ? Vertices(Y + Yv / k) : Y;
     Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
     Vertices Xv(3, nv), G(3, nv), W(3, nv);
+    const Eigen::Matrix3Xd edges = unitEdgeVectors(Xf, model.topology());
     const Objective phi = [&](const Eigen::VectorXd& xv, Eigen::VectorXd& g) {
         Xv = Eigen::Map<const Vertices>(xv.data(), 3, nv);
         double u = loadedEnergy(model, Xv, fext, G);
         W = Xv - Y;
         // Gamma W = -f_visc(W); add eps W.
-        const Vertices GW = -membraneViscousForce(Xf, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
+        const Vertices GW = -membraneViscousForceAlong(edges, W, opt.gamma, model.topology()) + opt.isotropicFriction * W;
         u += 0.5 * k * (W.array() * GW.array()).sum();
         G += k * GW;
         if (km > 0) {
