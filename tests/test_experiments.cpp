@@ -423,6 +423,7 @@ TEST(SimulateCli, WritesJsonWithCanonicalNamesAndTheShapes) {
     EXPECT_TRUE(j.at("observables").at("tc_s").is_null());
     EXPECT_EQ(j.at("stretching_curve").size(), 2u);
     EXPECT_EQ(j.at("provenance").at("level"), 3);
+    EXPECT_EQ(j.at("provenance").at("preconditioner"), "multigrid");  // the default solver, named
     for (const char* f : {"simulate.json", "equilibrium.vtk", "equilibrium_profile.csv", "stretching_curve.csv",
                           "stretch_50pN.vtk", "sfs.vtk"})
         EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;

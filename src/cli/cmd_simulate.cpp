@@ -174,7 +174,8 @@ void registerSimulate(CLI::App& app) {
                            {"b2", p.b2}, {"etam_Pa_s_um", p.etam}, {"Fext_pN", o->fext}};
         j["provenance"] = {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"command", commandLine()}, {"level", o->level},
                            {"vertices", 10 * (1 << (2 * o->level)) + 2}, {"sfs_model_version", kSfsModelVersion},
-                           {"threads", o->threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)}};
+                           {"threads", o->threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
+                           {"preconditioner", eo.multigrid ? "multigrid" : "none"}};
         const auto t0 = std::chrono::steady_clock::now();
         SampleResult s;
         try {

@@ -128,9 +128,9 @@ void registerTrain(CLI::App* parent) {
         SurrogateTrainingOptions t = o->t;
         t.command = commandLine();
         t.logRelaxation = o->relaxationVariables == "log";
-        const char* names[3] = {"equilibrium", "stretching", "relaxation"};
+        const auto& names = surrogateNetworkNames();
         for (int k = 0; k < 3; ++k)
-            t.ensemble[k] = std::find(o->ensemble.begin(), o->ensemble.end(), names[k]) != o->ensemble.end();
+            t.ensemble[k] = std::find(o->ensemble.begin(), o->ensemble.end(), names[std::size_t(k)]) != o->ensemble.end();
         if (t.restarts < 2 && (t.ensemble[0] || t.ensemble[1] || t.ensemble[2]))
             std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
         t.progress = [](const std::string& net, const EpochRecord& e) {

@@ -25,10 +25,15 @@ const std::vector<std::string>& surrogateOutputNames() {
     return n;
 }
 
+const std::vector<std::string>& surrogateNetworkNames() {
+    static const std::vector<std::string> names = {"equilibrium", "stretching", "relaxation"};
+    return names;
+}
+
 namespace {
 
-const char* kFiles[3] = {"equilibrium.json", "stretching.json", "relaxation.json"};
-const char* kNetworks[3] = {"equilibrium", "stretching", "relaxation"};
+const std::vector<std::string>& kNetworks = surrogateNetworkNames();
+std::string networkFile(int k) { return kNetworks[std::size_t(k)] + ".json"; }
 
 // Rows of the six-input batch that each network reads (SURROGATE 3.1).
 const int kEqRows[2] = {0, 2};
@@ -53,13 +58,13 @@ Surrogate Surrogate::load(const fs::path& dir) {
     TrainedNetwork* nets[3] = {&s.equilibrium, &s.stretching, &s.relaxation};
     const int inputs[3] = {2, 5, 5}, outputs[3] = {3, 2, 1};
     for (int k = 0; k < 3; ++k) {
-        const fs::path p = dir / kFiles[k];
+        const fs::path p = dir / networkFile(k);
         if (!fs::exists(p))
             throw InputError(fmt::format("surrogate model {}: missing {} (train one with trbc surrogate train)", dir.string(), p.string()));
         *nets[k] = loadNetwork(p.string());
         if (nets[k]->net.numInputs() != inputs[k] || nets[k]->net.numOutputs() != outputs[k])
             throw InputError(fmt::format("{}: the {} network must map {} inputs to {} outputs, found {} -> {}", p.string(),
-                                         kNetworks[k], inputs[k], outputs[k], nets[k]->net.numInputs(), nets[k]->net.numOutputs()));
+                                         kNetworks[std::size_t(k)], inputs[k], outputs[k], nets[k]->net.numInputs(), nets[k]->net.numOutputs()));
     }
     return s;
 }
@@ -67,7 +72,7 @@ Surrogate Surrogate::load(const fs::path& dir) {
 void Surrogate::save(const fs::path& dir) const {
     fs::create_directories(dir);
     const TrainedNetwork* nets[3] = {&equilibrium, &stretching, &relaxation};
-    for (int k = 0; k < 3; ++k) saveNetwork(*nets[k], (dir / kFiles[k]).string());
+    for (int k = 0; k < 3; ++k) saveNetwork(*nets[k], (dir / networkFile(k)).string());
 }
 
 Eigen::MatrixXd Surrogate::equilibriumOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
@@ -225,7 +230,7 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     for (int k = 0; k < 3; ++k) {
         rep.used[k] = long(xs[k].size());
         if (xs[k].size() < 10)
-            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", xs[k].size(), kNetworks[k]));
+            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", xs[k].size(), kNetworks[std::size_t(k)]));
         data[k].X.resize(xs[k].front().size(), Eigen::Index(xs[k].size()));
         data[k].Y.resize(ys[k].front().size(), Eigen::Index(ys[k].size()));
         for (std::size_t j = 0; j < xs[k].size(); ++j) data[k].X.col(Eigen::Index(j)) = xs[k][j], data[k].Y.col(Eigen::Index(j)) = ys[k][j];
@@ -263,7 +268,7 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             }
             if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
 #pragma omp critical(trbc_surrogate_progress)
-                opt.progress(kNetworks[k], e);
+                opt.progress(kNetworks[std::size_t(k)], e);
             };
             const auto t0 = std::chrono::steady_clock::now();
             // Restarts from different initial weights (seeds seed, seed+1, ...); the one with the
@@ -286,7 +291,7 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             results[k].network.dataHash = rep.dataHash;
             results[k].network.command = opt.command;
         } catch (const std::exception& e) {
-            errors[k] = fmt::format("{} network: {}", kNetworks[k], e.what());
+            errors[k] = fmt::format("{} network: {}", kNetworks[std::size_t(k)], e.what());
         }
     }
     for (const std::string& e : errors)

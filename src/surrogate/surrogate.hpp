@@ -16,6 +16,7 @@ namespace trbc {
 /// Canonical names of the six inputs and six outputs (rows of a batch, in this order).
 const std::vector<std::string>& surrogateInputNames();   ///< v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN
 const std::vector<std::string>& surrogateOutputNames();  ///< D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s
+const std::vector<std::string>& surrogateNetworkNames(); ///< equilibrium, stretching, relaxation (file MODEL_DIR/<name>.json)
 
 struct Surrogate {
     TrainedNetwork equilibrium;  ///< (v, FvK) -> (D, hmin, hmax)
