@@ -10,6 +10,7 @@
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
 #include "solvers/minimize.hpp"
+#include "solvers/multigrid.hpp"
 #include "solvers/viscous_dynamics.hpp"
 #include "test_support.hpp"
 
@@ -278,6 +279,49 @@ TEST(ViscousDynamics, PreconditionedStepsGiveTheSameTrajectory) {
     for (std::size_t k = 0; k < zPlain.size(); ++k) EXPECT_NEAR(zPre[k], zPlain[k], 1e-5) << "sample " << k;
     EXPECT_LT(pre.evaluations, plain.evaluations);
     std::cout << "force evaluations: plain " << plain.evaluations << ", preconditioned " << pre.evaluations << "\n";
+}
+
+// The relaxation's H0 at level 4 and up: the multigrid V-cycle plus half the block-Jacobi
+// blocks. Any H0 changes only how each step's minimisation gets there: the same samples within
+// the inner tolerance as the multigrid alone and as plain L-BFGS.
+TEST(ViscousDynamics, MultigridPlusBlocksGivesTheSameTrajectory) {
+    Relaxation r = stretchedSphere();
+    const MembraneModel model(r.mesh.F, r.mesh.numVertices(), r.params, &r.ref);
+    const std::vector<double> times = {0.1, 0.2, 0.5, 1.0};
+    auto mg = IcosphereMultigrid::build(r.mesh.F, {0.5, 2.0, 0.05});
+    ASSERT_TRUE(mg.has_value());
+    auto run = [&](bool multigrid, double weight, std::vector<double>& z) {
+        ViscousDynamicsOptions opt = relaxationOptions();
+        opt.isotropicFriction = 0.0;
+        opt.vertexMass = 1e-3;
+        opt.dtInitial = 1e-3;
+        opt.errorTolerance = 1e-5;
+        opt.preconditionerStiffness = 1.0;
+        if (multigrid) {
+            opt.multigrid = &*mg;
+            opt.elasticStiffness = {0.5, 2.0, 0.05};
+            opt.inner.scalePreconditioner = false;
+            opt.blockJacobiWeight = weight;
+        }
+        Vertices X = r.mesh.X;
+        const auto res = integrateViscous(model, X, opt, times, [&](double, const Vertices& Y) { z.push_back(elongation(Y)); });
+        EXPECT_TRUE(res.completed) << res.message;
+        return res;
+    };
+    std::vector<double> zBlocks, zMg, zBoth;
+    const auto blocks = run(false, 0.0, zBlocks);
+    const auto mgOnly = run(true, 0.0, zMg);
+    const auto both = run(true, 0.5, zBoth);
+    ASSERT_EQ(zBoth.size(), zBlocks.size());
+    ASSERT_EQ(zMg.size(), zBlocks.size());
+    EXPECT_GT(zBlocks[1] - zBlocks.back(), 0.05);
+    for (std::size_t k = 0; k < zBlocks.size(); ++k) {
+        EXPECT_NEAR(zMg[k], zBlocks[k], 1e-5) << "sample " << k;
+        EXPECT_NEAR(zBoth[k], zBlocks[k], 1e-5) << "sample " << k;
+    }
+    EXPECT_LT(both.evaluations, mgOnly.evaluations);  // measured 2448 against 4076 (blocks alone 3403)
+    std::cout << "force evaluations: blocks " << blocks.evaluations << ", multigrid " << mgOnly.evaluations
+              << ", multigrid + blocks / 2 " << both.evaluations << "\n";
 }
 
 }  // namespace

@@ -63,7 +63,20 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
     if (opt.multigrid) {
         const StiffnessModel& e = opt.elasticStiffness;
         opt.multigrid->setStiffness({e.a0 + k * opt.isotropicFriction + km, e.a1 + opt.frictionLaplacianFactor * k * opt.gamma, e.a2});
-        pre = [&opt](Eigen::VectorXd& v) { opt.multigrid->apply(v); };
+        if (opt.blockJacobiWeight > 0 && opt.preconditionerStiffness > 0) {
+            blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
+                                           k * opt.isotropicFriction + km + opt.preconditionerStiffness);
+            pre = [&opt, &blocks, w = Eigen::VectorXd()](Eigen::VectorXd& v) mutable {
+                w = v;
+                opt.multigrid->apply(v);
+                for (std::size_t i = 0; i < blocks.size(); ++i) {
+                    const Eigen::Index j = 3 * Eigen::Index(i);
+                    v.segment<3>(j) += opt.blockJacobiWeight * (blocks[i] * w.segment<3>(j));
+                }
+            };
+        } else {
+            pre = [&opt](Eigen::VectorXd& v) { opt.multigrid->apply(v); };
+        }
     } else if (opt.preconditionerStiffness > 0) {
         blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
                                        k * opt.isotropicFriction + km + opt.preconditionerStiffness);

@@ -45,6 +45,11 @@ struct ViscousDynamicsOptions {
     IcosphereMultigrid* multigrid = nullptr;
     StiffnessModel elasticStiffness;
     double frictionLaplacianFactor = 0.5;
+    /// w > 0 (with the multigrid): H0 = B_mg + w B_blocks, the blocks above (with
+    /// preconditionerStiffness) added to the V-cycle. The scalar Laplacian sees the dashpots as
+    /// isotropic; the blocks carry their edge directions, which dominate the early, friction-bound
+    /// steps. A sum of two symmetric positive definite operators, so still one.
+    double blockJacobiWeight = 0.0;
     MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
     AreaVolumeConstraint constraint;  ///< exact area/volume constraints during the motion (none by default)
 };
