@@ -37,6 +37,51 @@ TEST(Lbfgs, FindsTheMinimumOfAnIllConditionedQuadratic) {
     EXPECT_LE(r.gradientNorm, 1e-10);
 }
 
+// A preconditioner of the right shape but the wrong scale (the diagonal inverse times 1/7): with the
+// scale s.y / y.H0 y refreshed at every pair or at every second pair, the same minimum, and the
+// second costs one application per iteration less.
+TEST(Lbfgs, PreconditionerScaleRefreshedEverySecondPairReachesTheSameMinimum) {
+    const int n = 300;
+    Eigen::VectorXd d(n), c(n), e(n);
+    for (int i = 0; i < n; ++i) {
+        d[i] = std::pow(10.0, 4.0 * i / (n - 1)) * (1.0 + 0.5 * std::cos(0.37 * i));
+        e[i] = 0.2 * std::pow(10.0, 4.0 * i / (n - 1));  // the off-diagonal coupling the H0 does not know
+        c[i] = std::sin(0.1 * i);
+    }
+    const Objective f = [&](const Eigen::VectorXd& x, Eigen::VectorXd& g) {
+        const Eigen::VectorXd r = x - c;
+        g = d.cwiseProduct(r);
+        g.head(n - 1) += e.head(n - 1).cwiseProduct(r.tail(n - 1));
+        g.tail(n - 1) += e.head(n - 1).cwiseProduct(r.head(n - 1));
+        return 0.5 * r.dot(g);
+    };
+    int applications = 0;
+    const Preconditioner pre = [&](Eigen::VectorXd& v) {
+        ++applications;
+        v = v.cwiseQuotient(7.0 * d);
+    };
+    auto run = [&](int interval, int& uses) {
+        Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+        MinimizeOptions opt;
+        opt.gradientTolerance = 1e-10;
+        opt.preconditionerScaleInterval = interval;
+        applications = 0;
+        const MinimizeResult r = lbfgsMinimize(f, x, opt, nullptr, &pre);
+        uses = applications;
+        EXPECT_TRUE(r.converged) << r.message;
+        EXPECT_LT((x - c).cwiseAbs().maxCoeff(), 1e-9) << "interval " << interval;
+        return r;
+    };
+    int every = 0, second = 0;
+    const MinimizeResult a = run(1, every);
+    const MinimizeResult b = run(2, second);
+    // One application per direction, plus one per refreshed scale.
+    EXPECT_GT(every, 2 * a.iterations - 2);
+    EXPECT_LT(second, every - a.iterations / 3);
+    std::cout << "iterations " << a.iterations << " / " << b.iterations << ", preconditioner applications " << every
+              << " / " << second << "\n";
+}
+
 TEST(Lbfgs, ReportsNonFiniteStartInsteadOfCrashing) {
     const Objective f = [](const Eigen::VectorXd& x, Eigen::VectorXd& g) {
         g = x;

@@ -187,6 +187,9 @@ StressFreeState generateStressFreeState(double v, int level, const SfsOptions& o
     // Multigrid H0 with the stiffness model of the experiments (R_c = 0.5 um in units of R'_A).
     std::optional<IcosphereMultigrid> mg;
     if (opt.multigrid) {
+        // As in the experiments (experiments.cpp, staticOptions): evaluations at level 4 for
+        // v = 0.65 / 0.8 / 0.95 / 1: 412 / 381 / 216 / 221 -> 259 / 425 / 214 / 288.
+        mo.preconditionerScaleInterval = 2;
         const MembraneParameters mp = sfsMembrane();
         const Topology topo = buildTopology(ico.F, ico.X.cols());
         const double l0 = meanEdgeLength(sphere, topo);

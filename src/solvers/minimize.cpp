@@ -123,6 +123,8 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         pg -= manifold.jacobian() * lambda;
     }
     std::deque<Pair> mem;
+    double lastScale = 0.0;  // y.H0 y / s.y of the last pair that applied the preconditioner
+    int pairsSinceScale = 0;
     // Adds a pair if its curvature s.y is positive (keeps the L-BFGS matrix positive definite).
     const auto remember = [&](Pair p) {
         const double sy = p.s.dot(p.y);
@@ -130,10 +132,14 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         p.rho = 1.0 / sy;
         if (pre && !opt.scalePreconditioner) {
             p.yHy = sy;  // unit scale: rho * yHy = 1 in the two-loop recursion
+        } else if (pre && lastScale > 0 && ++pairsSinceScale < opt.preconditionerScaleInterval) {
+            p.yHy = sy * lastScale;
         } else if (pre) {
             Eigen::VectorXd hy = p.y;
             (*pre)(hy);
             p.yHy = p.y.dot(hy);
+            lastScale = p.yHy / sy;
+            pairsSinceScale = 0;
         } else {
             p.yHy = p.y.squaredNorm();
         }

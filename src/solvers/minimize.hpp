@@ -19,6 +19,9 @@ struct MinimizeOptions {
     /// it is when it already has the Hessian's physical scale (false; saves one application per
     /// iteration).
     bool scalePreconditioner = true;
+    /// With scalePreconditioner: the scale s.y / y.H0 y is refreshed at every this-many-th pair and
+    /// kept in between (each refresh costs one more application of the preconditioner).
+    int preconditionerScaleInterval = 1;
 };
 
 struct MinimizeResult {
