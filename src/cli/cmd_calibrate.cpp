@@ -32,6 +32,7 @@
 #include "core/error.hpp"
 #include "core/version.hpp"
 #include "inference/rbc_problem.hpp"
+#include "surrogate/surrogate.hpp"
 
 namespace trbc::cli {
 namespace {
@@ -144,7 +145,8 @@ std::map<std::string, std::string> stageData(Pipeline& P) {
 
 std::string modelFingerprint(const fs::path& dir) {
     std::vector<std::string> parts = {"model"};
-    for (const char* f : {"equilibrium.json", "stretching.json", "relaxation.json"}) {
+    for (const std::string& name : surrogateNetworkNames()) {
+        const std::string f = name + ".json";
         if (!fs::exists(dir / f))
             throw InputError(fmt::format("surrogate directory {} lacks {} (make one with `trbc surrogate train`)", dir.string(), f));
         parts.push_back(fileFingerprint(dir / f));

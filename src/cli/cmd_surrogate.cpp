@@ -110,7 +110,11 @@ void registerTrain(CLI::App* parent) {
     cmd->add_option("--ensemble", o->ensemble,
                     "networks that keep all their restarts and predict with the members' mean (geometric mean for log "
                     "outputs): any of equilibrium, stretching, relaxation, or none")
-        ->check(CLI::IsMember({"none", "equilibrium", "stretching", "relaxation"}))->delimiter(',')->capture_default_str();
+        ->check(CLI::IsMember([] {
+            std::vector<std::string> allowed = surrogateNetworkNames();
+            allowed.insert(allowed.begin(), "none");
+            return allowed;
+        }()))->delimiter(',')->capture_default_str();
     cmd->add_option("--cv-folds", o->cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
                     "writes cv.md, cv.json, cv_predictions.csv); 0: off")

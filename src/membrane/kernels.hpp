@@ -192,12 +192,12 @@ inline Corner3 limShearGradient(double c, const LimReference& r, Real3 a, Real3 
     return {-(gj + gk), gj, gk};
 }
 
-/// Pairwise membrane-viscosity force on vertex a of edge (a, b) (MODEL.md C.4):
-/// -gamma [(v_a - v_b).e] e with e = (x_a - x_b)/|x_a - x_b|; vertex b gets the opposite.
-/// The same with the unit edge vector e given.
+/// Pairwise membrane-viscosity force on vertex a of edge (a, b) along the unit edge vector e
+/// (MODEL.md C.4): -gamma [(v_a - v_b).e] e; vertex b gets the opposite.
 inline Vec3 edgeViscousForceAlong(double gamma, const Vec3& e, const Vec3& va, const Vec3& vb) {
     return -gamma * (va - vb).dot(e) * e;
 }
+/// The same with e = (x_a - x_b)/|x_a - x_b|.
 inline Vec3 edgeViscousForce(double gamma, const Vec3& xa, const Vec3& xb, const Vec3& va,
                              const Vec3& vb) {
     return edgeViscousForceAlong(gamma, (xa - xb).normalized(), va, vb);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <numbers>
+#include <stdexcept>
 #include <type_traits>
 
 #include "core/error.hpp"
@@ -394,6 +395,9 @@ Eigen::Matrix3Xd unitEdgeVectors(const Vertices& X, const Topology& T) {
 
 Vertices membraneViscousForceAlong(const Eigen::Matrix3Xd& unitEdges, const Vertices& V, double gamma, const Topology& T) {
     const auto ne = T.numEdges(), nv = V.cols();
+    if (unitEdges.cols() != ne)
+        throw std::invalid_argument(fmt::format("membraneViscousForceAlong: {} edge directions for {} edges",
+                                                unitEdges.cols(), ne));
     Eigen::Matrix<double, 3, Eigen::Dynamic> fe(3, ne);
 #pragma omp parallel for schedule(static) if (ne >= 3000)
     for (Eigen::Index e = 0; e < ne; ++e) {

@@ -160,6 +160,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
         double slope = pg.dot(d);
         if (!(slope < 0)) {  // not a descent direction: restart from steepest descent
             mem.clear();
+            lastScale = 0.0;
             d = -pg;
             slope = -pg.squaredNorm();
         }
@@ -199,6 +200,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
             if (manifold.active()) manifold.at(x);
             if (!mem.empty()) {  // drop the curvature history and retry along the steepest descent
                 mem.clear();
+                lastScale = 0.0;
                 continue;
             }
             res.message = fmt::format("line search failed along the steepest-descent direction "

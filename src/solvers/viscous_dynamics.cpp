@@ -63,7 +63,7 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
     if (opt.multigrid) {
         const StiffnessModel& e = opt.elasticStiffness;
         opt.multigrid->setStiffness({e.a0 + k * opt.isotropicFriction + km, e.a1 + opt.frictionLaplacianFactor * k * opt.gamma, e.a2});
-        if (opt.blockJacobiWeight > 0 && opt.preconditionerStiffness > 0) {
+        if (opt.blockJacobiWeight > 0) {
             blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
                                            k * opt.isotropicFriction + km + opt.preconditionerStiffness);
             pre = [&opt, &blocks, w = Eigen::VectorXd()](Eigen::VectorXd& v) mutable {
@@ -105,6 +105,9 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
                                        const Vertices* fext) {
     if (!(opt.gamma > 0) && !(opt.isotropicFriction > 0) && !(opt.vertexMass > 0))
         throw InputError("viscous dynamics needs a positive friction (gamma or isotropic friction) or a vertex mass");
+    if (opt.blockJacobiWeight > 0 && (!opt.multigrid || !(opt.preconditionerStiffness > 0)))
+        throw InputError(fmt::format("viscous dynamics: blockJacobiWeight = {} needs the multigrid and a positive "
+                                     "preconditionerStiffness (got {})", opt.blockJacobiWeight, opt.preconditionerStiffness));
     if (!(opt.tEnd > 0) || !(opt.dtInitial > 0))
         throw InputError(fmt::format("viscous dynamics needs tEnd > 0 and dtInitial > 0 (got {}, {})",
                                      opt.tEnd, opt.dtInitial));

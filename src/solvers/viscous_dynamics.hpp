@@ -39,14 +39,14 @@ struct ViscousDynamicsOptions {
     /// blocks of k [Gamma + eps I] + m k^2 I + sigma I (k = c0/dt), sigma an estimate of the elastic
     /// stiffness per vertex (force/length); 0 = plain L-BFGS
     double preconditionerStiffness = 0.0;
-    /// Instead of the blocks (when set): a multigrid H0 (solvers/multigrid.hpp) of the scalar
+    /// Instead of the blocks (when set; see blockJacobiWeight for both): a multigrid H0 (solvers/multigrid.hpp) of the scalar
     /// operator (a0 + k eps + m k^2) I + (a1 + c k gamma) L + a2 L^2, with (a0, a1, a2) =
     /// elasticStiffness and c = frictionLaplacianFactor (the edge dashpots as a scalar Laplacian).
     IcosphereMultigrid* multigrid = nullptr;
     StiffnessModel elasticStiffness;
     double frictionLaplacianFactor = 0.5;
-    /// w > 0 (with the multigrid): H0 = B_mg + w B_blocks, the blocks above (with
-    /// preconditionerStiffness) added to the V-cycle. The scalar Laplacian sees the dashpots as
+    /// w > 0 (with the multigrid; needs preconditionerStiffness > 0): H0 = B_mg + w B_blocks, the
+    /// blocks above added to the V-cycle. The scalar Laplacian sees the dashpots as
     /// isotropic; the blocks carry their edge directions, which dominate the early, friction-bound
     /// steps. A sum of two symmetric positive definite operators, so still one.
     double blockJacobiWeight = 0.0;
