@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <optional>
 
 #include "core/error.hpp"
@@ -70,11 +69,6 @@ std::optional<IcosphereMultigrid> cellMultigrid(const CellParameters& p, const M
                                                 const ExperimentOptions& opt) {
     if (!opt.multigrid) return std::nullopt;
     return IcosphereMultigrid::build(model.faces(), cellStiffness(p, X, model.topology()));
-}
-
-Preconditioner asPreconditioner(const std::optional<IcosphereMultigrid>& mg) {
-    if (!mg) return {};
-    return [&mg](Eigen::VectorXd& v) { mg->apply(v); };
 }
 
 void requireConverged(const SolverDiagnostics& d, const std::string& what) {

@@ -197,9 +197,9 @@ StressFreeState generateStressFreeState(double v, int level, const SfsOptions& o
                                                                  kFourPi / double(ico.X.cols()), l0,
                                                                  0.5 / std::sqrt(cell::area / kFourPi)));
     }
-    const Preconditioner pre = mg ? Preconditioner([&mg](Eigen::VectorXd& v) { mg->apply(v); }) : Preconditioner();
+    const Preconditioner pre = asPreconditioner(mg);
     const MinimizeResult r = minimizeEnergy(model, s.mesh.X, mo, nullptr, {kFourPi, kFourPi * s.vTarget / 3.0},
-                                            mg ? &pre : nullptr);
+                                            pre ? &pre : nullptr);
     s.converged = r.converged;
     s.iterations = r.iterations;
     s.evaluations = r.evaluations;

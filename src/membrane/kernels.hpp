@@ -197,10 +197,5 @@ inline Corner3 limShearGradient(double c, const LimReference& r, Real3 a, Real3 
 inline Vec3 edgeViscousForceAlong(double gamma, const Vec3& e, const Vec3& va, const Vec3& vb) {
     return -gamma * (va - vb).dot(e) * e;
 }
-/// The same with e = (x_a - x_b)/|x_a - x_b|.
-inline Vec3 edgeViscousForce(double gamma, const Vec3& xa, const Vec3& xb, const Vec3& va,
-                             const Vec3& vb) {
-    return edgeViscousForceAlong(gamma, (xa - xb).normalized(), va, vb);
-}
 
 }  // namespace trbc::kernels

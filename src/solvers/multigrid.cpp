@@ -190,4 +190,9 @@ void IcosphereMultigrid::apply(Eigen::VectorXd& v) const {
 
 Vertices IcosphereMultigrid::multiply(const Vertices& x) const { return x * A_.back(); }
 
+Preconditioner asPreconditioner(const std::optional<IcosphereMultigrid>& mg) {
+    if (!mg) return {};
+    return [&mg](Eigen::VectorXd& v) { mg->apply(v); };
+}
+
 }  // namespace trbc

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "mesh/mesh.hpp"
+#include "solvers/minimize.hpp"
 
 namespace trbc {
 
@@ -66,5 +67,9 @@ private:
     Eigen::MatrixXd coarseInverse_;            ///< A_0^-1 (12 x 12)
     mutable std::vector<Padded> b_, x_, r_;    ///< per-level right-hand side, iterate, residual (apply is not reentrant)
 };
+
+/// One V-cycle of mg as the H0 of lbfgsMinimize; empty (no preconditioner) when mg is. mg must
+/// outlive the result.
+Preconditioner asPreconditioner(const std::optional<IcosphereMultigrid>& mg);
 
 }  // namespace trbc

@@ -28,6 +28,16 @@ std::vector<Eigen::Matrix3d> frictionBlockInverses(const Vertices& X, const Topo
     return B;
 }
 
+// B v for the 3x3 vertex blocks B.
+Eigen::VectorXd blockProduct(const std::vector<Eigen::Matrix3d>& B, const Eigen::VectorXd& v) {
+    Eigen::VectorXd out(v.size());
+    for (std::size_t i = 0; i < B.size(); ++i) {
+        const Eigen::Index j = 3 * Eigen::Index(i);
+        out.segment<3>(j) = B[i] * v.segment<3>(j);
+    }
+    return out;
+}
+
 // One variational BDF step: minimise
 //   U - f.X + c0/(2dt) (X-Y)^T (Gamma(Xf) + eps) (X-Y) + m c0^2/(2 dt^2) |X - Y - dt Yv / c0|^2,
 // with the friction matrix taken at the extrapolated state Xf (second order; Gamma(X_n) would be
@@ -59,30 +69,20 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
         return u;
     };
     std::vector<Eigen::Matrix3d> blocks;
+    if (opt.preconditionerStiffness > 0 && (!opt.multigrid || opt.blockJacobiWeight > 0))
+        blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
+                                       k * opt.isotropicFriction + km + opt.preconditionerStiffness);
     Preconditioner pre;
     if (opt.multigrid) {
         const StiffnessModel& e = opt.elasticStiffness;
         opt.multigrid->setStiffness({e.a0 + k * opt.isotropicFriction + km, e.a1 + opt.frictionLaplacianFactor * k * opt.gamma, e.a2});
-        if (opt.blockJacobiWeight > 0) {
-            blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
-                                           k * opt.isotropicFriction + km + opt.preconditionerStiffness);
-            pre = [&opt, &blocks, w = Eigen::VectorXd()](Eigen::VectorXd& v) mutable {
-                w = v;
-                opt.multigrid->apply(v);
-                for (std::size_t i = 0; i < blocks.size(); ++i) {
-                    const Eigen::Index j = 3 * Eigen::Index(i);
-                    v.segment<3>(j) += opt.blockJacobiWeight * (blocks[i] * w.segment<3>(j));
-                }
-            };
-        } else {
-            pre = [&opt](Eigen::VectorXd& v) { opt.multigrid->apply(v); };
-        }
-    } else if (opt.preconditionerStiffness > 0) {
-        blocks = frictionBlockInverses(Xf, model.topology(), k * opt.gamma,
-                                       k * opt.isotropicFriction + km + opt.preconditionerStiffness);
-        pre = [&blocks](Eigen::VectorXd& v) {
-            for (std::size_t i = 0; i < blocks.size(); ++i) v.segment<3>(3 * Eigen::Index(i)) = blocks[i] * v.segment<3>(3 * Eigen::Index(i));
+        pre = [&opt, &blocks](Eigen::VectorXd& v) {
+            const Eigen::VectorXd bv = blocks.empty() ? Eigen::VectorXd() : blockProduct(blocks, v);
+            opt.multigrid->apply(v);
+            if (!blocks.empty()) v += opt.blockJacobiWeight * bv;
         };
+    } else if (!blocks.empty()) {
+        pre = [&blocks](Eigen::VectorXd& v) { v = blockProduct(blocks, v); };
     }
     const Preconditioner* h0 = pre ? &pre : nullptr;
     MinimizeResult r;
