@@ -192,6 +192,55 @@ TEST_F(TrainedFixture, RelaxationNetworkAveragesAllItsRestarts) {
     EXPECT_NE(r.err.find("relaxaton"), std::string::npos) << r.err;
 }
 
+TEST_F(TrainedFixture, DistilledRelaxationNetworkReproducesItsEnsemble) {
+    // Same data, options and seeds as the fixture, so the teacher is the fixture's 4-member ensemble.
+    auto opt = quickOptions();
+    opt.distill[2] = true;
+    opt.distillSamples = 6000;
+    const SurrogateTrainingReport rep = trainSurrogate(fakeCampaign(2400, 8, 5), opt);
+    const TrainedNetwork& student = rep.model.relaxation;
+    const TrainedNetwork& teacher = report->model.relaxation;
+    ASSERT_EQ(teacher.ensemble.size(), 3u);
+    EXPECT_TRUE(student.ensemble.empty());  // one network pass per evaluation
+    EXPECT_EQ(student.distillation.members, 4);
+    EXPECT_EQ(student.distillation.samples, 6000);
+    EXPECT_EQ(student.distillation.teacherValidationLoss, teacher.history.bestValidationLoss);
+    EXPECT_EQ(student.inputTransforms, teacher.inputTransforms);
+    // the other networks are untouched
+    EXPECT_TRUE(rep.model.stretching.net.layerSizes() == report->model.stretching.net.layerSizes());
+    EXPECT_TRUE(rep.model.evaluate(report->testInputs).topRows(5) == report->model.evaluate(report->testInputs).topRows(5));
+    // On the held-out cells the student follows the teacher (relative difference of tc) and is as
+    // close to the truth as the teacher, within a small fraction of the teacher's own error.
+    const Eigen::VectorXd tS = rep.model.evaluate(report->testInputs).row(5).transpose();
+    const Eigen::VectorXd tT = report->model.evaluate(report->testInputs).row(5).transpose();
+    const Eigen::VectorXd truth = report->testTruth.row(5).transpose();
+    double dST = 0, eS = 0, eT = 0;
+    long n = 0;
+    for (Eigen::Index j = 0; j < truth.size(); ++j) {
+        if (!std::isfinite(truth(j))) continue;
+        dST += std::pow(tS(j) / tT(j) - 1, 2), eS += std::pow(tS(j) / truth(j) - 1, 2), eT += std::pow(tT(j) / truth(j) - 1, 2);
+        ++n;
+    }
+    ASSERT_GT(n, 100);
+    dST = std::sqrt(dST / n), eS = std::sqrt(eS / n), eT = std::sqrt(eT / n);
+    EXPECT_LT(dST, 0.01) << "student vs teacher";
+    EXPECT_LT(eS, eT + 0.5 * dST + 1e-3) << "student " << eS << " teacher " << eT;
+    // saved and loaded with its provenance
+    TempDir tmp;
+    rep.model.save(tmp.path() / "m");
+    const Surrogate back = Surrogate::load(tmp.path() / "m");
+    EXPECT_EQ(back.relaxation.distillation.members, 4);
+    EXPECT_EQ(back.relaxation.distillation.seed, opt.distillSeed);
+    EXPECT_TRUE(back.evaluate(report->testInputs) == rep.model.evaluate(report->testInputs));
+    // nothing to distill from without an ensemble; too few box samples
+    auto r = runTrbc("surrogate train --data missing.csv --out m --ensemble none --distill relaxation", tmp.path());
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.err.find("--distill relaxation needs relaxation in --ensemble"), std::string::npos) << r.err;
+    opt.distillSamples = 10;
+    opt.network.maxEpochs = 2;
+    EXPECT_THROW(trainSurrogate(fakeCampaign(400, 8), opt), InputError);
+}
+
 TEST(SurrogateTraining, CrossValidationPredictsEveryCellOnceWithoutIt) {
     const auto rows = fakeCampaign(480, 8, 3);  // 60 cells, one failed relaxation
     auto opt = quickOptions();

@@ -73,6 +73,10 @@ std::string crossValidationMarkdown(const CrossValidationReport& cv, const std::
     return md;
 }
 
+bool listed(const std::vector<std::string>& list, const std::string& name) {
+    return std::find(list.begin(), list.end(), name) != list.end();
+}
+
 void registerTrain(CLI::App* parent) {
     struct Opts {
         std::string data, out;
@@ -81,6 +85,7 @@ void registerTrain(CLI::App* parent) {
         int cvFolds = 0;
         std::string relaxationVariables = "log";
         std::vector<std::string> ensemble{"relaxation"};
+        std::vector<std::string> distill{"none"};
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = parent->add_subcommand(
@@ -115,14 +120,31 @@ void registerTrain(CLI::App* parent) {
             allowed.insert(allowed.begin(), "none");
             return allowed;
         }()))->delimiter(',')->capture_default_str();
+    cmd->add_option("--distill", o->distill,
+                    "ensemble networks replaced by one network trained on the ensemble's predictions at "
+                    "--distill-samples uniform points of the prior box (one network pass per evaluation instead of one "
+                    "per member): any of the --ensemble networks, or none")
+        ->check(CLI::IsMember([] {
+            std::vector<std::string> allowed = surrogateNetworkNames();
+            allowed.insert(allowed.begin(), "none");
+            return allowed;
+        }()))->delimiter(',')->capture_default_str();
+    cmd->add_option("--distill-samples", o->t.distillSamples, "box points of each distillation, [1000, 1e8]")
+        ->check(CLI::Range(1000L, 100000000L))->capture_default_str();
     cmd->add_option("--cv-folds", o->cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
                     "writes cv.md, cv.json, cv_predictions.csv); 0: off")
         ->check(CLI::Range(0, 100))->capture_default_str();
     cmd->callback([o]() {
         if (o->cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
-        if (std::find(o->ensemble.begin(), o->ensemble.end(), "none") != o->ensemble.end() && o->ensemble.size() > 1)
+        if (listed(o->ensemble, "none") && o->ensemble.size() > 1)
             throw InputError("surrogate train: --ensemble none cannot be combined with network names");
+        if (listed(o->distill, "none") && o->distill.size() > 1)
+            throw InputError("surrogate train: --distill none cannot be combined with network names");
+        for (const std::string& name : surrogateNetworkNames())
+            if (listed(o->distill, name) && !listed(o->ensemble, name))
+                throw InputError(fmt::format("surrogate train: --distill {} needs {} in --ensemble (the network it is "
+                                             "distilled from)", name, name));
         ensureWritableDirectory(o->out);
         bool complete = true;
         const auto rows = readCampaignRows(o->data, &complete);
@@ -134,7 +156,8 @@ void registerTrain(CLI::App* parent) {
         t.logRelaxation = o->relaxationVariables == "log";
         const auto& names = surrogateNetworkNames();
         for (int k = 0; k < 3; ++k)
-            t.ensemble[k] = std::find(o->ensemble.begin(), o->ensemble.end(), names[std::size_t(k)]) != o->ensemble.end();
+            t.ensemble[k] = listed(o->ensemble, names[std::size_t(k)]);
+        for (int k = 0; k < 3; ++k) t.distill[k] = listed(o->distill, names[std::size_t(k)]);
         if (t.restarts < 2 && (t.ensemble[0] || t.ensemble[1] || t.ensemble[2]))
             std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
         t.progress = [](const std::string& net, const EpochRecord& e) {
@@ -163,6 +186,8 @@ void registerTrain(CLI::App* parent) {
                             {"restarts", t.restarts},
                             {"relaxation_variables", o->relaxationVariables},
                             {"ensemble", o->ensemble},
+                            {"distill", o->distill},
+                            {"distill_samples", t.distillSamples},
                             {"split_seed", t.network.splitSeed},
                             {"wall_s", wall},
                             {"networks", nlohmann::json::object()},
@@ -177,6 +202,7 @@ void registerTrain(CLI::App* parent) {
                                        {"epochs", nets[k]->history.passes()},
                                        {"seed", nets[k]->options.seed},
                                        {"ensemble_members", 1 + nets[k]->ensemble.size()},
+                                       {"distilled_from_members", nets[k]->distillation.members},
                                        {"best_epoch", nets[k]->history.bestEpoch},
                                        {"best_validation_loss", nets[k]->history.bestValidationLoss},
                                        {"hit_epoch_cap", nets[k]->history.hitEpochCap}};

@@ -286,6 +286,11 @@ json networkToJson(const TrainedNetwork& tn) {
         }
         j["ensemble"] = std::move(members);
     }
+    if (tn.distillation.members > 0)
+        j["distillation"] = {{"members", tn.distillation.members},
+                             {"samples", tn.distillation.samples},
+                             {"seed", tn.distillation.seed},
+                             {"teacher_validation_loss", lossToJson(tn.distillation.teacherValidationLoss)}};
     return j;
 }
 
@@ -345,6 +350,16 @@ TrainedNetwork networkFromJson(const json& j, const std::string& source) {
     tn.options.splitSeed = r.unsignedInteger(r.key(j, "split_seed"), "split_seed");
     tn.options.hiddenLayers.assign(sizes.begin() + 1, sizes.end() - 1);
     tn.history = readHistory(r, j);
+    // Optional (networks trained directly have none): where a distilled network came from.
+    if (j.contains("distillation")) {
+        const json& d = j.at("distillation");
+        tn.distillation.members = int(r.integer(r.key(d, "members", "distillation"), "distillation.members", 2, 1 << 20));
+        tn.distillation.samples = long(r.integer(r.key(d, "samples", "distillation"), "distillation.samples", 1, 1LL << 40));
+        tn.distillation.seed = r.unsignedInteger(r.key(d, "seed", "distillation"), "distillation.seed");
+        tn.distillation.teacherValidationLoss =
+            r.loss(r.key(d, "teacher_validation_loss", "distillation"), "distillation.teacher_validation_loss");
+        if (!tn.ensemble.empty()) r.fail("distillation", "a distilled network has no ensemble members");
+    }
     return tn;
 }
 

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <random>
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
@@ -155,6 +156,37 @@ std::vector<std::string> describeDropped(const std::vector<const CampaignRow*>& 
     return lines;
 }
 
+// Inputs of each network in its row order (equilibrium, stretching, relaxation).
+const std::vector<PriorRange> kNetworkBoxes[3] = {{kPriorV, kPriorFvK},
+                                                  {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorFext},
+                                                  {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam}};
+
+/// n points drawn uniformly from the box (columns; std::mt19937_64(seed), 53-bit uniforms).
+Eigen::MatrixXd uniformBoxPoints(const std::vector<PriorRange>& box, long n, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    Eigen::MatrixXd X(Eigen::Index(box.size()), n);
+    for (long j = 0; j < n; ++j)
+        for (std::size_t i = 0; i < box.size(); ++i)
+            X(Eigen::Index(i), j) = box[i].lo + (box[i].hi - box[i].lo) * double(rng() >> 11) * 0x1.0p-53;
+    return X;
+}
+
+/// One network trained to reproduce an ensemble's predictions (the ensemble's mean in its
+/// transformed output space) on uniform points of the box, with the teacher's transforms and the
+/// training schedule `o` (its batch size and patience re-derived for the larger table).
+TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const std::vector<PriorRange>& box, long samples,
+                                std::uint64_t seed, TrainingOptions o) {
+    if (samples < 1000) throw InputError(fmt::format("surrogate distillation: {} box samples; at least 1000 are needed", samples));
+    const Eigen::MatrixXd X = uniformBoxPoints(box, samples, seed);
+    const Eigen::MatrixXd Y = teacher.evaluate(X);
+    o.batchSize = 128;
+    o.patience = std::max(10, int(std::ceil(3000.0 / (0.8 * double(samples) / o.batchSize))));
+    o.progress = nullptr;
+    TrainedNetwork student = trainNetwork(X, Y, o, teacher.inputNames, teacher.outputNames).network;
+    student.distillation = {1 + int(teacher.ensemble.size()), samples, seed, teacher.history.bestValidationLoss};
+    return student;
+}
+
 }  // namespace
 
 SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt) {
@@ -287,6 +319,9 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             }
             std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
             results[k].network.ensemble = std::move(others);
+            if (opt.distill[k] && !results[k].network.ensemble.empty())
+                results[k].network = distilledNetwork(results[k].network, kNetworkBoxes[k], opt.distillSamples,
+                                                      opt.distillSeed, o);
             rep.wallSeconds[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             results[k].network.dataHash = rep.dataHash;
             results[k].network.command = opt.command;

@@ -67,6 +67,12 @@ struct SurrogateTrainingOptions {
     /// 5.1 % (docs/CAMPAIGN_AND_SURROGATE.md); the other two meet their accuracy goals with one network
     /// and are evaluated most often by the inference.
     bool ensemble[3] = {false, false, true};
+    /// Ensemble networks that are replaced by one network distilled from them: trained (same
+    /// transforms, schedule and layer sizes) on the ensemble's predictions at distillSamples uniform
+    /// points of the prior box, so that evaluating it costs one network pass instead of one per member.
+    bool distill[3] = {false, false, false};
+    long distillSamples = 50000;
+    std::uint64_t distillSeed = 20261124;
     /// k-fold cross-validation: with folds >= 2 the test cells are those at positions p of the seeded
     /// cell permutation with p % folds == fold (testFraction is then not used).
     int folds = 0, fold = 0;

@@ -119,6 +119,15 @@ struct TrainedNetwork {
     std::string command;   ///< command line that made it
     TrainingOptions options;  ///< settings of the run (progress callback not kept)
     TrainingHistory history;
+    /// Set (members > 0) when this single network was distilled from an ensemble: trained on the
+    /// ensemble's predictions at `samples` uniform points of the prior box (seed `seed`); history and
+    /// options are then the student's, `teacherValidationLoss` the best member's early-stopping loss.
+    struct Distillation {
+        int members = 0;
+        long samples = 0;
+        std::uint64_t seed = 0;
+        double teacherValidationLoss = 0.0;
+    } distillation;
 
     /// Physical outputs for physical inputs, X numInputs x n (one sample per column); batched and
     /// OpenMP-parallel like Mlp::forward (whose precision option it passes on).
