@@ -77,6 +77,13 @@ bool listed(const std::vector<std::string>& list, const std::string& name) {
     return std::find(list.begin(), list.end(), name) != list.end();
 }
 
+// Values of the network-list options (--ensemble, --distill).
+std::vector<std::string> networkNamesOrNone() {
+    std::vector<std::string> allowed = surrogateNetworkNames();
+    allowed.insert(allowed.begin(), "none");
+    return allowed;
+}
+
 void registerTrain(CLI::App* parent) {
     struct Opts {
         std::string data, out;
@@ -115,20 +122,12 @@ void registerTrain(CLI::App* parent) {
     cmd->add_option("--ensemble", o->ensemble,
                     "networks that keep all their restarts and predict with the members' mean (geometric mean for log "
                     "outputs): any of equilibrium, stretching, relaxation, or none")
-        ->check(CLI::IsMember([] {
-            std::vector<std::string> allowed = surrogateNetworkNames();
-            allowed.insert(allowed.begin(), "none");
-            return allowed;
-        }()))->delimiter(',')->capture_default_str();
+        ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
     cmd->add_option("--distill", o->distill,
                     "ensemble networks replaced by one network trained on the ensemble's predictions at "
                     "--distill-samples uniform points of the prior box (one network pass per evaluation instead of one "
                     "per member): any of the --ensemble networks, or none")
-        ->check(CLI::IsMember([] {
-            std::vector<std::string> allowed = surrogateNetworkNames();
-            allowed.insert(allowed.begin(), "none");
-            return allowed;
-        }()))->delimiter(',')->capture_default_str();
+        ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
     cmd->add_option("--distill-samples", o->t.distillSamples, "box points of each distillation, [1000, 1e8]")
         ->check(CLI::Range(1000L, 100000000L))->capture_default_str();
     cmd->add_option("--cv-folds", o->cvFolds,
