@@ -154,9 +154,10 @@ void registerTrain(CLI::App* parent) {
         t.command = commandLine();
         t.logRelaxation = o->relaxationVariables == "log";
         const auto& names = surrogateNetworkNames();
-        for (int k = 0; k < 3; ++k)
+        for (int k = 0; k < 3; ++k) {
             t.ensemble[k] = listed(o->ensemble, names[std::size_t(k)]);
-        for (int k = 0; k < 3; ++k) t.distill[k] = listed(o->distill, names[std::size_t(k)]);
+            t.distill[k] = listed(o->distill, names[std::size_t(k)]);
+        }
         if (t.restarts < 2 && (t.ensemble[0] || t.ensemble[1] || t.ensemble[2]))
             std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
         t.progress = [](const std::string& net, const EpochRecord& e) {
