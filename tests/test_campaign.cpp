@@ -240,6 +240,66 @@ TEST(CampaignRunner, ResumeRefusesOtherSettings) {
     EXPECT_NE(old.err.find("forward_model_revision (was null, now 2)"), std::string::npos) << old.err;
 }
 
+TEST(CampaignRunner, UniformCampaignGrowsWhenResumedWithMoreSamples) {
+    TempDir tmp;
+    const fs::path a = tmp.path() / "a";
+    const std::string base = "campaign --forces-per-cell 2 --level 2 --seed 7 --no-cache --threads 1 --out " + shellQuote(a.string());
+    ASSERT_EQ(runTrbc(base + " --samples 4", tmp.path()).status, 0);
+    const auto small = rowsWithoutWallTime(a / "samples.csv");
+
+    // Refused: a smaller campaign, and a grown one without --resume.
+    const CliRun shrink = runTrbc(base + " --samples 2 --resume", tmp.path());
+    EXPECT_EQ(shrink.status, 2);
+    EXPECT_NE(shrink.err.find("samples (was 4, now 2)"), std::string::npos) << shrink.err;
+    EXPECT_NE(shrink.err.find("only a uniform design"), std::string::npos) << shrink.err;
+    EXPECT_EQ(runTrbc(base + " --samples 8", tmp.path()).status, 2);
+
+    const CliRun grown = runTrbc(base + " --samples 8 --resume", tmp.path());
+    ASSERT_EQ(grown.status, 0) << grown.err;
+    EXPECT_NE(grown.out.find("2 cells computed now, 2 resumed"), std::string::npos) << grown.out;
+    const auto big = rowsWithoutWallTime(a / "samples.csv");
+    ASSERT_EQ(big.size(), 9u);  // header + 8 rows
+    EXPECT_TRUE(std::equal(small.begin(), small.end(), big.begin()));
+    const auto rows = readCampaignCsv(a / "samples.csv");
+    const auto design = campaignDesign(DesignKind::Uniform, 8, 2, 7);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        EXPECT_EQ(rows[i].point.p.FvK, design[i].p.FvK);
+        EXPECT_EQ(rows[i].point.fext, design[i].fext);
+        EXPECT_TRUE(rows[i].ok()) << rows[i].reason;
+    }
+    nlohmann::json j;
+    {
+        std::ifstream in(a / "campaign.json");
+        j = nlohmann::json::parse(in);
+    }
+    EXPECT_EQ(j["settings"]["samples"], 8);
+    EXPECT_EQ(j["status"], "complete");
+    EXPECT_EQ(j["resumed_by"].back()["grown_from_samples"], 4);
+
+    // A part file whose rows are not the design's (another seed copied in) is refused by name.
+    const fs::path part = a / "parts" / "rank0.csv";
+    auto lines = readCampaignCsv(part);
+    lines[1].point.p.v += 1e-9;
+    {
+        std::ofstream out(part);
+        out << campaignCsvHeader() << '\n';
+        for (const CampaignRow& r : lines) out << formatCampaignRow(r) << '\n';
+    }
+    fs::remove(a / "samples.csv");
+    const CliRun foreign = runTrbc(base + " --samples 8 --resume", tmp.path());
+    EXPECT_EQ(foreign.status, 2);
+    EXPECT_NE(foreign.err.find("sample 1 holds inputs other than the design's"), std::string::npos) << foreign.err;
+
+    // An lhs design is not a prefix of a larger one, and neither is a campaign ending inside a cell.
+    const fs::path b = tmp.path() / "b", c = tmp.path() / "c";
+    const std::string lhs = "campaign --forces-per-cell 2 --level 2 --seed 7 --no-cache --design lhs --out " + shellQuote(b.string());
+    ASSERT_EQ(runTrbc(lhs + " --samples 2", tmp.path()).status, 0);
+    EXPECT_EQ(runTrbc(lhs + " --samples 4 --resume", tmp.path()).status, 2);
+    const std::string odd = "campaign --forces-per-cell 2 --level 2 --seed 7 --no-cache --out " + shellQuote(c.string());
+    ASSERT_EQ(runTrbc(odd + " --samples 3", tmp.path()).status, 0);
+    EXPECT_EQ(runTrbc(odd + " --samples 4 --resume", tmp.path()).status, 2);
+}
+
 TEST(CampaignRunner, RowsOfACellMatchTheDirectForwardModel) {
     // A cell's stretching is a continuation over its forces; each row must agree with a direct
     // solve at its own force (within the static tolerance's effect, 0.02 um as for trbc simulate).

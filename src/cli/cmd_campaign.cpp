@@ -105,7 +105,7 @@ void registerCampaign(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--out", o->out, "output directory")->required();
     cmd->add_option("--threads", o->c.threads, "cells run concurrently (one thread each)")->capture_default_str();
-    cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required)");
+    cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
     cmd->add_option("--inject-failures", o->inject,
                     "comma-separated sample ids whose cell fails on purpose (to test failure records)");
     addSolverOptions(cmd, o->c.experiment);

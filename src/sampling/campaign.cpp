@@ -59,6 +59,18 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
 
 void writeJsonAtomically(const fs::path& path, const nlohmann::json& j) { writeFileAtomically(path, j.dump(2) + "\n"); }
 
+/// A uniform design is drawn row by row (sampling/design.cpp), so a campaign of more samples
+/// extends one of fewer with the same settings, provided the old one ends on a whole cell.
+bool canGrow(const nlohmann::json& oldSettings, const nlohmann::json& settings) {
+    if (!oldSettings.contains("samples") || settings["design"] != "uniform") return false;
+    const long before = oldSettings["samples"].get<long>(), after = settings["samples"].get<long>();
+    const long perCell = settings["forces_per_cell"].get<long>();
+    if (after < before || before % perCell != 0) return false;
+    nlohmann::json same = oldSettings;
+    same["samples"] = settings["samples"];
+    return same == settings;
+}
+
 void validateOptions(const CampaignOptions& o) {
     if (o.samples < 1 || o.samples > 100'000'000)
         throw InputError(fmt::format("--samples {} is outside [1, 1e8]", o.samples));
@@ -80,6 +92,13 @@ std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>
     return cells;
 }
 
+/// A finished row belongs to the design point of its sample id (rows are written with 17
+/// significant digits, so the round trip is exact).
+bool sameInputs(const CampaignPoint& row, const CampaignPoint& design) {
+    return row.cellId == design.cellId && row.p.v == design.p.v && row.p.mu == design.p.mu && row.p.FvK == design.p.FvK &&
+           row.p.b2 == design.p.b2 && row.p.etam == design.p.etam && row.fext == design.fext;
+}
+
 /// Rows of the finished cells found in all part files (torn tails and unfinished cells dropped),
 /// keyed by sample id.
 std::map<long, CampaignRow> finishedRows(const CampaignOptions& o, const std::vector<std::vector<CampaignPoint>>& cells) {
@@ -90,6 +109,14 @@ std::map<long, CampaignRow> finishedRows(const CampaignOptions& o, const std::ve
         for (CampaignRow& r : readCampaignCsv(entry.path(), true)) rows.emplace(r.point.sampleId, std::move(r));
     }
     for (const auto& cell : cells) {
+        for (const CampaignPoint& q : cell) {
+            const auto it = rows.find(q.sampleId);
+            if (it != rows.end() && !sameInputs(it->second.point, q))
+                throw InputError(fmt::format("{}: sample {} holds inputs other than the design's (v {} against {}, Fext_pN {} "
+                                             "against {}): the part files belong to another design or seed",
+                                             partsDir(o).string(), q.sampleId, it->second.point.p.v, q.p.v,
+                                             it->second.point.fext, q.fext));
+        }
         const bool complete = std::all_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return rows.count(q.sampleId); });
         if (!complete)
             for (const CampaignPoint& q : cell) rows.erase(q.sampleId);
@@ -216,15 +243,27 @@ void prepareCampaign(const CampaignOptions& o) {
         } catch (const std::exception& e) {
             throw InputError(fmt::format("{}: cannot parse: {}", provenancePath(o).string(), e.what()));
         }
-        if (!old.contains("settings") || old["settings"] != settings) {
+        const bool grows = old.contains("settings") && canGrow(old["settings"], settings);
+        if (!grows && (!old.contains("settings") || old["settings"] != settings)) {
             std::string diff;
             for (auto& [k, v] : settings.items())
                 if (!old["settings"].contains(k) || old["settings"][k] != v)
                     diff += fmt::format(" {} (was {}, now {})", k, old["settings"].value(k, nlohmann::json()).dump(), v.dump());
+            if (old["settings"].contains("samples") && old["settings"]["samples"] != settings["samples"])
+                diff += fmt::format("; only a uniform design whose samples fill whole cells grows (a larger --samples "
+                                    "extends it), an lhs design or a smaller --samples cannot");
             throw InputError(fmt::format("--resume: {} was made with different settings:{}", provenancePath(o).string(), diff));
         }
         nlohmann::json j = old;
-        j["resumed_by"].push_back({{"command", o.command}, {"version", kVersion}});
+        nlohmann::json entry = {{"command", o.command}, {"version", kVersion}};
+        if (grows && old["settings"]["samples"] != settings["samples"]) {
+            entry["grown_from_samples"] = old["settings"]["samples"];
+            j["settings"] = settings;
+            j["status"] = "incomplete";
+            // samples.csv held the smaller set; the parts hold every row and rebuild it when complete.
+            fs::remove(samplesPath(o));
+        }
+        j["resumed_by"].push_back(entry);
         writeJsonAtomically(provenancePath(o), j);
         return;
     }
