@@ -7,8 +7,11 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
+#include <set>
 
 #include "core/error.hpp"
+#include "sampling/campaign_table.hpp"
 #include "sampling/design.hpp"
 #include "surrogate/surrogate.hpp"
 #include "test_support.hpp"
@@ -116,6 +119,55 @@ TEST_F(TrainedFixture, SaveLoadGivesIdenticalOutputs) {
     } catch (const InputError& e) {
         EXPECT_NE(std::string(e.what()).find("relaxation.json"), std::string::npos) << e.what();
     }
+}
+
+TEST_F(TrainedFixture, SurrogateTestOnTheHeldOutCellsReproducesTheTrainingReport) {
+    const auto rows = fakeCampaign(2400, 8, 5);
+    const std::set<long> testCells(report->testCellIds.begin(), report->testCellIds.end());
+    std::vector<CampaignRow> held;
+    for (const CampaignRow& r : rows)
+        if (testCells.count(r.point.cellId)) held.push_back(r);
+    std::vector<const CampaignRow*> ptrs;
+    for (auto it = held.rbegin(); it != held.rend(); ++it) ptrs.push_back(&*it);  // any order: sorted by cell and sample
+    const SurrogateTest t = testSurrogate(report->model, ptrs);
+    EXPECT_EQ(t.predicted, report->testPredicted);
+    ASSERT_EQ(t.accuracy.size(), 6u);
+    for (std::size_t k = 0; k < 6; ++k) {
+        EXPECT_EQ(t.accuracy[k].n, report->test[k].n) << t.accuracy[k].name;
+        EXPECT_EQ(t.accuracy[k].rmse, report->test[k].rmse) << t.accuracy[k].name;
+    }
+    EXPECT_EQ(t.accuracy[5].n, 30);  // tc once per cell
+
+    // The CLI: the same numbers from files; the training table itself is named as such.
+    TempDir tmp;
+    report->model.save(tmp.path() / "m");
+    auto writeTable = [&](const fs::path& p, const std::vector<CampaignRow>& table) {
+        std::ofstream out(p);
+        out << campaignCsvHeader() << '\n';
+        for (const CampaignRow& r : table) out << formatCampaignRow(r) << '\n';
+    };
+    writeTable(tmp.path() / "held.csv", held);
+    writeTable(tmp.path() / "all.csv", rows);
+    const std::string model = " --model " + shellQuote((tmp.path() / "m").string());
+    auto data = [&](const char* name) { return " --data " + shellQuote((tmp.path() / name).string()); };
+    auto r = runTrbc("surrogate test" + model + data("held.csv") + " --out " + shellQuote((tmp.path() / "t").string()), tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    nlohmann::json j;
+    {
+        std::ifstream in(tmp.path() / "t" / "test.json");
+        j = nlohmann::json::parse(in);
+    }
+    EXPECT_EQ(j["test"][5]["output"], "tc_s");
+    EXPECT_EQ(j["test"][5]["relative_rmse"].get<double>(), report->test[5].relativeRmse);
+    EXPECT_FALSE(j["trained_on_these_data"].get<bool>());
+    EXPECT_TRUE(fs::exists(tmp.path() / "t" / "test_predictions.csv"));
+    r = runTrbc("surrogate test" + model + data("all.csv"), tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("trained on these rows"), std::string::npos) << r.err;
+    EXPECT_NE(r.out.find("not a test"), std::string::npos) << r.out;
+    r = runTrbc("surrogate test" + model + data("missing.csv"), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("missing.csv"), std::string::npos) << r.err;
 }
 
 TEST(SurrogateBox, OutsideTrainingBoxIsFlagged) {

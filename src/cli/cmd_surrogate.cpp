@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <set>
 
 #include "cli/common.hpp"
 #include "core/csv.hpp"
@@ -294,6 +295,62 @@ void registerEval(CLI::App* parent) {
     });
 }
 
+void registerTest(CLI::App* parent) {
+    struct Opts {
+        std::string model, data, out;
+        int threads = 1;
+    };
+    auto o = std::make_shared<Opts>();
+    CLI::App* cmd = parent->add_subcommand(
+        "test", "Accuracy of the surrogates against simulated rows they were not trained on (another campaign, or "
+                "trbc simulate results in the campaign's columns): the table of accuracy.md (equilibrium outputs and "
+                "tc once per cell, D0 and D1 per row); with --out also test.md, test.json and test_predictions.csv");
+    cmd->add_option("--model", o->model, "model directory (default: the shipped surrogates)");
+    cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
+        ->required();
+    cmd->add_option("--out", o->out, "directory for test.md, test.json and test_predictions.csv");
+    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    cmd->callback([o]() {
+        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        const Surrogate s = Surrogate::load(modelDir);
+        if (!o->out.empty()) ensureWritableDirectory(o->out);
+        bool complete = true;
+        const auto rows = readCampaignRows(o->data, &complete);
+        if (rows.empty()) throw InputError(fmt::format("--data {}: no finished rows", o->data));
+        const std::string hash = campaignDataHash(rows);
+        std::vector<const CampaignRow*> ptrs;
+        for (const CampaignRow& r : rows) ptrs.push_back(&r);
+        omp_set_num_threads(o->threads);
+        const SurrogateTest t = testSurrogate(s, ptrs);
+        long outside = 0;
+        for (const bool b : outsideTrainingBox(t.inputs)) outside += b;
+        const bool trainedOnIt = hash == s.equilibrium.dataHash || hash == s.stretching.dataHash || hash == s.relaxation.dataHash;
+        std::string md = fmt::format("# Surrogate test\n\nMade by `{}` (trbc {}): model {}, data {} ({} rows in {} cells{}, "
+                                     "data hash {}; the model was trained on {}).\n\n",
+                                     commandLine(), kVersion, modelDir.string(), o->data, rows.size(),
+                                     std::set<long>(t.cellIds.begin(), t.cellIds.end()).size(),
+                                     complete ? "" : ", finished part of an unfinished campaign", hash, s.relaxation.dataHash);
+        if (trainedOnIt)
+            md += "**These are the model's own training data: this is not a test.** Its held-out accuracy is in the model's "
+                  "accuracy.md.\n\n";
+        if (outside) md += fmt::format("{} rows lie outside the training box (extrapolated).\n\n", outside);
+        md += accuracyMarkdown(t.accuracy);
+        if (trainedOnIt) std::cerr << "surrogate test: the model was trained on these rows; the numbers are not a test\n";
+        if (!o->out.empty()) {
+            const std::filesystem::path dir = o->out;
+            const nlohmann::json j = {{"command", commandLine()}, {"version", kVersion},     {"model", modelDir.string()},
+                                      {"data", o->data},         {"data_complete", complete}, {"data_hash", hash},
+                                      {"model_data_hash", s.relaxation.dataHash}, {"trained_on_these_data", trainedOnIt},
+                                      {"rows", rows.size()},     {"outside_training_box", outside},
+                                      {"test", accuracyJson(t.accuracy)}};
+            writeText(dir / "test.json", j.dump(2) + "\n");
+            writeText(dir / "test.md", md);
+            writePredictionsCsv(dir / "test_predictions.csv", t.inputs, t.truth, t.predicted);
+        }
+        std::cout << md;
+    });
+}
+
 }  // namespace
 
 std::filesystem::path defaultSurrogateDirectory() {
@@ -311,6 +368,7 @@ void registerSurrogate(CLI::App& app) {
     cmd->require_subcommand(1);
     registerTrain(cmd);
     registerEval(cmd);
+    registerTest(cmd);
 }
 
 }  // namespace trbc::cli

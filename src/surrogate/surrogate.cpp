@@ -197,13 +197,9 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
                                      opt.folds));
     SurrogateTrainingReport rep;
     rep.rows = long(rows.size());
-    std::uint64_t h = fnv1a("");
     std::map<long, std::vector<const CampaignRow*>> byCell;
-    for (const CampaignRow& r : rows) {
-        h = fnv1a(formatCampaignRow(r).substr(0, formatCampaignRow(r).rfind(',')), h);  // without wall_s
-        byCell[r.point.cellId].push_back(&r);
-    }
-    rep.dataHash = fmt::format("fnv1a:{:016x}", h);
+    for (const CampaignRow& r : rows) byCell[r.point.cellId].push_back(&r);
+    rep.dataHash = campaignDataHash(rows);
     rep.cells = long(byCell.size());
     if (rep.cells < 10) throw InputError(fmt::format("surrogate training: {} cells in the table; at least 10 are needed", rep.cells));
 
@@ -353,18 +349,41 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
 
     // Held-out cells: every output of every test row (equilibrium and relaxation once per cell).
     if (!testRows.empty()) {
-        rep.testInputs.resize(6, Eigen::Index(testRows.size()));
-        rep.testTruth.resize(6, Eigen::Index(testRows.size()));
-        for (std::size_t j = 0; j < testRows.size(); ++j) {
-            const CampaignRow& r = *testRows[j];
-            rep.testInputs.col(Eigen::Index(j)) = rowInputs(r);
-            rep.testTruth.col(Eigen::Index(j)) << r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc;
-            rep.testCellIds.push_back(r.point.cellId);
-        }
-        rep.testPredicted = rep.model.evaluate(rep.testInputs);
-        rep.test = heldOutAccuracy(rep.testCellIds, rep.testTruth, rep.testPredicted);
+        SurrogateTest t = testSurrogate(rep.model, std::move(testRows));
+        rep.testInputs = std::move(t.inputs);
+        rep.testTruth = std::move(t.truth);
+        rep.testPredicted = std::move(t.predicted);
+        rep.testCellIds = std::move(t.cellIds);
+        rep.test = std::move(t.accuracy);
     }
     return rep;
+}
+
+SurrogateTest testSurrogate(const Surrogate& s, std::vector<const CampaignRow*> rows) {
+    std::stable_sort(rows.begin(), rows.end(), [](const CampaignRow* a, const CampaignRow* b) {
+        return std::pair(a->point.cellId, a->point.sampleId) < std::pair(b->point.cellId, b->point.sampleId);
+    });
+    SurrogateTest t;
+    t.inputs.resize(6, Eigen::Index(rows.size()));
+    t.truth.resize(6, Eigen::Index(rows.size()));
+    for (std::size_t j = 0; j < rows.size(); ++j) {
+        const CampaignRow& r = *rows[j];
+        t.inputs.col(Eigen::Index(j)) = rowInputs(r);
+        t.truth.col(Eigen::Index(j)) << r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc;
+        t.cellIds.push_back(r.point.cellId);
+    }
+    t.predicted = s.evaluate(t.inputs);
+    t.accuracy = heldOutAccuracy(t.cellIds, t.truth, t.predicted);
+    return t;
+}
+
+std::string campaignDataHash(const std::vector<CampaignRow>& rows) {
+    std::uint64_t h = fnv1a("");
+    for (const CampaignRow& r : rows) {
+        const std::string line = formatCampaignRow(r);
+        h = fnv1a(line.substr(0, line.rfind(',')), h);  // without wall_s
+    }
+    return fmt::format("fnv1a:{:016x}", h);
 }
 
 std::vector<OutputAccuracy> heldOutAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& truth,

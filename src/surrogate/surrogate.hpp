@@ -99,6 +99,19 @@ struct SurrogateTrainingReport {
 std::vector<OutputAccuracy> heldOutAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& truth,
                                             const Eigen::MatrixXd& predicted);
 
+/// A surrogate against campaign rows: their inputs, truth and predictions (6 x rows, ordered by
+/// cell and sample id) and the per-output accuracy of heldOutAccuracy.
+struct SurrogateTest {
+    Eigen::MatrixXd inputs, truth, predicted;
+    std::vector<long> cellIds;
+    std::vector<OutputAccuracy> accuracy;
+};
+SurrogateTest testSurrogate(const Surrogate& s, std::vector<const CampaignRow*> rows);
+
+/// FNV-1a over the rows as written by the campaign, without wall_s ("fnv1a:<16 hex digits>"); the
+/// training data hash stored in every network file.
+std::string campaignDataHash(const std::vector<CampaignRow>& rows);
+
 /// k-fold cross-validation over whole cells (SURROGATE 5.2.1 repeated over every fold): each fold
 /// trains the three networks with its cells held out; the out-of-fold predictions are pooled.
 struct CrossValidationReport {
