@@ -190,6 +190,10 @@ TEST(Stretching, DiametersAreMonotoneInForceAndEqualTheRestingDiameterAtZero) {
     const auto pts = runStretching(p, meshes, eq.shape, {150.0, 0.0, 25.0, 50.0, 100.0}, opt);
     ASSERT_EQ(pts.size(), 5u);
     EXPECT_EQ(pts.front().fext, 0.0);  // sorted for the continuation
+    // The reported equilibrium energy is the membrane energy of the returned (rotated) shape.
+    const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
+    EXPECT_NEAR(eq.diagnostics.energy, model.evaluate(eq.shape), 1e-9 * model.evaluate(eq.shape));
+    EXPECT_GT(eq.diagnostics.energy, 0.0);
     EXPECT_NEAR(pts[0].observables.D0, eq.observables.D, 0.01 * eq.observables.D);
     EXPECT_NEAR(pts[0].observables.D1, eq.observables.D, 0.01 * eq.observables.D);
     for (std::size_t k = 1; k < pts.size(); ++k) {

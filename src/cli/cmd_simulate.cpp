@@ -27,6 +27,7 @@ nlohmann::json staticJson(const SolverDiagnostics& d) {
             {"max_tangential_force_pN", d.gradientNorm},
             {"tension_pN_per_um", d.tension},
             {"pressure_Pa", d.pressure},
+            {"energy_J", d.energy / cell::joule},
             {"message", d.message}};
 }
 

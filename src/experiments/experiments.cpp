@@ -29,6 +29,7 @@ SolverDiagnostics staticDiagnostics(const MinimizeResult& r, Clock::time_point t
     d.iterations = r.iterations;
     d.evaluations = r.evaluations;
     d.gradientNorm = r.gradientNorm;
+    d.energy = r.energy;
     if (r.multipliers.size() == 2) {
         d.tension = r.multipliers[0];
         d.pressure = r.multipliers[1];

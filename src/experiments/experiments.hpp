@@ -62,6 +62,9 @@ struct SolverDiagnostics {
     double gradientNorm = 0.0; ///< pN (static states)
     double tension = 0.0;      ///< area multiplier, pN/um (static states)
     double pressure = 0.0;     ///< volume multiplier, pN/um^2 (static states)
+    /// Static states: the minimised objective, pN um (membrane energy; in stretching minus the bead
+    /// forces' work). Tells apart two converged equilibria of one cell (e.g. disc and cup near v = 1).
+    double energy = 0.0;
     std::string message;
 };
 
