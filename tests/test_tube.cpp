@@ -261,6 +261,77 @@ TEST(TubeFlow, ShortCoupledRunMovesAlongTheAxisAndKeepsAreaAndVolume) {
     }
 }
 
+// VALIDATION.md 4.3 post-processing on synthetic frames with known answers: a spheroid (semi-axes
+// a along the axis x, b across) translating at speed U, first rigidly, then with its membrane
+// turning about the axis at rate w (the shape, hence length and width, unchanged): the
+// co-moving-frame motion over the second half is 2 rho_max sin(w dt / 2), rho_max = b.
+TEST(TubeObservablesTest, LengthWidthVelocityPlateauAndCellFrameMotionOfSyntheticFrames) {
+    Mesh m = icosphere(2);
+    const double a = 4.0, b = 2.5, U = 3.0, w = 0.1;
+    m.X.row(0) *= a;
+    m.X.row(1) *= b;
+    m.X.row(2) *= b;
+    const int n = 41;
+    for (const double rate : {0.0, w}) {
+        std::vector<double> t(n);
+        std::vector<Vertices> frames(n);
+        for (int k = 0; k < n; ++k) {
+            t[k] = 0.5 * k;
+            const double phi = rate * t[k];
+            Vertices X = m.X;
+            X.row(1) = std::cos(phi) * m.X.row(1) - std::sin(phi) * m.X.row(2);
+            X.row(2) = std::sin(phi) * m.X.row(1) + std::cos(phi) * m.X.row(2);
+            X.row(0).array() += U * t[k];
+            frames[k] = X;
+        }
+        const TubeObservables o = analyzeTubeFrames(t, frames);
+        EXPECT_NEAR(o.velocity, U, 1e-12);
+        EXPECT_NEAR(o.length, 2.0 * a, 1e-12);
+        EXPECT_NEAR(o.widthY, 2.0 * b, 0.05 * b);  // the icosphere's extent turns with the vertices
+        EXPECT_LT(o.lengthChange, 1e-12);
+        EXPECT_LT(o.velocityChange, 1e-12);
+        EXPECT_NEAR(o.travel, U * (t[n - 1] - t[n / 2]), 1e-9);
+        const double expected = 2.0 * b * std::sin(0.5 * rate * (t[n - 1] - t[n / 2]));
+        EXPECT_NEAR(o.cellFrameMotion, expected, rate == 0.0 ? 1e-9 : 0.02 * expected) << "rate " << rate;
+    }
+    // A cell that grows: the plateau check sees it.
+    std::vector<double> t(n);
+    std::vector<Vertices> frames(n);
+    for (int k = 0; k < n; ++k) {
+        t[k] = k;
+        frames[k] = m.X;
+        frames[k].row(0) *= 1.0 + 0.01 * k;
+    }
+    EXPECT_GT(analyzeTubeFrames(t, frames).lengthChange, 0.05);
+    EXPECT_THROW(analyzeTubeFrames(std::vector<double>(10), std::vector<Vertices>(10, m.X)), InputError);
+}
+
+// The settling criterion of `flow tube --settle`: a length relaxing as L(t) = a (1 + 0.2 e^(-t/5))
+// varies over [t - 10, t] by 0.2 a e^(-t/5) (e^2 - 1) relative to ~a, below 2e-3 from t = 32.3 on.
+TEST(TubeObservablesTest, ShapeSettlesWhenLengthAndWidthStopChanging) {
+    Mesh m = icosphere(2);
+    std::vector<double> t;
+    std::vector<Vertices> frames;
+    double settledAt = -1.0;
+    for (int k = 0; k <= 120; ++k) {
+        t.push_back(0.5 * k);
+        Vertices X = m.X;
+        X.row(0) *= 4.0 * (1.0 + 0.2 * std::exp(-t.back() / 5.0));
+        X.row(0).array() += 3.0 * t.back();
+        frames.push_back(X);
+        if (settledAt < 0.0 && tubeShapeSettled(t, frames, 10.0, 2e-3)) settledAt = t.back();
+    }
+    EXPECT_GE(settledAt, 32.0);
+    EXPECT_LE(settledAt, 33.5);
+    // A steady shape is not called settled before the record spans the window; a growing width is seen.
+    const std::vector<Vertices> still(5, m.X);
+    EXPECT_FALSE(tubeShapeSettled({0, 1, 2, 3, 4}, still, 10.0, 2e-3));
+    EXPECT_TRUE(tubeShapeSettled({0, 3, 6, 9, 12}, still, 10.0, 2e-3));
+    std::vector<Vertices> wider = still;
+    wider.back().row(1) *= 1.01;
+    EXPECT_FALSE(tubeShapeSettled({0, 3, 6, 9, 12}, wider, 10.0, 2e-3));
+}
+
 TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     test::TempDir dir;
     const std::string cache = " --cache " + test::shellQuote(tubeCache().string());
@@ -288,7 +359,13 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     const nlohmann::json j = nlohmann::json::parse(r.out);
     EXPECT_EQ(j.at("status"), "failed");
     EXPECT_NE(j.at("reason").get<std::string>().find("step limit"), std::string::npos);
+    EXPECT_NE(j.at("reason").get<std::string>().find("settling stage"), std::string::npos) << j.at("reason");
     EXPECT_TRUE(j.at("observables").at("velocity_cm_per_s").is_null());
+    const test::CliRun r0 = test::runTrbc(
+        "flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --settle 0 --max-steps 2" + cache,
+        dir.path());
+    EXPECT_EQ(r0.status, 3) << r0.out << r0.err;
+    EXPECT_NE(nlohmann::json::parse(r0.out).at("reason").get<std::string>().find("main stage"), std::string::npos);
     EXPECT_NEAR(j.at("parameters").at("minimum_radius_um").get<double>(), 1.4966, 1e-3);
 }
 

@@ -34,7 +34,8 @@ struct ValidationConfig {
     std::vector<ShearSweep> sweeps;         ///< the defaults of VALIDATION.md 3.2 unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
     bool tubeEnabled = true;
-    double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 300.0;  ///< um, mPa s, R/V
+    double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
+    double tubeSettle = 60.0, tubeSettleEtam = 0.02;  ///< settling stage: longest R/V, Pa s um (`flow tube --settle`)
     int tubeLevel = 0;                      ///< 0: the run level
     std::vector<double> pressureGradients;  ///< mmHg/mm
 };

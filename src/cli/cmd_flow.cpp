@@ -362,7 +362,8 @@ void registerShear(CLI::App* flow) {
 
 // ---- flow tube ----------------------------------------------------------------------------------
 
-constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
+constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;
+constexpr double kSettleSpan = 10.0;  // R/V over which the settling stage's shape must be steady  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
 
 /// Wall points per ring at the default resolution: wall chord ~ 1.5 x the cell's mean edge.
 int defaultWallPoints(double radiusUm, const Vertices& cellUm, const Faces& faces) {
@@ -371,22 +372,20 @@ int defaultWallPoints(double radiusUm, const Vertices& cellUm, const Faces& face
     return std::max(16, static_cast<int>(std::ceil(2.0 * kPi * radiusUm / (1.5 * edge))));
 }
 
-void writeTubeOutputs(const std::string& dir, const CellFlowModel& model, const ShearCell& cell,
-                      const Vertices& initialUm, const CellFlowResult& r, double radiusUm, int vtkEvery,
-                      const nlohmann::json& j) {
+/// frames.csv of a tube run (times from the start of the run): centroid, extents, clearance, drift.
+void writeTubeFrames(const std::string& dir, const CellFlowModel& model, const CellFlowResult& r, double radiusUm) {
     const double T = model.scales().time;
-    writeShapesAndSteps(dir, model, cell.faces, cell.reference, initialUm, r, vtkEvery);
     std::string csv = "t_s,t_R_over_V,cx_um,cy_um,cz_um,length_um,width_y_um,width_z_um,clearance_um,area_drift,"
                       "volume_drift\n";
     for (std::size_t k = 0; k < r.frames.size(); ++k) {
         const Vertices X = model.toMicrons(r.frames[k]);
         const Eigen::Vector3d c = centroid(X), e = extents(X);
-        csv += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g},{:.6e},{:.6e}\n", r.times[k] * T,
-                           r.times[k], c.x(), c.y(), c.z(), e.x(), e.y(), e.z(), wallClearance(X, radiusUm),
-                           r.areaDrift[k], r.volumeDrift[k]);
+        const double t = r.times[k];
+        csv += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g},{:.6e},{:.6e}\n", t * T, t,
+                           c.x(), c.y(), c.z(), e.x(), e.y(), e.z(), wallClearance(X, radiusUm), r.areaDrift[k],
+                           r.volumeDrift[k]);
     }
     writeText(dir + "/frames.csv", csv);
-    writeText(dir + "/flow.json", j.dump(2) + "\n");
 }
 
 SteppingOptions tubeStepping() {
@@ -400,7 +399,7 @@ void registerTube(CLI::App* flow) {
         double radius = std::nan(""), pg = std::nan(""), etaOut = 1.003, lambda = 1.0;
         CellOptions cell;
         int level = 3, wallPoints = 0;
-        double duration = 300.0, tubeLength = 0.0;
+        double duration = 30.0, tubeLength = 0.0, settle = 60.0, settleEtam = 0.02, settleTol = 2e-3;
         double repulsionRange = 0.1, repulsionPressure = 10.0;
         SteppingOptions step = tubeStepping();
         CacheOptions cache;
@@ -424,8 +423,20 @@ void registerTube(CLI::App* flow) {
     addCellOptions(cmd, o->cell);
     cmd->add_option("--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)")
         ->check(CLI::Range(1, 4))->capture_default_str();
-    cmd->add_option("--duration", o->duration, "simulated time in units of R/V")->check(CLI::PositiveNumber)
+    cmd->add_option("--duration", o->duration, "simulated time of the main run (after --settle), units of R/V")
+        ->check(CLI::PositiveNumber)
         ->capture_default_str();
+    cmd->add_option("--settle", o->settle,
+                    "longest settling stage before the main run, R/V (0: none): the cell with membrane viscosity "
+                    "--settle-etam reaches the steady shape fast; a cell at rest in the co-moving frame feels no "
+                    "membrane viscosity, and the main run, with the cell's own etam, checks the plateau")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    cmd->add_option("--settle-etam", o->settleEtam, "membrane viscosity of the settling stage, Pa s um (> 0)")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--settle-tol", o->settleTol,
+                    "the settling stage ends when length and width vary by less than this (relative) over the last "
+                    "10 R/V")
+        ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_option("--wall-points", o->wallPoints, "wall vertices per ring (0: chord ~ 1.5 x the cell's mean edge)")
         ->check(CLI::Range(0, 400))->capture_default_str();
     cmd->add_option("--tube-length", o->tubeLength,
@@ -554,6 +565,13 @@ void registerTube(CLI::App* flow) {
             {"FvK", g.FvK},
             {"confinement_R_over_R_A", o->radius / L},
             {"centre_line_velocity_over_V", Uc / Vum}};
+        j["parameters"]["settling"] = {
+            {"max_duration_R_over_V", o->settle},
+            {"tolerance", o->settleTol},
+            {"etam_Pa_s_um", o->settle > 0.0 ? nlohmann::json(o->settleEtam) : nlohmann::json(nullptr)},
+            {"membrane_viscosity_ratio_E",
+             o->settle > 0.0 ? nlohmann::json(g.membraneViscosity * o->settleEtam / p.etam) : nlohmann::json(nullptr)},
+            {"note", "observables come from the main run only, which starts from the settled shape"}};
         j["parameters"]["tube"] = {
             {"wall_points_per_ring", ts.pointsPerRing},
             {"wall_vertices", env.wall().numVertices()},
@@ -570,16 +588,73 @@ void registerTube(CLI::App* flow) {
             {"fitted_extents_um", {fitted.x(), fitted.y(), fitted.z()}},
             {"clearance_um", wallClearance(initialUm, o->radius)}};
 
-        const CellFlowOptions opt = cellFlowOptions(o->step, o->duration, 5.0);
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         const auto shape = [L](const Vertices& X) {
             const Eigen::Vector3d c = centroid(X) * L, e = extents(X) * L;
             return fmt::format("centroid x = {:.4g} um, length {:.4f} um, width {:.4f} um", c.x(), e.x(), e.y());
         };
-        const CellFlowResult r = integrateCellFlow(model, model.toInternal(initialUm), opt,
-                                                   progressReporter("flow tube", opt.tEnd, "R/V", tStart, shape), &env);
+        nlohmann::json diag;
+        // A failed stage: the JSON with its reason, the outputs so far, exit 3.
+        const auto fail = [&](const std::string& stage, const CellFlowModel& m, const CellFlowResult& r,
+                              const Vertices& startUm, const std::string& dir) {
+            diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+            j["status"] = "failed";
+            j["reason"] = stage + ": " + r.message;
+            j["observables"] = {{"velocity_cm_per_s", nullptr}, {"length_um", nullptr}, {"width_um", nullptr}};
+            j["diagnostics"] = diag;
+            std::cout << j.dump(2) << std::endl;
+            if (!dir.empty()) {
+                ensureWritableDirectory(dir);
+                writeShapesAndSteps(dir, m, cell.faces, cell.reference, startUm, r, o->step.vtkEvery);
+                writeTubeFrames(dir, m, r, o->radius);
+                writeText(o->step.out + "/flow.json", j.dump(2) + "\n");
+            }
+            throw NumericalError("flow tube, " + stage + ": " + r.message);
+        };
 
-        nlohmann::json diag = stepDiagnostics(model, r, cell);
+        // ---- Settling stage (docs/FLOW.md "Tube"): the same cell with a small membrane viscosity
+        // reaches the steady shape on the fluid's time scale instead of eta_m / mu (~280 R/V for the
+        // Table 1 cell). A cell at rest in the co-moving frame feels no membrane-viscosity force, so
+        // the steady state is the same; the main stage, with the cell's own eta_m, checks it.
+        Vertices startUm = initialUm;
+        if (o->settle > 0.0) {
+            CellParameters ps = p;
+            ps.etam = o->settleEtam;
+            const CellFlowModel settleModel(ps, fc, cell.faces, cell.reference);
+            CellFlowOptions so = cellFlowOptions(o->step, o->settle, 5.0);
+            so.stopWhen = [tol = o->settleTol](const CellFlowResult& sofar) {
+                return tubeShapeSettled(sofar.times, sofar.frames, kSettleSpan, tol);
+            };
+            const CellFlowResult rs = integrateCellFlow(
+                settleModel, model.toInternal(initialUm), so,
+                progressReporter("flow tube (settling)", so.tEnd, "R/V", tStart, shape), &env);
+            nlohmann::json sd = stepDiagnostics(settleModel, rs, cell);
+            sd.erase("equilibrium");
+            sd.erase("sfs");
+            sd["t_reached_R_over_V"] = rs.tReached;
+            sd["settled"] = rs.stoppedEarly;
+            sd["criterion"] = fmt::format("length and width vary by < {} (relative) over the last {} R/V", o->settleTol,
+                                          kSettleSpan);
+            diag["settling"] = sd;
+            const std::string dir = o->step.out.empty() ? std::string() : o->step.out + "/settling";
+            if (!rs.completed) fail("settling stage", settleModel, rs, initialUm, dir);
+            if (!dir.empty()) {
+                ensureWritableDirectory(dir);
+                writeShapesAndSteps(dir, settleModel, cell.faces, cell.reference, initialUm, rs, o->step.vtkEvery);
+                writeTubeFrames(dir, settleModel, rs, o->radius);
+            }
+            startUm = model.toMicrons(rs.final);
+            const Eigen::Vector3d e = extents(startUm);
+            diag["settling"]["final_length_um"] = e.x();
+            diag["settling"]["final_width_um"] = e.y();
+        }
+
+        const CellFlowOptions opt = cellFlowOptions(o->step, o->duration, 5.0);
+        const CellFlowResult r = integrateCellFlow(model, model.toInternal(startUm), opt,
+                                                   progressReporter("flow tube", opt.tEnd, "R/V",
+                                                                    std::chrono::steady_clock::now(), shape),
+                                                   &env);
+        diag.update(stepDiagnostics(model, r, cell));
         diag["dt_min_R_over_V"] = r.dtSmallest;
         diag["dt_max_R_over_V"] = r.dtLargest;
         diag["step_control"] = {
@@ -591,17 +666,7 @@ void registerTube(CLI::App* flow) {
         diag["wall_clearance_min_um"] = env.minClearance() * L;
         diag["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
         diag["t_reached_R_over_V"] = r.tReached;
-        const nlohmann::json nullObs = {{"velocity_cm_per_s", nullptr}, {"length_um", nullptr}, {"width_um", nullptr}};
-        if (!r.completed) {
-            diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
-            j["status"] = "failed";
-            j["reason"] = r.message;
-            j["observables"] = nullObs;
-            j["diagnostics"] = diag;
-            std::cout << j.dump(2) << std::endl;
-            if (!o->step.out.empty()) writeTubeOutputs(o->step.out, model, cell, initialUm, r, o->radius, o->step.vtkEvery, j);
-            throw NumericalError("flow tube: " + r.message);
-        }
+        if (!r.completed) fail("main stage", model, r, startUm, o->step.out);
         std::vector<double> ts_s(r.times.size());
         std::vector<Vertices> framesUm(r.frames.size());
         for (std::size_t k = 0; k < r.frames.size(); ++k) {
@@ -610,7 +675,7 @@ void registerTube(CLI::App* flow) {
         }
         j["status"] = "ok";
         if (framesUm.size() < 16) {
-            j["observables"] = nullObs;
+            j["observables"] = {{"velocity_cm_per_s", nullptr}, {"length_um", nullptr}, {"width_um", nullptr}};
             j["analysis"] = {{"note", "fewer than 16 frames: no observables (lengthen --duration or shorten "
                                       "--frame-interval)"}};
         } else {
@@ -630,10 +695,20 @@ void registerTube(CLI::App* flow) {
                                {"velocity_change_e7_vs_e8", ob.velocityChange},
                                {"reached", plateau},
                                {"criterion", "both relative changes < 1 %"}};
+            diag["cell_frame_motion"] = {
+                {"max_vertex_displacement_um", ob.cellFrameMotion},
+                {"centroid_travel_um", ob.travel},
+                {"ratio", ob.cellFrameMotion / std::max(ob.travel, 1e-300)},
+                {"meaning", "vertex motion relative to the centroid over the averaging window: ~0 = membrane at rest "
+                            "in the co-moving frame (no tank-treading), a steady state independent of eta_m"}};
         }
         diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         j["diagnostics"] = diag;
-        if (!o->step.out.empty()) writeTubeOutputs(o->step.out, model, cell, initialUm, r, o->radius, o->step.vtkEvery, j);
+        if (!o->step.out.empty()) {
+            writeShapesAndSteps(o->step.out, model, cell.faces, cell.reference, startUm, r, o->step.vtkEvery);
+            writeTubeFrames(o->step.out, model, r, o->radius);
+            writeText(o->step.out + "/flow.json", j.dump(2) + "\n");
+        }
         std::cout << j.dump(2) << std::endl;
     });
 }

@@ -456,7 +456,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     double dtPrev = 0.0, dtPrev2 = 0.0;
     int history = 0;
     double t = 0.0, dt = std::min(opt.dtInitial, opt.dtMax);
-    std::size_t nextFrame = 1;
+    std::size_t nextFrame = 1, framesChecked = 1;
     const auto frameTime = [&](std::size_t k) { return static_cast<double>(k) * opt.frameInterval; };
     recordFrame(0.0, X);
 
@@ -608,6 +608,13 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         if (env) {
             const std::string why = env->inadmissible(X);
             if (!why.empty()) return finish(false, fmt::format("stopped at t = {:.6g}: {}", t, why));
+        }
+        if (opt.stopWhen && res.times.size() > framesChecked) {
+            framesChecked = res.times.size();
+            if (opt.stopWhen(res)) {
+                res.stoppedEarly = true;
+                return finish(true, fmt::format("stop criterion met at t = {:.6g}", t));
+            }
         }
         dt = opt.adaptive ? std::min(opt.dtMax, h * factor) : opt.dtInitial;
     }

@@ -130,6 +130,8 @@ private:
     LinearFlow background_;
 };
 
+struct CellFlowResult;
+
 struct CellFlowOptions {
     double tEnd = 40.0 * 3.14159265358979323846;  ///< internal time (10 rotations 4 pi / rate)
     double frameInterval = 0.1;      ///< frames at k frameInterval (interpolated), internal time
@@ -146,6 +148,9 @@ struct CellFlowOptions {
     double maxDrift = 0.05;          ///< |A/A0 - 1| or |V/V0 - 1| beyond this: diverged
     bool preconditioner = true;      ///< right preconditioner P = I + c B M^-1 Gamma (cell_flow.cpp)
     double preconditionerScale = 1.0;  ///< B = this x the self-blocks of the single layer
+    /// Checked after every step that recorded a frame (with the frames so far): true ends the run
+    /// there as completed, with stoppedEarly set. Empty: run to tEnd.
+    std::function<bool(const CellFlowResult& sofar)> stopWhen;
 };
 
 struct CellFlowStepRecord {
@@ -161,6 +166,7 @@ struct CellFlowStepRecord {
 
 struct CellFlowResult {
     bool completed = false;
+    bool stoppedEarly = false;             ///< completed by CellFlowOptions::stopWhen before tEnd
     std::string message;
     std::vector<double> times;             ///< frame times, internal units
     std::vector<Vertices> frames;          ///< internal units (kept when keepFrames)

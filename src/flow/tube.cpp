@@ -410,6 +410,24 @@ Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double cl
 
 // ---- Observables --------------------------------------------------------------------------------
 
+bool tubeShapeSettled(const std::vector<double>& t, const std::vector<Vertices>& frames, double span,
+                      double tolerance) {
+    if (t.size() != frames.size() || t.empty() || t.back() - t.front() < span) return false;
+    for (const int axis : {0, 1}) {
+        double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0.0;
+        std::size_t n = 0;
+        for (std::size_t k = t.size(); k-- > 0 && t[k] >= t.back() - span * (1.0 + 1e-12);) {
+            const double e = frames[k].row(axis).maxCoeff() - frames[k].row(axis).minCoeff();
+            lo = std::min(lo, e);
+            hi = std::max(hi, e);
+            sum += e;
+            ++n;
+        }
+        if (n < 2 || !(hi - lo < tolerance * sum / static_cast<double>(n))) return false;
+    }
+    return true;
+}
+
 TubeObservables analyzeTubeFrames(const std::vector<double>& t, const std::vector<Vertices>& frames) {
     const std::size_t n = frames.size();
     if (t.size() != n) throw InputError(fmt::format("tube frames: {} times for {} frames", t.size(), n));
@@ -443,6 +461,11 @@ TubeObservables analyzeTubeFrames(const std::vector<double>& t, const std::vecto
     o.lengthChange = std::abs(l4 - l3) / l4;
     const double v7 = slope(t, cx, e7, e8);
     o.velocityChange = std::abs(o.velocity - v7) / std::max(std::abs(o.velocity), 1e-300);
+    const Vertices& a = frames[half];
+    const Vertices& b = frames[n - 1];
+    const Vector3d ca = centroid(a), cb = centroid(b);
+    o.travel = (cb - ca).norm();
+    o.cellFrameMotion = ((b.colwise() - cb) - (a.colwise() - ca)).colwise().norm().maxCoeff();
     return o;
 }
 

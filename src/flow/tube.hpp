@@ -194,8 +194,20 @@ struct TubeObservables {
     /// record, and of the velocity between the 7th and the last eighth.
     double lengthChange = 0.0, velocityChange = 0.0;
     double maxOffAxis = 0.0;  ///< largest distance of the centroid from the axis over the frames
+    /// Largest displacement of a vertex relative to the centroid between the first and the last
+    /// frame of the averaging window, and the centroid's travel over that window. A ratio ~0 means
+    /// the membrane is at rest in the co-moving frame (no tank-treading): then the membrane-
+    /// viscosity force, which depends on relative vertex velocities only (MODEL.md C.4), vanishes
+    /// in the steady state, and that state does not depend on eta_m.
+    double cellFrameMotion = 0.0, travel = 0.0;
     std::size_t framesUsed = 0;
 };
+/// True when the shape has settled: over the frames in [t_last - span, t_last] the length (x extent)
+/// and the width (y extent) vary by less than `tolerance` relative (max - min over mean). False
+/// until the record covers `span`.
+bool tubeShapeSettled(const std::vector<double>& t, const std::vector<Vertices>& frames, double span,
+                      double tolerance);
+
 /// Throws InputError for fewer than 16 frames or inconsistent sizes.
 TubeObservables analyzeTubeFrames(const std::vector<double>& t, const std::vector<Vertices>& frames);
 
