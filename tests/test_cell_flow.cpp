@@ -235,6 +235,19 @@ TEST(CellFlow, SphericalCapsuleAtRestInQuiescentFluidStaysAtRest) {
     EXPECT_LT(std::abs(r.areaDrift.back()), 1e-9);
     EXPECT_LT(std::abs(r.volumeDrift.back()), 1e-9);
     EXPECT_EQ(r.times.size(), 11u);
+    EXPECT_FALSE(r.stoppedEarly);
+    // A stop criterion ends the run as completed at the step that recorded the fourth frame.
+    o.stopWhen = [](const CellFlowResult& sofar) { return sofar.times.size() >= 4; };
+    const CellFlowResult e = integrateCellFlow(m, X0, o);
+    ASSERT_TRUE(e.completed) << e.message;
+    EXPECT_TRUE(e.stoppedEarly);
+    EXPECT_NE(e.message.find("stop criterion"), std::string::npos) << e.message;
+    ASSERT_EQ(e.times.size(), 4u);
+    EXPECT_EQ(e.frames.size(), 4u);
+    EXPECT_GE(e.tReached, e.times.back());
+    EXPECT_LT(e.tReached, o.tEnd);
+    EXPECT_LT(e.tReached - e.times.back(), o.frameInterval);
+    EXPECT_EQ(e.stepLog.back().t, e.tReached);
 }
 
 TEST(CellFlow, EquilibriumCellAtRestInQuiescentFluidStaysAtRest) {

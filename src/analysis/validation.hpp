@@ -36,6 +36,7 @@ struct ValidationConfig {
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
     double tubeSettle = 60.0, tubeSettleEtam = 0.02;  ///< settling stage: longest R/V, Pa s um (`flow tube --settle`)
+    double tubeSettleTol = 2e-3;                       ///< `flow tube --settle-tol`
     int tubeLevel = 0;                      ///< 0: the run level
     std::vector<double> pressureGradients;  ///< mmHg/mm
 };

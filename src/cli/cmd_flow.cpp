@@ -362,7 +362,7 @@ void registerShear(CLI::App* flow) {
 
 // ---- flow tube ----------------------------------------------------------------------------------
 
-constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;
+constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
 constexpr double kSettleSpan = 10.0;  // R/V over which the settling stage's shape must be steady  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
 
 /// Wall points per ring at the default resolution: wall chord ~ 1.5 x the cell's mean edge.
@@ -427,15 +427,16 @@ void registerTube(CLI::App* flow) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_option("--settle", o->settle,
-                    "longest settling stage before the main run, R/V (0: none): the cell with membrane viscosity "
-                    "--settle-etam reaches the steady shape fast; a cell at rest in the co-moving frame feels no "
-                    "membrane viscosity, and the main run, with the cell's own etam, checks the plateau")
+                    "longest settling stage before the main run, R/V (0: none, else >= 10): the cell with membrane "
+                    "viscosity --settle-etam reaches the steady shape fast; a cell at rest in the co-moving frame "
+                    "feels no membrane viscosity, and the main run, with the cell's own etam, continues from that "
+                    "shape and gives the observables")
         ->check(CLI::NonNegativeNumber)->capture_default_str();
     cmd->add_option("--settle-etam", o->settleEtam, "membrane viscosity of the settling stage, Pa s um (> 0)")
         ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_option("--settle-tol", o->settleTol,
-                    "the settling stage ends when length and width vary by less than this (relative) over the last "
-                    "10 R/V")
+                    fmt::format("the settling stage ends when the cell's extents along x, y and z vary by less "
+                                "than this (relative) over the last {:g} R/V", kSettleSpan))
         ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_option("--wall-points", o->wallPoints, "wall vertices per ring (0: chord ~ 1.5 x the cell's mean edge)")
         ->check(CLI::Range(0, 400))->capture_default_str();
@@ -468,6 +469,10 @@ void registerTube(CLI::App* flow) {
                 "radius R), which must be >= V0 = {} um^3",
                 o->radius, Rmin, Rmin, fc.A0, fc.V0));
         const CellParameters p = cellParameters(o->cell);
+        if (o->settle > 0.0 && o->settle < kSettleSpan)
+            throw InputError(fmt::format("parameter --settle = {} R/V: the settling criterion spans {:g} R/V (valid: 0 "
+                                         "for no settling stage, or [{:g}, inf) R/V)",
+                                         o->settle, kSettleSpan, kSettleSpan));
         if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
         if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
 
@@ -565,13 +570,17 @@ void registerTube(CLI::App* flow) {
             {"FvK", g.FvK},
             {"confinement_R_over_R_A", o->radius / L},
             {"centre_line_velocity_over_V", Uc / Vum}};
-        j["parameters"]["settling"] = {
-            {"max_duration_R_over_V", o->settle},
-            {"tolerance", o->settleTol},
-            {"etam_Pa_s_um", o->settle > 0.0 ? nlohmann::json(o->settleEtam) : nlohmann::json(nullptr)},
-            {"membrane_viscosity_ratio_E",
-             o->settle > 0.0 ? nlohmann::json(g.membraneViscosity * o->settleEtam / p.etam) : nlohmann::json(nullptr)},
-            {"note", "observables come from the main run only, which starts from the settled shape"}};
+        if (o->settle > 0.0)
+            j["parameters"]["settling"] = {
+                {"max_duration_R_over_V", o->settle},
+                {"criterion", fmt::format("extents along x, y and z vary by < {:g} (relative) over the last {:g} R/V",
+                                          o->settleTol, kSettleSpan)},
+                {"etam_Pa_s_um", o->settleEtam},
+                {"membrane_viscosity_ratio_E", g.membraneViscosity * o->settleEtam / p.etam},
+                {"note", "duration_R_over_V is the main run's, which starts from the settled shape and alone gives "
+                         "the observables"}};
+        else
+            j["parameters"]["settling"] = nullptr;
         j["parameters"]["tube"] = {
             {"wall_points_per_ring", ts.pointsPerRing},
             {"wall_vertices", env.wall().numVertices()},
@@ -614,7 +623,7 @@ void registerTube(CLI::App* flow) {
 
         // ---- Settling stage (docs/FLOW.md "Tube"): the same cell with a small membrane viscosity
         // reaches the steady shape on the fluid's time scale instead of eta_m / mu (~280 R/V for the
-        // Table 1 cell). A cell at rest in the co-moving frame feels no membrane-viscosity force, so
+        // Table 1 cell at 30 mmHg/mm). A cell at rest in the co-moving frame feels no membrane-viscosity force, so
         // the steady state is the same; the main stage, with the cell's own eta_m, checks it.
         Vertices startUm = initialUm;
         if (o->settle > 0.0) {
@@ -633,8 +642,9 @@ void registerTube(CLI::App* flow) {
             sd.erase("sfs");
             sd["t_reached_R_over_V"] = rs.tReached;
             sd["settled"] = rs.stoppedEarly;
-            sd["criterion"] = fmt::format("length and width vary by < {} (relative) over the last {} R/V", o->settleTol,
-                                          kSettleSpan);
+            sd["wall_clearance_min_um"] = env.minClearance() * L;
+            sd["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
+            env.resetRecords();
             diag["settling"] = sd;
             const std::string dir = o->step.out.empty() ? std::string() : o->step.out + "/settling";
             if (!rs.completed) fail("settling stage", settleModel, rs, initialUm, dir);
@@ -696,11 +706,19 @@ void registerTube(CLI::App* flow) {
                                {"reached", plateau},
                                {"criterion", "both relative changes < 1 %"}};
             diag["cell_frame_motion"] = {
-                {"max_vertex_displacement_um", ob.cellFrameMotion},
+                {"fastest_vertex_path_um", ob.cellFrameMotion},
                 {"centroid_travel_um", ob.travel},
                 {"ratio", ob.cellFrameMotion / std::max(ob.travel, 1e-300)},
-                {"meaning", "vertex motion relative to the centroid over the averaging window: ~0 = membrane at rest "
-                            "in the co-moving frame (no tank-treading), a steady state independent of eta_m"}};
+                {"meaning", "path of the fastest vertex relative to the centroid over the averaging window, against "
+                            "the centroid's travel (bounds the membrane's speed relative to the cell): ~0 = membrane "
+                            "at rest in the co-moving frame (no tank-treading), a steady state independent of eta_m"}};
+            if (diag.contains("settling")) {
+                const double l0 = diag["settling"]["final_length_um"].get<double>();
+                diag["settling"]["length_change_main_vs_settled"] = (ob.length - l0) / ob.length;
+                if (!diag["settling"]["settled"].get<bool>())
+                    j["analysis"]["warning"] = "the settling stage reached its limit (--settle) before the shape was "
+                                               "steady; the main run may not have reached the steady state";
+            }
         }
         diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         j["diagnostics"] = diag;

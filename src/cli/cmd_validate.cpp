@@ -79,9 +79,10 @@ struct Runner {
     std::string caseArgs(const ValidationCase& c) const {
         if (c.kind == "tube")
             return fmt::format("flow tube --radius {:.17g} --pressure-gradient {:.17g} --eta-out {:.17g} --level {} --duration {:.17g} "
-                               "--settle {:.17g} --settle-etam {:.17g} --step-tol {:.17g} {}",
+                               "--settle {:.17g} --settle-etam {:.17g} --settle-tol {:.17g} --step-tol {:.17g} {}",
                                cfg.tubeRadius, c.pressureGradient, cfg.tubeEtaOut, cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level,
-                               cfg.tubeDuration, cfg.tubeSettle, cfg.tubeSettleEtam, cfg.stepTol, cellArgs());
+                               cfg.tubeDuration, cfg.tubeSettle, cfg.tubeSettleEtam, cfg.tubeSettleTol, cfg.stepTol,
+                               cellArgs());
         return fmt::format("flow shear --eta-out {:.17g} --shear-rate {:.17g} --eta-in {:.17g} --level {} --rotations {:.17g} "
                            "--step-tol {:.17g} {}",
                            c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
@@ -233,8 +234,9 @@ json writeTables(Runner& R) {
     std::string shear =
         "case_id,sweep,eta_out_mPa_s,shear_rate_per_s,shear_stress_Pa,regime,inclination_deg,swing_amplitude_deg,"
         "ttf_4pi_f_over_shear_rate,status,area_drift_max,volume_drift_max,wall_s,level\n";
-    std::string tube = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,length_um,width_um,plateau,status,area_drift_max,"
-                       "volume_drift_max,wall_s,level\n";
+    std::string tube = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,length_um,width_um,plateau,settled,"
+                       "length_change_main_vs_settled,cell_frame_motion_ratio,status,area_drift_max,volume_drift_max,wall_s,"
+                       "level\n";
     std::map<double, ExperimentalPoints> angleData;
     std::optional<ExperimentalPoints> pgv, vl, ttf;  // read when the first case needs them
     for (const ValidationCase& c : R.cases) {
@@ -245,10 +247,14 @@ json writeTables(Runner& R) {
         if (status != "ok") ++failed;
         const double wall = rec.value("wall_s", 0.0);
         if (c.kind == "tube") {
-            const json plateau = d.value("plateau", json::object());
-            tube += fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.pressureGradient, cfg.tubeRadius,
-                                num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
-                                num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false", status,
+            const json plateau = d.value("plateau", json::object()), settling = d.value("settling", json::object()),
+                       motion = d.value("cell_frame_motion", json::object());
+            const std::string settled = settling.empty() ? "none" : settling.value("settled", false) ? "true" : "false";
+            tube += fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.pressureGradient,
+                                cfg.tubeRadius, num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
+                                num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false",
+                                settled, num(settling.value("length_change_main_vs_settled", json())),
+                                num(motion.value("ratio", json())), status,
                                 num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())), wall,
                                 cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
             if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) continue;

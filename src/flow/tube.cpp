@@ -410,10 +410,15 @@ Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double cl
 
 // ---- Observables --------------------------------------------------------------------------------
 
+void TubeEnvironment::resetRecords() const {
+    minClearance_ = std::numeric_limits<double>::infinity();
+    maxOffAxis_ = 0.0;
+}
+
 bool tubeShapeSettled(const std::vector<double>& t, const std::vector<Vertices>& frames, double span,
                       double tolerance) {
     if (t.size() != frames.size() || t.empty() || t.back() - t.front() < span) return false;
-    for (const int axis : {0, 1}) {
+    for (const int axis : {0, 1, 2}) {
         double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0.0;
         std::size_t n = 0;
         for (std::size_t k = t.size(); k-- > 0 && t[k] >= t.back() - span * (1.0 + 1e-12);) {
@@ -461,11 +466,13 @@ TubeObservables analyzeTubeFrames(const std::vector<double>& t, const std::vecto
     o.lengthChange = std::abs(l4 - l3) / l4;
     const double v7 = slope(t, cx, e7, e8);
     o.velocityChange = std::abs(o.velocity - v7) / std::max(std::abs(o.velocity), 1e-300);
-    const Vertices& a = frames[half];
-    const Vertices& b = frames[n - 1];
-    const Vector3d ca = centroid(a), cb = centroid(b);
-    o.travel = (cb - ca).norm();
-    o.cellFrameMotion = ((b.colwise() - cb) - (a.colwise() - ca)).colwise().norm().maxCoeff();
+    o.travel = (centroid(frames[n - 1]) - centroid(frames[half])).norm();
+    for (std::size_t k = half + 1; k < n; ++k) {
+        const Vertices& a = frames[k - 1];
+        const Vertices& b = frames[k];
+        const Vector3d ca = centroid(a), cb = centroid(b);
+        o.cellFrameMotion += ((b.colwise() - cb) - (a.colwise() - ca)).colwise().norm().maxCoeff();
+    }
     return o;
 }
 

@@ -167,6 +167,8 @@ public:
     /// Smallest vertex clearance to the (circular) wall seen in inadmissible(), internal units.
     double minClearance() const { return minClearance_; }
     double maxOffAxis() const { return maxOffAxis_; }
+    /// Starts the two records above afresh (between the stages of a run).
+    void resetRecords() const;
     /// Repulsion energy of the vertices (test of the gradient).
     double repulsionEnergy(const Vertices& X) const;
 
@@ -194,16 +196,18 @@ struct TubeObservables {
     /// record, and of the velocity between the 7th and the last eighth.
     double lengthChange = 0.0, velocityChange = 0.0;
     double maxOffAxis = 0.0;  ///< largest distance of the centroid from the axis over the frames
-    /// Largest displacement of a vertex relative to the centroid between the first and the last
-    /// frame of the averaging window, and the centroid's travel over that window. A ratio ~0 means
-    /// the membrane is at rest in the co-moving frame (no tank-treading): then the membrane-
-    /// viscosity force, which depends on relative vertex velocities only (MODEL.md C.4), vanishes
-    /// in the steady state, and that state does not depend on eta_m.
+    /// Path of the fastest vertex in the co-moving frame over the averaging window (the sum over
+    /// consecutive frames of the largest vertex displacement relative to the centroid), and the
+    /// centroid's travel over that window: their ratio bounds the membrane's speed relative to the
+    /// cell (a tank-treading membrane: of order 0.1-1). A ratio ~0 means the membrane is at rest in
+    /// the co-moving frame: then the membrane-viscosity force, which depends on relative vertex
+    /// velocities only (MODEL.md C.4), vanishes in the steady state, and that state does not
+    /// depend on eta_m.
     double cellFrameMotion = 0.0, travel = 0.0;
     std::size_t framesUsed = 0;
 };
-/// True when the shape has settled: over the frames in [t_last - span, t_last] the length (x extent)
-/// and the width (y extent) vary by less than `tolerance` relative (max - min over mean). False
+/// True when the shape has settled: over the frames in [t_last - span, t_last] the extents along x
+/// (length), y and z (widths) vary by less than `tolerance` relative (max - min over mean). False
 /// until the record covers `span`.
 bool tubeShapeSettled(const std::vector<double>& t, const std::vector<Vertices>& frames, double span,
                       double tolerance);
