@@ -363,7 +363,7 @@ void registerShear(CLI::App* flow) {
 // ---- flow tube ----------------------------------------------------------------------------------
 
 constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
-constexpr double kSettleSpan = 10.0;  // R/V over which the settling stage's shape must be steady  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
+constexpr double kSettleSpan = 10.0;  // R/V over which the settling stage's shape must be steady
 
 /// Wall points per ring at the default resolution: wall chord ~ 1.5 x the cell's mean edge.
 int defaultWallPoints(double radiusUm, const Vertices& cellUm, const Faces& faces) {
@@ -623,8 +623,9 @@ void registerTube(CLI::App* flow) {
 
         // ---- Settling stage (docs/FLOW.md "Tube"): the same cell with a small membrane viscosity
         // reaches the steady shape on the fluid's time scale instead of eta_m / mu (~280 R/V for the
-        // Table 1 cell at 30 mmHg/mm). A cell at rest in the co-moving frame feels no membrane-viscosity force, so
-        // the steady state is the same; the main stage, with the cell's own eta_m, checks it.
+        // Table 1 cell at 30 mmHg/mm). A cell at rest in the co-moving frame feels no membrane-
+        // viscosity force, so the steady state is the same; the main stage continues from the
+        // settled shape with the cell's own eta_m and alone gives the observables.
         Vertices startUm = initialUm;
         if (o->settle > 0.0) {
             CellParameters ps = p;
