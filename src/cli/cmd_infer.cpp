@@ -65,7 +65,7 @@ void registerInfer(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--seed", o->seed, "run seed (each run derives its own from it and its name)")->capture_default_str();
     cmd->add_option("--out", o->out, "output directory DIR")->required();
-    cmd->add_option("--model", o->model, "surrogate model directory (default: the shipped surrogates)");
+    addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
                     "else the shipped copy data/experiments)");

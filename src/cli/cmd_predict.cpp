@@ -51,7 +51,7 @@ void registerPredict(CLI::App& app) {
                     "output directory of `trbc infer`: predict every phase-3b posterior DIR/phase3/<data set> (hierarchical)");
     cmd->add_flag("--single", o->single, "with --inference: also the phase-1 posteriors DIR/phase1/<data set> (single)");
     cmd->add_option("--out", o->out, "output directory")->required();
-    cmd->add_option("--model", o->model, "surrogate model directory (default: the shipped surrogates)");
+    addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
                     "else the shipped copy data/experiments)");

@@ -55,7 +55,7 @@ void registerSobol(CLI::App& app) {
                  "hmin_um, hmax_um, tc_s and of D0_um, D1_um at each force, with respect to v, mu_uN_per_m, FvK, b2, "
                  "etam_Pa_s_um uniform on the prior box; writes OUT/sobol_indices.csv, sobol_second_order.csv, sobol.json "
                  "and the figures");
-    cmd->add_option("--model", o->model, "model directory (default: the shipped surrogates)");
+    addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--samples", o->samples, "N, base rows of the Saltelli design (N(2D+2) evaluations)")
         ->check(CLI::Range(2L, 1L << 24))->capture_default_str();
     cmd->add_option("--seed", o->seed, "seed of the bootstrap (and of the base sample with --base random)")->capture_default_str();

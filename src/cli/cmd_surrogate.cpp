@@ -256,7 +256,7 @@ void registerEval(CLI::App* parent) {
         "eval", "Evaluate the surrogates on a CSV with columns v, mu_uN_per_m, FvK (or kb_J), b2, etam_Pa_s_um, Fext_pN "
                 "(other columns ignored); writes those inputs, D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s and "
                 "outside_training_box (1 = extrapolation)");
-    cmd->add_option("--model", o->model, "model directory (default: the shipped surrogates)");
+    addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--in", o->in, "input CSV")->required();
     cmd->add_option("--out", o->out, "output CSV")->required();
     cmd->add_flag("--single-precision", o->single, "evaluate in float (about 3x faster, ~1e-6 relative difference)");
@@ -310,7 +310,7 @@ void registerTest(CLI::App* parent) {
         "test", "Accuracy of the surrogates against simulated rows they were not trained on (another campaign, or "
                 "trbc simulate results in the campaign's columns): the table of accuracy.md (equilibrium outputs and "
                 "tc once per cell, D0 and D1 per row); with --out also test.md, test.json and test_predictions.csv");
-    cmd->add_option("--model", o->model, "model directory (default: the shipped surrogates)");
+    addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
     cmd->add_option("--out", o->out, "directory for test.md, test.json and test_predictions.csv");
@@ -357,6 +357,10 @@ void registerTest(CLI::App* parent) {
 }
 
 }  // namespace
+
+void addSurrogateModelOption(CLI::App* cmd, std::string& model) {
+    cmd->add_option("--model", model, "surrogate model directory (default: the shipped surrogates)");
+}
 
 std::filesystem::path defaultSurrogateDirectory() {
     if (const char* env = std::getenv("TRBC_SURROGATE_DIR")) return env;

@@ -64,6 +64,8 @@ void registerPredict(CLI::App& app);
 
 /// Shipped surrogates: $TRBC_SURROGATE_DIR, else <source>/data/surrogates.
 std::filesystem::path defaultSurrogateDirectory();
+/// `--model DIR`, the surrogate model directory (empty: defaultSurrogateDirectory()).
+void addSurrogateModelOption(CLI::App* cmd, std::string& model);
 /// Experimental data: $TRBC_EXPERIMENT_DATA, else the copy shipped in <source>/data/experiments.
 std::filesystem::path defaultExperimentDirectory();
 /// A path quoted for /bin/sh.
