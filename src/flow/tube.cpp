@@ -439,12 +439,13 @@ TubeObservables analyzeTubeFrames(const std::vector<double>& t, const std::vecto
     if (n < 16) throw InputError(fmt::format("tube frames: {} frames, at least 16 needed", n));
     TubeObservables o;
     std::vector<double> len(n), cx(n);
+    std::vector<Vector3d> c(n);
     for (std::size_t k = 0; k < n; ++k) {
         const Vertices& X = frames[k];
         len[k] = X.row(0).maxCoeff() - X.row(0).minCoeff();
-        const Vector3d c = centroid(X);
-        cx[k] = c.x();
-        o.maxOffAxis = std::max(o.maxOffAxis, std::hypot(c.y(), c.z()));
+        c[k] = centroid(X);
+        cx[k] = c[k].x();
+        o.maxOffAxis = std::max(o.maxOffAxis, std::hypot(c[k].y(), c[k].z()));
     }
     const auto mean = [](const std::vector<double>& v, std::size_t a, std::size_t b) {
         double s = 0.0;
@@ -466,13 +467,10 @@ TubeObservables analyzeTubeFrames(const std::vector<double>& t, const std::vecto
     o.lengthChange = std::abs(l4 - l3) / l4;
     const double v7 = slope(t, cx, e7, e8);
     o.velocityChange = std::abs(o.velocity - v7) / std::max(std::abs(o.velocity), 1e-300);
-    o.travel = (centroid(frames[n - 1]) - centroid(frames[half])).norm();
-    for (std::size_t k = half + 1; k < n; ++k) {
-        const Vertices& a = frames[k - 1];
-        const Vertices& b = frames[k];
-        const Vector3d ca = centroid(a), cb = centroid(b);
-        o.cellFrameMotion += ((b.colwise() - cb) - (a.colwise() - ca)).colwise().norm().maxCoeff();
-    }
+    o.travel = (c[n - 1] - c[half]).norm();
+    for (std::size_t k = half + 1; k < n; ++k)
+        o.cellFrameMotion +=
+            ((frames[k].colwise() - c[k]) - (frames[k - 1].colwise() - c[k - 1])).colwise().norm().maxCoeff();
     return o;
 }
 
