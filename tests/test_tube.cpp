@@ -352,7 +352,9 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
                           Case{"--radius 3.3 --pressure-gradient 30 --viscosity-ratio 0", "--viscosity-ratio"},
                           Case{"--radius 3.3 --pressure-gradient 30 --viscosity-ratio 5", "--viscosity-ratio"},
                           Case{"--radius 3.3 --pressure-gradient 30 --mu -1", "mu"},
-                          Case{"--radius 3.3 --pressure-gradient 30 --settle 5", "--settle"}}) {
+                          Case{"--radius 3.3 --pressure-gradient 30 --settle 5", "--settle"},
+                          Case{"--radius 3.3 --pressure-gradient 30 --settle-relax 0", "--settle-relax"},
+                          Case{"--radius 3.3 --pressure-gradient 30 --settle-relax 1 --settle-etam 0.01", "excludes"}}) {
         const test::CliRun r = test::runTrbc("flow tube --level 2 " + c.args + cache, dir.path());
         EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
         EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.args << "\n" << r.err;
@@ -367,6 +369,11 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     EXPECT_NE(j.at("reason").get<std::string>().find("step limit"), std::string::npos);
     EXPECT_NE(j.at("reason").get<std::string>().find("settling stage"), std::string::npos) << j.at("reason");
     EXPECT_TRUE(j.at("observables").at("velocity_cm_per_s").is_null());
+    // The settling viscosity of --settle-relax 1.5 (default): eta_m = 1.5 mu R / V, V = 30/45 cm/s.
+    const nlohmann::json& settling = j.at("parameters").at("settling");
+    const double mu = j.at("parameters").at("cell").at("mu_uN_per_m").get<double>();
+    EXPECT_NEAR(settling.at("etam_Pa_s_um").get<double>(), 1.5 * mu * 3.3 / (30.0 / 45.0 * 1e4), 1e-12);
+    EXPECT_NEAR(settling.at("relaxation_time_etam_over_mu_R_over_V").get<double>(), 1.5, 1e-12);
     const test::CliRun r0 = test::runTrbc(
         "flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --settle 0 --max-steps 2" + cache,
         dir.path());

@@ -78,6 +78,10 @@ TEST(ValidationConfig, ErrorsNameFileLineKeyAndRange) {
     EXPECT_NE(e.find("v.toml:2: 'tube.radius' = 1 is out of range: valid range [1.497, 10000]"), std::string::npos) << e;
     e = configError(dir, "[tube]\npressure_gradients = [5, -10]\n");
     EXPECT_NE(e.find("v.toml:2: 'tube.pressure_gradients' must be a non-empty array of numbers > 0"), std::string::npos) << e;
+    e = configError(dir, "[tube]\nsettle_relax = 0\n");
+    EXPECT_NE(e.find("v.toml:2: 'tube.settle_relax' = 0 is out of range"), std::string::npos) << e;
+    e = configError(dir, "[tube]\nsettle_relax = 1\nsettle_etam = 0.01\n");
+    EXPECT_NE(e.find("settle_relax and settle_etam both given"), std::string::npos) << e;
     e = configError(dir, "[cell]\nsource = \"posterior\"\n");
     EXPECT_NE(e.find("needs cell.posterior"), std::string::npos) << e;
     e = configError(dir, "[cell]\nmu_uN_per_m = 20\n");

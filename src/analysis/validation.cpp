@@ -127,13 +127,18 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     }
     if (const toml::table* t = section("tube")) {
         TableReader r(file, *t, "tube");
-        r.allowOnly({"enabled", "radius", "eta_out", "duration", "settle", "settle_etam", "settle_tol", "level", "pressure_gradients"});
+        r.allowOnly({"enabled", "radius", "eta_out", "duration", "settle", "settle_relax", "settle_etam", "settle_tol", "level", "pressure_gradients"});
         r.boolean("enabled", c.tubeEnabled);
         r.real("radius", c.tubeRadius, 1.497, 1e4);
         r.real("eta_out", c.tubeEtaOut, 0.0, 1e6, true);
         r.real("duration", c.tubeDuration, 0.0, 1e7, true);
         r.real("settle", c.tubeSettle, 0.0, 1e7);
+        r.real("settle_relax", c.tubeSettleRelax, 0.0, 1e3, true);
         r.real("settle_etam", c.tubeSettleEtam, 0.0, 1e3, true);
+        if (t->get("settle_relax") && t->get("settle_etam"))
+            throw InputError(fmt::format("{}: [tube] settle_relax and settle_etam both given: the settling stage's membrane "
+                                         "viscosity is set by one of them (settle_etam replaces settle_relax)",
+                                         file.string()));
         r.real("settle_tol", c.tubeSettleTol, 0.0, 1.0, true);
         if (c.tubeSettle > 0.0 && c.tubeSettle < 10.0)
             throw InputError(fmt::format("{}: [tube] settle = {}: must be 0 (no settling stage) or >= 10 R/V (the span "

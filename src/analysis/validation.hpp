@@ -35,7 +35,9 @@ struct ValidationConfig {
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
-    double tubeSettle = 60.0, tubeSettleEtam = 0.02;  ///< settling stage: longest R/V, Pa s um (`flow tube --settle`)
+    double tubeSettle = 60.0;       ///< settling stage: longest R/V (`flow tube --settle`)
+    double tubeSettleRelax = 1.5;   ///< its eta_m / mu in R/V (`flow tube --settle-relax`)
+    double tubeSettleEtam = 0.0;    ///< > 0: its eta_m in Pa s um instead (`flow tube --settle-etam`)
     double tubeSettleTol = 2e-3;                       ///< `flow tube --settle-tol`
     int tubeLevel = 0;                      ///< 0: the run level
     std::vector<double> pressureGradients;  ///< mmHg/mm

@@ -399,7 +399,8 @@ void registerTube(CLI::App* flow) {
         double radius = std::nan(""), pg = std::nan(""), etaOut = 1.003, lambda = 1.0;
         CellOptions cell;
         int level = 3, wallPoints = 0;
-        double duration = 30.0, tubeLength = 0.0, settle = 60.0, settleEtam = 0.02, settleTol = 2e-3;
+        double duration = 30.0, tubeLength = 0.0, settle = 60.0, settleRelax = 1.5, settleTol = 2e-3;
+        double settleEtam = std::nan("");  // explicit override of settleRelax
         double repulsionRange = 0.1, repulsionPressure = 10.0;
         SteppingOptions step = tubeStepping();
         CacheOptions cache;
@@ -427,13 +428,22 @@ void registerTube(CLI::App* flow) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_option("--settle", o->settle,
-                    "longest settling stage before the main run, R/V (0: none, else >= 10): the cell with membrane "
-                    "viscosity --settle-etam reaches the steady shape fast; a cell at rest in the co-moving frame "
+                    "longest settling stage before the main run, R/V (0: none, else >= 10): the cell with the small "
+                    "membrane viscosity of --settle-relax reaches the steady shape fast; a cell at rest in the co-moving frame "
                     "feels no membrane viscosity, and the main run, with the cell's own etam, continues from that "
                     "shape and gives the observables")
         ->check(CLI::NonNegativeNumber)->capture_default_str();
-    cmd->add_option("--settle-etam", o->settleEtam, "membrane viscosity of the settling stage, Pa s um (> 0)")
-        ->check(CLI::PositiveNumber)->capture_default_str();
+    CLI::Option* relax =
+        cmd->add_option("--settle-relax", o->settleRelax,
+                        "relaxation time eta_m / mu of the settling stage, R/V (> 0): its membrane viscosity is this x mu "
+                        "R / V (at most the cell's own). The slow shape mode relaxes on eta_m / mu, so a fixed time in "
+                        "R/V keeps the settling stage's length in R/V independent of the capillary number")
+            ->check(CLI::PositiveNumber)
+            ->capture_default_str();
+    cmd->add_option("--settle-etam", o->settleEtam,
+                    "membrane viscosity of the settling stage, Pa s um (> 0); replaces --settle-relax")
+        ->check(CLI::PositiveNumber)
+        ->excludes(relax);
     cmd->add_option("--settle-tol", o->settleTol,
                     fmt::format("the settling stage ends when the cell's extents along x, y and z vary by less "
                                 "than this (relative) over the last {:g} R/V", kSettleSpan))
@@ -482,6 +492,11 @@ void registerTube(CLI::App* flow) {
         const double timeUnit = o->radius / Vum;  // s
         const double G = o->pg * kPaPerMPerMmHgPerMm;  // Pa/m
         const double Uc = G * std::pow(o->radius * 1e-6, 2) / (4.0 * o->etaOut * 1e-3) * 1e6;  // um/s
+        // Settling viscosity: eta_m / mu = settleRelax R / V; with mu in uN/m, R in um and V in um/s
+        // this is eta_m = settleRelax mu R / V in Pa s um.
+        const bool settleByRelax = std::isnan(o->settleEtam);
+        const double settleEtam =
+            settleByRelax ? std::min(p.etam, o->settleRelax * p.mu * o->radius / Vum) : o->settleEtam;
         fc.etaOut = o->etaOut;
         fc.etaIn = o->etaOut * o->lambda;
         fc.shearRate = 0.0;
@@ -575,8 +590,12 @@ void registerTube(CLI::App* flow) {
                 {"max_duration_R_over_V", o->settle},
                 {"criterion", fmt::format("extents along x, y and z vary by < {:g} (relative) over the last {:g} R/V",
                                           o->settleTol, kSettleSpan)},
-                {"etam_Pa_s_um", o->settleEtam},
-                {"membrane_viscosity_ratio_E", g.membraneViscosity * o->settleEtam / p.etam},
+                {"etam_Pa_s_um", settleEtam},
+                {"etam_source", settleByRelax ? fmt::format("--settle-relax {:g}: eta_m = {:g} x mu R / V, at most the "
+                                                            "cell's own eta_m", o->settleRelax, o->settleRelax)
+                                              : std::string("--settle-etam")},
+                {"relaxation_time_etam_over_mu_R_over_V", settleEtam / (p.mu * o->radius / Vum)},
+                {"membrane_viscosity_ratio_E", g.membraneViscosity * settleEtam / p.etam},
                 {"note", "duration_R_over_V is the main run's, which starts from the settled shape and alone gives "
                          "the observables"}};
         else
@@ -622,14 +641,14 @@ void registerTube(CLI::App* flow) {
         };
 
         // ---- Settling stage (docs/FLOW.md "Tube"): the same cell with a small membrane viscosity
-        // reaches the steady shape on the fluid's time scale instead of eta_m / mu (~280 R/V for the
-        // Table 1 cell at 30 mmHg/mm). A cell at rest in the co-moving frame feels no membrane-
+        // (eta_m / mu = settleRelax R/V) reaches the steady shape in a number of R/V independent of
+        // Ca instead of eta_m / mu (~280 R/V for the Table 1 cell at 30 mmHg/mm). A cell at rest in the co-moving frame feels no membrane-
         // viscosity force, so the steady state is the same; the main stage continues from the
         // settled shape with the cell's own eta_m and alone gives the observables.
         Vertices startUm = initialUm;
         if (o->settle > 0.0) {
             CellParameters ps = p;
-            ps.etam = o->settleEtam;
+            ps.etam = settleEtam;
             const CellFlowModel settleModel(ps, fc, cell.faces, cell.reference);
             CellFlowOptions so = cellFlowOptions(o->step, o->settle, 5.0);
             so.stopWhen = [tol = o->settleTol](const CellFlowResult& sofar) {
@@ -645,6 +664,19 @@ void registerTube(CLI::App* flow) {
             sd["settled"] = rs.stoppedEarly;
             sd["wall_clearance_min_um"] = env.minClearance() * L;
             sd["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
+            if (rs.frames.size() >= 16) {
+                // Is the membrane at rest in the co-moving frame at the end of this stage too?
+                std::vector<double> tS(rs.times.size());
+                std::vector<Vertices> fUm(rs.frames.size());
+                for (std::size_t k = 0; k < rs.frames.size(); ++k) {
+                    tS[k] = rs.times[k] * timeUnit;
+                    fUm[k] = settleModel.toMicrons(rs.frames[k]);
+                }
+                const TubeObservables so2 = analyzeTubeFrames(tS, fUm);
+                sd["cell_frame_motion"] = {{"fastest_vertex_path_um", so2.cellFrameMotion},
+                                           {"centroid_travel_um", so2.travel},
+                                           {"ratio", so2.cellFrameMotion / std::max(so2.travel, 1e-300)}};
+            }
             env.resetRecords();
             diag["settling"] = sd;
             const std::string dir = o->step.out.empty() ? std::string() : o->step.out + "/settling";

@@ -79,10 +79,12 @@ struct Runner {
     std::string caseArgs(const ValidationCase& c) const {
         if (c.kind == "tube")
             return fmt::format("flow tube --radius {:.17g} --pressure-gradient {:.17g} --eta-out {:.17g} --level {} --duration {:.17g} "
-                               "--settle {:.17g} --settle-etam {:.17g} --settle-tol {:.17g} --step-tol {:.17g} {}",
+                               "--settle {:.17g} {} --settle-tol {:.17g} --step-tol {:.17g} {}",
                                cfg.tubeRadius, c.pressureGradient, cfg.tubeEtaOut, cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level,
-                               cfg.tubeDuration, cfg.tubeSettle, cfg.tubeSettleEtam, cfg.tubeSettleTol, cfg.stepTol,
-                               cellArgs());
+                               cfg.tubeDuration, cfg.tubeSettle,
+                               cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {:.17g}", cfg.tubeSettleEtam)
+                                                        : fmt::format("--settle-relax {:.17g}", cfg.tubeSettleRelax),
+                               cfg.tubeSettleTol, cfg.stepTol, cellArgs());
         return fmt::format("flow shear --eta-out {:.17g} --shear-rate {:.17g} --eta-in {:.17g} --level {} --rotations {:.17g} "
                            "--step-tol {:.17g} {}",
                            c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());

@@ -30,7 +30,9 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // --help and --version exit 0; every other command-line error is bad input (exit 2, as
+        // InputError), whatever CLI11's own code for it.
+        return app.exit(e) == 0 ? 0 : 2;
     } catch (const trbc::InputError& e) {
         std::cerr << "trbc: error: " << e.what() << '\n';
         return 2;
