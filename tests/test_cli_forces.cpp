@@ -114,5 +114,14 @@ TEST(CliForces, RejectsBadParametersWithAClearMessageAndNoOutput) {
     }
 }
 
+// --help and --version exit 0; a command-line error (unknown option, a value CLI11 rejects)
+// exits 2 like every other bad input.
+TEST(Cli, HelpAndVersionExitZeroParseErrorsExitTwo) {
+    for (const char* args : {"--help", "--version", "flow tube --help", "simulate --help"})
+        EXPECT_EQ(runCli(args).status, 0) << args;
+    for (const char* args : {"--no-such-option", "simulate --level 9", "flow tube --radius 3 --pressure-gradient 1 --settle-relax x"})
+        EXPECT_EQ(runCli(args).status, 2) << args;
+}
+
 }  // namespace
 }  // namespace trbc

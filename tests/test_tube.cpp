@@ -354,8 +354,9 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
                           Case{"--radius 3.3 --pressure-gradient 30 --mu -1", "mu"},
                           Case{"--radius 3.3 --pressure-gradient 30 --settle 5", "--settle"},
                           Case{"--radius 3.3 --pressure-gradient 30 --settle-relax 0", "--settle-relax"},
-                          Case{"--radius 3.3 --pressure-gradient 30 --settle-relax 1 --settle-etam 0.01", "excludes"}}) {
-        const test::CliRun r = test::runTrbc("flow tube --level 2 " + c.args + cache, dir.path());
+                          Case{"--radius 3.3 --pressure-gradient 30 --settle-relax 1 --settle-etam 0.01", "--settle-etam"}}) {
+        // --max-steps 1: a check that failed to reject would not run a whole simulation.
+        const test::CliRun r = test::runTrbc("flow tube --level 2 --max-steps 1 " + c.args + cache, dir.path());
         EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
         EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.args << "\n" << r.err;
         EXPECT_EQ(r.out.find("\"observables\""), std::string::npos) << c.args;
@@ -373,7 +374,16 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     const nlohmann::json& settling = j.at("parameters").at("settling");
     const double mu = j.at("parameters").at("cell").at("mu_uN_per_m").get<double>();
     EXPECT_NEAR(settling.at("etam_Pa_s_um").get<double>(), 1.5 * mu * 3.3 / (30.0 / 45.0 * 1e4), 1e-12);
-    EXPECT_NEAR(settling.at("relaxation_time_etam_over_mu_R_over_V").get<double>(), 1.5, 1e-12);
+    // E = eta_m / (eta_out R_A), R_A = sqrt(A0 / 4 pi) = 3.2777 um for A0 = 135 um^2.
+    EXPECT_NEAR(settling.at("membrane_viscosity_ratio_E").get<double>(),
+                settling.at("etam_Pa_s_um").get<double>() / (1.003e-3 * std::sqrt(135.0 / (4.0 * M_PI))), 1e-9);
+    EXPECT_EQ(settling.at("capped_at_cell_etam"), false);
+    // --settle-etam replaces it; recorded as given.
+    const nlohmann::json je = nlohmann::json::parse(
+        test::runTrbc("flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --max-steps 2 "
+                      "--settle-etam 0.05" + cache, dir.path()).out);
+    EXPECT_DOUBLE_EQ(je.at("parameters").at("settling").at("etam_Pa_s_um").get<double>(), 0.05);
+    EXPECT_TRUE(je.at("parameters").at("settling").at("relax_requested_R_over_V").is_null());
     const test::CliRun r0 = test::runTrbc(
         "flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --settle 0 --max-steps 2" + cache,
         dir.path());

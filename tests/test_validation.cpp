@@ -81,7 +81,7 @@ TEST(ValidationConfig, ErrorsNameFileLineKeyAndRange) {
     e = configError(dir, "[tube]\nsettle_relax = 0\n");
     EXPECT_NE(e.find("v.toml:2: 'tube.settle_relax' = 0 is out of range"), std::string::npos) << e;
     e = configError(dir, "[tube]\nsettle_relax = 1\nsettle_etam = 0.01\n");
-    EXPECT_NE(e.find("settle_relax and settle_etam both given"), std::string::npos) << e;
+    EXPECT_NE(e.find("v.toml:3: 'tube.settle_etam' and 'tube.settle_relax' both given"), std::string::npos) << e;
     e = configError(dir, "[cell]\nsource = \"posterior\"\n");
     EXPECT_NE(e.find("needs cell.posterior"), std::string::npos) << e;
     e = configError(dir, "[cell]\nmu_uN_per_m = 20\n");
@@ -210,6 +210,17 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     EXPECT_NE(r.out.find("--etam 0.29999999999999999"), std::string::npos) << r.out;
     r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run --level 3", dir.path());
     EXPECT_NE(r.out.find("--level 3"), std::string::npos) << r.out;
+    // The tube's settling viscosity: settle_relax by default, settle_etam when given instead.
+    const fs::path tubeA = writeText(dir.path() / "tubeA.toml", "[tube]\npressure_gradients = [30]\n");
+    r = test::runTrbc("validate --config " + tubeA.string() + " --only tube --out " + out + "_t --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("--settle-relax 1.5 "), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--settle-etam"), std::string::npos) << r.out;
+    const fs::path tubeB = writeText(dir.path() / "tubeB.toml", "[tube]\npressure_gradients = [30]\nsettle_etam = 0.02\n");
+    r = test::runTrbc("validate --config " + tubeB.string() + " --only tube --out " + out + "_t --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("--settle-etam 0.02"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--settle-relax"), std::string::npos) << r.out;
     // Bad config: exit 2 naming the key, nothing written.
     const fs::path bad = writeText(dir.path() / "bad.toml", "[run]\njobs = 0\n");
     r = test::runTrbc("validate --config " + bad.string() + " --out " + (dir.path() / "b").string(), dir.path());

@@ -136,9 +136,8 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         r.real("settle_relax", c.tubeSettleRelax, 0.0, 1e3, true);
         r.real("settle_etam", c.tubeSettleEtam, 0.0, 1e3, true);
         if (t->get("settle_relax") && t->get("settle_etam"))
-            throw InputError(fmt::format("{}: [tube] settle_relax and settle_etam both given: the settling stage's membrane "
-                                         "viscosity is set by one of them (settle_etam replaces settle_relax)",
-                                         file.string()));
+            r.fail(*t->get("settle_etam"), "'tube.settle_etam' and 'tube.settle_relax' both given: the settling stage's "
+                                           "membrane viscosity is set by one of them, give one");
         r.real("settle_tol", c.tubeSettleTol, 0.0, 1.0, true);
         if (c.tubeSettle > 0.0 && c.tubeSettle < 10.0)
             throw InputError(fmt::format("{}: [tube] settle = {}: must be 0 (no settling stage) or >= 10 R/V (the span "

@@ -400,7 +400,8 @@ void registerTube(CLI::App* flow) {
         CellOptions cell;
         int level = 3, wallPoints = 0;
         double duration = 30.0, tubeLength = 0.0, settle = 60.0, settleRelax = 1.5, settleTol = 2e-3;
-        double settleEtam = std::nan("");  // explicit override of settleRelax
+        double settleEtam = 0.0;              // used when given: replaces settleRelax
+        CLI::Option* settleEtamOption = nullptr;
         double repulsionRange = 0.1, repulsionPressure = 10.0;
         SteppingOptions step = tubeStepping();
         CacheOptions cache;
@@ -440,10 +441,11 @@ void registerTube(CLI::App* flow) {
                         "R/V keeps the settling stage's length in R/V independent of the capillary number")
             ->check(CLI::PositiveNumber)
             ->capture_default_str();
-    cmd->add_option("--settle-etam", o->settleEtam,
-                    "membrane viscosity of the settling stage, Pa s um (> 0); replaces --settle-relax")
-        ->check(CLI::PositiveNumber)
-        ->excludes(relax);
+    o->settleEtamOption = cmd->add_option("--settle-etam", o->settleEtam,
+                                          "membrane viscosity of the settling stage, Pa s um (> 0); replaces "
+                                          "--settle-relax")
+                              ->check(CLI::PositiveNumber)
+                              ->excludes(relax);
     cmd->add_option("--settle-tol", o->settleTol,
                     fmt::format("the settling stage ends when the cell's extents along x, y and z vary by less "
                                 "than this (relative) over the last {:g} R/V", kSettleSpan))
@@ -494,9 +496,9 @@ void registerTube(CLI::App* flow) {
         const double Uc = G * std::pow(o->radius * 1e-6, 2) / (4.0 * o->etaOut * 1e-3) * 1e6;  // um/s
         // Settling viscosity: eta_m / mu = settleRelax R / V; with mu in uN/m, R in um and V in um/s
         // this is eta_m = settleRelax mu R / V in Pa s um.
-        const bool settleByRelax = std::isnan(o->settleEtam);
-        const double settleEtam =
-            settleByRelax ? std::min(p.etam, o->settleRelax * p.mu * o->radius / Vum) : o->settleEtam;
+        const bool settleByRelax = o->settleEtamOption->count() == 0;
+        const double settleEtamByRelax = o->settleRelax * p.mu * o->radius / Vum;
+        const double settleEtam = settleByRelax ? std::min(p.etam, settleEtamByRelax) : o->settleEtam;
         fc.etaOut = o->etaOut;
         fc.etaIn = o->etaOut * o->lambda;
         fc.shearRate = 0.0;
@@ -591,10 +593,12 @@ void registerTube(CLI::App* flow) {
                 {"criterion", fmt::format("extents along x, y and z vary by < {:g} (relative) over the last {:g} R/V",
                                           o->settleTol, kSettleSpan)},
                 {"etam_Pa_s_um", settleEtam},
-                {"etam_source", settleByRelax ? fmt::format("--settle-relax {:g}: eta_m = {:g} x mu R / V, at most the "
-                                                            "cell's own eta_m", o->settleRelax, o->settleRelax)
-                                              : std::string("--settle-etam")},
-                {"relaxation_time_etam_over_mu_R_over_V", settleEtam / (p.mu * o->radius / Vum)},
+                {"etam_source", settleByRelax ? "--settle-relax: eta_m = relax_requested_R_over_V x mu R / V, at most "
+                                                "the cell's own eta_m"
+                                              : "--settle-etam"},
+                {"relax_requested_R_over_V", settleByRelax ? nlohmann::json(o->settleRelax) : nlohmann::json(nullptr)},
+                {"capped_at_cell_etam", settleByRelax && settleEtamByRelax > p.etam},
+                {"relaxation_time_R_over_V", settleEtam / (p.mu * o->radius / Vum)},
                 {"membrane_viscosity_ratio_E", g.membraneViscosity * settleEtam / p.etam},
                 {"note", "duration_R_over_V is the main run's, which starts from the settled shape and alone gives "
                          "the observables"}};
@@ -664,18 +668,23 @@ void registerTube(CLI::App* flow) {
             sd["settled"] = rs.stoppedEarly;
             sd["wall_clearance_min_um"] = env.minClearance() * L;
             sd["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
-            if (rs.frames.size() >= 16) {
-                // Is the membrane at rest in the co-moving frame at the end of this stage too?
-                std::vector<double> tS(rs.times.size());
-                std::vector<Vertices> fUm(rs.frames.size());
-                for (std::size_t k = 0; k < rs.frames.size(); ++k) {
-                    tS[k] = rs.times[k] * timeUnit;
-                    fUm[k] = settleModel.toMicrons(rs.frames[k]);
+            // Is the membrane at rest in the co-moving frame at the end of this stage too? The
+            // motion is measured over the second half of the frames given, here the last
+            // kSettleSpan R/V.
+            std::size_t first = 0;
+            while (first < rs.times.size() && rs.times[first] < rs.tReached - 2.0 * kSettleSpan - 1e-9) ++first;
+            if (rs.frames.size() - first >= 16) {
+                std::vector<double> tS;
+                std::vector<Vertices> fUm;
+                for (std::size_t k = first; k < rs.frames.size(); ++k) {
+                    tS.push_back(rs.times[k] * timeUnit);
+                    fUm.push_back(settleModel.toMicrons(rs.frames[k]));
                 }
                 const TubeObservables so2 = analyzeTubeFrames(tS, fUm);
                 sd["cell_frame_motion"] = {{"fastest_vertex_path_um", so2.cellFrameMotion},
                                            {"centroid_travel_um", so2.travel},
-                                           {"ratio", so2.cellFrameMotion / std::max(so2.travel, 1e-300)}};
+                                           {"ratio", so2.cellFrameMotion / std::max(so2.travel, 1e-300)},
+                                           {"window", fmt::format("the last {:g} R/V of the stage", kSettleSpan)}};
             }
             env.resetRecords();
             diag["settling"] = sd;
