@@ -7,10 +7,10 @@
 #include <chrono>
 #include <cmath>
 #include <map>
-#include <random>
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "sampling/design.hpp"
 #include "surrogate/network_io.hpp"
 
 namespace trbc {
@@ -161,13 +161,13 @@ const std::vector<PriorRange> kNetworkBoxes[3] = {{kPriorV, kPriorFvK},
                                                   {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorFext},
                                                   {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam}};
 
-/// n points drawn uniformly from the box (columns; std::mt19937_64(seed), 53-bit uniforms).
+/// n points drawn uniformly from the box (columns), the campaigns' uniform design mapped onto it.
 Eigen::MatrixXd uniformBoxPoints(const std::vector<PriorRange>& box, long n, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
+    const Eigen::MatrixXd u = unitDesign(DesignKind::Uniform, n, int(box.size()), seed);
     Eigen::MatrixXd X(Eigen::Index(box.size()), n);
     for (long j = 0; j < n; ++j)
         for (std::size_t i = 0; i < box.size(); ++i)
-            X(Eigen::Index(i), j) = box[i].lo + (box[i].hi - box[i].lo) * double(rng() >> 11) * 0x1.0p-53;
+            X(Eigen::Index(i), j) = box[i].lo + (box[i].hi - box[i].lo) * u(j, Eigen::Index(i));
     return X;
 }
 
