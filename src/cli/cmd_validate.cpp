@@ -62,7 +62,7 @@ struct Runner {
     std::string cellArgs() const {
         if (cfg.cellSource == "posterior") return "--posterior " + shellQuote(cfg.posterior);
         if (cfg.cellSource == "explicit")
-            return fmt::format("--v {:.17g} --mu {:.17g} --kb {:.17g} --b2 {:.17g} --etam {:.17g}", cfg.v, cfg.mu, cfg.kbJ, cfg.b2, cfg.etam);
+            return fmt::format("--v {} --mu {} --kb {} --b2 {} --etam {}", cfg.v, cfg.mu, cfg.kbJ, cfg.b2, cfg.etam);
         return "";  // the flow commands' default: the paper's Table 1 means
     }
 
@@ -78,15 +78,15 @@ struct Runner {
     /// The flow arguments of a case (without threads and output, which do not change the result).
     std::string caseArgs(const ValidationCase& c) const {
         if (c.kind == "tube")
-            return fmt::format("flow tube --radius {:.17g} --pressure-gradient {:.17g} --eta-out {:.17g} --level {} --duration {:.17g} "
-                               "--settle {:.17g} {} --settle-tol {:.17g} --step-tol {:.17g} {}",
+            return fmt::format("flow tube --radius {} --pressure-gradient {} --eta-out {} --level {} --duration {} "
+                               "--settle {} {} --settle-tol {} --step-tol {} {}",
                                cfg.tubeRadius, c.pressureGradient, cfg.tubeEtaOut, cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level,
                                cfg.tubeDuration, cfg.tubeSettle,
-                               cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {:.17g}", cfg.tubeSettleEtam)
-                                                        : fmt::format("--settle-relax {:.17g}", cfg.tubeSettleRelax),
+                               cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {}", cfg.tubeSettleEtam)
+                                                        : fmt::format("--settle-relax {}", cfg.tubeSettleRelax),
                                cfg.tubeSettleTol, cfg.stepTol, cellArgs());
-        return fmt::format("flow shear --eta-out {:.17g} --shear-rate {:.17g} --eta-in {:.17g} --level {} --rotations {:.17g} "
-                           "--step-tol {:.17g} {}",
+        return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
+                           "--step-tol {} {}",
                            c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
     }
 
