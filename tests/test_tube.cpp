@@ -378,12 +378,26 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     EXPECT_NEAR(settling.at("membrane_viscosity_ratio_E").get<double>(),
                 settling.at("etam_Pa_s_um").get<double>() / (1.003e-3 * std::sqrt(135.0 / (4.0 * M_PI))), 1e-9);
     EXPECT_EQ(settling.at("capped_at_cell_etam"), false);
+    EXPECT_NEAR(settling.at("relaxation_time_R_over_V").get<double>(), 1.5, 1e-12);
     // --settle-etam replaces it; recorded as given.
     const nlohmann::json je = nlohmann::json::parse(
         test::runTrbc("flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --max-steps 2 "
                       "--settle-etam 0.05" + cache, dir.path()).out);
     EXPECT_DOUBLE_EQ(je.at("parameters").at("settling").at("etam_Pa_s_um").get<double>(), 0.05);
     EXPECT_TRUE(je.at("parameters").at("settling").at("relax_requested_R_over_V").is_null());
+    // Its relaxation time eta_m / mu in units of R / V.
+    EXPECT_NEAR(je.at("parameters").at("settling").at("relaxation_time_R_over_V").get<double>(),
+                0.05 / (mu * 3.3 / (30.0 / 45.0 * 1e4)), 1e-9);
+    // A requested relaxation time whose eta_m exceeds the cell's own is capped at the cell's eta_m.
+    const nlohmann::json jc = nlohmann::json::parse(
+        test::runTrbc("flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --max-steps 2 "
+                      "--settle-relax 1e6" + cache, dir.path()).out);
+    const nlohmann::json& sc = jc.at("parameters").at("settling");
+    const double etamCell = jc.at("parameters").at("cell").at("etam_Pa_s_um").get<double>();
+    EXPECT_EQ(sc.at("capped_at_cell_etam"), true);
+    EXPECT_DOUBLE_EQ(sc.at("etam_Pa_s_um").get<double>(), etamCell);
+    EXPECT_NEAR(sc.at("relaxation_time_R_over_V").get<double>(), etamCell / (mu * 3.3 / (30.0 / 45.0 * 1e4)), 1e-9);
+    EXPECT_DOUBLE_EQ(sc.at("relax_requested_R_over_V").get<double>(), 1e6);
     const test::CliRun r0 = test::runTrbc(
         "flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --settle 0 --max-steps 2" + cache,
         dir.path());

@@ -495,9 +495,11 @@ void registerTube(CLI::App* flow) {
         const double G = o->pg * kPaPerMPerMmHgPerMm;  // Pa/m
         const double Uc = G * std::pow(o->radius * 1e-6, 2) / (4.0 * o->etaOut * 1e-3) * 1e6;  // um/s
         // Settling viscosity: eta_m / mu = settleRelax R / V; with mu in uN/m, R in um and V in um/s
-        // this is eta_m = settleRelax mu R / V in Pa s um.
+        // this is eta_m = settleRelax mu R / V in Pa s um. etamPerTimeUnit is the eta_m whose
+        // relaxation time eta_m / mu is one R / V.
+        const double etamPerTimeUnit = p.mu * timeUnit;  // Pa s um
         const bool settleByRelax = o->settleEtamOption->count() == 0;
-        const double settleEtamByRelax = o->settleRelax * p.mu * o->radius / Vum;
+        const double settleEtamByRelax = o->settleRelax * etamPerTimeUnit;
         const double settleEtam = settleByRelax ? std::min(p.etam, settleEtamByRelax) : o->settleEtam;
         fc.etaOut = o->etaOut;
         fc.etaIn = o->etaOut * o->lambda;
@@ -598,7 +600,7 @@ void registerTube(CLI::App* flow) {
                                               : "--settle-etam"},
                 {"relax_requested_R_over_V", settleByRelax ? nlohmann::json(o->settleRelax) : nlohmann::json(nullptr)},
                 {"capped_at_cell_etam", settleByRelax && settleEtamByRelax > p.etam},
-                {"relaxation_time_R_over_V", settleEtam / (p.mu * o->radius / Vum)},
+                {"relaxation_time_R_over_V", settleEtam / etamPerTimeUnit},
                 {"membrane_viscosity_ratio_E", g.membraneViscosity * settleEtam / p.etam},
                 {"note", "duration_R_over_V is the main run's, which starts from the settled shape and alone gives "
                          "the observables"}};
