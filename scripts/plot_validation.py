@@ -161,6 +161,8 @@ def subtitle(meta):
         return None
     parts = []
     cell = meta.get("cell")
+    if isinstance(cell, dict) and isinstance(cell.get("parameters"), dict):
+        cell = cell["parameters"]  # a posterior cell: {"source": ..., "parameters": {...}}
     if isinstance(cell, dict):
         used = set()
         for keys, lab, unit, fmt in _CELL_LABELS:
