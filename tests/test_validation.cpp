@@ -203,11 +203,17 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("1 run now"), std::string::npos) << r.out;
+    // The dry run marks the finished cases (all of them here) and counts them.
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out + " --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("angle_eta23.9_rate60 [finished]: trbc flow shear"), std::string::npos) << r.out;
+    EXPECT_NE(r.err.find("4 case(s), 4 finished in "), std::string::npos) << r.err;
     // Another cell changes every case's key: everything runs again.
     const fs::path cfg2 = writeText(dir.path() / "tiny2.toml", test::slurp(cfg) + "[cell]\nsource = \"explicit\"\netam_Pa_s_um = 0.3\n");
     r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("--etam 0.3\n"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("[finished]"), std::string::npos) << r.out;
     r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run --level 3", dir.path());
     EXPECT_NE(r.out.find("--level 3"), std::string::npos) << r.out;
     // The tube's settling viscosity: settle_relax by default, settle_etam when given instead.

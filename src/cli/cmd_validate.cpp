@@ -367,7 +367,8 @@ void registerValidate(CLI::App& app) {
         ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
     cmd->add_flag("--retry-failed", o->retryFailed, "run again the cases recorded as failed (a transient failure; "
                                                    "by default a failed case is kept like a finished one)");
-    cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, run nothing");
+    cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, marking those finished in OUT with the same key "
+                                       "([finished]); run nothing");
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     cmd->callback([o]() {
         Runner R{};
@@ -388,7 +389,14 @@ void registerValidate(CLI::App& app) {
         if (!o->only.empty())
             std::erase_if(initial, [&](const ValidationCase& c) { return std::find(o->only.begin(), o->only.end(), c.kind) == o->only.end(); });
         if (o->dryRun) {
-            for (const ValidationCase& c : initial) std::cout << c.id << ": trbc " << R.caseArgs(c) << "\n";
+            // A case whose record in OUT has the same key is marked: a run would not repeat it.
+            int finished = 0;
+            for (const ValidationCase& c : initial) {
+                const bool done = R.loadFinished(c);
+                finished += done;
+                std::cout << c.id << (done ? " [finished]" : "") << ": trbc " << R.caseArgs(c) << "\n";
+            }
+            std::cerr << fmt::format("validate: {} case(s), {} finished in {}\n", initial.size(), finished, R.out.string());
             return;
         }
         ensureWritableDirectory(R.out.string());
