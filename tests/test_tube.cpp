@@ -379,6 +379,11 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
                 settling.at("etam_Pa_s_um").get<double>() / (1.003e-3 * std::sqrt(135.0 / (4.0 * M_PI))), 1e-9);
     EXPECT_EQ(settling.at("capped_at_cell_etam"), false);
     EXPECT_NEAR(settling.at("relaxation_time_R_over_V").get<double>(), 1.5, 1e-12);
+    // The tube's default step tolerance (docs/FLOW.md, "Step tolerance in the tube"); the shear's stays 1e-3.
+    const std::string tubeHelp = test::runTrbc("flow tube --help", dir.path()).out;
+    EXPECT_NE(tubeHelp.find("--step-tol FLOAT:POSITIVE=6.25e-05"), std::string::npos) << tubeHelp;
+    const std::string shearHelp = test::runTrbc("flow shear --help", dir.path()).out;
+    EXPECT_NE(shearHelp.find("--step-tol FLOAT:POSITIVE=0.001"), std::string::npos) << shearHelp;
     // --settle-etam replaces it; recorded as given.
     const nlohmann::json je = nlohmann::json::parse(
         test::runTrbc("flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --max-steps 2 "

@@ -127,7 +127,8 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     }
     if (const toml::table* t = section("tube")) {
         TableReader r(file, *t, "tube");
-        r.allowOnly({"enabled", "radius", "eta_out", "duration", "settle", "settle_relax", "settle_etam", "settle_tol", "level", "pressure_gradients"});
+        r.allowOnly({"enabled", "radius", "eta_out", "duration", "settle", "settle_relax", "settle_etam", "settle_tol", "step_tol", "level",
+                    "pressure_gradients"});
         r.boolean("enabled", c.tubeEnabled);
         r.real("radius", c.tubeRadius, 1.497, 1e4);
         r.real("eta_out", c.tubeEtaOut, 0.0, 1e6, true);
@@ -139,6 +140,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
             r.fail(*t->get("settle_etam"), "'tube.settle_etam' and 'tube.settle_relax' both given: the settling stage's "
                                            "membrane viscosity is set by one of them, give one");
         r.real("settle_tol", c.tubeSettleTol, 0.0, 1.0, true);
+        r.real("step_tol", c.tubeStepTol, 0.0, 1.0, true);
         if (c.tubeSettle > 0.0 && c.tubeSettle < 10.0)
             throw InputError(fmt::format("{}: [tube] settle = {}: must be 0 (no settling stage) or >= 10 R/V (the span "
                                          "of the settling criterion)",

@@ -39,6 +39,7 @@ struct ValidationConfig {
     double tubeSettleRelax = 1.5;   ///< its eta_m / mu in R/V (`flow tube --settle-relax`)
     double tubeSettleEtam = 0.0;    ///< > 0: its eta_m in Pa s um instead (`flow tube --settle-etam`)
     double tubeSettleTol = 2e-3;                       ///< `flow tube --settle-tol`
+    double tubeStepTol = 6.25e-5;   ///< `flow tube --step-tol` (its default; [run] step_tol is the shear's)
     int tubeLevel = 0;                      ///< 0: the run level
     std::vector<double> pressureGradients;  ///< mmHg/mm
 };

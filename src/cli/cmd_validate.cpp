@@ -84,7 +84,7 @@ struct Runner {
                                cfg.tubeDuration, cfg.tubeSettle,
                                cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {}", cfg.tubeSettleEtam)
                                                         : fmt::format("--settle-relax {}", cfg.tubeSettleRelax),
-                               cfg.tubeSettleTol, cfg.stepTol, cellArgs());
+                               cfg.tubeSettleTol, cfg.tubeStepTol, cellArgs());
         return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
                            "--step-tol {} {}",
                            c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
