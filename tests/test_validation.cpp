@@ -62,6 +62,8 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
     EXPECT_EQ(cases.back().id, "tube_pg75");
     EXPECT_DOUBLE_EQ(c.tubeRadius, 3.3);
     EXPECT_EQ(c.cellSource, "table1");
+    EXPECT_DOUBLE_EQ(c.stepTol, 1e-3);       // the shear's
+    EXPECT_DOUBLE_EQ(c.tubeStepTol, 6.25e-5);  // the tube's (docs/FLOW.md, "Step tolerance in the tube")
 }
 
 TEST(ValidationConfig, ErrorsNameFileLineKeyAndRange) {
@@ -209,7 +211,18 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     r = test::runTrbc("validate --config " + cfg.string() + " --out " + out + " --dry-run", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("angle_eta23.9_rate60 [finished]: trbc flow shear"), std::string::npos) << r.out;
-    EXPECT_NE(r.err.find("4 case(s), 4 finished in "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(": 4 finished, 0 failed and kept, 0 to run"), std::string::npos) << r.err;
+    // A failed record is kept (marked [failed]) unless --retry-failed, which would run it again.
+    const fs::path rec = fs::path(out) / "cases" / "angle_eta23.9_rate60.json";
+    nlohmann::json failedRecord = nlohmann::json::parse(test::slurp(rec));
+    failedRecord["result"]["status"] = "failed";
+    std::ofstream(rec) << failedRecord.dump();
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out + " --dry-run", dir.path());
+    EXPECT_NE(r.out.find("angle_eta23.9_rate60 [failed]: trbc"), std::string::npos) << r.out;
+    EXPECT_NE(r.err.find(": 3 finished, 1 failed and kept, 0 to run"), std::string::npos) << r.err;
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out + " --dry-run --retry-failed --quiet", dir.path());
+    EXPECT_NE(r.out.find("angle_eta23.9_rate60: trbc"), std::string::npos) << r.out;
+    EXPECT_EQ(r.err.find("to run"), std::string::npos) << r.err;
     // Another cell changes every case's key: everything runs again.
     const fs::path cfg2 = writeText(dir.path() / "tiny2.toml", test::slurp(cfg) + "[cell]\nsource = \"explicit\"\netam_Pa_s_um = 0.3\n");
     r = test::runTrbc("validate --config " + cfg2.string() + " --out " + out + " --dry-run", dir.path());

@@ -24,7 +24,7 @@ struct ValidationConfig {
     std::filesystem::path file;       ///< the TOML file (absolute)
     std::filesystem::path dataDir;    ///< experimental validation data (shear_flow/, microtube/)
     int level = 2, jobs = 1, threads = 1;
-    double stepTol = 1e-3;            ///< local error per step, R_A
+    double stepTol = 1e-3;            ///< local error per step of the shear runs, R_A
     /// Cell: "table1" (the paper's Table 1 means), "posterior" (means of a theta_new posterior) or
     /// "explicit" (the five parameters below).
     std::string cellSource = "table1";
@@ -39,7 +39,7 @@ struct ValidationConfig {
     double tubeSettleRelax = 1.5;   ///< its eta_m / mu in R/V (`flow tube --settle-relax`)
     double tubeSettleEtam = 0.0;    ///< > 0: its eta_m in Pa s um instead (`flow tube --settle-etam`)
     double tubeSettleTol = 2e-3;                       ///< `flow tube --settle-tol`
-    double tubeStepTol = 6.25e-5;   ///< `flow tube --step-tol` (its default; [run] step_tol is the shear's)
+    double tubeStepTol = 0.0;       ///< `flow tube --step-tol`; 0: the command's default ([run] step_tol is the shear's)
     int tubeLevel = 0;                      ///< 0: the run level
     std::vector<double> pressureGradients;  ///< mmHg/mm
 };

@@ -391,10 +391,7 @@ void writeTubeFrames(const std::string& dir, const CellFlowModel& model, const C
 SteppingOptions tubeStepping() {
     SteppingOptions s;
     s.frameInterval = 1.0;  // R/V
-    // The main run drifts off the steady shape at larger tolerances (docs/FLOW.md, "Step tolerance
-    // in the tube"): at 40 mmHg/mm its length moves by -1.1 % at 1e-3, -0.05 % at 2.5e-4 and
-    // -0.001 % at 6.25e-5 against the settled shape, for 17 % more steps than at 2.5e-4.
-    s.tol = 6.25e-5;
+    s.tol = kTubeStepTolerance;
     return s;
 }
 

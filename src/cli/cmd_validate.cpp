@@ -26,6 +26,7 @@
 #include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "experiments/parameters.hpp"
+#include "flow/tube.hpp"
 
 namespace trbc::cli {
 namespace {
@@ -84,7 +85,7 @@ struct Runner {
                                cfg.tubeDuration, cfg.tubeSettle,
                                cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {}", cfg.tubeSettleEtam)
                                                         : fmt::format("--settle-relax {}", cfg.tubeSettleRelax),
-                               cfg.tubeSettleTol, cfg.tubeStepTol, cellArgs());
+                               cfg.tubeSettleTol, cfg.tubeStepTol > 0.0 ? cfg.tubeStepTol : kTubeStepTolerance, cellArgs());
         return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
                            "--step-tol {} {}",
                            c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
@@ -389,14 +390,20 @@ void registerValidate(CLI::App& app) {
         if (!o->only.empty())
             std::erase_if(initial, [&](const ValidationCase& c) { return std::find(o->only.begin(), o->only.end(), c.kind) == o->only.end(); });
         if (o->dryRun) {
-            // A case whose record in OUT has the same key is marked: a run would not repeat it.
-            int finished = 0;
+            // A case whose record in OUT has the same key is marked: a run would not repeat it
+            // ([failed]: kept as failed unless --retry-failed, which makes loadFinished refuse it).
+            int finished = 0, failed = 0;
             for (const ValidationCase& c : initial) {
                 const bool done = R.loadFinished(c);
-                finished += done;
-                std::cout << c.id << (done ? " [finished]" : "") << ": trbc " << R.caseArgs(c) << "\n";
+                const bool ok = done && R.resultOf(c.id).value("status", "") == "ok";
+                finished += ok;
+                failed += done && !ok;
+                std::cout << c.id << (ok ? " [finished]" : done ? " [failed]" : "") << ": trbc " << R.caseArgs(c) << "\n";
             }
-            std::cerr << fmt::format("validate: {} case(s), {} finished in {}\n", initial.size(), finished, R.out.string());
+            if (!o->quiet)
+                std::cerr << fmt::format("validate: {} case(s) in {}: {} finished, {} failed and kept, {} to run\n",
+                                         initial.size(), R.out.string(), finished, failed,
+                                         initial.size() - finished - failed);
             return;
         }
         ensureWritableDirectory(R.out.string());
