@@ -238,6 +238,7 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     EXPECT_NE(r.out.find("--settle-relax 1.5 "), std::string::npos) << r.out;
     // The tube's own step tolerance (6.25e-5 by default), whatever [run] step_tol says for the shear.
     EXPECT_NE(r.out.find("--step-tol 6.25e-05 "), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--settle-etam"), std::string::npos) << r.out;
     const fs::path tubeC = writeText(dir.path() / "tubeC.toml", "[run]\nstep_tol = 0.002\n[tube]\npressure_gradients = [30]\nstep_tol = 3e-4\n");
     const test::CliRun rc = test::runTrbc("validate --config " + tubeC.string() + " --out " + out + "_t --dry-run", dir.path());
     ASSERT_EQ(rc.status, 0) << rc.err;
@@ -245,7 +246,6 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     EXPECT_NE(rc.out.find("--step-tol 0.0003 "), std::string::npos) << rc.out;
     EXPECT_NE(rc.out.find("flow shear"), std::string::npos) << rc.out;
     EXPECT_NE(rc.out.find("--step-tol 0.002 "), std::string::npos) << rc.out;
-    EXPECT_EQ(r.out.find("--settle-etam"), std::string::npos) << r.out;
     const fs::path tubeB = writeText(dir.path() / "tubeB.toml", "[tube]\npressure_gradients = [30]\nsettle_etam = 0.02\n");
     r = test::runTrbc("validate --config " + tubeB.string() + " --only tube --out " + out + "_t --dry-run", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;

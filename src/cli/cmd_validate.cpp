@@ -368,8 +368,8 @@ void registerValidate(CLI::App& app) {
         ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
     cmd->add_flag("--retry-failed", o->retryFailed, "run again the cases recorded as failed (a transient failure; "
                                                    "by default a failed case is kept like a finished one)");
-    cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, marking those finished in OUT with the same key "
-                                       "([finished]); run nothing");
+    cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, marking those recorded in OUT with the same key "
+                                       "([finished], or [failed] for a kept failure); run nothing");
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     cmd->callback([o]() {
         Runner R{};
