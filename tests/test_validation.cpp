@@ -7,10 +7,12 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "analysis/validation.hpp"
@@ -180,6 +182,35 @@ TEST(ValidationData, ShippedFilesReadWithBlanksAndBadCellsAreNamed) {
     EXPECT_THROW(readExperimentalPoints(bad, "pressure", {"v"}), InputError);
 }
 
+TEST(ValidationShard, DealsUnitsRoundRobinAndKeepsAThresholdViscosityTogether) {
+    const std::vector<ValidationCase> all = {
+        {"a1", "angle", 10.7, 1.0, 0.0},     {"a2", "angle", 10.7, 2.0, 0.0},     {"h1", "threshold", 10.0, 30.0, 0.0},
+        {"h2", "threshold", 10.0, 60.0, 0.0}, {"k1", "threshold", 14.0, 7.0, 0.0},  {"h3", "threshold", 10.0, 90.0, 0.0},
+        {"k2", "threshold", 14.0, 14.0, 0.0}, {"t1", "tube", 1.003, 0.0, 30.0}};
+    const auto ids = [](const std::vector<ValidationCase>& v) {
+        std::string s;
+        for (const ValidationCase& c : v) s += c.id + " ";
+        return s;
+    };
+    // Units: a1 0, a2 1, eta 10 (h1 h2 h3) 2, eta 14 (k1 k2) 3, t1 4.
+    EXPECT_EQ(ids(validationShard(all, 1, 2)), "a1 h1 h2 h3 t1 ");
+    EXPECT_EQ(ids(validationShard(all, 2, 2)), "a2 k1 k2 ");
+    EXPECT_EQ(ids(validationShard(all, 2, 3)), "a2 t1 ");
+    EXPECT_EQ(ids(validationShard(all, 1, 1)), ids(all));
+    EXPECT_TRUE(validationShard(all, 7, 7).empty());
+    EXPECT_THROW(validationShard(all, 3, 2), InputError);
+    EXPECT_EQ(parseShard("2/4", "--shard"), std::make_pair(2, 4));
+    for (const char* bad : {"3/2", "0/2", "a/b", "2/4x", "2", "", "2-4", "-1/2"}) {
+        try {
+            parseShard(bad, "--shard");
+            ADD_FAILURE() << "accepted '" << bad << "'";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(std::string("--shard '") + bad + "': expected K/N with 1 <= K <= N"), std::string::npos)
+                << e.what();
+        }
+    }
+}
+
 TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     TempDir dir;
     const fs::path cfg = writeText(dir.path() / "tiny.toml",
@@ -257,6 +288,66 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     EXPECT_EQ(r.status, 2);
     EXPECT_NE(r.err.find("bad.toml:2: 'run.jobs' = 0 is out of range"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir.path() / "b"));
+}
+
+// One set run in two parts on "two machines" (separate OUT directories), then merged with --import:
+// nothing runs again and the tables are the union of the parts' (the threshold refinement made in
+// part 1 is the one the merged run asks for).
+TEST(ValidateCli, ShardsRunApartAndImportMergesThem) {
+    TempDir dir;
+    const fs::path cfg = writeText(dir.path() / "tiny.toml",
+                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
+                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
+                                   "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
+                                   "[tube]\nenabled = false\n");
+    const fs::path o1 = dir.path() / "o1", o2 = dir.path() / "o2", merged = dir.path() / "m";
+    const std::string base = "validate --config " + cfg.string();
+    test::CliRun r = test::runTrbc(base + " --out " + o1.string() + " --shard 1/2", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("--only/--shard: 3 of the 4 configured initial cases selected"), std::string::npos) << r.out;
+    r = test::runTrbc(base + " --out " + o2.string() + " --shard 2/2", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("1 run now"), std::string::npos) << r.out;
+    EXPECT_TRUE(fs::exists(o2 / "cases" / "angle_eta23.9_rate60.json"));
+    EXPECT_FALSE(fs::exists(o2 / "cases" / "angle_eta23.9_rate20.json"));
+    EXPECT_EQ(test::slurp(o2 / "threshold.csv").find("23.9,"), std::string::npos);  // not this part's
+
+    const std::string imports = " --import " + o1.string() + " --import " + o2.string();
+    r = test::runTrbc(base + " --out " + merged.string() + imports + " --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find(": 4 finished (4 in --import directories), 0 failed and kept, 0 to run"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(merged));  // a dry run copies nothing
+    r = test::runTrbc(base + " --out " + merged.string() + imports, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("0 run now"), std::string::npos) << r.out;
+    EXPECT_TRUE(fs::exists(merged / "cases" / "angle_eta23.9_rate60" / "flow.json"));
+    const auto rows = [](const fs::path& csv) {
+        std::vector<std::string> lines;
+        std::istringstream in(test::slurp(csv));
+        for (std::string l; std::getline(in, l);) lines.push_back(l);
+        return lines;
+    };
+    std::vector<std::string> parts = rows(o1 / "shear.csv"), whole = rows(merged / "shear.csv");
+    const std::vector<std::string> second = rows(o2 / "shear.csv");
+    parts.insert(parts.end(), second.begin() + 1, second.end());  // without its header
+    std::sort(parts.begin(), parts.end());
+    std::sort(whole.begin(), whole.end());
+    EXPECT_EQ(whole, parts);
+    EXPECT_EQ(whole.size(), 6u);  // header, 4 initial cases, 1 refinement
+    EXPECT_EQ(test::slurp(merged / "threshold.csv"), test::slurp(o1 / "threshold.csv"));
+    const nlohmann::json j = nlohmann::json::parse(test::slurp(merged / "validation.json"));
+    EXPECT_EQ(j["cases_imported"].get<int>(), 5);
+    // Another cell: the imported records do not match, so nothing is taken from them.
+    const fs::path cfg2 = writeText(dir.path() / "tiny2.toml", test::slurp(cfg) + "[cell]\nsource = \"explicit\"\netam_Pa_s_um = 0.3\n");
+    r = test::runTrbc("validate --config " + cfg2.string() + " --out " + (dir.path() / "m2").string() + imports + " --dry-run", dir.path());
+    EXPECT_NE(r.err.find(": 0 finished (0 in --import directories), 0 failed and kept, 4 to run"), std::string::npos) << r.err;
+    // Bad input: exit 2 naming the option.
+    r = test::runTrbc(base + " --out " + merged.string() + " --shard 3/2", dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("--shard '3/2': expected K/N with 1 <= K <= N"), std::string::npos) << r.err;
+    r = test::runTrbc(base + " --out " + merged.string() + " --import " + dir.path().string(), dir.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find("not a validate output directory (no cases/ in it)"), std::string::npos) << r.err;
 }
 
 /// Processes whose command line mentions `needle` (other than this test).

@@ -194,6 +194,39 @@ std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
     return cases;
 }
 
+std::vector<ValidationCase> validationShard(const std::vector<ValidationCase>& cases, int part, int parts) {
+    if (parts < 1 || part < 1 || part > parts)
+        throw InputError(fmt::format("validation shard {}/{}: need 1 <= K <= N", part, parts));
+    std::vector<ValidationCase> mine;
+    std::vector<std::pair<double, int>> thresholdUnit;  // viscosity -> its unit
+    int unit = 0;
+    for (const ValidationCase& c : cases) {
+        int u;
+        if (c.kind == "threshold") {
+            const auto it = std::find_if(thresholdUnit.begin(), thresholdUnit.end(), [&](const auto& p) { return p.first == c.etaOut; });
+            if (it != thresholdUnit.end()) {
+                u = it->second;
+            } else {
+                u = unit++;
+                thresholdUnit.emplace_back(c.etaOut, u);
+            }
+        } else {
+            u = unit++;
+        }
+        if (u % parts == part - 1) mine.push_back(c);
+    }
+    return mine;
+}
+
+std::pair<int, int> parseShard(const std::string& text, const std::string& option) {
+    int k = 0, n = 0;
+    char slash = 0, extra = 0;
+    std::istringstream in(text);
+    if (!(in >> k >> slash >> n) || slash != '/' || (in >> extra) || k < 1 || n < 1 || k > n)
+        throw InputError(fmt::format("{} '{}': expected K/N with 1 <= K <= N (part K of N, e.g. 2/4)", option, text));
+    return {k, n};
+}
+
 ThresholdBracket thresholdBracket(std::vector<RegimePoint> points) {
     std::sort(points.begin(), points.end(), [](const RegimePoint& a, const RegimePoint& b) { return a.rate < b.rate; });
     ThresholdBracket b;

@@ -51,7 +51,9 @@ double numberOr(const json& o, const char* key) {
 struct Runner {
     ValidationConfig cfg;
     fs::path out, exe, python, scripts;
-    bool quiet = false, retryFailed = false;
+    bool quiet = false, retryFailed = false, dryRun = false;
+    std::vector<fs::path> imports;  ///< other OUT directories whose finished cases count as finished here
+    int imported = 0;               ///< cases taken from them
     std::mutex mutex;
     std::map<std::string, json> results;  ///< case id -> {"key", "command", "exit", "wall_s", "result"}
     std::vector<ValidationCase> cases;    ///< every case so far, in order
@@ -95,20 +97,38 @@ struct Runner {
 
     fs::path caseFile(const ValidationCase& c) const { return out / "cases" / (c.id + ".json"); }
 
-    /// A finished case of an earlier run with the same key, if any.
-    bool loadFinished(const ValidationCase& c) {
-        const fs::path f = caseFile(c);
-        if (!fs::exists(f)) return false;
+    /// The record in `file` if it is a finished case with c's key (a failed one only without --retry-failed).
+    std::optional<json> matchingRecord(const fs::path& file, const ValidationCase& c) const {
+        if (!fs::exists(file)) return std::nullopt;
         try {
-            json j = json::parse(readFile(f));
-            if (j.value("key", "") != caseKey(c) || !j.contains("result")) return false;
-            if (retryFailed && j["result"].value("status", "") != "ok") return false;
-            std::lock_guard lock(mutex);
-            results[c.id] = std::move(j);
-            return true;
+            json j = json::parse(readFile(file));
+            if (j.value("key", "") != caseKey(c) || !j.contains("result")) return std::nullopt;
+            if (retryFailed && j["result"].value("status", "") != "ok") return std::nullopt;
+            return j;
         } catch (const std::exception&) {
-            return false;  // a damaged record is run again
+            return std::nullopt;  // a damaged record is run again
         }
+    }
+
+    /// A finished case of an earlier run with the same key, if any: in OUT, else in an --import
+    /// directory, whose record and case outputs are then copied into OUT (not in a dry run).
+    bool loadFinished(const ValidationCase& c) {
+        std::optional<json> j = matchingRecord(caseFile(c), c);
+        for (const fs::path& from : imports) {
+            if (j) break;
+            j = matchingRecord(from / "cases" / (c.id + ".json"), c);
+            if (!j) continue;
+            ++imported;
+            if (dryRun) break;
+            const fs::path dir = out / "cases" / c.id;
+            fs::remove_all(dir);
+            if (fs::is_directory(from / "cases" / c.id)) fs::copy(from / "cases" / c.id, dir, fs::copy_options::recursive);
+            writeFileAtomically(caseFile(c), j->dump(1) + "\n");
+        }
+        if (!j) return false;
+        std::lock_guard lock(mutex);
+        results[c.id] = std::move(*j);
+        return true;
     }
 
     void runCase(const ValidationCase& c) {
@@ -174,8 +194,10 @@ struct Runner {
                 todo.push_back(c);
         }
         if (!quiet && !batch.empty())
-            std::cerr << fmt::format("validate: {} case(s), {} finished earlier, {} to run ({} at a time, {} thread(s) each)\n",
-                                     batch.size(), batch.size() - todo.size(), todo.size(), cfg.jobs, cfg.threads);
+            std::cerr << fmt::format("validate: {} case(s), {} finished earlier{}, {} to run ({} at a time, {} thread(s) each)\n",
+                                     batch.size(), batch.size() - todo.size(),
+                                     imports.empty() ? std::string() : fmt::format(" ({} imported so far)", imported), todo.size(),
+                                     cfg.jobs, cfg.threads);
         std::atomic<std::size_t> next{0};
         std::exception_ptr error;
         auto worker = [&]() {
@@ -341,8 +363,8 @@ json writeTables(Runner& R) {
 
 void registerValidate(CLI::App& app) {
     struct Opts {
-        std::string config, out, posterior;
-        std::vector<std::string> only;
+        std::string config, out, posterior, shard;
+        std::vector<std::string> only, imports;
         int jobs = 0, threads = 0, level = 0;
         bool quiet = false, dryRun = false, retryFailed = false;
     };
@@ -366,6 +388,15 @@ void registerValidate(CLI::App& app) {
                                        "the tables cover what has been run")
         ->delimiter(',')
         ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
+    cmd->add_option("--shard", o->shard,
+                    "run only part K of N of the (selected) initial cases, e.g. 2/4 on the second of four machines, each with "
+                    "its own OUT: dealt round-robin, one part per angle, TTF or tube case and per threshold viscosity (its "
+                    "refinements stay with it); merge the parts with --import");
+    cmd->add_option("--import", o->imports,
+                    "another validate OUT directory (repeatable): a finished case recorded there with the same key (same "
+                    "command, cell and version) is copied into OUT with its outputs instead of being run, e.g. the parts "
+                    "of a --shard run")
+        ->check(CLI::ExistingDirectory);
     cmd->add_flag("--retry-failed", o->retryFailed, "run again the cases recorded as failed (a transient failure; "
                                                    "by default a failed case is kept like a finished one)");
     cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, marking those recorded in OUT with the same key "
@@ -382,6 +413,13 @@ void registerValidate(CLI::App& app) {
         R.out = fs::absolute(o->out).lexically_normal();
         R.quiet = o->quiet;
         R.retryFailed = o->retryFailed;
+        R.dryRun = o->dryRun;
+        for (const std::string& d : o->imports) {
+            const fs::path dir = fs::absolute(d).lexically_normal();
+            if (!fs::is_directory(dir / "cases"))
+                throw InputError(fmt::format("--import {}: not a validate output directory (no cases/ in it)", d));
+            R.imports.push_back(dir);
+        }
         R.exe = fs::read_symlink("/proc/self/exe");
         R.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
         R.python = pythonInterpreter();
@@ -389,6 +427,10 @@ void registerValidate(CLI::App& app) {
         const std::size_t configured = initial.size();
         if (!o->only.empty())
             std::erase_if(initial, [&](const ValidationCase& c) { return std::find(o->only.begin(), o->only.end(), c.kind) == o->only.end(); });
+        if (!o->shard.empty()) {
+            const auto [part, parts] = parseShard(o->shard, "--shard");
+            initial = validationShard(initial, part, parts);
+        }
         if (o->dryRun) {
             // A case whose record in OUT has the same key is marked: a run would not repeat it
             // ([failed]: kept as failed unless --retry-failed, which makes loadFinished refuse it).
@@ -401,9 +443,10 @@ void registerValidate(CLI::App& app) {
                 std::cout << c.id << (ok ? " [finished]" : done ? " [failed]" : "") << ": trbc " << R.caseArgs(c) << "\n";
             }
             if (!o->quiet)
-                std::cerr << fmt::format("validate: {} case(s) in {}: {} finished, {} failed and kept, {} to run\n",
-                                         initial.size(), R.out.string(), finished, failed,
-                                         initial.size() - finished - failed);
+                std::cerr << fmt::format("validate: {} case(s) in {}: {} finished{}, {} failed and kept, {} to run\n",
+                                         initial.size(), R.out.string(), finished,
+                                         R.imports.empty() ? std::string() : fmt::format(" ({} in --import directories)", R.imported),
+                                         failed, initial.size() - finished - failed);
             return;
         }
         ensureWritableDirectory(R.out.string());
@@ -444,6 +487,9 @@ void registerValidate(CLI::App& app) {
         const json j = {{"summary", summary},
                         {"initial_cases_configured", configured},
                         {"only", o->only},
+                        {"shard", o->shard.empty() ? json() : json(o->shard)},
+                        {"imported", o->imports},
+                        {"cases_imported", R.imported},
                         {"cell", cell},
                         {"level", R.cfg.level},
                         {"tube_level", R.cfg.tubeLevel > 0 ? R.cfg.tubeLevel : R.cfg.level},
@@ -462,7 +508,7 @@ void registerValidate(CLI::App& app) {
         if (std::system(plot.c_str()) != 0)
             std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());
         if (initial.size() < configured)
-            std::cout << fmt::format("trbc validate: --only: {} of the {} configured initial cases selected\n", initial.size(), configured);
+            std::cout << fmt::format("trbc validate: --only/--shard: {} of the {} configured initial cases selected\n", initial.size(), configured);
         std::cout << fmt::format("trbc validate: {} cases ({} failed, {} run now) in {:.1f} min; {} predictions inside the experimental "
                                  "scatter, {} outside, {} without data, {} neither\n  tables: {}/{{shear,threshold,tube,comparison}}.csv\n  "
                                  "summary: {}\n  figures: {}\n",
