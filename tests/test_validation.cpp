@@ -211,13 +211,18 @@ TEST(ValidationShard, DealsUnitsRoundRobinAndKeepsAThresholdViscosityTogether) {
     }
 }
 
+/// Two angle cases and a two-rate threshold sweep with one refinement, level 1, one rotation.
+fs::path writeTinyValidationConfig(const TempDir& dir) {
+    return writeText(dir.path() / "tiny.toml",
+                     "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
+                     "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
+                     "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
+                     "[tube]\nenabled = false\n");
+}
+
 TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     TempDir dir;
-    const fs::path cfg = writeText(dir.path() / "tiny.toml",
-                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
-                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
-                                   "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
-                                   "[tube]\nenabled = false\n");
+    const fs::path cfg = writeTinyValidationConfig(dir);
     const std::string out = (dir.path() / "o").string();
     test::CliRun r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
@@ -295,11 +300,7 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
 // part 1 is the one the merged run asks for).
 TEST(ValidateCli, ShardsRunApartAndImportMergesThem) {
     TempDir dir;
-    const fs::path cfg = writeText(dir.path() / "tiny.toml",
-                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
-                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
-                                   "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
-                                   "[tube]\nenabled = false\n");
+    const fs::path cfg = writeTinyValidationConfig(dir);
     const fs::path o1 = dir.path() / "o1", o2 = dir.path() / "o2", merged = dir.path() / "m";
     const std::string base = "validate --config " + cfg.string();
     test::CliRun r = test::runTrbc(base + " --out " + o1.string() + " --shard 1/2", dir.path());
