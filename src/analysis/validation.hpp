@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "experiments/parameters.hpp"
@@ -61,6 +62,7 @@ struct ValidationCase {
 /// The cases of the sweeps and the tube before any refinement, in a fixed order.
 std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c);
 std::string shearCaseId(const std::string& kind, double etaOut, double rate);
+std::string tubeCaseId(double pressureGradient);
 
 /// Part `part` of `parts` (1 <= part <= parts) of the initial cases, for running one set on several
 /// machines: the cases are dealt round-robin in units, one unit per angle, TTF or tube case and one
@@ -68,7 +70,6 @@ std::string shearCaseId(const std::string& kind, double etaOut, double rate);
 std::vector<ValidationCase> validationShard(const std::vector<ValidationCase>& cases, int part, int parts);
 /// "K/N" -> (K, N); an error naming `option` unless 1 <= K <= N.
 std::pair<int, int> parseShard(const std::string& text, const std::string& option);
-std::string tubeCaseId(double pressureGradient);
 
 /// Result of a shear case as far as the threshold needs it.
 struct RegimePoint {
