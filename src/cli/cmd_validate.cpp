@@ -114,15 +114,15 @@ struct Runner {
     /// directory, whose record and case outputs are then copied into OUT (not in a dry run).
     bool loadFinished(const ValidationCase& c) {
         std::optional<json> j = matchingRecord(caseFile(c), c);
-        for (const fs::path& from : imports) {
-            if (j) break;
-            j = matchingRecord(from / "cases" / (c.id + ".json"), c);
+        for (auto from = imports.begin(); !j && from != imports.end(); ++from) {
+            const fs::path source = *from / "cases";
+            j = matchingRecord(source / (c.id + ".json"), c);
             if (!j) continue;
             ++imported;
-            if (dryRun) break;
+            if (dryRun) continue;
             const fs::path dir = out / "cases" / c.id;
             fs::remove_all(dir);
-            if (fs::is_directory(from / "cases" / c.id)) fs::copy(from / "cases" / c.id, dir, fs::copy_options::recursive);
+            if (fs::is_directory(source / c.id)) fs::copy(source / c.id, dir, fs::copy_options::recursive);
             writeFileAtomically(caseFile(c), j->dump(1) + "\n");
         }
         if (!j) return false;
