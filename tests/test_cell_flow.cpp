@@ -1,14 +1,21 @@
 // One cell in Stokes flow (flow/cell_flow.hpp) and the shear-flow observables
 // (flow/shear_observables.hpp): observable extraction on synthetic frames, rest states, the
-// membrane-viscosity coupling, a tank-treading cell, symmetry, time-step convergence, bad input.
+// membrane-viscosity coupling, a tank-treading cell, symmetry, time-step convergence, snapshots
+// and resume, bad input.
 // Level 2 (162 vertices) and short runs keep the suite fast.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <csignal>
+#include <fstream>
 #include <iostream>
 #include <filesystem>
 #include <numbers>
+#include <thread>
 
 #include "core/error.hpp"
 #include "flow/cell_flow.hpp"
@@ -404,7 +411,151 @@ TEST(CellFlow, HalvingTheTimeStepChangesLittle) {
     EXPECT_LT(std::abs(t1 - t2), 0.1 * kDeg);
 }
 
+// ---- Snapshots and resume (CellFlowCheckpoint) --------------------------------------------------
+
+struct Interrupted {};
+
+/// Everything of a result that an interruption must not change (wall time and resume records aside).
+void expectSameRun(const CellFlowResult& a, const CellFlowResult& b) {
+    ASSERT_EQ(a.completed, b.completed);
+    EXPECT_EQ(a.message, b.message);
+    EXPECT_EQ(a.times, b.times);
+    ASSERT_EQ(a.frames.size(), b.frames.size());
+    for (std::size_t k = 0; k < a.frames.size(); ++k) EXPECT_TRUE(a.frames[k] == b.frames[k]) << "frame " << k;
+    EXPECT_EQ(a.areaDrift, b.areaDrift);
+    EXPECT_EQ(a.volumeDrift, b.volumeDrift);
+    ASSERT_EQ(a.stepLog.size(), b.stepLog.size());
+    for (std::size_t k = 0; k < a.stepLog.size(); ++k) {
+        EXPECT_EQ(a.stepLog[k].t, b.stepLog[k].t) << "step " << k;
+        EXPECT_EQ(a.stepLog[k].dt, b.stepLog[k].dt) << "step " << k;
+        EXPECT_EQ(a.stepLog[k].error, b.stepLog[k].error) << "step " << k;
+        EXPECT_EQ(a.stepLog[k].gmresIterations, b.stepLog[k].gmresIterations) << "step " << k;
+        EXPECT_EQ(a.stepLog[k].tension, b.stepLog[k].tension) << "step " << k;
+    }
+    EXPECT_TRUE(a.final == b.final);
+    EXPECT_EQ(a.steps, b.steps);
+    EXPECT_EQ(a.rejectedSteps, b.rejectedSteps);
+    EXPECT_EQ(a.gmresIterations, b.gmresIterations);
+    EXPECT_EQ(a.sumAreaCorrection, b.sumAreaCorrection);
+    EXPECT_EQ(a.maxVolumeDrift, b.maxVolumeDrift);
+}
+
+TEST(CellFlowCheckpoint, ARunInterruptedAndResumedEqualsTheUninterruptedRunBitForBit) {
+    test::TempDir dir;
+    const ShearCell& c = cellL2();
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    CellFlowOptions o = tankTreadingOptions();
+    o.tEnd = 1.5 * 4.0 * kPi;
+    const CellFlowResult full = integrateCellFlow(m, m.toInternal(c.initial), o);
+    ASSERT_TRUE(full.completed) << full.message;
+    ASSERT_GT(full.steps, 20);
+
+    std::vector<std::string> log;
+    o.checkpoint.file = dir.path() / "main.bin";
+    o.checkpoint.intervalSeconds = 0.0;  // a snapshot after every step
+    o.checkpoint.resume = true;
+    o.checkpoint.key = "test";
+    o.checkpoint.log = [&log](const std::string& s) { log.push_back(s); };
+    // The "kill": the observer throws at the frame after t = 8 (the snapshot of the step before stays).
+    EXPECT_THROW(integrateCellFlow(m, m.toInternal(c.initial), o,
+                                   [](double t, const Vertices&) {
+                                       if (t > 8.0) throw Interrupted{};
+                                   }),
+                 Interrupted);
+    ASSERT_TRUE(std::filesystem::exists(o.checkpoint.file));
+    ASSERT_EQ(log.size(), 1u);
+    EXPECT_NE(log[0].find("no snapshot"), std::string::npos) << log[0];
+    std::vector<double> seen;  // the observer sees only the frames after the snapshot
+    const CellFlowResult resumed =
+        integrateCellFlow(m, m.toInternal(c.initial), o, [&seen](double t, const Vertices&) { seen.push_back(t); });
+    ASSERT_EQ(log.size(), 2u);
+    EXPECT_NE(log[1].find("resuming"), std::string::npos) << log[1];
+    EXPECT_EQ(resumed.resumes, 1);
+    EXPECT_GT(resumed.resumedAt, 7.0);
+    EXPECT_LE(resumed.resumedAt, 8.0 + 0.1 + 1e-9);
+    ASSERT_FALSE(seen.empty());
+    EXPECT_GT(seen.front(), 8.0);
+    expectSameRun(full, resumed);
+
+    // The finished run's snapshot: a resume returns its result without a step.
+    const auto t0 = std::chrono::steady_clock::now();
+    const CellFlowResult again = integrateCellFlow(m, m.toInternal(c.initial), o);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 0.5 * full.wallSeconds);
+    expectSameRun(full, again);
+
+    // A snapshot of another run (other key, other duration) is not resumed: that run starts afresh.
+    CellFlowOptions other = o;
+    other.tEnd = 0.5 * 4.0 * kPi;
+    const CellFlowResult otherRun = integrateCellFlow(m, m.toInternal(c.initial), other);
+    EXPECT_NE(log.back().find("another run"), std::string::npos) << log.back();
+    EXPECT_EQ(otherRun.resumes, 0);
+    EXPECT_NEAR(otherRun.tReached, other.tEnd, 1e-12);
+
+    // A damaged snapshot (one byte changed in the middle) is detected, not read.
+    {
+        std::fstream f(o.checkpoint.file, std::ios::in | std::ios::out | std::ios::binary);
+        f.seekg(0, std::ios::end);
+        const auto size = static_cast<long>(f.tellg());
+        f.seekg(size / 2);
+        const char byte = static_cast<char>(f.get());
+        f.seekp(size / 2);
+        f.put(static_cast<char>(byte ^ 0x01));
+    }
+    const CellFlowResult afresh = integrateCellFlow(m, m.toInternal(c.initial), other);
+    EXPECT_NE(log.back().find("damaged"), std::string::npos) << log.back();
+    EXPECT_EQ(afresh.resumes, 0);
+    expectSameRun(otherRun, afresh);
+
+    o.checkpoint.intervalSeconds = -1.0;
+    EXPECT_THROW(integrateCellFlow(m, m.toInternal(c.initial), o), InputError);
+}
+
 // ---- CLI -----------------------------------------------------------------------------------------
+
+TEST(CellFlowCli, ARunKilledBySigkillResumesToTheUninterruptedOutputs) {
+    test::TempDir dir;
+    const std::string args = "flow shear --level 2 --eta-out 28.9 --shear-rate 32.4 --rotations 2 --threads 1 --cache " +
+                             test::shellQuote(flowCache().string());
+    const std::filesystem::path a = dir.path() / "a", b = dir.path() / "b";
+    const test::CliRun full = test::runTrbc(args + " --out " + test::shellQuote(a.string()), dir.path());
+    ASSERT_EQ(full.status, 0) << full.err;
+    EXPECT_FALSE(std::filesystem::exists(a / "checkpoint")) << "snapshots are removed once the outputs are written";
+
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        const std::string cmd = "exec " + test::shellQuote(TRBC_CLI) + " " + args + " --checkpoint-interval 0 --out " +
+                                test::shellQuote(b.string()) + " >/dev/null 2>&1";
+        execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+        _exit(127);
+    }
+    const std::filesystem::path snap = b / "checkpoint" / "main.bin";
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!std::filesystem::exists(snap) && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be killed";
+    EXPECT_FALSE(std::filesystem::exists(b / "flow.json"));
+
+    const test::CliRun resumed = test::runTrbc(args + " --resume --out " + test::shellQuote(b.string()), dir.path());
+    ASSERT_EQ(resumed.status, 0) << resumed.err;
+    EXPECT_NE(resumed.err.find("resuming"), std::string::npos) << resumed.err;
+    EXPECT_EQ(test::slurp(a / "steps.csv"), test::slurp(b / "steps.csv"));
+    EXPECT_EQ(test::slurp(a / "frames.csv"), test::slurp(b / "frames.csv"));
+    const nlohmann::json ja = nlohmann::json::parse(full.out), jb = nlohmann::json::parse(resumed.out);
+    EXPECT_EQ(ja.at("observables"), jb.at("observables"));
+    EXPECT_EQ(ja.at("diagnostics").at("checkpoint").at("resumes"), 0);
+    EXPECT_EQ(jb.at("diagnostics").at("checkpoint").at("resumes"), 1);
+    EXPECT_FALSE(std::filesystem::exists(b / "checkpoint"));
+
+    const test::CliRun noOut = test::runTrbc(args + " --resume", dir.path());
+    EXPECT_EQ(noOut.status, 2) << noOut.err;
+    EXPECT_NE(noOut.err.find("--resume"), std::string::npos) << noOut.err;
+}
+
 
 TEST(CellFlowCli, BadInputExitsWithTwoNamingTheParameter) {
     test::TempDir dir;

@@ -188,18 +188,49 @@ struct SteppingOptions {
     int threads = 0, vtkEvery = 10, maxSteps = 200000;
     double tol = 1e-3, dt = 0.0, frameInterval = 0.1;
     std::string out;
+    bool resume = false;
+    double checkpointInterval = 60.0;  // wall seconds
 };
 
+/// Snapshots of one stage in OUT/checkpoint/STAGE.bin (docs/FLOW.md "Checkpoints"); none without
+/// --out. The key holds what the integrator cannot see: the command's parameters (the tube's too).
+CellFlowCheckpoint stageCheckpoint(const SteppingOptions& s, const std::string& stage, const nlohmann::json& parameters) {
+    CellFlowCheckpoint c;
+    if (s.out.empty()) return c;
+    c.file = std::filesystem::path(s.out) / "checkpoint" / (stage + ".bin");
+    c.intervalSeconds = s.checkpointInterval;
+    c.resume = s.resume;
+    c.key = stage + "|" + parameters.dump();
+    c.log = [](const std::string& what) { std::cerr << "flow: " << what << "\n"; };
+    return c;
+}
+
+nlohmann::json checkpointJson(const CellFlowResult& r, double timeUnit) {
+    return {{"resumes", r.resumes}, {"resumed_at_s", r.resumes > 0 ? nlohmann::json(r.resumedAt * timeUnit) : nlohmann::json(nullptr)}};
+}
+
+/// The snapshots are dropped once the outputs they would rebuild are written.
+void removeCheckpoints(const SteppingOptions& s) {
+    if (s.out.empty()) return;
+    std::error_code ec;
+    std::filesystem::remove_all(std::filesystem::path(s.out) / "checkpoint", ec);
+}
+
 // Progress on stderr at every tenth of the simulated duration (at frame times): simulated time,
-// wall time and the ETA from the mean rate so far, plus what `detail` says about the shape.
+// wall time and the ETA from the mean rate since the first frame seen (t = 0, or the first frame
+// after a resumed snapshot), plus what `detail` says about the shape.
 CellFlowObserver progressReporter(const std::string& name, double tEnd, const std::string& unit,
                                   std::chrono::steady_clock::time_point tStart,
                                   std::function<std::string(const Vertices&)> detail) {
-    return [=, next = 0.1 * tEnd](double t, const Vertices& X) mutable {
+    return [=, next = 0.1 * tEnd, tFirst = -1.0, wallFirst = 0.0](double t, const Vertices& X) mutable {
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+        if (tFirst < 0.0) {
+            tFirst = t;
+            wallFirst = wall;
+        }
         if (t + 1e-9 < next) return;
         while (next <= t + 1e-9) next += 0.1 * tEnd;
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
-        const double eta = t > 0 ? wall * (tEnd - t) / t : 0.0;
+        const double eta = t > tFirst ? (wall - wallFirst) * (tEnd - t) / (t - tFirst) : 0.0;
         std::cerr << fmt::format("{}: t = {:.4g} of {:.4g} {}, {}wall {:.1f} s, ETA {:.0f} s\n", name, t, tEnd, unit,
                                  detail ? detail(X) + ", " : std::string(), wall, eta);
     };
@@ -218,6 +249,13 @@ void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& un
     cmd->add_option("--vtk-every", s.vtkEvery, "write every k-th frame as VTK")
         ->check(CLI::Range(1, 1000000))->capture_default_str();
     cmd->add_option("--threads", s.threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
+    cmd->add_flag("--resume", s.resume,
+                  "continue a killed run from its snapshots in OUT/checkpoint/ (same command; a snapshot of another "
+                  "run or a damaged one is ignored and the run starts afresh); needs --out");
+    cmd->add_option("--checkpoint-interval", s.checkpointInterval,
+                    "wall seconds between snapshots in OUT/checkpoint/ (0: after every step; removed when the run "
+                    "has written its outputs)")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
 }
 
 /// The integrator options of SteppingOptions (a fixed --dt switches the step control off).
@@ -273,6 +311,8 @@ void registerShear(CLI::App* flow) {
         requirePositiveOption("--eta-in", fc.etaIn, "mPa s");
         validateFlowConditions(fc);
         const CellParameters p = cellParameters(o->cell);
+        if (o->step.resume && o->step.out.empty())
+            throw InputError("option --resume: continues from the snapshots in --out DIR/checkpoint; give --out");
         if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
         if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
 
@@ -306,7 +346,8 @@ void registerShear(CLI::App* flow) {
                                             {"viscosity_ratio", g.viscosityRatio},
                                             {"membrane_viscosity_ratio_E", g.membraneViscosity},
                                             {"FvK", g.FvK}};
-        const CellFlowOptions opt = cellFlowOptions(o->step, o->rotations * 4.0 * kPi, 0.0);
+        CellFlowOptions opt = cellFlowOptions(o->step, o->rotations * 4.0 * kPi, 0.0);
+        opt.checkpoint = stageCheckpoint(o->step, "main", j["parameters"]);
         const double setupWall = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         const CellFlowResult r = integrateCellFlow(model, model.toInternal(cell.initial), opt,
                                                    progressReporter("flow shear", opt.tEnd, "/rate", tStart, {}));
@@ -320,6 +361,7 @@ void registerShear(CLI::App* flow) {
             {"fixed_dt_times_rate", opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(o->step.dt)}};
         diag["setup_wall_s"] = setupWall;
         diag["wall_s_per_rotation"] = r.tReached > 0 ? r.wallSeconds / (r.tReached / (4.0 * kPi)) : 0.0;
+        diag["checkpoint"] = checkpointJson(r, model.scales().time);
         if (!r.completed) {
             diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
             j["status"] = "failed";
@@ -356,6 +398,7 @@ void registerShear(CLI::App* flow) {
         diag["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
         j["diagnostics"] = diag;
         if (!o->step.out.empty()) writeOutputs(o->step.out, model, cell, r, o->step.vtkEvery, j);
+        removeCheckpoints(o->step);
         std::cout << j.dump(2) << std::endl;
     });
 }
@@ -486,6 +529,8 @@ void registerTube(CLI::App* flow) {
             throw InputError(fmt::format("parameter --settle = {} R/V: the settling criterion spans {:g} R/V (valid: 0 "
                                          "for no settling stage, or [{:g}, inf) R/V)",
                                          o->settle, kSettleSpan, kSettleSpan));
+        if (o->step.resume && o->step.out.empty())
+            throw InputError("option --resume: continues from the snapshots in --out DIR/checkpoint; give --out");
         if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
         if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
 
@@ -658,6 +703,7 @@ void registerTube(CLI::App* flow) {
             ps.etam = settleEtam;
             const CellFlowModel settleModel(ps, fc, cell.faces, cell.reference);
             CellFlowOptions so = cellFlowOptions(o->step, o->settle, 5.0);
+            so.checkpoint = stageCheckpoint(o->step, "settling", j["parameters"]);
             so.stopWhen = [tol = o->settleTol](const CellFlowResult& sofar) {
                 return tubeShapeSettled(sofar.times, sofar.frames, kSettleSpan, tol);
             };
@@ -669,6 +715,7 @@ void registerTube(CLI::App* flow) {
             sd.erase("sfs");
             sd["t_reached_R_over_V"] = rs.tReached;
             sd["settled"] = rs.stoppedEarly;
+            sd["checkpoint"] = checkpointJson(rs, timeUnit);
             sd["wall_clearance_min_um"] = env.minClearance() * L;
             sd["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
             // Is the membrane at rest in the co-moving frame at the end of this stage too? The
@@ -704,7 +751,8 @@ void registerTube(CLI::App* flow) {
             diag["settling"]["final_width_um"] = e.y();
         }
 
-        const CellFlowOptions opt = cellFlowOptions(o->step, o->duration, 5.0);
+        CellFlowOptions opt = cellFlowOptions(o->step, o->duration, 5.0);
+        opt.checkpoint = stageCheckpoint(o->step, "main", j["parameters"]);
         const CellFlowResult r = integrateCellFlow(model, model.toInternal(startUm), opt,
                                                    progressReporter("flow tube", opt.tEnd, "R/V",
                                                                     std::chrono::steady_clock::now(), shape),
@@ -721,6 +769,7 @@ void registerTube(CLI::App* flow) {
         diag["wall_clearance_min_um"] = env.minClearance() * L;
         diag["centroid_off_axis_max_um"] = env.maxOffAxis() * L;
         diag["t_reached_R_over_V"] = r.tReached;
+        diag["checkpoint"] = checkpointJson(r, timeUnit);
         if (!r.completed) fail("main stage", model, r, startUm, o->step.out);
         std::vector<double> ts_s(r.times.size());
         std::vector<Vertices> framesUm(r.frames.size());
@@ -772,6 +821,7 @@ void registerTube(CLI::App* flow) {
             writeTubeFrames(o->step.out, model, r, o->radius);
             writeText(o->step.out + "/flow.json", j.dump(2) + "\n");
         }
+        removeCheckpoints(o->step);
         std::cout << j.dump(2) << std::endl;
     });
 }

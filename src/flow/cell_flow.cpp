@@ -11,8 +11,12 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
+#include "core/version.hpp"
+#include "flow/cell_flow_checkpoint.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/validate.hpp"
 
@@ -351,6 +355,8 @@ void checkOptions(const CellFlowOptions& o) {
     requirePositive("dtInitial", o.dtInitial, "(internal time)");
     requirePositive("dtMin", o.dtMin, "(internal time)");
     requirePositive("dtMax", o.dtMax, "(internal time)");
+    if (!(o.checkpoint.intervalSeconds >= 0.0))
+        throw InputError(fmt::format("checkpoint interval = {} s: must be >= 0", o.checkpoint.intervalSeconds));
     if (!(o.gmresTolerance > 0.0 && o.gmresTolerance < 1.0))
         throw InputError(fmt::format("GMRES tolerance = {}: must be in (0, 1)", o.gmresTolerance));
     if (o.gmresRestart < 1 || o.gmresMaxIterations < 1 || o.maxSteps < 1)
@@ -372,6 +378,32 @@ void projectAreaVolume(Vertices& X, const Faces& F, double A0, double V0) {
         const Eigen::Vector2d l = JtJ.ldlt().solve(c);
         X -= l[0] * av.areaGradient + l[1] * av.volumeGradient;
     }
+}
+
+/// What a snapshot must match (CellFlowCheckpoint): the caller's key, the version, the model's
+/// parameters and connectivity, the initial shape's bits and every option that changes a step.
+std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& initial, const CellFlowOptions& o,
+                                  const FlowEnvironment* env) {
+    const CellParameters& c = model.cell();
+    const FlowConditions& f = model.conditions();
+    const QuadratureOptions& q = o.quadrature;
+    std::string d = fmt::format("{}|{}|{}|", o.checkpoint.key, kVersion, env ? "environment" : "unbounded");
+    for (double v : {c.v, c.mu, c.FvK, c.b2, c.etam, f.etaOut, f.etaIn, f.shearRate, f.timeScale, f.A0, f.V0, o.tEnd,
+                     o.frameInterval, o.errorTolerance, o.dtInitial, o.dtMin, o.dtMax, o.gmresTolerance, o.maxDrift,
+                     o.preconditionerScale, q.nearFactor})
+        d += fmt::format("{:a},", v);
+    for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
+                   long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),
+                   long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints), long(initial.cols()),
+                   long(model.faces().cols())})
+        d += fmt::format("{},", v);
+    std::uint64_t h = fnv1a(d);
+    h = fnv1a(std::string_view(reinterpret_cast<const char*>(model.faces().data()),
+                               static_cast<std::size_t>(model.faces().size()) * sizeof(model.faces()(0, 0))),
+              h);
+    return fnv1a(std::string_view(reinterpret_cast<const char*>(initial.data()),
+                                  static_cast<std::size_t>(initial.size()) * sizeof(double)),
+                 h);
 }
 
 }  // namespace
@@ -458,15 +490,60 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     double t = 0.0, dt = std::min(opt.dtInitial, opt.dtMax);
     std::size_t nextFrame = 1, framesChecked = 1;
     const auto frameTime = [&](std::size_t k) { return static_cast<double>(k) * opt.frameInterval; };
-    recordFrame(0.0, X);
+    double wallBefore = 0.0;  // of the parts before the snapshot resumed
+    const auto wallSoFar = [&] { return wallBefore + std::chrono::duration<double>(Clock::now() - t0).count(); };
+
+    // Snapshots (CellFlowCheckpoint): the state the next step reads, and the result so far.
+    const CellFlowCheckpoint& cp = opt.checkpoint;
+    const std::uint64_t fingerprint = cp.file.empty() ? 0 : cellFlowFingerprint(model, initial, opt, env);
+    const auto snapshot = [&] {
+        CellFlowSnapshot s{X, Xprev, Xprev2, U, tension, dtPrev, dtPrev2, t, dt, history, nextFrame, framesChecked,
+                           env ? env->records() : std::vector<double>{}, res};
+        s.result.wallSeconds = wallSoFar();
+        writeCellFlowSnapshot(cp.file, s, fingerprint);
+    };
+    auto lastSnapshot = Clock::now();
+    std::optional<CellFlowSnapshot> resumed;
+    if (!cp.file.empty() && cp.resume) {
+        std::string why;
+        resumed = readCellFlowSnapshot(cp.file, fingerprint, why);
+        if (cp.log)
+            cp.log(resumed ? fmt::format("resuming {} at t = {:.6g} ({} steps done)", cp.file.string(), resumed->t,
+                                         resumed->result.steps)
+                           : fmt::format("not resuming {}: {}; starting afresh", cp.file.string(), why));
+    }
+    if (resumed) {
+        CellFlowSnapshot& s = *resumed;
+        X = std::move(s.X);
+        Xprev = std::move(s.Xprev);
+        Xprev2 = std::move(s.Xprev2);
+        U = std::move(s.U);
+        tension = s.tension;
+        dtPrev = s.dtPrev;
+        dtPrev2 = s.dtPrev2;
+        t = s.t;
+        dt = s.dt;
+        history = s.history;
+        nextFrame = s.nextFrame;
+        framesChecked = s.framesChecked;
+        if (env) env->restoreRecords(s.environmentRecords);
+        res = std::move(s.result);
+        wallBefore = res.wallSeconds;
+        if (res.completed) return res;  // the snapshot of a finished run
+        ++res.resumes;
+        res.resumedAt = t;
+    } else {
+        recordFrame(0.0, X);
+    }
 
     auto finish = [&](bool ok, std::string msg) {
         res.completed = ok;
         res.message = std::move(msg);
         res.final = X;
         res.tReached = t;
-        res.wallSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+        res.wallSeconds = wallSoFar();
         if (res.steps == 0) res.dtSmallest = res.dtLargest = 0.0;
+        if (ok && !cp.file.empty()) snapshot();
         return res;
     };
 
@@ -617,6 +694,11 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             }
         }
         dt = opt.adaptive ? std::min(opt.dtMax, h * factor) : opt.dtInitial;
+        if (!cp.file.empty() &&
+            std::chrono::duration<double>(Clock::now() - lastSnapshot).count() >= cp.intervalSeconds) {
+            snapshot();
+            lastSnapshot = Clock::now();
+        }
     }
     return finish(true, "completed");
 }

@@ -132,6 +132,23 @@ private:
 
 struct CellFlowResult;
 
+/// Snapshots of a run (docs/FLOW.md "Checkpoints"): a run killed at any moment and started again
+/// with the same model, initial shape, options and key continues from its last snapshot and ends
+/// with the result an uninterrupted run gets, bit for bit (wall time and the resume records
+/// aside). A run that ends writes its final snapshot, so that a multi-stage caller resumes past
+/// its finished stages; a failed run writes none (its resume repeats the failure from the last
+/// periodic snapshot). The frame observer is not called again for frames before the snapshot.
+struct CellFlowCheckpoint {
+    std::filesystem::path file;      ///< empty: no snapshots
+    double intervalSeconds = 60.0;   ///< wall time between snapshots (0: after every accepted step)
+    bool resume = false;             ///< continue from `file` when it holds a snapshot of this run
+    /// What the integrator cannot see and the run depends on (the environment's parameters, the
+    /// stage): part of the fingerprint that a snapshot must match.
+    std::string key;
+    /// Told whether a snapshot was resumed or why it was not (another run, damaged, missing).
+    std::function<void(const std::string&)> log;
+};
+
 struct CellFlowOptions {
     double tEnd = 40.0 * 3.14159265358979323846;  ///< internal time (10 rotations 4 pi / rate)
     double frameInterval = 0.1;      ///< frames at k frameInterval (interpolated), internal time
@@ -151,6 +168,7 @@ struct CellFlowOptions {
     /// Checked after every step that recorded a frame (with the frames so far): true ends the run
     /// there as completed, with stoppedEarly set. Empty: run to tEnd.
     std::function<bool(const CellFlowResult& sofar)> stopWhen;
+    CellFlowCheckpoint checkpoint;
 };
 
 struct CellFlowStepRecord {
@@ -184,7 +202,9 @@ struct CellFlowResult {
     double maxAreaCorrection = 0.0, maxVolumeCorrection = 0.0;
     double sumAreaCorrection = 0.0, sumVolumeCorrection = 0.0;
     double maxFluxCorrection = 0.0;  ///< largest |uniform normal velocity| of the volume row (R_A rate)
-    double wallSeconds = 0.0;
+    double wallSeconds = 0.0;              ///< summed over the resumed parts
+    int resumes = 0;                       ///< times the run continued from a snapshot
+    double resumedAt = -1.0;               ///< time of the last snapshot resumed, internal units (-1: none)
 };
 
 /// Called at t = 0 and at every frame time (internal units).
@@ -209,6 +229,10 @@ public:
     /// Empty when the accepted state X is admissible, otherwise the reason why the run must stop
     /// (contact with a wall, the cell leaving the discretised wall, ...).
     virtual std::string inadmissible(const Vertices& X) const = 0;
+    /// What the environment has recorded over the run (kept in the integrator's snapshots) and
+    /// its restoration on resume.
+    virtual std::vector<double> records() const { return {}; }
+    virtual void restoreRecords(const std::vector<double>& /*records*/) const {}
 };
 
 /// Integrates dX/dt = u(X) from `initial` (internal units). Never throws on a numerical failure:

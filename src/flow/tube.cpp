@@ -410,6 +410,12 @@ Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double cl
 
 // ---- Observables --------------------------------------------------------------------------------
 
+void TubeEnvironment::restoreRecords(const std::vector<double>& r) const {
+    if (r.size() != 2) throw InputError(fmt::format("tube records: {} values, 2 expected", r.size()));
+    minClearance_ = r[0];
+    maxOffAxis_ = r[1];
+}
+
 void TubeEnvironment::resetRecords() const {
     minClearance_ = std::numeric_limits<double>::infinity();
     maxOffAxis_ = 0.0;

@@ -174,6 +174,8 @@ public:
     double maxOffAxis() const { return maxOffAxis_; }
     /// Starts the two records above afresh (between the stages of a run).
     void resetRecords() const;
+    std::vector<double> records() const override { return {minClearance_, maxOffAxis_}; }
+    void restoreRecords(const std::vector<double>& r) const override;
     /// Repulsion energy of the vertices (test of the gradient).
     double repulsionEnergy(const Vertices& X) const;
 
