@@ -403,5 +403,50 @@ TEST(ValidateCli, LockAndSignalForwarding) {
     EXPECT_FALSE(fs::exists(out / "cases" / "angle_eta23.9_rate20.json")) << test::slurp(out / "cases" / "angle_eta23.9_rate20.json");  // interrupted: runs again on resume
 }
 
+// A case interrupted by SIGTERM to validate keeps its snapshots (run.checkpoint_interval), and the
+// next validate resumes it from them (flow --resume) to the result of an uninterrupted run.
+TEST(ValidateCli, AnInterruptedCaseResumesFromItsSnapshots) {
+    using namespace std::chrono_literals;
+    TempDir dir;
+    const fs::path cfg = writeText(dir.path() / "one.toml",
+                                   "[run]\nlevel = 2\njobs = 1\ncheckpoint_interval = 0\n[shear]\nrotations = 2\n"
+                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 40\nrate_max = 40\ncount = 1\n"
+                                   "[tube]\nenabled = false\n");
+    const std::string base = "validate --only angle --quiet --config " + cfg.string();
+    const fs::path whole = dir.path() / "whole", out = dir.path() / "o";
+    const std::string id = "angle_eta23.9_rate40";
+    test::CliRun r = test::runTrbc(base + " --out " + whole.string(), dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+
+    const fs::path pidFile = dir.path() / "pid";
+    ASSERT_EQ(std::system(("(" + test::shellQuote(TRBC_CLI) + " " + base + " --out " + test::shellQuote(out.string()) +
+                           " > /dev/null 2>&1 & echo $! > " + test::shellQuote(pidFile.string()) + ")")
+                              .c_str()),
+              0);
+    std::this_thread::sleep_for(100ms);
+    const pid_t pid = std::stoi(test::slurp(pidFile));
+    const fs::path snapshot = out / "cases" / id / "checkpoint" / "main.bin";
+    for (int i = 0; i < 1200 && !fs::exists(snapshot); ++i) std::this_thread::sleep_for(10ms);
+    ASSERT_TRUE(fs::exists(snapshot));
+    std::this_thread::sleep_for(200ms);
+    ASSERT_EQ(::kill(pid, SIGTERM), 0);
+    for (int i = 0; i < 200 && processesMentioning(out.string()) > 0; ++i) std::this_thread::sleep_for(25ms);
+    ASSERT_EQ(processesMentioning(out.string()), 0);
+    ASSERT_FALSE(fs::exists(out / "cases" / (id + ".json"))) << "the case finished before it could be interrupted";
+    EXPECT_TRUE(fs::exists(snapshot));
+
+    r = test::runTrbc(base + " --out " + out.string(), dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(test::slurp(out / "cases" / (id + ".log")).find("resuming"), std::string::npos);
+    const nlohmann::json a = nlohmann::json::parse(test::slurp(whole / "cases" / (id + ".json")));
+    const nlohmann::json b = nlohmann::json::parse(test::slurp(out / "cases" / (id + ".json")));
+    EXPECT_EQ(a["key"], b["key"]);
+    EXPECT_EQ(a["result"]["observables"], b["result"]["observables"]);
+    EXPECT_EQ(a["result"]["diagnostics"]["steps"], b["result"]["diagnostics"]["steps"]);
+    EXPECT_EQ(b["result"]["diagnostics"]["checkpoint"]["resumes"], 1);
+    EXPECT_EQ(test::slurp(whole / "cases" / id / "steps.csv"), test::slurp(out / "cases" / id / "steps.csv"));
+    EXPECT_FALSE(fs::exists(out / "cases" / id / "checkpoint"));
+}
+
 }  // namespace
 }  // namespace trbc

@@ -80,11 +80,12 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     const fs::path dir = file.parent_path();
     if (const toml::table* t = section("run")) {
         TableReader r(file, *t, "run");
-        r.allowOnly({"level", "jobs", "threads", "step_tol"});
+        r.allowOnly({"level", "jobs", "threads", "step_tol", "checkpoint_interval"});
         r.integer("level", c.level, 1, 4);
         r.integer("jobs", c.jobs, 1, 256);
         r.integer("threads", c.threads, 1, 1024);
         r.real("step_tol", c.stepTol, 0.0, 1.0, true);
+        r.real("checkpoint_interval", c.checkpointInterval, 0.0, 1e9);
     }
     if (const toml::table* t = section("data")) {
         TableReader r(file, *t, "data");

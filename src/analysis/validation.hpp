@@ -26,6 +26,7 @@ struct ValidationConfig {
     std::filesystem::path dataDir;    ///< experimental validation data (shear_flow/, microtube/)
     int level = 2, jobs = 1, threads = 1;
     double stepTol = 1e-3;            ///< local error per step of the shear runs, R_A
+    double checkpointInterval = 60.0; ///< wall seconds between a case's snapshots (flow --checkpoint-interval)
     /// Cell: "table1" (the paper's Table 1 means), "posterior" (means of a theta_new posterior) or
     /// "explicit" (the five parameters below).
     std::string cellSource = "table1";

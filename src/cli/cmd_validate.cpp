@@ -137,8 +137,9 @@ struct Runner {
         const fs::path dir = out / "cases" / c.id;
         if (!fs::is_directory(dir / "checkpoint")) fs::remove_all(dir);
         const fs::path stdoutFile = out / "cases" / (c.id + ".stdout"), log = out / "cases" / (c.id + ".log");
-        const std::string command = fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume", shellQuote(exe),
-                                                caseArgs(c), cfg.threads, shellQuote(dir));
+        const std::string command =
+            fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume --checkpoint-interval {}", shellQuote(exe),
+                        caseArgs(c), cfg.threads, shellQuote(dir), cfg.checkpointInterval);
         const auto t0 = Clock::now();
         const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + " 2> " + shellQuote(log) + " < /dev/null"));
         const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
