@@ -432,13 +432,57 @@ void expectSameRun(const CellFlowResult& a, const CellFlowResult& b) {
         EXPECT_EQ(a.stepLog[k].gmresIterations, b.stepLog[k].gmresIterations) << "step " << k;
         EXPECT_EQ(a.stepLog[k].tension, b.stepLog[k].tension) << "step " << k;
     }
+    for (std::size_t k = 0; k < a.stepLog.size(); ++k) {
+        const CellFlowStepRecord &p = a.stepLog[k], &q = b.stepLog[k];
+        EXPECT_EQ(p.fluxCorrection, q.fluxCorrection) << "step " << k;
+        EXPECT_EQ(p.areaDrift, q.areaDrift) << "step " << k;
+        EXPECT_EQ(p.volumeDrift, q.volumeDrift) << "step " << k;
+        EXPECT_EQ(p.areaCorrection, q.areaCorrection) << "step " << k;
+        EXPECT_EQ(p.volumeCorrection, q.volumeCorrection) << "step " << k;
+    }
     EXPECT_TRUE(a.final == b.final);
+    EXPECT_EQ(a.stoppedEarly, b.stoppedEarly);
+    EXPECT_EQ(a.tReached, b.tReached);
     EXPECT_EQ(a.steps, b.steps);
     EXPECT_EQ(a.rejectedSteps, b.rejectedSteps);
+    EXPECT_EQ(a.failedSolves, b.failedSolves);
     EXPECT_EQ(a.gmresIterations, b.gmresIterations);
-    EXPECT_EQ(a.sumAreaCorrection, b.sumAreaCorrection);
+    EXPECT_EQ(a.maxGmresIterations, b.maxGmresIterations);
+    EXPECT_EQ(a.dtSmallest, b.dtSmallest);
+    EXPECT_EQ(a.dtLargest, b.dtLargest);
+    EXPECT_EQ(a.maxAreaDrift, b.maxAreaDrift);
     EXPECT_EQ(a.maxVolumeDrift, b.maxVolumeDrift);
+    EXPECT_EQ(a.maxAreaCorrection, b.maxAreaCorrection);
+    EXPECT_EQ(a.maxVolumeCorrection, b.maxVolumeCorrection);
+    EXPECT_EQ(a.sumAreaCorrection, b.sumAreaCorrection);
+    EXPECT_EQ(a.sumVolumeCorrection, b.sumVolumeCorrection);
+    EXPECT_EQ(a.maxFluxCorrection, b.maxFluxCorrection);
 }
+
+/// The model's shear flow as an environment that records what it saw (the number of accepted
+/// states and the largest centroid distance), as the tube does: the records must survive a resume.
+class RecordingShear : public FlowEnvironment {
+public:
+    Vertices background(const Vertices& X) const override {
+        Vertices u = Vertices::Zero(3, X.cols());
+        u.row(0) = X.row(1);
+        return u;
+    }
+    void addExternalGradient(const Vertices&, Vertices&) const override {}
+    DensityMap wallOperator(const Vertices&, const BoundaryIntegralOperators&) const override { return {}; }
+    std::string inadmissible(const Vertices& X) const override {
+        ++states_;
+        reach_ = std::max(reach_, centroid(X).norm());
+        return {};
+    }
+    std::vector<double> records() const override { return {double(states_), reach_}; }
+    void restoreRecords(const std::vector<double>& r) const override {
+        states_ = static_cast<long>(r.at(0));
+        reach_ = r.at(1);
+    }
+    mutable long states_ = 0;
+    mutable double reach_ = 0.0;
+};
 
 TEST(CellFlowCheckpoint, ARunInterruptedAndResumedEqualsTheUninterruptedRunBitForBit) {
     test::TempDir dir;
@@ -510,6 +554,53 @@ TEST(CellFlowCheckpoint, ARunInterruptedAndResumedEqualsTheUninterruptedRunBitFo
     EXPECT_THROW(integrateCellFlow(m, m.toInternal(c.initial), o), InputError);
 }
 
+// A run that ends by its stop criterion, with an environment's records: the resumed run ends at
+// the same step with the same records, and its final snapshot gives both back without a step.
+TEST(CellFlowCheckpoint, EnvironmentRecordsAndTheStopCriterionSurviveAResume) {
+    test::TempDir dir;
+    const ShearCell& c = cellL2();
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    CellFlowOptions o = tankTreadingOptions();
+    o.tEnd = 4.0 * kPi;
+    o.keepFrames = false;  // the snapshot then holds no frames
+    o.stopWhen = [](const CellFlowResult& r) { return r.times.back() >= 6.0; };
+    RecordingShear full;
+    const CellFlowResult a = integrateCellFlow(m, m.toInternal(c.initial), o, {}, &full);
+    ASSERT_TRUE(a.completed && a.stoppedEarly) << a.message;
+    EXPECT_EQ(full.states_, a.steps);
+
+    o.checkpoint.file = dir.path() / "stage.bin";
+    o.checkpoint.intervalSeconds = 0.0;
+    o.checkpoint.resume = true;
+    std::vector<std::string> log;
+    o.checkpoint.log = [&log](const std::string& s) { log.push_back(s); };
+    RecordingShear first;
+    EXPECT_THROW(integrateCellFlow(m, m.toInternal(c.initial), o,
+                                   [](double t, const Vertices&) {
+                                       if (t > 3.0) throw Interrupted{};
+                                   },
+                                   &first),
+                 Interrupted);
+    RecordingShear second;  // a new process: records start empty and come from the snapshot
+    const CellFlowResult b = integrateCellFlow(m, m.toInternal(c.initial), o, {}, &second);
+    ASSERT_EQ(log.size(), 2u);
+    EXPECT_NE(log[1].find("resuming"), std::string::npos) << log[1];
+    EXPECT_EQ(b.resumes, 1);
+    expectSameRun(a, b);
+    EXPECT_EQ(second.states_, full.states_);
+    EXPECT_EQ(second.reach_, full.reach_);
+
+    RecordingShear third;
+    bool observed = false;
+    const CellFlowResult again =
+        integrateCellFlow(m, m.toInternal(c.initial), o, [&observed](double, const Vertices&) { observed = true; }, &third);
+    EXPECT_FALSE(observed) << "a finished run's snapshot is returned without a step";
+    EXPECT_EQ(again.wallSeconds, b.wallSeconds);
+    expectSameRun(a, again);
+    EXPECT_EQ(third.states_, full.states_);
+    EXPECT_EQ(third.reach_, full.reach_);
+}
+
 // ---- CLI -----------------------------------------------------------------------------------------
 
 TEST(CellFlowCli, ARunKilledBySigkillResumesToTheUninterruptedOutputs) {
@@ -521,11 +612,11 @@ TEST(CellFlowCli, ARunKilledBySigkillResumesToTheUninterruptedOutputs) {
     ASSERT_EQ(full.status, 0) << full.err;
     EXPECT_FALSE(std::filesystem::exists(a / "checkpoint")) << "snapshots are removed once the outputs are written";
 
+    const std::string cmd = "exec " + test::shellQuote(TRBC_CLI) + " " + args + " --checkpoint-interval 0 --out " +
+                            test::shellQuote(b.string()) + " >/dev/null 2>&1";
     const pid_t pid = fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
-        const std::string cmd = "exec " + test::shellQuote(TRBC_CLI) + " " + args + " --checkpoint-interval 0 --out " +
-                                test::shellQuote(b.string()) + " >/dev/null 2>&1";
         execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
         _exit(127);
     }

@@ -426,12 +426,13 @@ TEST(ValidateCli, AnInterruptedCaseResumesFromItsSnapshots) {
     std::this_thread::sleep_for(100ms);
     const pid_t pid = std::stoi(test::slurp(pidFile));
     const fs::path snapshot = out / "cases" / id / "checkpoint" / "main.bin";
-    for (int i = 0; i < 1200 && !fs::exists(snapshot); ++i) std::this_thread::sleep_for(10ms);
+    for (int i = 0; i < 6000 && !fs::exists(snapshot); ++i) std::this_thread::sleep_for(10ms);
     ASSERT_TRUE(fs::exists(snapshot));
     std::this_thread::sleep_for(200ms);
     ASSERT_EQ(::kill(pid, SIGTERM), 0);
-    for (int i = 0; i < 200 && processesMentioning(out.string()) > 0; ++i) std::this_thread::sleep_for(25ms);
-    ASSERT_EQ(processesMentioning(out.string()), 0);
+    const std::string cases = (out / "cases").string();
+    for (int i = 0; i < 200 && processesMentioning(cases) > 0; ++i) std::this_thread::sleep_for(25ms);
+    ASSERT_EQ(processesMentioning(cases), 0);
     ASSERT_FALSE(fs::exists(out / "cases" / (id + ".json"))) << "the case finished before it could be interrupted";
     EXPECT_TRUE(fs::exists(snapshot));
 

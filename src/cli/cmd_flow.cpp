@@ -13,6 +13,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "analysis/stage_ledger.hpp"
 #include "core/version.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/shear_observables.hpp"
@@ -193,14 +194,18 @@ struct SteppingOptions {
 };
 
 /// Snapshots of one stage in OUT/checkpoint/STAGE.bin (docs/FLOW.md "Checkpoints"); none without
-/// --out. The key holds what the integrator cannot see: the command's parameters (the tube's too).
-CellFlowCheckpoint stageCheckpoint(const SteppingOptions& s, const std::string& stage, const nlohmann::json& parameters) {
+/// --out. The key holds what the integrator cannot see: the command's parameters (the tube's too),
+/// the binary itself (its bytes: another build may step differently) and the thread count (the
+/// tube wall's blocked LU depends on it).
+CellFlowCheckpoint stageCheckpoint(const SteppingOptions& s, const std::string& stage, const nlohmann::json& parameters,
+                                   const std::string& extra = {}) {
     CellFlowCheckpoint c;
     if (s.out.empty()) return c;
+    static const std::string build = fileFingerprint("/proc/self/exe");
     c.file = std::filesystem::path(s.out) / "checkpoint" / (stage + ".bin");
     c.intervalSeconds = s.checkpointInterval;
     c.resume = s.resume;
-    c.key = stage + "|" + parameters.dump();
+    c.key = fmt::format("{}|{}|build {}|threads {}|{}", stage, parameters.dump(), build, omp_get_max_threads(), extra);
     c.log = [](const std::string& what) { std::cerr << "flow: " << what << "\n"; };
     return c;
 }
@@ -230,8 +235,9 @@ CellFlowObserver progressReporter(const std::string& name, double tEnd, const st
         }
         if (t + 1e-9 < next) return;
         while (next <= t + 1e-9) next += 0.1 * tEnd;
-        const double eta = t > tFirst ? (wall - wallFirst) * (tEnd - t) / (t - tFirst) : 0.0;
-        std::cerr << fmt::format("{}: t = {:.4g} of {:.4g} {}, {}wall {:.1f} s, ETA {:.0f} s\n", name, t, tEnd, unit,
+        const std::string eta =
+            t > tFirst ? fmt::format("{:.0f} s", (wall - wallFirst) * (tEnd - t) / (t - tFirst)) : std::string("?");
+        std::cerr << fmt::format("{}: t = {:.4g} of {:.4g} {}, {}wall {:.1f} s, ETA {}\n", name, t, tEnd, unit,
                                  detail ? detail(X) + ", " : std::string(), wall, eta);
     };
 }
@@ -372,6 +378,7 @@ void registerShear(CLI::App* flow) {
             j["diagnostics"]["t_reached_s"] = r.tReached * model.scales().time;
             std::cout << j.dump(2) << std::endl;
             if (!o->step.out.empty()) writeOutputs(o->step.out, model, cell, r, o->step.vtkEvery, j);
+            removeCheckpoints(o->step);  // a resume would only repeat the failure
             throw NumericalError("flow shear: " + r.message);
         }
         const ShearObservables obs = analyzeShearFrames(r.times, r.frames, 1.0);
@@ -689,6 +696,7 @@ void registerTube(CLI::App* flow) {
                 writeTubeFrames(dir, m, r, o->radius);
                 writeText(o->step.out + "/flow.json", j.dump(2) + "\n");
             }
+            removeCheckpoints(o->step);  // a resume would only repeat the failure
             throw NumericalError("flow tube, " + stage + ": " + r.message);
         };
 
@@ -703,7 +711,7 @@ void registerTube(CLI::App* flow) {
             ps.etam = settleEtam;
             const CellFlowModel settleModel(ps, fc, cell.faces, cell.reference);
             CellFlowOptions so = cellFlowOptions(o->step, o->settle, 5.0);
-            so.checkpoint = stageCheckpoint(o->step, "settling", j["parameters"]);
+            so.checkpoint = stageCheckpoint(o->step, "settling", j["parameters"], fmt::format("settle-tol {:a}", o->settleTol));
             so.stopWhen = [tol = o->settleTol](const CellFlowResult& sofar) {
                 return tubeShapeSettled(sofar.times, sofar.frames, kSettleSpan, tol);
             };

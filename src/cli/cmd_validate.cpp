@@ -134,14 +134,19 @@ struct Runner {
     void runCase(const ValidationCase& c) {
         // A case interrupted earlier continues from its snapshots (flow --resume, docs/FLOW.md
         // "Checkpoints"); otherwise its directory starts empty.
-        const fs::path dir = out / "cases" / c.id;
-        if (!fs::is_directory(dir / "checkpoint")) fs::remove_all(dir);
+        // "checkpoint.key" tells whether the snapshots are of this case as configured now.
+        const fs::path dir = out / "cases" / c.id, keyFile = dir / "checkpoint.key";
+        const bool resuming = fs::is_directory(dir / "checkpoint") && fs::exists(keyFile) && readFile(keyFile) == caseKey(c);
+        if (!resuming) fs::remove_all(dir);
+        fs::create_directories(dir);
+        writeFileAtomically(keyFile, caseKey(c));
         const fs::path stdoutFile = out / "cases" / (c.id + ".stdout"), log = out / "cases" / (c.id + ".log");
         const std::string command =
             fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume --checkpoint-interval {}", shellQuote(exe),
                         caseArgs(c), cfg.threads, shellQuote(dir), cfg.checkpointInterval);
         const auto t0 = Clock::now();
-        const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + " 2> " + shellQuote(log) + " < /dev/null"));
+        const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + (resuming ? " 2>> " : " 2> ") +
+                                                     shellQuote(log) + " < /dev/null"));
         const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
         // SIGINT/SIGTERM/SIGHUP of validate are forwarded to the cases and end validate itself
         // (child_process.hpp): those cases run again on resume. A case interrupted on its own is not

@@ -406,6 +406,19 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
                  h);
 }
 
+/// A snapshot whose fingerprint and checksum match holds a state of this run; this guards the
+/// restore against a colliding or hand-made file all the same.
+bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* env) {
+    for (const Vertices* M : {&s.X, &s.Xprev, &s.Xprev2, &s.U, &s.result.final})
+        if (M->cols() != nv && !(M == &s.result.final && M->cols() == 0)) return false;
+    for (const Vertices& f : s.result.frames)
+        if (f.cols() != nv) return false;
+    const std::size_t frames = s.result.times.size();
+    return s.history >= 0 && s.nextFrame >= 1 && s.nextFrame <= frames + 1 && s.framesChecked <= frames &&
+           s.result.areaDrift.size() == frames && s.result.volumeDrift.size() == frames &&
+           s.environmentRecords.size() == (env ? env->records().size() : 0);
+}
+
 }  // namespace
 
 void validateFlowConditions(const FlowConditions& f) {
@@ -496,17 +509,29 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     // Snapshots (CellFlowCheckpoint): the state the next step reads, and the result so far.
     const CellFlowCheckpoint& cp = opt.checkpoint;
     const std::uint64_t fingerprint = cp.file.empty() ? 0 : cellFlowFingerprint(model, initial, opt, env);
+    bool snapshots = !cp.file.empty();
+    // A snapshot that cannot be written (disk full, ...) is reported and the run goes on without.
     const auto snapshot = [&] {
+        if (!snapshots) return;
         CellFlowSnapshot s{X, Xprev, Xprev2, U, tension, dtPrev, dtPrev2, t, dt, history, nextFrame, framesChecked,
                            env ? env->records() : std::vector<double>{}, res};
-        s.result.wallSeconds = wallSoFar();
-        writeCellFlowSnapshot(cp.file, s, fingerprint);
+        if (!res.completed) s.result.wallSeconds = wallSoFar();  // a finished run's is set by finish()
+        try {
+            writeCellFlowSnapshot(cp.file, s, fingerprint);
+        } catch (const std::exception& e) {
+            snapshots = false;
+            if (cp.log) cp.log(fmt::format("cannot write the snapshot ({}); the run goes on without snapshots", e.what()));
+        }
     };
     auto lastSnapshot = Clock::now();
     std::optional<CellFlowSnapshot> resumed;
     if (!cp.file.empty() && cp.resume) {
         std::string why;
         resumed = readCellFlowSnapshot(cp.file, fingerprint, why);
+        if (resumed && !snapshotFits(*resumed, nv, env)) {
+            resumed.reset();
+            why = "damaged snapshot (its state does not fit the run)";
+        }
         if (cp.log)
             cp.log(resumed ? fmt::format("resuming {} at t = {:.6g} ({} steps done)", cp.file.string(), resumed->t,
                                          resumed->result.steps)
@@ -543,7 +568,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         res.tReached = t;
         res.wallSeconds = wallSoFar();
         if (res.steps == 0) res.dtSmallest = res.dtLargest = 0.0;
-        if (ok && !cp.file.empty()) snapshot();
+        if (ok) snapshot();
         return res;
     };
 
@@ -694,8 +719,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             }
         }
         dt = opt.adaptive ? std::min(opt.dtMax, h * factor) : opt.dtInitial;
-        if (!cp.file.empty() &&
-            std::chrono::duration<double>(Clock::now() - lastSnapshot).count() >= cp.intervalSeconds) {
+        if (snapshots && std::chrono::duration<double>(Clock::now() - lastSnapshot).count() >= cp.intervalSeconds) {
             snapshot();
             lastSnapshot = Clock::now();
         }

@@ -69,6 +69,7 @@ public:
         return X;
     }
     bool atEnd() const { return pos_ == bytes_.size(); }
+    std::size_t remaining() const { return bytes_.size() - pos_; }
 
 private:
     /// A length prefix, checked against what is left (elements of `size` bytes).
@@ -118,13 +119,14 @@ CellFlowResult readResult(Reader& rd) {
     r.stoppedEarly = rd.pod<std::uint8_t>() != 0;
     r.message = rd.text();
     r.times = rd.doubles();
-    const auto nf = rd.pod<std::uint64_t>();
-    if (nf != r.times.size()) throw std::runtime_error("frame count differs from the frame times");
+    const auto nf = rd.pod<std::uint64_t>();  // 0 when the run keeps no frames
+    if (nf != r.times.size() && nf != 0) throw std::runtime_error("frame count differs from the frame times");
     for (std::uint64_t k = 0; k < nf; ++k) r.frames.push_back(rd.matrix());
     r.areaDrift = rd.doubles();
     r.volumeDrift = rd.doubles();
     const auto ns = rd.pod<std::uint64_t>();
-    if (ns > 100000000) throw std::runtime_error("implausible step count");
+    constexpr std::size_t kStepBytes = 9 * sizeof(double) + sizeof(int);
+    if (ns > rd.remaining() / kStepBytes) throw std::runtime_error("step count beyond the end of the payload");
     r.stepLog.resize(ns);
     for (CellFlowStepRecord& s : r.stepLog) {
         for (double* v : {&s.t, &s.dt, &s.error, &s.tension, &s.fluxCorrection, &s.areaDrift, &s.volumeDrift,
