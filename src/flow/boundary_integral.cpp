@@ -429,45 +429,111 @@ Eigen::Matrix3Xd BoundaryIntegralOperators::doubleLayer(const Eigen::Matrix3Xd& 
     return out;
 }
 
-Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayer() const {
-    const Index nv = numVertices(), nf = mesh_.numFaces(), nq = ruleWeight_.size();
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(3 * nv, 3 * nv);
-#pragma omp parallel for schedule(static)
-    for (Index i = 0; i < nv; ++i) {
-        const Vec3 x0 = mesh_.X.col(i);
-        for (Index f = 0; f < nf; ++f)
-            for (Index q = 0; q < nq; ++q) {
-                const Index k = f * nq + q;
-                const Vec3 d(qx_[k] - x0.x(), qy_[k] - x0.y(), qz_[k] - x0.z());
-                const Mat3 g = qw_[k] * stokes::stokeslet(d);
-                for (int m = 0; m < 3; ++m) A.block<3, 3>(3 * i, 3 * mesh_.F(m, f)) += ruleBary_(q, m) * g;
+// Dense assembly, one target (block row) at a time: the kernel at every quadrature point,
+// vectorised, as the six components of its symmetric 3x3 block (w G = a I + b d d^T for the single
+// layer, w K = c d d^T for the double layer); then the rule's barycentric weights scatter them into
+// one symmetric block per vertex of a row buffer, which is copied into the matrix once. Far fewer
+// strided writes into the 3 Nv x 3 Nv matrix than a block update per quadrature point.
+namespace {
+
+/// Kernel components at the quadrature points, for one target.
+struct KernelRow {
+    std::vector<double> dx, dy, dz, a, b;  ///< separation; w G = a I + b d d^T (b alone: w K = b d d^T)
+    explicit KernelRow(std::size_t n) : dx(n), dy(n), dz(n), a(n), b(n) {}
+};
+
+/// Row buffer of symmetric blocks: sum over the quadrature points of phi_m(q) (a I + b d d^T),
+/// components (xx, xy, xz, yy, yz, zz) per vertex.
+void scatterSymmetricBlocks(const KernelRow& k, const Eigen::MatrixX3d& bary, const Faces& F, std::vector<double>& buf) {
+    std::fill(buf.begin(), buf.end(), 0.0);
+    const Index nf = F.cols(), nq = bary.rows();
+    for (Index f = 0; f < nf; ++f)
+        for (Index q = 0; q < nq; ++q) {
+            const std::size_t i = static_cast<std::size_t>(f * nq + q);
+            const double dx = k.dx[i], dy = k.dy[i], dz = k.dz[i], a = k.a[i], b = k.b[i];
+            const double bx = b * dx, by = b * dy, bz = b * dz;
+            const double c[6] = {a + bx * dx, bx * dy, bx * dz, a + by * dy, by * dz, a + bz * dz};
+            for (int m = 0; m < 3; ++m) {
+                const double w = bary(q, m);
+                double* o = &buf[6 * static_cast<std::size_t>(F(m, f))];
+                for (int e = 0; e < 6; ++e) o[e] += w * c[e];
             }
-        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-            A.block<3, 3>(3 * i, 3 * corrCol_[p]) +=
-                Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]);
+        }
+}
+
+/// A.block<3, 3>(3 i, 3 j) = the symmetric block j of the buffer, for every vertex j.
+void storeBlockRow(const std::vector<double>& buf, Index i, Eigen::MatrixXd& A) {
+    const Index nv = A.cols() / 3;
+    for (Index j = 0; j < nv; ++j) {
+        const double* o = &buf[6 * static_cast<std::size_t>(j)];
+        double* c0 = &A(3 * i, 3 * j);
+        double* c1 = &A(3 * i, 3 * j + 1);
+        double* c2 = &A(3 * i, 3 * j + 2);
+        c0[0] = o[0], c0[1] = o[1], c0[2] = o[2];
+        c1[0] = o[1], c1[1] = o[3], c1[2] = o[4];
+        c2[0] = o[2], c2[1] = o[4], c2[2] = o[5];
+    }
+}
+
+}  // namespace
+
+Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayer() const {
+    const Index nv = numVertices(), n = static_cast<Index>(qx_.size());
+    Eigen::MatrixXd A(3 * nv, 3 * nv);
+#pragma omp parallel
+    {
+        KernelRow k(static_cast<std::size_t>(n));
+        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
+#pragma omp for schedule(static)
+        for (Index i = 0; i < nv; ++i) {
+            const double x0 = mesh_.X(0, i), y0 = mesh_.X(1, i), z0 = mesh_.X(2, i);
+#pragma omp simd
+            for (Index q = 0; q < n; ++q) {  // w G(d) = (w / r) I + (w / r^3) d d^T
+                const double dx = qx_[q] - x0, dy = qy_[q] - y0, dz = qz_[q] - z0;
+                const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
+                k.dx[q] = dx, k.dy[q] = dy, k.dz[q] = dz;
+                k.a[q] = qw_[q] * rinv;
+                k.b[q] = k.a[q] * rinv * rinv;
+            }
+            scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf);
+            storeBlockRow(buf, i, A);
+            for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
+                A.block<3, 3>(3 * i, 3 * corrCol_[p]) += Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]);
+        }
     }
     return A;
 }
 
 Eigen::MatrixXd BoundaryIntegralOperators::assembleDoubleLayer() const {
-    const Index nv = numVertices(), nf = mesh_.numFaces(), nq = ruleWeight_.size();
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(3 * nv, 3 * nv);
-#pragma omp parallel for schedule(static)
-    for (Index i = 0; i < nv; ++i) {
-        const Vec3 x0 = mesh_.X.col(i);
-        Mat3 ksum = Mat3::Zero();
-        for (Index f = 0; f < nf; ++f)
-            for (Index q = 0; q < nq; ++q) {
-                const Index k = f * nq + q;
-                const Vec3 d(qx_[k] - x0.x(), qy_[k] - x0.y(), qz_[k] - x0.z());
-                const Mat3 kern = qw_[k] * stokes::stressletNormal(d, faceNormal_.col(f));
-                for (int m = 0; m < 3; ++m) A.block<3, 3>(3 * i, 3 * mesh_.F(m, f)) += ruleBary_(q, m) * kern;
-                ksum += kern;
+    const Index nv = numVertices(), n = static_cast<Index>(qx_.size());
+    Eigen::MatrixXd A(3 * nv, 3 * nv);
+#pragma omp parallel
+    {
+        KernelRow k(static_cast<std::size_t>(n));
+        std::fill(k.a.begin(), k.a.end(), 0.0);  // w K(d, n) = c d d^T: no identity part
+        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
+#pragma omp for schedule(static)
+        for (Index i = 0; i < nv; ++i) {
+            const double x0 = mesh_.X(0, i), y0 = mesh_.X(1, i), z0 = mesh_.X(2, i);
+            double s[6] = {0, 0, 0, 0, 0, 0};  // sum of w K over all points (singularity subtraction)
+#pragma omp simd reduction(+ : s[:6])
+            for (Index q = 0; q < n; ++q) {
+                const double dx = qx_[q] - x0, dy = qy_[q] - y0, dz = qz_[q] - z0;
+                const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
+                const double c = stokes::doubleLayerCoefficient(dx, dy, dz, rinv, qnx_[q], qny_[q], qnz_[q]);
+                k.dx[q] = dx, k.dy[q] = dy, k.dz[q] = dz;
+                k.b[q] = c;
+                s[0] += c * dx * dx, s[1] += c * dx * dy, s[2] += c * dx * dz;
+                s[3] += c * dy * dy, s[4] += c * dy * dz, s[5] += c * dz * dz;
             }
-        A.block<3, 3>(3 * i, 3 * i) -= ksum + 4.0 * kPi * Mat3::Identity();
-        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-            A.block<3, 3>(3 * i, 3 * corrCol_[p]) +=
-                Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]);
+            scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf);
+            storeBlockRow(buf, i, A);
+            Mat3 ksum;
+            ksum << s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5];
+            A.block<3, 3>(3 * i, 3 * i) -= ksum + 4.0 * kPi * Mat3::Identity();
+            for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
+                A.block<3, 3>(3 * i, 3 * corrCol_[p]) += Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]);
+        }
     }
     return A;
 }
