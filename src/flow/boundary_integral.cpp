@@ -326,25 +326,44 @@ void BoundaryIntegralOperators::buildCorrections() {
             subtractFarRule(f, false);
         }
         // Near faces: refined rule for both layers (double layer with the subtraction u - u_i).
+        // The kernels at the rule's points, vectorised, as the six components of their symmetric
+        // blocks (w G = a I + b d d^T, w K = c d d^T); the corner blocks are then one small
+        // product with the rule's barycentric weights.
+        const Index nn = nearRule.weight.size();
+        Eigen::Matrix<double, Eigen::Dynamic, 12> P(nn, 12);
         for (Index f = 0; f < nf; ++f) {
             if (mesh_.F(0, f) == i || mesh_.F(1, f) == i || mesh_.F(2, f) == i) continue;
             if ((centroid.col(f) - x0).norm() >= options_.nearFactor * longest[f]) continue;
             const Eigen::Matrix3d c = faceCorners(mesh_, f);
             const Vec3 n = faceNormal_.col(f);
-            Mat3 ks = zero;
-            std::array<Mat3, 3> bs{zero, zero, zero}, bd{zero, zero, zero};
-            for (Index q = 0; q < nearRule.weight.size(); ++q) {
-                const Vec3 d = c * nearRule.bary.row(q).transpose() - x0;
-                const double w = faceArea_[f] * nearRule.weight[q];
-                const Mat3 g = w * stokes::stokeslet(d), k = w * stokes::stressletNormal(d, n);
-                for (int m = 0; m < 3; ++m) {
-                    bs[m] += nearRule.bary(q, m) * g;
-                    bd[m] += nearRule.bary(q, m) * k;
-                }
-                ks += k;
+            const double area = faceArea_[f];
+#pragma omp simd
+            for (Index q = 0; q < nn; ++q) {
+                const double b0 = nearRule.bary(q, 0), b1 = nearRule.bary(q, 1), b2 = nearRule.bary(q, 2);
+                const double dx = c(0, 0) * b0 + c(0, 1) * b1 + c(0, 2) * b2 - x0.x();
+                const double dy = c(1, 0) * b0 + c(1, 1) * b1 + c(1, 2) * b2 - x0.y();
+                const double dz = c(2, 0) * b0 + c(2, 1) * b1 + c(2, 2) * b2 - x0.z();
+                const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
+                const double w = area * nearRule.weight[q];
+                const double a = w * rinv, b = a * rinv * rinv;
+                const double k = stokes::doubleLayerCoefficient(dx, dy, dz, rinv, w * n.x(), w * n.y(), w * n.z());
+                P(q, 0) = a + b * dx * dx, P(q, 1) = b * dx * dy, P(q, 2) = b * dx * dz;
+                P(q, 3) = a + b * dy * dy, P(q, 4) = b * dy * dz, P(q, 5) = a + b * dz * dz;
+                P(q, 6) = k * dx * dx, P(q, 7) = k * dx * dy, P(q, 8) = k * dx * dz;
+                P(q, 9) = k * dy * dy, P(q, 10) = k * dy * dz, P(q, 11) = k * dz * dz;
             }
-            for (int m = 0; m < 3; ++m) row.add(mesh_.F(m, f), bs[m], bd[m]);
-            row.add(static_cast<int>(i), zero, -ks);
+            const Eigen::Matrix<double, 12, 3> corners = P.transpose() * nearRule.bary;
+            const Eigen::Matrix<double, 12, 1> total = P.colwise().sum().transpose();
+            const auto block = [](const auto& v, int o) {
+                Mat3 m;
+                m << v[o], v[o + 1], v[o + 2], v[o + 1], v[o + 3], v[o + 4], v[o + 2], v[o + 4], v[o + 5];
+                return m;
+            };
+            for (int m = 0; m < 3; ++m) {
+                const Eigen::Matrix<double, 12, 1> cm = corners.col(m);
+                row.add(mesh_.F(m, f), block(cm, 0), block(cm, 6));
+            }
+            row.add(static_cast<int>(i), zero, -block(total, 6));
             subtractFarRule(f, true);
         }
     }
