@@ -463,10 +463,13 @@ struct KernelRow {
 
 /// Row buffer of symmetric blocks: sum over the quadrature points of phi_m(q) (a I + b d d^T),
 /// components (xx, xy, xz, yy, yz, zz) per vertex.
-void scatterSymmetricBlocks(const KernelRow& k, const Eigen::MatrixX3d& bary, const Faces& F, std::vector<double>& buf) {
+/// Faces with skip[f] set (if given) are left out.
+void scatterSymmetricBlocks(const KernelRow& k, const Eigen::MatrixX3d& bary, const Faces& F, std::vector<double>& buf,
+                            const std::vector<char>* skip = nullptr) {
     std::fill(buf.begin(), buf.end(), 0.0);
     const Index nf = F.cols(), nq = bary.rows();
-    for (Index f = 0; f < nf; ++f)
+    for (Index f = 0; f < nf; ++f) {
+        if (skip && (*skip)[static_cast<std::size_t>(f)]) continue;
         for (Index q = 0; q < nq; ++q) {
             const std::size_t i = static_cast<std::size_t>(f * nq + q);
             const double dx = k.dx[i], dy = k.dy[i], dz = k.dz[i], a = k.a[i], b = k.b[i];
@@ -478,6 +481,30 @@ void scatterSymmetricBlocks(const KernelRow& k, const Eigen::MatrixX3d& bary, co
                 for (int e = 0; e < 6; ++e) o[e] += w * c[e];
             }
         }
+    }
+}
+
+/// w G(y_q - x0) = a I + b d d^T at every quadrature point (a = w / r, b = w / r^3).
+void singleLayerKernelRow(double x0, double y0, double z0, const std::vector<double>& qx, const std::vector<double>& qy,
+                          const std::vector<double>& qz, const std::vector<double>& qw, KernelRow& k) {
+    const std::size_t n = qx.size();
+#pragma omp simd
+    for (std::size_t q = 0; q < n; ++q) {
+        const double dx = qx[q] - x0, dy = qy[q] - y0, dz = qz[q] - z0;
+        const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
+        k.dx[q] = dx, k.dy[q] = dy, k.dz[q] = dz;
+        k.a[q] = qw[q] * rinv;
+        k.b[q] = k.a[q] * rinv * rinv;
+    }
+}
+
+/// buf (symmetric blocks per vertex) += the corner blocks of face f.
+void addFaceBlocks(const Mat3 (&blocks)[3], const Faces& F, Index f, std::vector<double>& buf) {
+    for (int m = 0; m < 3; ++m) {
+        double* o = &buf[6 * static_cast<std::size_t>(F(m, f))];
+        const Mat3& b = blocks[m];
+        o[0] += b(0, 0), o[1] += b(0, 1), o[2] += b(0, 2), o[3] += b(1, 1), o[4] += b(1, 2), o[5] += b(2, 2);
+    }
 }
 
 /// A.block<3, 3>(3 i, 3 j) = the symmetric block j of the buffer, for every vertex j.
@@ -505,15 +532,7 @@ Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayer() const {
         std::vector<double> buf(6 * static_cast<std::size_t>(nv));
 #pragma omp for schedule(static)
         for (Index i = 0; i < nv; ++i) {
-            const double x0 = mesh_.X(0, i), y0 = mesh_.X(1, i), z0 = mesh_.X(2, i);
-#pragma omp simd
-            for (Index q = 0; q < n; ++q) {  // w G(d) = (w / r) I + (w / r^3) d d^T
-                const double dx = qx_[q] - x0, dy = qy_[q] - y0, dz = qz_[q] - z0;
-                const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
-                k.dx[q] = dx, k.dy[q] = dy, k.dz[q] = dz;
-                k.a[q] = qw_[q] * rinv;
-                k.b[q] = k.a[q] * rinv * rinv;
-            }
+            singleLayerKernelRow(mesh_.X(0, i), mesh_.X(1, i), mesh_.X(2, i), qx_, qy_, qz_, qw_, k);
             scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf);
             storeBlockRow(buf, i, A);
             for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
@@ -600,15 +619,30 @@ void BoundaryIntegralOperators::offSurfaceBlocks(const Vec3& x0, Index f, int ma
 }
 
 Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, int maxDepth) const {
+    // As assembleSingleLayer for the far faces (the face's own rule, vectorised over all points);
+    // the near faces of a target by offSurfaceBlocks' subdivision.
     const Index nt = targets.cols(), nv = numVertices(), nf = mesh_.numFaces();
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(3 * nt, 3 * nv);
-#pragma omp parallel for schedule(dynamic, 8)
-    for (Index t = 0; t < nt; ++t) {
-        const Vec3 x0 = targets.col(t);
+    Eigen::MatrixXd A(3 * nt, 3 * nv);
+#pragma omp parallel
+    {
+        KernelRow k(qx_.size());
+        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
+        std::vector<char> near(static_cast<std::size_t>(nf));
         Mat3 blocks[3];
-        for (Index f = 0; f < nf; ++f) {
-            offSurfaceBlocks(x0, f, maxDepth, blocks);
-            for (int m = 0; m < 3; ++m) A.block<3, 3>(3 * t, 3 * mesh_.F(m, f)) += blocks[m];
+#pragma omp for schedule(dynamic, 8)
+        for (Index t = 0; t < nt; ++t) {
+            const Vec3 x0 = targets.col(t);
+            singleLayerKernelRow(x0.x(), x0.y(), x0.z(), qx_, qy_, qz_, qw_, k);
+            for (Index f = 0; f < nf; ++f)
+                near[static_cast<std::size_t>(f)] =
+                    !((faceCentroid_.col(f) - x0).norm() >= options_.nearFactor * faceLongestEdge_[f]);
+            scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf, &near);
+            for (Index f = 0; f < nf; ++f)
+                if (near[static_cast<std::size_t>(f)]) {
+                    offSurfaceBlocks(x0, f, maxDepth, blocks);
+                    addFaceBlocks(blocks, mesh_.F, f, buf);
+                }
+            storeBlockRow(buf, t, A);
         }
     }
     return A;
