@@ -264,6 +264,14 @@ void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& un
         ->check(CLI::NonNegativeNumber)->capture_default_str();
 }
 
+/// Checks --resume against --out, prepares the output directory and sets the thread count.
+void applySteppingOptions(const SteppingOptions& s) {
+    if (s.resume && s.out.empty())
+        throw InputError("option --resume: continues from the snapshots in --out DIR/checkpoint; give --out");
+    if (!s.out.empty()) ensureWritableDirectory(s.out);
+    if (s.threads > 0) omp_set_num_threads(s.threads);
+}
+
 /// The integrator options of SteppingOptions (a fixed --dt switches the step control off).
 CellFlowOptions cellFlowOptions(const SteppingOptions& s, double tEnd, double dtMax) {
     CellFlowOptions opt;
@@ -317,10 +325,7 @@ void registerShear(CLI::App* flow) {
         requirePositiveOption("--eta-in", fc.etaIn, "mPa s");
         validateFlowConditions(fc);
         const CellParameters p = cellParameters(o->cell);
-        if (o->step.resume && o->step.out.empty())
-            throw InputError("option --resume: continues from the snapshots in --out DIR/checkpoint; give --out");
-        if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
-        if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
+        applySteppingOptions(o->step);
 
         nlohmann::json j;
         j["parameters"] = {
@@ -536,10 +541,7 @@ void registerTube(CLI::App* flow) {
             throw InputError(fmt::format("parameter --settle = {} R/V: the settling criterion spans {:g} R/V (valid: 0 "
                                          "for no settling stage, or [{:g}, inf) R/V)",
                                          o->settle, kSettleSpan, kSettleSpan));
-        if (o->step.resume && o->step.out.empty())
-            throw InputError("option --resume: continues from the snapshots in --out DIR/checkpoint; give --out");
-        if (!o->step.out.empty()) ensureWritableDirectory(o->step.out);
-        if (o->step.threads > 0) omp_set_num_threads(o->step.threads);
+        applySteppingOptions(o->step);
 
         // Units: V = pg / 45 cm/s (VALIDATION.md 4.1), time unit R / V; Poiseuille centre-line speed
         // U_c = G R^2 / (4 eta) with G = pg x 1.33322e5 Pa/m.

@@ -136,10 +136,11 @@ struct Runner {
         // "Checkpoints"); otherwise its directory starts empty.
         // "checkpoint.key" tells whether the snapshots are of this case as configured now.
         const fs::path dir = out / "cases" / c.id, keyFile = dir / "checkpoint.key";
-        const bool resuming = fs::is_directory(dir / "checkpoint") && fs::exists(keyFile) && readFile(keyFile) == caseKey(c);
+        const std::string key = caseKey(c);
+        const bool resuming = fs::is_directory(dir / "checkpoint") && fs::exists(keyFile) && readFile(keyFile) == key;
         if (!resuming) fs::remove_all(dir);
         fs::create_directories(dir);
-        writeFileAtomically(keyFile, caseKey(c));
+        writeFileAtomically(keyFile, key);
         const fs::path stdoutFile = out / "cases" / (c.id + ".stdout"), log = out / "cases" / (c.id + ".log");
         const std::string command =
             fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume --checkpoint-interval {}", shellQuote(exe),

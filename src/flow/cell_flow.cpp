@@ -409,8 +409,9 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
 /// A snapshot whose fingerprint and checksum match holds a state of this run; this guards the
 /// restore against a colliding or hand-made file all the same.
 bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* env) {
-    for (const Vertices* M : {&s.X, &s.Xprev, &s.Xprev2, &s.U, &s.result.final})
-        if (M->cols() != nv && !(M == &s.result.final && M->cols() == 0)) return false;
+    for (const Vertices* M : {&s.X, &s.Xprev, &s.Xprev2, &s.U})
+        if (M->cols() != nv) return false;
+    if (s.result.final.cols() != 0 && s.result.final.cols() != nv) return false;  // set only when finished
     for (const Vertices& f : s.result.frames)
         if (f.cols() != nv) return false;
     const std::size_t frames = s.result.times.size();
