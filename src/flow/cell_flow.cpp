@@ -409,13 +409,14 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
 /// A snapshot whose fingerprint and checksum match holds a state of this run; this guards the
 /// restore against a colliding or hand-made file all the same.
 bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* env) {
-    for (const Vertices* M : {&s.X, &s.Xprev, &s.Xprev2, &s.U})
+    const CellFlowState& st = s.state;
+    for (const Vertices* M : {&st.X, &st.Xprev, &st.Xprev2, &st.U})
         if (M->cols() != nv) return false;
     if (s.result.final.cols() != 0 && s.result.final.cols() != nv) return false;  // set only when finished
     for (const Vertices& f : s.result.frames)
         if (f.cols() != nv) return false;
     const std::size_t frames = s.result.times.size();
-    return s.history >= 0 && s.nextFrame >= 1 && s.nextFrame <= frames + 1 && s.framesChecked <= frames &&
+    return st.history >= 0 && st.nextFrame >= 1 && st.nextFrame <= frames + 1 && st.framesChecked <= frames &&
            s.result.areaDrift.size() == frames && s.result.volumeDrift.size() == frames &&
            s.environmentRecords.size() == (env ? env->records().size() : 0);
 }
@@ -496,13 +497,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         if (opt.keepFrames) res.frames.push_back(X);
         if (observer) observer(t, X);
     };
-    Vertices X = initial, Xprev = initial, Xprev2 = initial, Xnew(3, nv);
-    Vertices U = Vertices::Zero(3, nv);  // velocity of the last accepted step
-    double tension = 0.0;                // area multiplier of the last accepted step
-    double dtPrev = 0.0, dtPrev2 = 0.0;
-    int history = 0;
-    double t = 0.0, dt = std::min(opt.dtInitial, opt.dtMax);
-    std::size_t nextFrame = 1, framesChecked = 1;
+    CellFlowState state{.X = initial, .Xprev = initial, .Xprev2 = initial, .U = Vertices::Zero(3, nv),
+                        .dt = std::min(opt.dtInitial, opt.dtMax), .nextFrame = 1, .framesChecked = 1};
+    auto& [X, Xprev, Xprev2, U, tension, dtPrev, dtPrev2, t, dt, history, nextFrame, framesChecked] = state;
+    Vertices Xnew(3, nv);
     const auto frameTime = [&](std::size_t k) { return static_cast<double>(k) * opt.frameInterval; };
     double wallBefore = 0.0;  // of the parts before the snapshot resumed
     const auto wallSoFar = [&] { return wallBefore + std::chrono::duration<double>(Clock::now() - t0).count(); };
@@ -514,8 +512,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     // A snapshot that cannot be written (disk full, ...) is reported and the run goes on without.
     const auto snapshot = [&] {
         if (!snapshots) return;
-        CellFlowSnapshot s{X, Xprev, Xprev2, U, tension, dtPrev, dtPrev2, t, dt, history, nextFrame, framesChecked,
-                           env ? env->records() : std::vector<double>{}, res};
+        CellFlowSnapshot s{state, env ? env->records() : std::vector<double>{}, res};
         if (!res.completed) s.result.wallSeconds = wallSoFar();  // a finished run's is set by finish()
         try {
             writeCellFlowSnapshot(cp.file, s, fingerprint);
@@ -534,24 +531,13 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             why = "damaged snapshot (its state does not fit the run)";
         }
         if (cp.log)
-            cp.log(resumed ? fmt::format("resuming {} at t = {:.6g} ({} steps done)", cp.file.string(), resumed->t,
+            cp.log(resumed ? fmt::format("resuming {} at t = {:.6g} ({} steps done)", cp.file.string(), resumed->state.t,
                                          resumed->result.steps)
                            : fmt::format("not resuming {}: {}; starting afresh", cp.file.string(), why));
     }
     if (resumed) {
         CellFlowSnapshot& s = *resumed;
-        X = std::move(s.X);
-        Xprev = std::move(s.Xprev);
-        Xprev2 = std::move(s.Xprev2);
-        U = std::move(s.U);
-        tension = s.tension;
-        dtPrev = s.dtPrev;
-        dtPrev2 = s.dtPrev2;
-        t = s.t;
-        dt = s.dt;
-        history = s.history;
-        nextFrame = s.nextFrame;
-        framesChecked = s.framesChecked;
+        state = std::move(s.state);
         if (env) env->restoreRecords(s.environmentRecords);
         res = std::move(s.result);
         wallBefore = res.wallSeconds;

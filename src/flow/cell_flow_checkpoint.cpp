@@ -148,11 +148,12 @@ CellFlowResult readResult(Reader& rd) {
 
 void writeCellFlowSnapshot(const std::filesystem::path& file, const CellFlowSnapshot& s, std::uint64_t fingerprint) {
     Writer w;
-    for (const Vertices* X : {&s.X, &s.Xprev, &s.Xprev2, &s.U}) w.matrix(*X);
-    for (double v : {s.tension, s.dtPrev, s.dtPrev2, s.t, s.dt}) w.pod(v);
-    w.pod(s.history);
-    w.pod(s.nextFrame);
-    w.pod(s.framesChecked);
+    const CellFlowState& st = s.state;
+    for (const Vertices* X : {&st.X, &st.Xprev, &st.Xprev2, &st.U}) w.matrix(*X);
+    for (double v : {st.tension, st.dtPrev, st.dtPrev2, st.t, st.dt}) w.pod(v);
+    w.pod(st.history);
+    w.pod(st.nextFrame);
+    w.pod(st.framesChecked);
     w.doubles(s.environmentRecords);
     writeResult(w, s.result);
     const std::string& payload = w.bytes();
@@ -194,11 +195,12 @@ std::optional<CellFlowSnapshot> readCellFlowSnapshot(const std::filesystem::path
     try {
         Reader rd(payload);
         CellFlowSnapshot s;
-        for (Vertices* X : {&s.X, &s.Xprev, &s.Xprev2, &s.U}) *X = rd.matrix();
-        for (double* v : {&s.tension, &s.dtPrev, &s.dtPrev2, &s.t, &s.dt}) *v = rd.pod<double>();
-        s.history = rd.pod<int>();
-        s.nextFrame = rd.pod<std::uint64_t>();
-        s.framesChecked = rd.pod<std::uint64_t>();
+        CellFlowState& st = s.state;
+        for (Vertices* X : {&st.X, &st.Xprev, &st.Xprev2, &st.U}) *X = rd.matrix();
+        for (double* v : {&st.tension, &st.dtPrev, &st.dtPrev2, &st.t, &st.dt}) *v = rd.pod<double>();
+        st.history = rd.pod<int>();
+        st.nextFrame = rd.pod<std::uint64_t>();
+        st.framesChecked = rd.pod<std::uint64_t>();
         s.environmentRecords = rd.doubles();
         s.result = readResult(rd);
         if (!rd.atEnd()) throw std::runtime_error("bytes after the last field");

@@ -15,11 +15,19 @@
 
 namespace trbc {
 
-struct CellFlowSnapshot {
+/// What the next BDF2 step of integrateCellFlow reads: the integrator works on this struct, so a
+/// snapshot holds it whole.
+struct CellFlowState {
     Vertices X, Xprev, Xprev2, U;  ///< states at t, t - dtPrev, t - dtPrev - dtPrev2; last velocity
-    double tension = 0.0, dtPrev = 0.0, dtPrev2 = 0.0, t = 0.0, dt = 0.0;
-    int history = 0;
-    std::uint64_t nextFrame = 0, framesChecked = 0;
+    double tension = 0.0;          ///< area multiplier of the last accepted step
+    double dtPrev = 0.0, dtPrev2 = 0.0, t = 0.0, dt = 0.0;
+    int history = 0;                ///< accepted steps (BDF2 needs two)
+    std::uint64_t nextFrame = 0;    ///< index of the next frame time
+    std::uint64_t framesChecked = 0;  ///< frames the stop criterion has seen
+};
+
+struct CellFlowSnapshot {
+    CellFlowState state;
     std::vector<double> environmentRecords;  ///< FlowEnvironment::records()
     CellFlowResult result;                   ///< so far; completed = true in the snapshot of a finished run
 };
