@@ -271,17 +271,10 @@ void BoundaryIntegralOperators::buildCorrections() {
     Eigen::VectorXd gt, gw;
     gaussLegendre01(options_.singularPoints, gt, gw);
 
-    // Faces around each vertex, centroids and longest edges.
+    // Faces around each vertex.
     std::vector<std::vector<int>> vertexFaces(nv);
-    Eigen::Matrix3Xd centroid(3, nf);
-    Eigen::VectorXd longest(nf);
-    for (Index f = 0; f < nf; ++f) {
-        const Eigen::Matrix3d c = faceCorners(mesh_, f);
+    for (Index f = 0; f < nf; ++f)
         for (int k = 0; k < 3; ++k) vertexFaces[mesh_.F(k, f)].push_back(static_cast<int>(f));
-        centroid.col(f) = c.rowwise().mean();
-        longest[f] = std::max({(c.col(1) - c.col(0)).norm(), (c.col(2) - c.col(1)).norm(),
-                               (c.col(0) - c.col(2)).norm()});
-    }
 
     std::vector<CorrectionRow> rows(nv);
 #pragma omp parallel for schedule(dynamic, 16)
@@ -333,7 +326,7 @@ void BoundaryIntegralOperators::buildCorrections() {
         Eigen::Matrix<double, Eigen::Dynamic, 12> P(nn, 12);
         for (Index f = 0; f < nf; ++f) {
             if (mesh_.F(0, f) == i || mesh_.F(1, f) == i || mesh_.F(2, f) == i) continue;
-            if ((centroid.col(f) - x0).norm() >= options_.nearFactor * longest[f]) continue;
+            if (!isNearFace(x0, f)) continue;
             const Eigen::Matrix3d c = faceCorners(mesh_, f);
             const Vec3 n = faceNormal_.col(f);
             const double area = faceArea_[f];
@@ -580,7 +573,7 @@ void BoundaryIntegralOperators::offSurfaceBlocks(const Vec3& x0, Index f, int ma
     for (auto& b : blocks) b.setZero();
     const Eigen::Matrix3d c = faceCorners(mesh_, f);
     // Far face: the face's own rule (the precomputed quadrature points).
-    if ((faceCentroid_.col(f) - x0).norm() >= options_.nearFactor * faceLongestEdge_[f]) {
+    if (!isNearFace(x0, f)) {
         const Index nq = ruleWeight_.size();
         for (Index q = 0; q < nq; ++q) {
             const Index k = f * nq + q;
@@ -633,9 +626,7 @@ Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Ma
         for (Index t = 0; t < nt; ++t) {
             const Vec3 x0 = targets.col(t);
             singleLayerKernelRow(x0.x(), x0.y(), x0.z(), qx_, qy_, qz_, qw_, k);
-            for (Index f = 0; f < nf; ++f)
-                near[static_cast<std::size_t>(f)] =
-                    !((faceCentroid_.col(f) - x0).norm() >= options_.nearFactor * faceLongestEdge_[f]);
+            for (Index f = 0; f < nf; ++f) near[static_cast<std::size_t>(f)] = isNearFace(x0, f);
             scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf, &near);
             for (Index f = 0; f < nf; ++f)
                 if (near[static_cast<std::size_t>(f)]) {

@@ -99,6 +99,11 @@ private:
     // Single-layer blocks (per corner vertex) of face f at an off-surface target, adaptive.
     void offSurfaceBlocks(const Eigen::Vector3d& x0, Eigen::Index f, int maxDepth,
                           Eigen::Matrix3d (&blocks)[3]) const;
+    // Face f is near x0: its centroid closer than nearFactor x its longest edge (the far rule does
+    // not resolve the kernel there).
+    bool isNearFace(const Eigen::Vector3d& x0, Eigen::Index f) const {
+        return !((faceCentroid_.col(f) - x0).norm() >= options_.nearFactor * faceLongestEdge_[f]);
+    }
     void buildQuadrature();
     void buildCorrections();
     // Density at the quadrature points, linear interpolation from the vertices.
