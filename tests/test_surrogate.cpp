@@ -293,6 +293,40 @@ TEST_F(TrainedFixture, DistilledRelaxationNetworkReproducesItsEnsemble) {
     EXPECT_THROW(trainSurrogate(fakeCampaign(400, 8), opt), InputError);
 }
 
+// The command's default (session 20): the relaxation ensemble is distilled into one network; with
+// --ensemble none and no --distill there is nothing to distill and training goes on without it.
+TEST(SurrogateTrainCli, DistillsTheRelaxationEnsembleByDefault) {
+    TempDir tmp;
+    {
+        std::ofstream out(tmp.path() / "c.csv");
+        out << campaignCsvHeader() << '\n';
+        for (const CampaignRow& r : fakeCampaign(320, 8)) out << formatCampaignRow(r) << '\n';
+    }
+    const std::string common = "surrogate train --data " + shellQuote((tmp.path() / "c.csv").string()) +
+                               " --restarts 2 --max-epochs 3 --distill-samples 1000 --threads 1 --out ";
+    auto relaxationJson = [&](const char* dir) {
+        std::ifstream in(tmp.path() / dir / "relaxation.json");
+        return nlohmann::json::parse(in);
+    };
+    auto r = runTrbc(common + shellQuote((tmp.path() / "d").string()), tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Surrogate d = Surrogate::load(tmp.path() / "d");
+    EXPECT_TRUE(d.relaxation.ensemble.empty());
+    EXPECT_EQ(d.relaxation.distillation.members, 2);
+    EXPECT_EQ(d.relaxation.distillation.samples, 1000);
+    EXPECT_FALSE(relaxationJson("d")["command"].get<std::string>().empty());
+
+    r = runTrbc(common + shellQuote((tmp.path() / "e").string()) + " --ensemble none", tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Surrogate e = Surrogate::load(tmp.path() / "e");
+    EXPECT_TRUE(e.relaxation.ensemble.empty());
+    EXPECT_EQ(e.relaxation.distillation.members, 0);
+
+    r = runTrbc(common + shellQuote((tmp.path() / "f").string()) + " --distill none", tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(Surrogate::load(tmp.path() / "f").relaxation.ensemble.size(), 1u);  // the 2 restarts, kept
+}
+
 TEST(SurrogateTraining, CrossValidationPredictsEveryCellOnceWithoutIt) {
     const auto rows = fakeCampaign(480, 8, 3);  // 60 cells, one failed relaxation
     auto opt = quickOptions();

@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <fstream>
 #include <iostream>
@@ -98,7 +99,7 @@ void registerTrain(CLI::App* parent) {
         int cvFolds = 0;
         std::string relaxationVariables = "log";
         std::vector<std::string> ensemble{"relaxation"};
-        std::vector<std::string> distill{"none"};
+        std::vector<std::string> distill{"relaxation"};
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = parent->add_subcommand(
@@ -132,7 +133,8 @@ void registerTrain(CLI::App* parent) {
     cmd->add_option("--distill", o->distill,
                     "ensemble networks replaced by one network trained on the ensemble's predictions at "
                     "--distill-samples uniform points of the prior box (one network pass per evaluation instead of one "
-                    "per member): any of the --ensemble networks, or none")
+                    "per member; the default since session 20 (2026-11-25)): any of the --ensemble networks, or none; "
+                    "when not given, the default's networks that are not in --ensemble are left out")
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
     cmd->add_option("--distill-samples", o->t.distillSamples, "box points of each distillation, [1000, 1e8]")
         ->check(CLI::Range(1000L, 100000000L))->capture_default_str();
@@ -140,8 +142,12 @@ void registerTrain(CLI::App* parent) {
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
                     "writes cv.md, cv.json, cv_predictions.csv); 0: off")
         ->check(CLI::Range(0, 100))->capture_default_str();
-    cmd->callback([o]() {
+    cmd->callback([o, cmd]() {
         if (o->cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
+        if (cmd->count("--distill") == 0) {
+            std::erase_if(o->distill, [&](const std::string& name) { return !listed(o->ensemble, name); });
+            if (o->distill.empty()) o->distill = {"none"};
+        }
         if (listed(o->ensemble, "none") && o->ensemble.size() > 1)
             throw InputError("surrogate train: --ensemble none cannot be combined with network names");
         if (listed(o->distill, "none") && o->distill.size() > 1)
@@ -168,8 +174,10 @@ void registerTrain(CLI::App* parent) {
             std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
         t.progress = [](const std::string& net, const EpochRecord& e) {
             if (e.reduced || e.last || e.epoch % 100 == 0)
-                std::cerr << fmt::format("  {:<11} epoch {:>4}  train {:.3e}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
-                                         net, e.epoch, e.trainLoss, e.validationLoss, e.bestValidationLoss, e.learningRate,
+                std::cerr << fmt::format("  {:<11} epoch {:>4}  train {}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
+                                         net, e.epoch,
+                                         std::isnan(e.trainLoss) ? std::string("(none)") : fmt::format("{:.3e}", e.trainLoss),
+                                         e.validationLoss, e.bestValidationLoss, e.learningRate,
                                          e.last ? "  (done)" : e.reduced ? "  (restored best, rate / 10)" : "");
         };
         omp_set_num_threads(o->threads);
