@@ -1,18 +1,28 @@
 #!/usr/bin/env bash
 # Campaign throughput at the training level (issue 5): one campaign of CELLS cells of 20 forces at
-# level 4, run with 1 and with 2 threads (cells concurrently), timed by farm-bench (median of RUNS).
-# Usage: bench/campaign_throughput.sh [CELLS=4] [RUNS=3]
-# Prints wall seconds per run; samples per core-hour = 20 CELLS * 3600 / (wall * threads).
+# level 4, run with 1 and with 2 threads (cells concurrently) and, when trbc was built with MPI,
+# as 2 MPI ranks of one thread each; timed by farm-bench (median of RUNS).
+# Usage: bench/campaign_throughput.sh [CELLS=4] [RUNS=3] [SEED=7]
+# Prints wall seconds per run; samples per core-hour = 20 CELLS * 3600 / (wall * cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cells=${1:-4}
 runs=${2:-3}
+seed=${3:-7}
 samples=$((20 * cells))
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+args="campaign --samples $samples --forces-per-cell 20 --level 4 --design uniform --seed $seed --no-cache"
 for threads in 1 2; do
-  echo "== $samples samples ($cells cells x 20 forces), level 4, --threads $threads"
+  echo "== $samples samples ($cells cells x 20 forces), level 4, seed $seed, --threads $threads"
   OMP_NUM_THREADS=1 farm-bench -n "$runs" --warmup 0 --timeout 3600 -- \
-    sh -c "rm -rf $tmp/c && exec ./build/trbc campaign --samples $samples --forces-per-cell 20 --level 4 \
-           --seed 7 --no-cache --threads $threads --out $tmp/c"
+    sh -c "rm -rf $tmp/c && exec ./build/trbc $args --threads $threads --out $tmp/c"
 done
+if command -v mpirun >/dev/null && ldd ./build/trbc | grep -q libmpi; then
+  echo "== the same, mpirun -n 2 (one thread per rank)"
+  OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_NUM_THREADS=1 \
+    farm-bench -n "$runs" --warmup 0 --timeout 3600 -- \
+    sh -c "rm -rf $tmp/c && exec mpirun -n 2 ./build/trbc $args --threads 1 --out $tmp/c"
+else
+  echo "== mpirun -n 2: skipped (trbc built without MPI)"
+fi

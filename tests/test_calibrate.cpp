@@ -53,7 +53,7 @@ TEST(CalibrateConfig, DefaultsAreThePapersSevenDataSets) {
 TEST(CalibrateConfig, ShippedPaperConfigIsValid) {
     const CalibrateConfig c = readCalibrateConfig(fs::path(TRBC_TEST_DATA) / ".." / ".." / "configs" / "paper.toml", kExperiments);
     EXPECT_EQ(c.data.size(), 7u);
-    EXPECT_EQ(c.inferenceSamples, 20000);
+    EXPECT_EQ(c.inferenceSamples, 50000);  // the paper's population per TMCMC run
     EXPECT_EQ(c.surrogateMode, "shipped");
     EXPECT_FALSE(c.validationEnabled);
     const CalibrateConfig v = readCalibrateConfig(fs::path(TRBC_TEST_DATA) / ".." / ".." / "configs" / "paper_validated.toml", kExperiments);

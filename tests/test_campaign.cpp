@@ -25,6 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::CliRun;
+using test::runShell;
 using test::runTrbc;
 using test::shellQuote;
 using test::TempDir;
@@ -212,6 +213,65 @@ TEST(CampaignRunner, ResumeAfterSigkillGivesTheUninterruptedTable) {
         }
     }
 }
+
+#ifdef TRBC_MPIEXEC
+/// `mpiexec -n P trbc campaign ...` (built with OpenMPI): root allowed, as in CI containers, and
+/// oversubscription allowed, since ctest runs tests side by side on few cores.
+std::string mpiCampaign(int ranks, const std::string& args) {
+    return fmt::format("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 "
+                       "{} -n {} {} campaign {}",
+                       shellQuote(TRBC_MPIEXEC), ranks, shellQuote(TRBC_CLI), args);
+}
+
+long dataLines(const fs::path& part) { return fs::exists(part) ? countLines(part) - 1 : 0; }
+
+// The same campaign run by one process, by two MPI ranks, and killed in one process then resumed
+// by two ranks (a cluster job cut off at its wall time and resubmitted on another node count)
+// ends with the same table.
+TEST(CampaignMpi, TwoRanksGiveTheOneProcessTableAndResumeAKilledRun) {
+    TempDir tmp;
+    const fs::path one = tmp.path() / "one", two = tmp.path() / "two", cut = tmp.path() / "cut";
+    const CliRun single = runTrbc("campaign " + kTiny + " --threads 2 --out " + shellQuote(one.string()), tmp.path());
+    ASSERT_EQ(single.status, 0) << single.err;
+
+    const CliRun ranks2 = runShell(mpiCampaign(2, kTiny + " --threads 1 --out " + shellQuote(two.string())), tmp.path());
+    ASSERT_EQ(ranks2.status, 0) << ranks2.out << ranks2.err;
+    // Cells are dealt round robin: each rank wrote its 20 cells (80 rows) to its own part file.
+    EXPECT_EQ(dataLines(two / "parts" / "rank0.csv"), 80);
+    EXPECT_EQ(dataLines(two / "parts" / "rank1.csv"), 80);
+    EXPECT_EQ(rowsWithoutWallTime(one / "samples.csv"), rowsWithoutWallTime(two / "samples.csv"));
+    EXPECT_EQ(nlohmann::json::parse(std::ifstream(two / "campaign.json")).at("ranks"), 2);
+
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny +
+                                " --threads 1 --out " + shellQuote(cut.string()) + " >/dev/null 2>&1";
+        execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+        _exit(127);
+    }
+    const fs::path part0 = cut / "parts" / "rank0.csv";
+    const auto t0 = std::chrono::steady_clock::now();
+    while (dataLines(part0) < 4 * 8 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be killed";
+    const long before = dataLines(part0);
+    ASSERT_LT(before, 160);
+
+    const CliRun resumed =
+        runShell(mpiCampaign(2, kTiny + " --threads 1 --resume --out " + shellQuote(cut.string())), tmp.path());
+    ASSERT_EQ(resumed.status, 0) << resumed.out << resumed.err;
+    EXPECT_EQ(rowsWithoutWallTime(one / "samples.csv"), rowsWithoutWallTime(cut / "samples.csv"));
+    // Nothing was computed twice: the rows written after the resume are exactly the missing ones.
+    EXPECT_EQ(dataLines(part0) + dataLines(cut / "parts" / "rank1.csv"), 160) << "before the kill: " << before;
+    const auto provenance = nlohmann::json::parse(std::ifstream(cut / "campaign.json"));
+    EXPECT_EQ(provenance.at("ranks"), 1);
+    EXPECT_EQ(provenance.at("resumed_by").back().at("ranks"), 2);
+}
+#endif
 
 TEST(CampaignRunner, ResumeRefusesOtherSettings) {
     TempDir tmp;

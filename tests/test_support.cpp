@@ -87,9 +87,12 @@ std::string shellQuote(const std::string& s) {
 }
 
 CliRun runTrbc(const std::string& args, const fs::path& scratch) {
+    return runShell(shellQuote(TRBC_CLI) + " " + args, scratch);
+}
+
+CliRun runShell(const std::string& commandLine, const fs::path& scratch) {
     const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
-    const std::string cmd = shellQuote(TRBC_CLI) + " " + args + " </dev/null >" + shellQuote(out.string()) + " 2>" +
-                            shellQuote(err.string());
+    const std::string cmd = commandLine + " </dev/null >" + shellQuote(out.string()) + " 2>" + shellQuote(err.string());
     const int raw = std::system(cmd.c_str());
     CliRun r;
     r.status = raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;

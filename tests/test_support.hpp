@@ -52,5 +52,7 @@ struct CliRun {
 /// Runs the trbc CLI with `args` (already shell-quoted where needed), stdin from /dev/null,
 /// stdout and stderr captured through files in `scratch`.
 CliRun runTrbc(const std::string& args, const std::filesystem::path& scratch);
+/// Runs a whole shell command line the same way (for a launcher in front of the CLI, e.g. mpiexec).
+CliRun runShell(const std::string& commandLine, const std::filesystem::path& scratch);
 
 }  // namespace trbc::test

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -77,6 +78,17 @@ std::set<long> parseIdList(const std::string& text) {
     return ids;
 }
 
+#ifdef TRBC_WITH_MPI
+/// True when an MPI launcher (OpenMPI's mpirun/mpiexec, PMIx, or a PMI-based one such as MPICH's
+/// hydra or Slurm's srun) started this process. A plain `trbc campaign` in an MPI build then runs
+/// in one process without MPI_Init, which in a singleton may try to start a runtime daemon.
+bool launchedByMpi() {
+    for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
+        if (std::getenv(var)) return true;
+    return false;
+}
+#endif
+
 }  // namespace
 
 void registerCampaign(CLI::App& app) {
@@ -120,11 +132,15 @@ void registerCampaign(CLI::App& app) {
         if (!o->inject.empty()) c.injectFailures = parseIdList(o->inject);
         int rank = 0, ranks = 1;
 #ifdef TRBC_WITH_MPI
-        int provided = 0;
-        MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
-        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-        MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+        const bool mpi = launchedByMpi();
+        if (mpi) {
+            int provided = 0;
+            MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+            MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+            MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+        }
 #endif
+        c.ranks = ranks;
         ProgressReporter reporter(ranks);
         if (rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
         const auto t0 = std::chrono::steady_clock::now();
@@ -133,21 +149,23 @@ void registerCampaign(CLI::App& app) {
         try {
             if (rank == 0) prepareCampaign(c);
 #ifdef TRBC_WITH_MPI
-            MPI_Barrier(MPI_COMM_WORLD);
+            if (mpi) MPI_Barrier(MPI_COMM_WORLD);
 #endif
             share = runCampaignShare(c, rank, ranks);
         } catch (const std::exception& e) {
             error = e.what();
         }
 #ifdef TRBC_WITH_MPI
-        int failed = error.empty() ? 0 : 1, anyFailed = 0;
-        MPI_Allreduce(&failed, &anyFailed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-        if (anyFailed && error.empty()) error = "another rank failed (see its message)";
+        if (mpi) {
+            int failed = error.empty() ? 0 : 1, anyFailed = 0;
+            MPI_Allreduce(&failed, &anyFailed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+            if (anyFailed && error.empty()) error = "another rank failed (see its message)";
+        }
 #endif
         if (error.empty() && rank == 0)
             s = finalizeCampaign(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 #ifdef TRBC_WITH_MPI
-        MPI_Finalize();
+        if (mpi) MPI_Finalize();
 #endif
         if (!error.empty()) throw InputError(error);
         if (rank != 0) return;

@@ -255,7 +255,7 @@ void prepareCampaign(const CampaignOptions& o) {
             throw InputError(fmt::format("--resume: {} was made with different settings:{}", provenancePath(o).string(), diff));
         }
         nlohmann::json j = old;
-        nlohmann::json entry = {{"command", o.command}, {"version", kVersion}};
+        nlohmann::json entry = {{"command", o.command}, {"version", kVersion}, {"ranks", o.ranks}, {"threads", o.threads}};
         if (grows && old["settings"]["samples"] != settings["samples"]) {
             entry["grown_from_samples"] = old["settings"]["samples"];
             j["settings"] = settings;
@@ -272,6 +272,8 @@ void prepareCampaign(const CampaignOptions& o) {
                                      o.outDir.string()));
     writeJsonAtomically(provenancePath(o), {{"command", o.command},
                                             {"version", kVersion},
+                                            {"ranks", o.ranks},
+                                            {"threads", o.threads},
                                             {"status", "running"},
                                             {"settings", settings},
                                             {"columns", campaignCsvHeader()},

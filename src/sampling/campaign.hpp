@@ -35,6 +35,7 @@ struct CampaignOptions {
     int forcesPerCell = 1;
     std::uint64_t seed = 1;
     int threads = 1;                           ///< cells run concurrently, one thread each
+    int ranks = 1;                             ///< MPI ranks sharing the cells (provenance only)
     std::filesystem::path outDir;
     bool resume = false;
     ExperimentOptions experiment;
