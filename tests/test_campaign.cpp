@@ -273,6 +273,30 @@ TEST(CampaignMpi, TwoRanksGiveTheOneProcessTableAndResumeAKilledRun) {
 }
 #endif
 
+// A cell over its wall-time budget becomes failed rows with the reason, never a hang or a silent
+// gap: with a budget far below one equilibrium, every row fails at the equilibrium.
+TEST(CampaignRunner, CellTimeLimitFailsRowsWithTheReason) {
+    TempDir tmp;
+    const fs::path out = tmp.path() / "c";
+    const CliRun r = runTrbc("campaign --samples 8 --forces-per-cell 4 --level 2 --seed 5 --no-cache --cell-time-limit 1e-9 "
+                             "--out " + shellQuote(out.string()), tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("8 of 8 samples done (0 ok, 8 failed)"), std::string::npos) << r.out;
+    for (const CampaignRow& row : readCampaignCsv(out / "samples.csv")) {
+        EXPECT_EQ(row.status, "failed");
+        EXPECT_EQ(row.reason.rfind("equilibrium: ", 0), 0u) << row.reason;
+        EXPECT_NE(row.reason.find("time limit reached"), std::string::npos) << row.reason;
+        EXPECT_TRUE(std::isnan(row.D) && std::isnan(row.tc));
+    }
+    const auto provenance = nlohmann::json::parse(std::ifstream(out / "campaign.json"));
+    EXPECT_EQ(provenance.at("settings").at("cell_time_limit_s"), 1e-9);
+    // Another budget is another campaign: the resume is refused, naming the setting.
+    const CliRun again = runTrbc("campaign --samples 8 --forces-per-cell 4 --level 2 --seed 5 --no-cache --resume "
+                                 "--out " + shellQuote(out.string()), tmp.path());
+    EXPECT_EQ(again.status, 2);
+    EXPECT_NE(again.err.find("cell_time_limit_s"), std::string::npos) << again.err;
+}
+
 TEST(CampaignRunner, ResumeRefusesOtherSettings) {
     TempDir tmp;
     const fs::path a = tmp.path() / "a";
@@ -388,6 +412,7 @@ TEST(CampaignCli, RejectsBadOptions) {
         {"--samples 4 " "--threads 0", "--threads 0 is outside [1, 1024]"},
         {"--samples 4 " "--level 9", "--level 9 is outside [1, 6]"},
         {"--samples 4 " "--inject-failures 3,x", "'x' is not a sample id"},
+        {"--samples 4 " "--cell-time-limit -1", "--cell-time-limit -1 is outside [0, 1e6] s"},
     };
     for (const auto& [args, phrase] : cases) {
         const CliRun r = runTrbc("campaign " + args + out, tmp.path());

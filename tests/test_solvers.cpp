@@ -2,6 +2,7 @@
 // MODEL.md D at Nv = 2562, and the variational BDF2 integrator of the viscous dynamics.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <numbers>
@@ -81,6 +82,34 @@ TEST(Lbfgs, PreconditionerScaleRefreshedEverySecondPairReachesTheSameMinimum) {
     EXPECT_LT(second, every - a.iterations / 3);
     std::cout << "iterations " << a.iterations << " / " << b.iterations << ", preconditioner applications " << every
               << " / " << second << "\n";
+}
+
+// A deadline stops the minimiser, not converged, with the reason; one in the future changes nothing.
+TEST(Lbfgs, StopsAtItsDeadlineAndSaysSo) {
+    const int n = 300;
+    Eigen::VectorXd d(n), c(n);
+    for (int i = 0; i < n; ++i) {
+        d[i] = std::pow(10.0, 4.0 * i / (n - 1));
+        c[i] = std::cos(0.1 * i);
+    }
+    const Objective f = [&](const Eigen::VectorXd& x, Eigen::VectorXd& g) {
+        g = d.cwiseProduct(x - c);
+        return 0.5 * (x - c).dot(g);
+    };
+    MinimizeOptions opt;
+    opt.gradientTolerance = 1e-10;
+    Eigen::VectorXd free = Eigen::VectorXd::Zero(n), late = free, past = free;
+    const MinimizeResult r0 = lbfgsMinimize(f, free, opt);
+    opt.deadline = std::chrono::steady_clock::now() + std::chrono::hours(1);
+    const MinimizeResult r1 = lbfgsMinimize(f, late, opt);
+    EXPECT_TRUE(r1.converged) << r1.message;
+    EXPECT_EQ(r1.iterations, r0.iterations);
+    EXPECT_EQ(late, free);
+    opt.deadline = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+    const MinimizeResult r2 = lbfgsMinimize(f, past, opt);
+    EXPECT_FALSE(r2.converged);
+    EXPECT_EQ(r2.iterations, 0);
+    EXPECT_NE(r2.message.find("time limit reached after 0 iterations"), std::string::npos) << r2.message;
 }
 
 TEST(Lbfgs, ReportsNonFiniteStartInsteadOfCrashing) {

@@ -117,6 +117,10 @@ void registerCampaign(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--out", o->out, "output directory")->required();
     cmd->add_option("--threads", o->c.threads, "cells run concurrently (one thread each)")->capture_default_str();
+    cmd->add_option("--cell-time-limit", o->c.cellTimeLimit,
+                    "wall-time budget of one cell in s (0: none); a cell over it keeps what it computed, its other "
+                    "rows fail with the reason 'time limit reached' (which rows fail then depends on the machine)")
+        ->capture_default_str();
     cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
     cmd->add_option("--inject-failures", o->inject,
                     "comma-separated sample ids whose cell fails on purpose (to test failure records)");

@@ -5,6 +5,7 @@
 // the stretching continues over force levels; the relaxation integrates the overdamped
 // membrane-viscous dynamics with adaptive variational BDF2 steps.
 #include <Eigen/Core>
+#include <chrono>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -49,6 +50,9 @@ struct ExperimentOptions {
     bool multigrid = true;
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
     SfsOptions sfs;
+    /// Equilibrium, stretching and the relaxation's inner solves stop, not converged, after this
+    /// instant (a campaign cell's wall-time budget; default: none).
+    std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
 /// "farthest-vertex" or "largest-variance" (CLI and provenance spelling).

@@ -54,6 +54,8 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
     if (e.inPlaneAxis != InPlaneAxis::FarthestVertex) j["in_plane_axis"] = inPlaneAxisName(e.inPlaneAxis);
     // Campaigns made before the multigrid H0 existed have no key and resume with --preconditioner none.
     if (e.multigrid) j["preconditioner"] = "multigrid";
+    // Decides which rows fail (and depends on the machine's speed), so a resume must keep it.
+    if (o.cellTimeLimit > 0) j["cell_time_limit_s"] = o.cellTimeLimit;
     return j;
 }
 
@@ -80,6 +82,8 @@ void validateOptions(const CampaignOptions& o) {
     if (o.experiment.level < 1 || o.experiment.level > 6)
         throw InputError(fmt::format("--level {} is outside [1, 6]", o.experiment.level));
     if (o.outDir.empty()) throw InputError("--out: an output directory is required");
+    if (!(o.cellTimeLimit >= 0.0 && o.cellTimeLimit <= 1e6))
+        throw InputError(fmt::format("--cell-time-limit {} is outside [0, 1e6] s (0: none)", o.cellTimeLimit));
 }
 
 /// Groups the design rows by cell (they are contiguous).
@@ -249,6 +253,8 @@ void prepareCampaign(const CampaignOptions& o) {
             for (auto& [k, v] : settings.items())
                 if (!old["settings"].contains(k) || old["settings"][k] != v)
                     diff += fmt::format(" {} (was {}, now {})", k, old["settings"].value(k, nlohmann::json()).dump(), v.dump());
+            for (auto& [k, v] : old["settings"].items())
+                if (!settings.contains(k)) diff += fmt::format(" {} (was {}, now not set)", k, v.dump());
             if (old["settings"].contains("samples") && old["settings"]["samples"] != settings["samples"])
                 diff += fmt::format("; only a uniform design whose samples fill whole cells grows (a larger --samples "
                                     "extends it), an lhs design or a smaller --samples cannot");
@@ -311,7 +317,11 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
         omp_set_num_threads(1);  // one thread per cell: the force loops inside stay serial
         const auto& cell = cells[pending[k]];
         const bool inject = std::any_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return o.injectFailures.count(q.sampleId); });
-        const auto rows = runCampaignCell(cell, o.seed, o.experiment, inject);
+        ExperimentOptions experiment = o.experiment;
+        if (o.cellTimeLimit > 0)
+            experiment.deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                     std::chrono::duration<double>(o.cellTimeLimit));
+        const auto rows = runCampaignCell(cell, o.seed, experiment, inject);
         std::string block;
         for (const CampaignRow& r : rows) block += formatCampaignRow(r) + "\n";
 #pragma omp critical(trbc_campaign_append)

@@ -36,6 +36,9 @@ struct CampaignOptions {
     std::uint64_t seed = 1;
     int threads = 1;                           ///< cells run concurrently, one thread each
     int ranks = 1;                             ///< MPI ranks sharing the cells (provenance only)
+    /// Wall-time budget of one cell in seconds (0: none). A cell that exceeds it keeps the outputs
+    /// computed so far; the others are failed rows whose reason says "time limit reached".
+    double cellTimeLimit = 0.0;
     std::filesystem::path outDir;
     bool resume = false;
     ExperimentOptions experiment;

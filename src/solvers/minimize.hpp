@@ -3,6 +3,7 @@
 // largest per-vertex gradient norm (a force, in the caller's units), is aware of energy round-off
 // near tight tolerances, counts evaluations and never throws on a failed line search.
 #include <Eigen/Core>
+#include <chrono>
 #include <functional>
 #include <string>
 
@@ -22,6 +23,9 @@ struct MinimizeOptions {
     /// With scalePreconditioner: the scale s.y / y.H0 y is refreshed at every this-many-th pair and
     /// kept in between (each refresh costs one more application of the preconditioner).
     int preconditionerScaleInterval = 1;
+    /// Stop (not converged) once this instant has passed: a wall-time budget shared by several
+    /// minimisations (a campaign cell's --cell-time-limit).
+    std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
 struct MinimizeResult {
