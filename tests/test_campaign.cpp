@@ -158,6 +158,29 @@ long countLines(const fs::path& p) {
 
 const std::string kTiny = "--samples 160 --forces-per-cell 4 --level 2 --seed 5 --no-cache --inject-failures 13";
 
+long dataLines(const fs::path& part) { return fs::exists(part) ? countLines(part) - 1 : 0; }
+
+/// Runs `trbc campaign kTiny --threads 1 --out dir` in one process and kills it with SIGKILL once
+/// `cells` cells (4 rows each) are in its part file; false if it finished before.
+bool killedAfterCells(const fs::path& dir, long cells) {
+    const pid_t pid = fork();
+    if (pid < 0) return false;
+    if (pid == 0) {
+        const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny +
+                                " --threads 1 --out " + shellQuote(dir.string()) + " >/dev/null 2>&1";
+        execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+        _exit(127);
+    }
+    const fs::path part = dir / "parts" / "rank0.csv";
+    const auto t0 = std::chrono::steady_clock::now();
+    while (dataLines(part) < 4 * cells && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return WIFSIGNALED(status);
+}
+
 TEST(CampaignRunner, ResumeAfterSigkillGivesTheUninterruptedTable) {
     TempDir tmp;
     const fs::path a = tmp.path() / "a", b = tmp.path() / "b";
@@ -165,23 +188,8 @@ TEST(CampaignRunner, ResumeAfterSigkillGivesTheUninterruptedTable) {
     ASSERT_EQ(full.status, 0) << full.err;
 
     // The same campaign, killed with SIGKILL once some cells are written.
-    const pid_t pid = fork();
-    ASSERT_GE(pid, 0);
-    if (pid == 0) {
-        const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny +
-                                " --threads 1 --out " + shellQuote(b.string()) + " >/dev/null 2>&1";
-        execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-        _exit(127);
-    }
+    ASSERT_TRUE(killedAfterCells(b, 8)) << "the run finished before it could be killed";
     const fs::path part = b / "parts" / "rank0.csv";
-    const auto t0 = std::chrono::steady_clock::now();
-    while (!(fs::exists(part) && countLines(part) >= 1 + 4 * 8) &&
-           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
-        std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    ::kill(pid, SIGKILL);
-    int status = 0;
-    ::waitpid(pid, &status, 0);
-    ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be killed";
     EXPECT_FALSE(fs::exists(b / "samples.csv"));
     const long before = countLines(part) - 1;
     EXPECT_LT(before, 160);
@@ -223,8 +231,6 @@ std::string mpiCampaign(int ranks, const std::string& args) {
                        shellQuote(TRBC_MPIEXEC), ranks, shellQuote(TRBC_CLI), args);
 }
 
-long dataLines(const fs::path& part) { return fs::exists(part) ? countLines(part) - 1 : 0; }
-
 // The same campaign run by one process, by two MPI ranks, and killed in one process then resumed
 // by two ranks (a cluster job cut off at its wall time and resubmitted on another node count)
 // ends with the same table.
@@ -242,22 +248,8 @@ TEST(CampaignMpi, TwoRanksGiveTheOneProcessTableAndResumeAKilledRun) {
     EXPECT_EQ(rowsWithoutWallTime(one / "samples.csv"), rowsWithoutWallTime(two / "samples.csv"));
     EXPECT_EQ(nlohmann::json::parse(std::ifstream(two / "campaign.json")).at("ranks"), 2);
 
-    const pid_t pid = fork();
-    ASSERT_GE(pid, 0);
-    if (pid == 0) {
-        const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny +
-                                " --threads 1 --out " + shellQuote(cut.string()) + " >/dev/null 2>&1";
-        execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-        _exit(127);
-    }
+    ASSERT_TRUE(killedAfterCells(cut, 8)) << "the run finished before it could be killed";
     const fs::path part0 = cut / "parts" / "rank0.csv";
-    const auto t0 = std::chrono::steady_clock::now();
-    while (dataLines(part0) < 4 * 8 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
-        std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    ::kill(pid, SIGKILL);
-    int status = 0;
-    ::waitpid(pid, &status, 0);
-    ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be killed";
     const long before = dataLines(part0);
     ASSERT_LT(before, 160);
 
