@@ -18,7 +18,7 @@ for threads in 1 2; do
   OMP_NUM_THREADS=1 farm-bench -n "$runs" --warmup 0 --timeout 3600 -- \
     sh -c "rm -rf $tmp/c && exec ./build/trbc $args --threads $threads --out $tmp/c"
 done
-if command -v mpirun >/dev/null && ldd ./build/trbc | grep -q libmpi; then
+if command -v mpirun >/dev/null && ldd ./build/trbc | grep libmpi >/dev/null; then
   echo "== the same, mpirun -n 2 (one thread per rank)"
   OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_NUM_THREADS=1 \
     farm-bench -n "$runs" --warmup 0 --timeout 3600 -- \

@@ -161,13 +161,13 @@ const std::string kTiny = "--samples 160 --forces-per-cell 4 --level 2 --seed 5 
 long dataLines(const fs::path& part) { return fs::exists(part) ? countLines(part) - 1 : 0; }
 
 /// Runs `trbc campaign kTiny --threads 1 --out dir` in one process and kills it with SIGKILL once
-/// `cells` cells (4 rows each) are in its part file; false if it finished before.
+/// `cells` cells (4 rows each) are in its part file; false if it could not start or finished before.
 bool killedAfterCells(const fs::path& dir, long cells) {
+    const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny + " --threads 1 --out " +
+                            shellQuote(dir.string()) + " >/dev/null 2>&1";
     const pid_t pid = fork();
     if (pid < 0) return false;
     if (pid == 0) {
-        const std::string cmd = std::string("exec ") + shellQuote(TRBC_CLI) + " campaign " + kTiny +
-                                " --threads 1 --out " + shellQuote(dir.string()) + " >/dev/null 2>&1";
         execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
         _exit(127);
     }
@@ -225,9 +225,10 @@ TEST(CampaignRunner, ResumeAfterSigkillGivesTheUninterruptedTable) {
 #ifdef TRBC_MPIEXEC
 /// `mpiexec -n P trbc campaign ...` (built with OpenMPI): root allowed, as in CI containers, and
 /// oversubscription allowed, since ctest runs tests side by side on few cores.
+/// `timeout` turns a hang (ranks waiting in different collective calls) into a failure.
 std::string mpiCampaign(int ranks, const std::string& args) {
     return fmt::format("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 "
-                       "{} -n {} {} campaign {}",
+                       "timeout 120 {} -n {} {} campaign {}",
                        shellQuote(TRBC_MPIEXEC), ranks, shellQuote(TRBC_CLI), args);
 }
 
@@ -262,6 +263,18 @@ TEST(CampaignMpi, TwoRanksGiveTheOneProcessTableAndResumeAKilledRun) {
     const auto provenance = nlohmann::json::parse(std::ifstream(cut / "campaign.json"));
     EXPECT_EQ(provenance.at("ranks"), 1);
     EXPECT_EQ(provenance.at("resumed_by").back().at("ranks"), 2);
+
+    // Refusals reach every rank: a resume with other settings, and a finished campaign run again
+    // without --resume, exit with 2 naming the reason instead of leaving rank 1 waiting.
+    const CliRun other = runShell(mpiCampaign(2, kTiny + " --threads 1 --resume --cell-time-limit 100 --out " +
+                                                     shellQuote(cut.string())),
+                                  tmp.path());
+    EXPECT_EQ(other.status, 2) << other.out << other.err;
+    EXPECT_NE(other.err.find("cell_time_limit_s"), std::string::npos) << other.err;
+    const CliRun again = runShell(mpiCampaign(2, kTiny + " --threads 1 --out " + shellQuote(cut.string())), tmp.path());
+    EXPECT_EQ(again.status, 2) << again.out << again.err;
+    EXPECT_NE(again.err.find("add --resume"), std::string::npos) << again.err;
+    EXPECT_EQ(rowsWithoutWallTime(one / "samples.csv"), rowsWithoutWallTime(cut / "samples.csv"));
 }
 #endif
 
@@ -287,6 +300,35 @@ TEST(CampaignRunner, CellTimeLimitFailsRowsWithTheReason) {
                                  "--out " + shellQuote(out.string()), tmp.path());
     EXPECT_EQ(again.status, 2);
     EXPECT_NE(again.err.find("cell_time_limit_s"), std::string::npos) << again.err;
+}
+
+// A cell is taken whole from one part file: a run killed mid-write and resumed by other ranks can
+// leave the start of a cell in one file and the whole recomputed cell in another.
+TEST(CampaignRunner, ACellIsNeverMixedFromTwoPartFiles) {
+    TempDir tmp;
+    const fs::path a = tmp.path() / "a", b = tmp.path() / "b";
+    const CliRun full = runTrbc("campaign " + kTiny + " --threads 2 --out " + shellQuote(a.string()), tmp.path());
+    ASSERT_EQ(full.status, 0) << full.err;
+    const auto rows = readCampaignCsv(a / "samples.csv");
+    fs::create_directories(b / "parts");
+    fs::copy_file(a / "campaign.json", b / "campaign.json");
+    std::string torn = campaignCsvHeader() + "\n", whole = campaignCsvHeader() + "\n";
+    for (const CampaignRow& r : rows) {
+        if (r.point.cellId == 0 && r.point.sampleId < 2) {  // the first two rows of cell 0, from another computation
+            CampaignRow other = r;
+            other.D += 1.0;
+            torn += formatCampaignRow(other) + "\n";
+        }
+        whole += formatCampaignRow(r) + "\n";
+    }
+    std::ofstream(b / "parts" / "rank0.csv") << torn;
+    std::ofstream(b / "parts" / "rank1.csv") << whole;
+    bool complete = true;
+    const auto read = readCampaignRows(b, &complete);
+    EXPECT_FALSE(complete);
+    ASSERT_EQ(read.size(), rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        EXPECT_EQ(formatCampaignRow(read[i]), formatCampaignRow(rows[i])) << "sample " << i;
 }
 
 TEST(CampaignRunner, ResumeRefusesOtherSettings) {

@@ -78,6 +78,19 @@ std::set<long> parseIdList(const std::string& text) {
     return ids;
 }
 
+constexpr const char* kAnotherRankFailed = "another rank failed (see its message)";
+
+/// Collective under MPI: every rank learns whether any rank failed, so that all take the same
+/// path to MPI_Finalize (a rank that skipped a collective call would leave the others waiting).
+void agreeOnFailure([[maybe_unused]] bool mpi, std::string& error) {
+#ifdef TRBC_WITH_MPI
+    if (!mpi) return;
+    int failed = error.empty() ? 0 : 1, anyFailed = 0;
+    MPI_Allreduce(&failed, &anyFailed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (anyFailed && error.empty()) error = kAnotherRankFailed;
+#endif
+}
+
 #ifdef TRBC_WITH_MPI
 /// True when an MPI launcher (OpenMPI's mpirun/mpiexec, PMIx, or a PMI-based one such as MPICH's
 /// hydra or Slurm's srun) started this process. A plain `trbc campaign` in an MPI build then runs
@@ -118,8 +131,9 @@ void registerCampaign(CLI::App& app) {
     cmd->add_option("--out", o->out, "output directory")->required();
     cmd->add_option("--threads", o->c.threads, "cells run concurrently (one thread each)")->capture_default_str();
     cmd->add_option("--cell-time-limit", o->c.cellTimeLimit,
-                    "wall-time budget of one cell in s (0: none); a cell over it keeps what it computed, its other "
-                    "rows fail with the reason 'time limit reached' (which rows fail then depends on the machine)")
+                    "wall-time budget of one cell in s (0: none); over it the cell's rows are recorded as failed with "
+                    "the reason 'time limit reached' (equilibrium outputs computed before it are kept; which cells hit "
+                    "it depends on the machine). Part of the settings: a resume must give the same value")
         ->capture_default_str();
     cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
     cmd->add_option("--inject-failures", o->inject,
@@ -135,8 +149,9 @@ void registerCampaign(CLI::App& app) {
         c.experiment.cacheDir = cacheDirectory(o->cache);
         if (!o->inject.empty()) c.injectFailures = parseIdList(o->inject);
         int rank = 0, ranks = 1;
+        bool mpi = false;
 #ifdef TRBC_WITH_MPI
-        const bool mpi = launchedByMpi();
+        mpi = launchedByMpi();
         if (mpi) {
             int provided = 0;
             MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
@@ -150,28 +165,29 @@ void registerCampaign(CLI::App& app) {
         const auto t0 = std::chrono::steady_clock::now();
         CampaignSummary share, s;
         std::string error;
-        try {
-            if (rank == 0) prepareCampaign(c);
-#ifdef TRBC_WITH_MPI
-            if (mpi) MPI_Barrier(MPI_COMM_WORLD);
-#endif
-            share = runCampaignShare(c, rank, ranks);
-        } catch (const std::exception& e) {
-            error = e.what();
-        }
-#ifdef TRBC_WITH_MPI
-        if (mpi) {
-            int failed = error.empty() ? 0 : 1, anyFailed = 0;
-            MPI_Allreduce(&failed, &anyFailed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-            if (anyFailed && error.empty()) error = "another rank failed (see its message)";
-        }
-#endif
+        const auto attempt = [&error](auto&& step) {
+            try {
+                step();
+            } catch (const std::exception& e) {
+                error = e.what();
+            }
+        };
+        // Rank 0 prepares (or refuses) the campaign before any rank touches its part file.
+        if (rank == 0) attempt([&] { prepareCampaign(c); });
+        agreeOnFailure(mpi, error);
+        if (error.empty()) attempt([&] { share = runCampaignShare(c, rank, ranks); });
+        agreeOnFailure(mpi, error);
         if (error.empty() && rank == 0)
-            s = finalizeCampaign(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+            attempt([&] {
+                s = finalizeCampaign(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+            });
 #ifdef TRBC_WITH_MPI
         if (mpi) MPI_Finalize();
 #endif
-        if (!error.empty()) throw InputError(error);
+        // A rank that failed reports its own reason. Other ranks than 0 exit quietly when only
+        // another rank failed: an early non-zero exit would make the launcher kill rank 0 before it
+        // prints the reason, and rank 0 (or the failed rank) already gives the job its status.
+        if (!error.empty() && !(rank != 0 && error == kAnotherRankFailed)) throw InputError(error);
         if (rank != 0) return;
         std::cout << fmt::format("campaign: {} of {} samples done ({} ok, {} failed); {} cells computed now, {} resumed; "
                                  "{:.1f} s\n",

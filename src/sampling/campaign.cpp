@@ -103,27 +103,37 @@ bool sameInputs(const CampaignPoint& row, const CampaignPoint& design) {
            row.p.b2 == design.p.b2 && row.p.etam == design.p.etam && row.fext == design.fext;
 }
 
-/// Rows of the finished cells found in all part files (torn tails and unfinished cells dropped),
-/// keyed by sample id.
+/// Rows of the finished cells found in the part files (torn tails and unfinished cells dropped),
+/// keyed by sample id. A cell counts only when one file holds all its rows, and is taken whole from
+/// the first such file in name order: a run killed mid-write and resumed with other ranks can leave
+/// a cell in two files, and its rows must not mix two computations.
 std::map<long, CampaignRow> finishedRows(const CampaignOptions& o, const std::vector<std::vector<CampaignPoint>>& cells) {
     std::map<long, CampaignRow> rows;
     if (!fs::exists(partsDir(o))) return rows;
-    for (const auto& entry : fs::directory_iterator(partsDir(o))) {
-        if (entry.path().extension() != ".csv" || fs::file_size(entry.path()) == 0) continue;
-        for (CampaignRow& r : readCampaignCsv(entry.path(), true)) rows.emplace(r.point.sampleId, std::move(r));
-    }
-    for (const auto& cell : cells) {
-        for (const CampaignPoint& q : cell) {
-            const auto it = rows.find(q.sampleId);
-            if (it != rows.end() && !sameInputs(it->second.point, q))
-                throw InputError(fmt::format("{}: sample {} holds inputs other than the design's (v {} against {}, Fext_pN {} "
-                                             "against {}): the part files belong to another design or seed",
-                                             partsDir(o).string(), q.sampleId, it->second.point.p.v, q.p.v,
-                                             it->second.point.fext, q.fext));
+    std::vector<fs::path> parts;
+    for (const auto& entry : fs::directory_iterator(partsDir(o)))
+        if (entry.path().extension() == ".csv" && fs::file_size(entry.path()) > 0) parts.push_back(entry.path());
+    std::sort(parts.begin(), parts.end());
+    for (const fs::path& part : parts) {
+        std::map<long, CampaignRow> inFile;
+        for (CampaignRow& r : readCampaignCsv(part, true)) inFile.emplace(r.point.sampleId, std::move(r));
+        for (const auto& cell : cells) {
+            if (rows.count(cell.front().sampleId)) continue;
+            bool complete = true;
+            for (const CampaignPoint& q : cell) {
+                const auto it = inFile.find(q.sampleId);
+                if (it == inFile.end()) {
+                    complete = false;
+                } else if (!sameInputs(it->second.point, q)) {
+                    throw InputError(fmt::format("{}: sample {} holds inputs other than the design's (v {} against {}, "
+                                                 "Fext_pN {} against {}): the part files belong to another design or seed",
+                                                 part.string(), q.sampleId, it->second.point.p.v, q.p.v,
+                                                 it->second.point.fext, q.fext));
+                }
+            }
+            if (complete)
+                for (const CampaignPoint& q : cell) rows.emplace(q.sampleId, std::move(inFile.at(q.sampleId)));
         }
-        const bool complete = std::all_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return rows.count(q.sampleId); });
-        if (!complete)
-            for (const CampaignPoint& q : cell) rows.erase(q.sampleId);
     }
     std::erase_if(rows, [&](const auto& kv) { return kv.first >= o.samples; });
     return rows;
@@ -250,12 +260,14 @@ void prepareCampaign(const CampaignOptions& o) {
         const bool grows = old.contains("settings") && canGrow(old["settings"], settings);
         if (!grows && (!old.contains("settings") || old["settings"] != settings)) {
             std::string diff;
+            const nlohmann::json before = old.contains("settings") && old["settings"].is_object() ? old["settings"]
+                                                                                                  : nlohmann::json::object();
             for (auto& [k, v] : settings.items())
-                if (!old["settings"].contains(k) || old["settings"][k] != v)
-                    diff += fmt::format(" {} (was {}, now {})", k, old["settings"].value(k, nlohmann::json()).dump(), v.dump());
-            for (auto& [k, v] : old["settings"].items())
+                if (!before.contains(k) || before[k] != v)
+                    diff += fmt::format(" {} (was {}, now {})", k, before.value(k, nlohmann::json()).dump(), v.dump());
+            for (auto& [k, v] : before.items())
                 if (!settings.contains(k)) diff += fmt::format(" {} (was {}, now not set)", k, v.dump());
-            if (old["settings"].contains("samples") && old["settings"]["samples"] != settings["samples"])
+            if (before.contains("samples") && before["samples"] != settings["samples"])
                 diff += fmt::format("; only a uniform design whose samples fill whole cells grows (a larger --samples "
                                     "extends it), an lhs design or a smaller --samples cannot");
             throw InputError(fmt::format("--resume: {} was made with different settings:{}", provenancePath(o).string(), diff));

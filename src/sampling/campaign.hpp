@@ -36,8 +36,9 @@ struct CampaignOptions {
     std::uint64_t seed = 1;
     int threads = 1;                           ///< cells run concurrently, one thread each
     int ranks = 1;                             ///< MPI ranks sharing the cells (provenance only)
-    /// Wall-time budget of one cell in seconds (0: none). A cell that exceeds it keeps the outputs
-    /// computed so far; the others are failed rows whose reason says "time limit reached".
+    /// Wall-time budget of one cell in seconds (0: none). A cell that exceeds it becomes failed rows
+    /// whose reason says "time limit reached" (the relaxation, which every row needs, runs last);
+    /// outputs computed before the limit (the equilibrium's) stay in their columns.
     double cellTimeLimit = 0.0;
     std::filesystem::path outDir;
     bool resume = false;
