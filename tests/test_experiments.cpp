@@ -15,7 +15,9 @@
 #include "core/error.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/reference_protocol.hpp"
+#include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
+#include "solvers/minimize.hpp"
 #include "test_support.hpp"
 
 namespace trbc {
@@ -218,6 +220,55 @@ double relaxationTime(const CellParameters& p, const ExperimentOptions& opt) {
 // scales with it too), so the shape path is the same and only the fixed protocol window (Hochmuth
 // fit over 1 s, 100 samples, which covers fewer relaxation times at higher eta_m) and the step
 // control differ: tc proportional to eta_m within 3 %. Halving eps must not change tc (G.3).
+// docs/FORWARD_MODEL.md "Two equilibria near v = 1": with a near-spherical SFS the cell has a
+// dimpled disc and, lower in energy, an undimpled cup. E.1's dynamics from the centrally symmetric
+// biconcave start keeps that symmetry and ends in the disc; so does the symmetric minimisation,
+// whatever the solver's steps, and the disc it returns is a minimum of the unrestricted problem.
+TEST(Equilibrium, NearASphericalSfsTheSymmetricEquilibriumIsTheDiscALocalMinimumBesideALowerCup) {
+    CellParameters p;
+    p.v = 0.995;
+    p.FvK = 200.0;
+    const ExperimentOptions opt = optionsAt(3);
+    const CellMeshes m = cellMeshes(stressFreeState(p.v, 3, opt.cacheDir, opt.sfs));
+    ASSERT_EQ(m.inversionPartners.size(), static_cast<size_t>(m.reference.cols()));
+    EXPECT_LT(inversionAsymmetry(m.reference, m.inversionPartners), 1e-14);
+    const EquilibriumResult eq = runEquilibrium(p, m, opt);
+    EXPECT_LT(inversionAsymmetry(eq.shape, m.inversionPartners), 1e-9);
+    EXPECT_LT(eq.observables.hmin, 0.7);  // dimpled: 0.499 um measured
+
+    const MembraneModel model(m.faces, m.reference.cols(), experimentMembrane(p), &m.reference);
+    EXPECT_NEAR(eq.diagnostics.energy, model.evaluate(eq.shape), 1e-9 * eq.diagnostics.energy);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> normal;
+    Vertices noise(3, m.reference.cols());
+    for (Eigen::Index i = 0; i < noise.size(); ++i) noise.data()[i] = normal(rng);
+    const auto relaxFrom = [&](double kickUm) {
+        Vertices X = eq.shape + kickUm * noise;
+        MinimizeOptions mo;
+        mo.gradientTolerance = 1e-6 * p.mu;
+        const MinimizeResult r = minimizeEnergy(model, X, mo, nullptr, {cell::area, cell::volume});
+        EXPECT_TRUE(r.converged) << r.message;
+        return std::pair{r.energy, equilibriumObservables(alignPrincipalAxes(X), m.faces).hmin};
+    };
+    // A small asymmetric kick, unrestricted, relaxes back: a local minimum of the full problem.
+    const auto [eBack, hBack] = relaxFrom(1e-5);
+    EXPECT_NEAR(eBack, eq.diagnostics.energy, 1e-6 * eq.diagnostics.energy);
+    EXPECT_NEAR(hBack, eq.observables.hmin, 0.005);
+    // A large one crosses into the undimpled cup (measured 6 % lower in energy, hmin 2.1 um).
+    const auto [eCup, hCup] = relaxFrom(1e-2);
+    EXPECT_LT(eCup, 0.97 * eq.diagnostics.energy);
+    EXPECT_GT(hCup, 1.5);
+
+    // Level 4, v 0.9999, FvK 122: the unrestricted multigrid L-BFGS from the same start jumps into
+    // the cup (hmin 2.11 um, energy -7.5 %); the symmetric minimisation with the same H0 ends in the disc.
+    p.v = 0.9999;
+    p.FvK = 122.0;
+    const ExperimentOptions opt4 = optionsAt(4);
+    const EquilibriumResult disc = runEquilibrium(p, cellMeshes(stressFreeState(p.v, 4, opt4.cacheDir, opt4.sfs)), opt4);
+    EXPECT_NEAR(disc.observables.hmin, 0.343, 0.01);
+    EXPECT_NEAR(disc.observables.D, 7.289, 0.01);
+}
+
 TEST(Relaxation, OverdampedTimeIsProportionalToViscosity) {
     ExperimentOptions opt = optionsAt(3);
     opt.overdamped = true;
@@ -310,6 +361,10 @@ TEST(ForwardModel, ObservablesInvariantUnderRotationAndRelabellingOfTheInputMesh
     }
     for (Eigen::Index f = 0; f < base.faces.cols(); ++f)
         for (int k = 0; k < 3; ++k) moved.faces(k, f) = perm[base.faces(k, f)];
+    // The symmetric equilibrium's vertex pairs follow the labels (partners about the centroid).
+    for (int i = 0; i < static_cast<int>(perm.size()); ++i)
+        moved.inversionPartners[static_cast<size_t>(perm[i])] = perm[static_cast<size_t>(base.inversionPartners[static_cast<size_t>(i)])];
+    EXPECT_EQ(inversionPartners(moved.initial), moved.inversionPartners);
 
     // Both rules for the bead axis (ExperimentOptions::inPlaneAxis).
     for (InPlaneAxis axis : {InPlaneAxis::FarthestVertex, InPlaneAxis::LargestVariance}) {

@@ -117,6 +117,43 @@ TEST(Geometry, AreaVolumeGradientsMatchFiniteDifferences) {
     }
 }
 
+TEST(Geometry, InversionPartnersOfIcospheresAndTheSymmetricPart) {
+    for (int level = 0; level <= 3; ++level) {
+        SCOPED_TRACE(level);
+        const Mesh s = icosphere(level);
+        const auto p = inversionPartners(s.X);
+        ASSERT_EQ(p.size(), static_cast<size_t>(s.numVertices()));
+        for (Eigen::Index i = 0; i < s.numVertices(); ++i) {
+            const Eigen::Index j = p[static_cast<size_t>(i)];
+            EXPECT_NE(j, i);
+            EXPECT_EQ(p[static_cast<size_t>(j)], i);
+            EXPECT_LT((s.X.col(i) + s.X.col(j)).norm(), 1e-12);
+        }
+        // The Evans-Fung disc and a moved copy (partners about the centroid) pair the same vertices.
+        EXPECT_EQ(inversionPartners(evansFungMap(s.X)), p);
+        const Vertices moved = (test::randomRotation(3) * evansFungMap(s.X)).colwise() + Eigen::Vector3d(1.0, -2.0, 3.0);
+        EXPECT_EQ(inversionPartners(moved), p);
+        EXPECT_LT(inversionAsymmetry(moved, p), 1e-12);
+    }
+    // Not centrally symmetric: one vertex moved by 1e-3 of the radius.
+    const Mesh s = icosphere(2);
+    Vertices bumped = s.X;
+    bumped(2, 5) += 1e-3;
+    EXPECT_TRUE(inversionPartners(bumped).empty());
+    const auto p = inversionPartners(s.X);
+    EXPECT_NEAR(inversionAsymmetry(bumped, p), 1e-3, 1e-4);
+
+    // The symmetric part: w_j = -w_i for partners, idempotent, and the removed part is orthogonal to it.
+    Vertices W = Vertices::Random(3, s.numVertices()), S = W;
+    symmetrizeUnderInversion(S, p);
+    for (Eigen::Index i = 0; i < s.numVertices(); ++i)
+        EXPECT_EQ((S.col(i) + S.col(p[static_cast<size_t>(i)])).norm(), 0.0);
+    Vertices S2 = S;
+    symmetrizeUnderInversion(S2, p);
+    EXPECT_EQ(S2, S);
+    EXPECT_NEAR(((W - S).array() * S.array()).sum(), 0.0, 1e-12);
+}
+
 TEST(MeshIo, OffRoundTripAndPlyVtkWithFields) {
     const Mesh m = readOff(test::meshPath("rbc_642.off"));
     const auto dir = std::filesystem::temp_directory_path();

@@ -176,7 +176,8 @@ void registerSimulate(CLI::App& app) {
         j["provenance"] = {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"command", commandLine()}, {"level", o->level},
                            {"vertices", 10 * (1 << (2 * o->level)) + 2}, {"sfs_model_version", kSfsModelVersion},
                            {"threads", o->threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
-                           {"preconditioner", eo.multigrid ? "multigrid" : "none"}};
+                           {"preconditioner", eo.multigrid ? "multigrid" : "none"},
+                           {"equilibrium_symmetry", eo.symmetricEquilibrium ? "inversion" : "none"}};
         const auto t0 = std::chrono::steady_clock::now();
         SampleResult s;
         try {

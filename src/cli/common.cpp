@@ -120,6 +120,14 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
         ->check(CLI::IsMember({"multigrid", "none"}))
         ->default_str("multigrid");
     cmd->add_option_function<std::string>(
+           "--equilibrium-symmetry", [&e](const std::string& a) { e.symmetricEquilibrium = a == "inversion"; },
+           "equilibrium shape: minimised within the centrally symmetric shapes of the biconcave start (inversion: "
+           "the disc that E.1's dynamics reaches, also for a near-spherical SFS) or unrestricted (none: disc or "
+           "undimpled cup near v = 1 depending on the solver's path; campaigns before session 22); "
+           "docs/FORWARD_MODEL.md")
+        ->check(CLI::IsMember({"inversion", "none"}))
+        ->default_str("inversion");
+    cmd->add_option_function<std::string>(
            "--in-plane-axis",
            [&e](const std::string& a) {
                e.inPlaneAxis = a == inPlaneAxisName(InPlaneAxis::LargestVariance) ? InPlaneAxis::LargestVariance

@@ -22,6 +22,7 @@ using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 const AreaVolumeConstraint kCellConstraint{cell::area, cell::volume};
+constexpr double kReferenceSymmetryTolerance = 1e-3;
 
 SolverDiagnostics staticDiagnostics(const MinimizeResult& r, Clock::time_point t0) {
     SolverDiagnostics d;
@@ -102,6 +103,19 @@ Vertices largestVarianceOrientation(const Vertices& aligned) {
     return flipped;
 }
 
+// ExperimentOptions::symmetricEquilibrium restricts the minimisation to centrally symmetric shapes,
+// which is exact only for an energy invariant under the inversion, i.e. a symmetric Lim reference.
+const std::vector<Eigen::Index>* equilibriumSymmetry(const CellMeshes& m, const ExperimentOptions& opt) {
+    if (!opt.symmetricEquilibrium) return nullptr;
+    if (m.inversionPartners.size() != static_cast<size_t>(m.reference.cols()))
+        throw NumericalError("symmetric equilibrium: the mesh is not centrally symmetric (no inversion partners)");
+    const double asym = inversionAsymmetry(m.reference, m.inversionPartners);
+    if (asym > 1e-12)
+        throw NumericalError(fmt::format("symmetric equilibrium: the Lim reference is not centrally symmetric "
+                                         "(|x_i + x_j| up to {:.3g} of its size)", asym));
+    return &m.inversionPartners;
+}
+
 }  // namespace
 
 const char* inPlaneAxisName(InPlaneAxis a) {
@@ -116,6 +130,13 @@ CellMeshes cellMeshes(const StressFreeState& sfs) {
     // material axis (the SFS was seeded along z), so the material and shape axes coincide.
     const Mesh ico = icosphere(sfs.level);
     m.initial = scaleToArea(evansFungMap(ico.X), ico.F, cell::area);
+    // The SFS is seeded as the (centrally symmetric) icosphere and its minimiser keeps the symmetry
+    // to its tolerance (|x_i + x_j| up to 1.8e-5 of the size at v 0.9999, level 4): the reference is
+    // its symmetric part, so that the energy is exactly invariant under the inversion (E.1's
+    // symmetric equilibrium). A mesh of another kind keeps its own reference.
+    m.inversionPartners = inversionPartners(ico.X);
+    if (!m.inversionPartners.empty() && inversionAsymmetry(m.reference, m.inversionPartners) <= kReferenceSymmetryTolerance)
+        symmetrizeUnderInversion(m.reference, m.inversionPartners);
     return m;
 }
 
@@ -127,7 +148,7 @@ EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& mesh
     const auto mg = cellMultigrid(p, model, X, opt);
     const Preconditioner pre = asPreconditioner(mg);
     const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint,
-                                            pre ? &pre : nullptr);
+                                            pre ? &pre : nullptr, equilibriumSymmetry(meshes, opt));
     res.diagnostics = staticDiagnostics(r, t0);
     requireConverged(res.diagnostics, "equilibrium shape");
     const Vertices aligned = alignPrincipalAxes(X);

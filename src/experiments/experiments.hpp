@@ -48,6 +48,12 @@ struct ExperimentOptions {
     /// stiffness 0.05 mu I + mu L + kb/l0^2 L^2 on the icosphere hierarchy (solvers/multigrid.hpp);
     /// false: the plain scaled-identity H0 (forward-model revision 2 and earlier).
     bool multigrid = true;
+    /// Equilibrium (E.1): minimise within the centrally symmetric shapes (x -> -x) of the biconcave
+    /// start, i.e. reach the disc that E.1's dynamics from that start reaches, whatever the solver's
+    /// steps; false: unrestricted (a near-spherical SFS then ends in the disc or in an undimpled
+    /// cup depending on the solver's path; campaigns before session 22). docs/FORWARD_MODEL.md
+    /// "Two equilibria near v = 1".
+    bool symmetricEquilibrium = true;
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
     SfsOptions sfs;
     /// Equilibrium, stretching and the relaxation's inner solves stop, not converged, after this
@@ -78,6 +84,7 @@ struct CellMeshes {
     Faces faces;
     Vertices reference;
     Vertices initial;
+    std::vector<Eigen::Index> inversionPartners;  ///< of the icosphere (inversionPartners)
 };
 CellMeshes cellMeshes(const StressFreeState& sfs);
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <vector>
 
 namespace trbc {
@@ -155,6 +156,42 @@ Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F) {
 }
 
 Eigen::Vector3d centroid(const Vertices& X) { return X.rowwise().mean(); }
+
+std::vector<Eigen::Index> inversionPartners(const Vertices& X0, double tol) {
+    const Eigen::Index n = X0.cols();
+    if (n == 0) return {};
+    const Vertices X = X0.colwise() - centroid(X0);
+    const double eps = tol * X.colwise().norm().maxCoeff();
+    // Sorted by x, the partner of i lies among the vertices with x within eps of -x_i.
+    std::vector<Eigen::Index> byX(static_cast<size_t>(n));
+    std::iota(byX.begin(), byX.end(), Eigen::Index{0});
+    std::sort(byX.begin(), byX.end(), [&X](Eigen::Index a, Eigen::Index b) { return X(0, a) < X(0, b); });
+    std::vector<Eigen::Index> partner(static_cast<size_t>(n), -1);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        auto it = std::lower_bound(byX.begin(), byX.end(), -X(0, i) - eps,
+                                   [&X](Eigen::Index a, double x) { return X(0, a) < x; });
+        for (; it != byX.end() && X(0, *it) <= -X(0, i) + eps; ++it)
+            if ((X.col(*it) + X.col(i)).cwiseAbs().maxCoeff() <= eps) {
+                partner[static_cast<size_t>(i)] = *it;
+                break;
+            }
+        if (partner[static_cast<size_t>(i)] < 0) return {};
+    }
+    return partner;
+}
+
+void symmetrizeUnderInversion(Vertices& W, const std::vector<Eigen::Index>& partner) {
+    const Vertices w = W;
+    for (Eigen::Index i = 0; i < W.cols(); ++i) W.col(i) = 0.5 * (w.col(i) - w.col(partner[static_cast<size_t>(i)]));
+}
+
+double inversionAsymmetry(const Vertices& X0, const std::vector<Eigen::Index>& partner) {
+    const Vertices X = X0.colwise() - centroid(X0);
+    double asym = 0.0;
+    for (Eigen::Index i = 0; i < X.cols(); ++i)
+        asym = std::max(asym, (X.col(i) + X.col(partner[static_cast<size_t>(i)])).norm());
+    return asym / X.colwise().norm().maxCoeff();
+}
 
 Eigen::Matrix3d principalAxes(const Vertices& X) {
     const Eigen::Matrix3Xd Y = X.colwise() - centroid(X);

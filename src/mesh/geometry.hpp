@@ -1,6 +1,7 @@
 #pragma once
 // Geometry of a triangle mesh as free functions over plain arrays (MODEL.md B.3, E.0).
 #include <Eigen/Core>
+#include <vector>
 
 #include "mesh/mesh.hpp"
 #include "mesh/topology.hpp"
@@ -30,6 +31,17 @@ AreaVolume areaAndVolume(const Vertices& X, const Faces& F);
 Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F);
 /// Unweighted vertex centroid.
 Eigen::Vector3d centroid(const Vertices& X);
+
+/// Partners under the point inversion about the centroid c, x -> 2c - x: partner[i] = j with
+/// |(x_j - c) + (x_i - c)| <= tol * max_k |x_k - c| (an icosphere of any level, and its Evans-Fung
+/// disc, map onto themselves); empty when some vertex has none.
+std::vector<Eigen::Index> inversionPartners(const Vertices& X, double tol = 1e-9);
+/// The inversion-symmetric part of per-vertex vectors, w_i <- (w_i - w_partner[i]) / 2: the
+/// gradient of an inversion-invariant energy at a symmetric shape is of this kind, and for positions
+/// it is the symmetric part of the shape moved to the origin (a translation no energy sees).
+void symmetrizeUnderInversion(Vertices& W, const std::vector<Eigen::Index>& partner);
+/// max_i |(x_i - c) + (x_partner[i] - c)| / max_i |x_i - c|: 0 for a centrally symmetric shape.
+double inversionAsymmetry(const Vertices& X, const std::vector<Eigen::Index>& partner);
 
 /// Principal frame of the vertex cloud (MODEL.md E.0): rotation R whose rows are the
 /// eigenvectors of the vertex covariance, by decreasing variance (x largest, z smallest), with

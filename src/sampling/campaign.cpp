@@ -54,6 +54,8 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
     if (e.inPlaneAxis != InPlaneAxis::FarthestVertex) j["in_plane_axis"] = inPlaneAxisName(e.inPlaneAxis);
     // Campaigns made before the multigrid H0 existed have no key and resume with --preconditioner none.
     if (e.multigrid) j["preconditioner"] = "multigrid";
+    // Campaigns made before it existed have no key and resume with --equilibrium-symmetry none.
+    if (e.symmetricEquilibrium) j["equilibrium_symmetry"] = "inversion";
     // Decides which rows fail (and depends on the machine's speed), so a resume must keep it.
     if (o.cellTimeLimit > 0) j["cell_time_limit_s"] = o.cellTimeLimit;
     return j;

@@ -286,22 +286,39 @@ double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertice
 
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
                               const Vertices* externalForces, const AreaVolumeConstraint& constraint,
-                              const Preconditioner* preconditioner) {
+                              const Preconditioner* preconditioner, const std::vector<Eigen::Index>* inversionSymmetry) {
     const Eigen::Index nv = X.cols();
+    if (inversionSymmetry) symmetrizeUnderInversion(X, *inversionSymmetry);
     Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
-    Vertices Xv(3, nv), G(3, nv);
+    Vertices Xv(3, nv), G(3, nv), W(3, nv);
     const Objective f = [&](const Eigen::VectorXd& xv, Eigen::VectorXd& g) {
         Xv = Eigen::Map<const Vertices>(xv.data(), 3, nv);
         const double u = loadedEnergy(model, Xv, externalForces, G);
+        if (inversionSymmetry) symmetrizeUnderInversion(G, *inversionSymmetry);
         g = Eigen::Map<const Eigen::VectorXd>(G.data(), 3 * nv);
         return u;
     };
+    // An H0 that is not exactly equivariant (a Gauss-Seidel smoother's ordering) must not leak
+    // antisymmetric components into the directions.
+    const auto symmetrized = [&](Eigen::VectorXd& v) {
+        W = Eigen::Map<const Vertices>(v.data(), 3, nv);
+        symmetrizeUnderInversion(W, *inversionSymmetry);
+        v = Eigen::Map<const Eigen::VectorXd>(W.data(), 3 * nv);
+    };
+    Preconditioner symmetricH0;
+    if (inversionSymmetry && preconditioner)
+        symmetricH0 = [&](Eigen::VectorXd& v) {
+            symmetrized(v);
+            (*preconditioner)(v);
+            symmetrized(v);
+        };
+    const Preconditioner* h0 = symmetricH0 ? &symmetricH0 : preconditioner;
     MinimizeResult r;
     if (constraint.active()) {
         const EqualityConstraints con = areaVolumeConstraints(model.faces(), nv, constraint);
-        r = lbfgsMinimize(f, x, options, &con, preconditioner);
+        r = lbfgsMinimize(f, x, options, &con, h0);
     } else {
-        r = lbfgsMinimize(f, x, options, nullptr, preconditioner);
+        r = lbfgsMinimize(f, x, options, nullptr, h0);
     }
     X = Eigen::Map<const Vertices>(x.data(), 3, nv);
     return r;

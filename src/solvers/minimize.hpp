@@ -6,6 +6,7 @@
 #include <chrono>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "membrane/model.hpp"
 
@@ -85,10 +86,16 @@ EqualityConstraints areaVolumeConstraints(const Faces& faces, Eigen::Index numVe
 double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertices* externalForces, Vertices& grad);
 
 /// Minimises U(X) - sum_i f_ext_i . x_i for a membrane model, X updated in place.
-/// A preconditioner (H0 of L-BFGS) may be given.
+/// A preconditioner (H0 of L-BFGS) may be given. With `inversionSymmetry` (partners of
+/// inversionPartners), the minimisation stays in the centrally symmetric shapes (x_i = -x_j for the
+/// partners i, j): X is replaced by its symmetric part first (moved to the origin), and so are every
+/// gradient and every preconditioned direction. The energy (its reference shape, any external
+/// forces) must be invariant under the inversion; the result is then a stationary point of the
+/// unrestricted problem too (docs/FORWARD_MODEL.md "Two equilibria near v = 1").
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
                               const Vertices* externalForces = nullptr, const AreaVolumeConstraint& constraint = {},
-                              const Preconditioner* preconditioner = nullptr);
+                              const Preconditioner* preconditioner = nullptr,
+                              const std::vector<Eigen::Index>* inversionSymmetry = nullptr);
 
 /// max_i |g_i| over the 3-vectors of a flattened gradient.
 double maxVertexNorm(const Eigen::VectorXd& g);
