@@ -584,7 +584,7 @@ TEST(NetworkIo, TransformsRoundTripAndOlderFilesMeanIdentity) {
     TrainingOptions o;
     o.hiddenLayers = {4};
     o.maxEpochs = 3;
-    o.inputTransforms = {VariableTransform::Identity, VariableTransform::Log};
+    o.inputTransforms = {VariableTransform::Sqrt, VariableTransform::Log};
     o.outputTransforms = {VariableTransform::Log};
     const TrainedNetwork a = trainNetwork(X, Y, o, {"a", "b"}, {"y"}).network;
     const std::string path = tempPath("transforms.json");
@@ -595,7 +595,7 @@ TEST(NetworkIo, TransformsRoundTripAndOlderFilesMeanIdentity) {
     EXPECT_TRUE(b.evaluate(X) == a.evaluate(X));
     // a file written before the transforms existed has no keys: identity
     nlohmann::json j = networkToJson(a);
-    EXPECT_EQ(j["input_transform"], nlohmann::json({"identity", "log"}));
+    EXPECT_EQ(j["input_transform"], nlohmann::json({"sqrt", "log"}));
     j.erase("input_transform");
     j.erase("output_transform");
     std::ofstream(path) << j.dump();
@@ -605,9 +605,40 @@ TEST(NetworkIo, TransformsRoundTripAndOlderFilesMeanIdentity) {
     c.outputScaling.invertInPlace(raw);
     EXPECT_TRUE(c.evaluate(X) == raw);
     std::filesystem::remove(path);
-    const std::string m = loadErrorAfter([](nlohmann::json& j) { j["input_transform"] = {"sqrt", "log"}; }, "bad_transform.json");
+    const std::string m = loadErrorAfter([](nlohmann::json& j) { j["input_transform"] = {"cbrt", "log"}; }, "bad_transform.json");
     EXPECT_NE(m.find("'input_transform'"), std::string::npos) << m;
-    EXPECT_NE(m.find("sqrt"), std::string::npos) << m;
+    EXPECT_NE(m.find("cbrt"), std::string::npos) << m;
+}
+
+TEST(Training, SqrtVariablesAreAppliedInsideEvaluate) {
+    Eigen::MatrixXd X, Y;
+    powerLawData(400, 44, X, Y);
+    TrainingOptions o;
+    o.hiddenLayers = {4};
+    o.maxEpochs = 3;
+    o.inputTransforms = {VariableTransform::Sqrt, VariableTransform::Identity};
+    o.outputTransforms = {VariableTransform::Sqrt};
+    const TrainedNetwork tn = trainNetwork(X, Y, o, {"a", "b"}, {"y"}).network;
+    // evaluate = (s_y NN((T x - m_x) / s_x) + m_y)^2 with T = (sqrt, identity)
+    Eigen::MatrixXd Tx = X;
+    Tx.row(0) = X.row(0).array().sqrt().matrix();
+    Eigen::MatrixXd manual = tn.net.forward(tn.inputScaling.apply(Tx));
+    tn.outputScaling.invertInPlace(manual);
+    EXPECT_TRUE(tn.evaluate(X).isApprox(manual.array().square().matrix(), 1e-13));
+    EXPECT_NEAR(tn.inputScaling.mean[0], X.row(0).array().sqrt().mean(), 1e-12);
+    EXPECT_NEAR(tn.outputScaling.mean[0], Y.row(0).array().sqrt().mean(), 1e-12);
+    // zero is allowed, a negative value is an InputError naming the variable and the sample
+    Eigen::MatrixXd X0 = X;
+    X0(0, 3) = 0.0;
+    EXPECT_NO_THROW(trainNetwork(X0, Y, o, {"a", "b"}, {"y"}));
+    X0(0, 5) = -1e-3;
+    try {
+        trainNetwork(X0, Y, o, {"a", "b"}, {"y"});
+        ADD_FAILURE() << "trained sqrt(a) with a < 0";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("sqrt(a)"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("sample 5"), std::string::npos) << e.what();
+    }
 }
 
 

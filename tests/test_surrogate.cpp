@@ -192,16 +192,20 @@ TEST(SurrogateTraining, DataHashIgnoresWallTimeAndTracksValues) {
     EXPECT_THROW(trainSurrogate(rows, opt), InputError);
 }
 
-TEST_F(TrainedFixture, RelaxationNetworkWorksOnLogScaleParameters) {
+TEST_F(TrainedFixture, RelaxationAndStretchingNetworksWorkOnTransformedParameters) {
     using T = VariableTransform;
     EXPECT_EQ(report->model.relaxation.inputTransforms, (std::vector<T>{T::Identity, T::Log, T::Log, T::Identity, T::Log}));
     EXPECT_EQ(report->model.relaxation.outputTransforms, (std::vector<T>{T::Log}));
-    EXPECT_TRUE(report->model.stretching.inputTransforms.empty());
+    EXPECT_EQ(report->model.stretching.inputTransforms, (std::vector<T>{T::Identity, T::Identity, T::Identity, T::Sqrt, T::Identity}));
+    EXPECT_TRUE(report->model.stretching.outputTransforms.empty());
+    EXPECT_TRUE(report->model.equilibrium.inputTransforms.empty());
     auto opt = quickOptions();
     opt.logRelaxation = false;
+    opt.sqrtB2Stretching = false;
     opt.network.maxEpochs = 2;
     const auto linear = trainSurrogate(fakeCampaign(400, 8), opt);
     EXPECT_TRUE(linear.model.relaxation.inputTransforms.empty() && linear.model.relaxation.outputTransforms.empty());
+    EXPECT_TRUE(linear.model.stretching.inputTransforms.empty());
 }
 
 TEST_F(TrainedFixture, RelaxationNetworkAveragesAllItsRestarts) {

@@ -98,6 +98,7 @@ void registerTrain(CLI::App* parent) {
         int threads = 2;
         int cvFolds = 0;
         std::string relaxationVariables = "log";
+        std::string stretchingVariables = "sqrt-b2";
         std::vector<std::string> ensemble{"relaxation"};
         std::vector<std::string> distill{"relaxation"};
     };
@@ -126,6 +127,10 @@ void registerTrain(CLI::App* parent) {
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
                     "variables (networks before session 7 (2026-11-23))")
         ->check(CLI::IsMember({"log", "linear"}))->capture_default_str();
+    cmd->add_option("--stretching-variables", o->stretchingVariables,
+                    "sqrt-b2: the stretching network sees sqrt(b2) (the hardening sets in at stretches ~ 1/sqrt(b2)); "
+                    "linear: b2 (networks before session 22 (2026-11-26))")
+        ->check(CLI::IsMember({"sqrt-b2", "linear"}))->capture_default_str();
     cmd->add_option("--ensemble", o->ensemble,
                     "networks that keep all their restarts and predict with the members' mean (geometric mean for log "
                     "outputs): any of equilibrium, stretching, relaxation, or none")
@@ -165,6 +170,7 @@ void registerTrain(CLI::App* parent) {
         SurrogateTrainingOptions t = o->t;
         t.command = commandLine();
         t.logRelaxation = o->relaxationVariables == "log";
+        t.sqrtB2Stretching = o->stretchingVariables == "sqrt-b2";
         const auto& names = surrogateNetworkNames();
         for (int k = 0; k < 3; ++k) {
             t.ensemble[k] = listed(o->ensemble, names[std::size_t(k)]);
@@ -199,6 +205,7 @@ void registerTrain(CLI::App* parent) {
                             {"seed", t.network.seed},
                             {"restarts", t.restarts},
                             {"relaxation_variables", o->relaxationVariables},
+                            {"stretching_variables", o->stretchingVariables},
                             {"ensemble", o->ensemble},
                             {"distill", o->distill},
                             {"distill_samples", t.distillSamples},

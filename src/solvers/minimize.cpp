@@ -149,14 +149,13 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
     constexpr double c1 = 1e-4;
     constexpr double eps = std::numeric_limits<double>::epsilon();
 
-    const bool timed = opt.deadline != std::chrono::steady_clock::time_point::max();
     for (res.iterations = 0; res.iterations < opt.maxIterations; ++res.iterations) {
         res.gradientNorm = maxVertexNorm(pg);
         if (res.gradientNorm <= opt.gradientTolerance) {
             res.converged = true;
             break;
         }
-        if (timed && std::chrono::steady_clock::now() > opt.deadline) {
+        if (deadlinePassed(opt.deadline)) {
             res.message = fmt::format("time limit reached after {} iterations, gradient norm {:.3g} > {:.3g}",
                                       res.iterations, res.gradientNorm, opt.gradientTolerance);
             break;

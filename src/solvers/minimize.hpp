@@ -29,6 +29,11 @@ struct MinimizeOptions {
     std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
+/// Whether a deadline has passed (the default, time_point::max(), never does and reads no clock).
+inline bool deadlinePassed(std::chrono::steady_clock::time_point deadline) {
+    return deadline != std::chrono::steady_clock::time_point::max() && std::chrono::steady_clock::now() > deadline;
+}
+
 struct MinimizeResult {
     bool converged = false;
     int iterations = 0;

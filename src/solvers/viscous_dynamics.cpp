@@ -132,9 +132,8 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
     double t = 0.0, dt = std::min(opt.dtInitial, dtMax);
     Vertices Xnew(3, X.cols());
 
-    const bool timed = opt.inner.deadline != std::chrono::steady_clock::time_point::max();
     while (t < opt.tEnd * (1 - 1e-14)) {
-        if (timed && std::chrono::steady_clock::now() > opt.inner.deadline) {
+        if (deadlinePassed(opt.inner.deadline)) {
             res.message = fmt::format("time limit reached at t = {:.6g}", t);
             return res;
         }

@@ -25,7 +25,10 @@ json vectorToJson(const Eigen::Ref<const Eigen::VectorXd>& v) { return std::vect
 
 json transformsToJson(const std::vector<VariableTransform>& t, std::size_t n) {
     json a = json::array();
-    for (std::size_t i = 0; i < n; ++i) a.push_back(i < t.size() && t[i] == VariableTransform::Log ? "log" : "identity");
+    for (std::size_t i = 0; i < n; ++i) {
+        const VariableTransform ti = i < t.size() ? t[i] : VariableTransform::Identity;
+        a.push_back(ti == VariableTransform::Log ? "log" : ti == VariableTransform::Sqrt ? "sqrt" : "identity");
+    }
     return a;
 }
 
@@ -334,8 +337,9 @@ TrainedNetwork networkFromJson(const json& j, const std::string& source) {
         std::vector<VariableTransform> t;
         if (!j.contains(key)) return t;
         for (const std::string& name : r.strings(j.at(key), key, n)) {
-            if (name != "identity" && name != "log") r.fail(key, "entries must be \"identity\" or \"log\", found \"" + name + "\"");
-            t.push_back(name == "log" ? VariableTransform::Log : VariableTransform::Identity);
+            if (name != "identity" && name != "log" && name != "sqrt")
+                r.fail(key, "entries must be \"identity\", \"log\" or \"sqrt\", found \"" + name + "\"");
+            t.push_back(name == "log" ? VariableTransform::Log : name == "sqrt" ? VariableTransform::Sqrt : VariableTransform::Identity);
         }
         return t;
     };

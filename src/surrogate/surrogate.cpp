@@ -286,6 +286,10 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             const double batchesPerEpoch = std::max(1.0, 0.8 * double(data[k].X.cols()) / o.batchSize);
             o.patience = std::max(o.patience, int(std::ceil(3000.0 / batchesPerEpoch)));
             o.testFraction = 0.0;              // the test cells are already out
+            if (k == 1 && opt.sqrtB2Stretching) {
+                using T = VariableTransform;
+                o.inputTransforms = {T::Identity, T::Identity, T::Identity, T::Sqrt, T::Identity};
+            }
             if (k == 2 && opt.logRelaxation) {
                 // tc mu / eta_m > 0 spans two decades and depends on mu and eta_m through tc's
                 // sampling window and the vertex-mass group Pi ~ mu / eta_m^2 (MODEL.md E.3): products

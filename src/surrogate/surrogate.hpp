@@ -61,6 +61,10 @@ struct SurrogateTrainingOptions {
     /// on the shipped campaign the log variables lowered the tc error from 7.6 % to 6.9 % (bulk of the
     /// box 5.0 % -> 2.9 %; docs/CAMPAIGN_AND_SURROGATE.md).
     bool logRelaxation = true;
+    /// Stretching network on sqrt(b2) instead of b2 (true): the Lim hardening b2 beta^2 takes over
+    /// from the linear shear term at principal stretches ~ 1/sqrt(b2), so D1 at large forces rises
+    /// steeply as b2 -> 0 (docs/CAMPAIGN_AND_SURROGATE.md). false: the networks before session 22.
+    bool sqrtB2Stretching = true;
     /// Networks (equilibrium, stretching, relaxation) that keep all their restarts as an ensemble and
     /// predict with the members' mean (geometric mean of tc mu / eta_m) instead of keeping the best one.
     /// Default: the relaxation network, whose 10-fold cross-validated tc error it lowered from 6.9 % to

@@ -223,12 +223,16 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
                                     const std::vector<std::string>& names, const char* what) {
         if (!t.empty() && Eigen::Index(t.size()) != data.rows())
             throw InputError(fmt::format("training: {} {} transforms for {} {}s", t.size(), what, data.rows(), what));
-        for (std::size_t i = 0; i < t.size(); ++i)
-            if (t[i] == VariableTransform::Log)
-                for (Eigen::Index j = 0; j < data.cols(); ++j)
-                    if (!(data(Eigen::Index(i), j) > 0))
-                        throw InputError(fmt::format("training: {} '{}' is trained as log({}) but sample {} has {} (must be > 0)",
-                                                     what, names[i], names[i], j, data(Eigen::Index(i), j)));
+        for (std::size_t i = 0; i < t.size(); ++i) {
+            if (t[i] == VariableTransform::Identity) continue;
+            const bool log = t[i] == VariableTransform::Log;
+            for (Eigen::Index j = 0; j < data.cols(); ++j) {
+                const double x = data(Eigen::Index(i), j);
+                if (log ? !(x > 0) : !(x >= 0))
+                    throw InputError(fmt::format("training: {} '{}' is trained as {}({}) but sample {} has {} (must be {} 0)",
+                                                 what, names[i], log ? "log" : "sqrt", names[i], j, x, log ? ">" : ">="));
+            }
+        }
     };
     checkTransforms(options.inputTransforms, X, inputNames, "input");
     checkTransforms(options.outputTransforms, Y, outputNames, "output");
@@ -261,15 +265,20 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
 
 Eigen::MatrixXd applyTransforms(const Eigen::Ref<const Eigen::MatrixXd>& x, const std::vector<VariableTransform>& transforms) {
     Eigen::MatrixXd out = x;
-    for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < x.rows(); ++i)
+    for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < x.rows(); ++i) {
         if (transforms[i] == VariableTransform::Log)
             out.row(Eigen::Index(i)) = x.row(Eigen::Index(i)).unaryExpr([](double v) { return v > 0 ? std::log(v) : NAN; });
+        if (transforms[i] == VariableTransform::Sqrt)
+            out.row(Eigen::Index(i)) = x.row(Eigen::Index(i)).unaryExpr([](double v) { return v >= 0 ? std::sqrt(v) : NAN; });
+    }
     return out;
 }
 
 void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<VariableTransform>& transforms) {
-    for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < y.rows(); ++i)
+    for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < y.rows(); ++i) {
         if (transforms[i] == VariableTransform::Log) y.row(Eigen::Index(i)) = y.row(Eigen::Index(i)).array().exp().matrix();
+        if (transforms[i] == VariableTransform::Sqrt) y.row(Eigen::Index(i)) = y.row(Eigen::Index(i)).array().square().matrix();
+    }
 }
 
 Eigen::MatrixXd TrainedNetwork::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& X, Precision precision) const {

@@ -50,9 +50,10 @@ struct EpochRecord {
 
 /// Transform of one network variable before its z-score scaling: the network sees log(x) for
 /// `Log` (x > 0; scale parameters spanning decades such as mu, eta_m and FvK, and positive outputs
-/// whose relative error matters). Applied inside TrainedNetwork::evaluate, so callers always pass
-/// and receive physical values.
-enum class VariableTransform { Identity, Log };
+/// whose relative error matters), sqrt(x) for `Sqrt` (x >= 0; a parameter whose effect sets in
+/// at a scale ~ 1/sqrt(x), such as the Lim hardening b2 in stretching). Applied inside
+/// TrainedNetwork::evaluate, so callers always pass and receive physical values.
+enum class VariableTransform { Identity, Log, Sqrt };
 
 struct TrainingOptions {
     std::vector<int> hiddenLayers{32, 32, 32};  ///< SURROGATE 3.3
