@@ -302,6 +302,27 @@ TEST(CampaignRunner, CellTimeLimitFailsRowsWithTheReason) {
     EXPECT_NE(again.err.find("cell_time_limit_s"), std::string::npos) << again.err;
 }
 
+// The equilibrium's symmetry (docs/FORWARD_MODEL.md "Two equilibria near v = 1") is part of the
+// settings: campaigns made before it (no key) resume only with --equilibrium-symmetry none, and a
+// campaign of one kind never continues with the other.
+TEST(CampaignRunner, EquilibriumSymmetryIsASettingThatOldCampaignsResumeWith) {
+    TempDir tmp;
+    const std::string base = "campaign --samples 4 --forces-per-cell 2 --level 2 --seed 5 --no-cache ";
+    const fs::path sym = tmp.path() / "sym", old = tmp.path() / "old";
+    ASSERT_EQ(runTrbc(base + "--out " + shellQuote(sym.string()), tmp.path()).status, 0);
+    EXPECT_EQ(nlohmann::json::parse(std::ifstream(sym / "campaign.json")).at("settings").at("equilibrium_symmetry"), "inversion");
+    const CliRun none = runTrbc(base + "--equilibrium-symmetry none --out " + shellQuote(old.string()), tmp.path());
+    ASSERT_EQ(none.status, 0) << none.err;
+    EXPECT_FALSE(nlohmann::json::parse(std::ifstream(old / "campaign.json")).at("settings").contains("equilibrium_symmetry"));
+    const CliRun refused = runTrbc(base + "--resume --out " + shellQuote(old.string()), tmp.path());
+    EXPECT_EQ(refused.status, 2);
+    EXPECT_NE(refused.err.find("equilibrium_symmetry"), std::string::npos) << refused.err;
+    EXPECT_EQ(runTrbc(base + "--resume --equilibrium-symmetry none --out " + shellQuote(old.string()), tmp.path()).status, 0);
+    const CliRun bad = runTrbc(base + "--equilibrium-symmetry mirror --out " + shellQuote((tmp.path() / "bad").string()), tmp.path());
+    EXPECT_NE(bad.status, 0);
+    EXPECT_NE(bad.err.find("--equilibrium-symmetry"), std::string::npos) << bad.err;
+}
+
 // A cell is taken whole from one part file: a run killed mid-write and resumed by other ranks can
 // leave the start of a cell in one file and the whole recomputed cell in another.
 TEST(CampaignRunner, ACellIsNeverMixedFromTwoPartFiles) {

@@ -30,7 +30,7 @@ struct CalibrateConfig {
     /// [campaign] mode: "shipped" (use the shipped surrogates' training set, nothing to run) or
     /// "run" (trbc campaign into OUT/campaign, resumable).
     std::string campaignMode = "shipped";
-    long campaignSamples = 20000;
+    long campaignSamples = 50000;
     int campaignForcesPerCell = 20;
     std::string campaignDesign = "uniform";
     int campaignLevel = 4;

@@ -122,7 +122,7 @@ const char* inPlaneAxisName(InPlaneAxis a) {
     return a == InPlaneAxis::LargestVariance ? "largest-variance" : "farthest-vertex";
 }
 
-CellMeshes cellMeshes(const StressFreeState& sfs) {
+CellMeshes cellMeshes(const StressFreeState& sfs, bool symmetricReference) {
     CellMeshes m;
     m.faces = sfs.mesh.F;
     m.reference = scaleToArea(sfs.mesh.X, sfs.mesh.F, cell::area);
@@ -135,7 +135,8 @@ CellMeshes cellMeshes(const StressFreeState& sfs) {
     // its symmetric part, so that the energy is exactly invariant under the inversion (E.1's
     // symmetric equilibrium). A mesh of another kind keeps its own reference.
     m.inversionPartners = inversionPartners(ico.X);
-    if (!m.inversionPartners.empty() && inversionAsymmetry(m.reference, m.inversionPartners) <= kReferenceSymmetryTolerance)
+    if (symmetricReference && !m.inversionPartners.empty() &&
+        inversionAsymmetry(m.reference, m.inversionPartners) <= kReferenceSymmetryTolerance)
         symmetrizeUnderInversion(m.reference, m.inversionPartners);
     return m;
 }
@@ -318,7 +319,7 @@ SampleResult runSample(const CellParameters& p, double fext, const ExperimentSet
     s.fext = fext;
     s.sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
     if (!which.equilibrium && !which.stretching && !which.relaxation) return s;
-    const CellMeshes meshes = cellMeshes(s.sfs);
+    const CellMeshes meshes = cellMeshes(s.sfs, opt.symmetricEquilibrium);
     s.equilibrium = runEquilibrium(p, meshes, opt);
     if (which.stretching) {
         std::vector<double> forces{fext};

@@ -80,13 +80,15 @@ struct SolverDiagnostics {
 
 /// The experiments' mesh data for one sample: Lim reference (SFS rescaled to A0) and the
 /// equilibrium's initial shape (Evans-Fung map of the icosphere about the SFS material axis z).
+/// With `symmetricReference` (ExperimentOptions::symmetricEquilibrium) the reference is the SFS's
+/// centrally symmetric part (the SFS minimiser keeps the symmetry to its tolerance).
 struct CellMeshes {
     Faces faces;
     Vertices reference;
     Vertices initial;
     std::vector<Eigen::Index> inversionPartners;  ///< of the icosphere (inversionPartners)
 };
-CellMeshes cellMeshes(const StressFreeState& sfs);
+CellMeshes cellMeshes(const StressFreeState& sfs, bool symmetricReference = true);
 
 struct EquilibriumResult {
     EquilibriumObservables observables;  ///< um

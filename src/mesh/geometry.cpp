@@ -177,6 +177,11 @@ std::vector<Eigen::Index> inversionPartners(const Vertices& X0, double tol) {
             }
         if (partner[static_cast<size_t>(i)] < 0) return {};
     }
+    // An involution without fixed points (two vertices within eps of each other would break it).
+    for (Eigen::Index i = 0; i < n; ++i) {
+        const Eigen::Index j = partner[static_cast<size_t>(i)];
+        if (j == i || partner[static_cast<size_t>(j)] != i) return {};
+    }
     return partner;
 }
 

@@ -32,9 +32,10 @@ Eigen::VectorXd vertexAreas(const Vertices& X, const Faces& F);
 /// Unweighted vertex centroid.
 Eigen::Vector3d centroid(const Vertices& X);
 
-/// Partners under the point inversion about the centroid c, x -> 2c - x: partner[i] = j with
-/// |(x_j - c) + (x_i - c)| <= tol * max_k |x_k - c| (an icosphere of any level, and its Evans-Fung
-/// disc, map onto themselves); empty when some vertex has none.
+/// Partners under the point inversion about the centroid c, x -> 2c - x: partner[i] = j with every
+/// component of (x_j - c) + (x_i - c) within tol * max_k |x_k - c| (an icosphere of any level, and
+/// its Evans-Fung disc, map onto themselves); empty when some vertex has none or the pairing is
+/// not an involution without fixed points.
 std::vector<Eigen::Index> inversionPartners(const Vertices& X, double tol = 1e-9);
 /// The inversion-symmetric part of per-vertex vectors, w_i <- (w_i - w_partner[i]) / 2: the
 /// gradient of an inversion-invariant energy at a symmetric shape is of this kind, and for positions

@@ -187,7 +187,7 @@ std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell,
     std::string stage = "stress-free state";
     try {
         const StressFreeState sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
-        const CellMeshes meshes = cellMeshes(sfs);
+        const CellMeshes meshes = cellMeshes(sfs, opt.symmetricEquilibrium);
         stage = "equilibrium";
         if (injectFailure) throw NumericalError("injected failure (--inject-failures)");
         const EquilibriumResult eq = runEquilibrium(p, meshes, opt);

@@ -5,6 +5,7 @@
 #include <Eigen/Cholesky>
 #include <cmath>
 #include <deque>
+#include <stdexcept>
 #include <limits>
 
 #include "mesh/geometry.hpp"
@@ -287,6 +288,9 @@ MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const Min
                               const Vertices* externalForces, const AreaVolumeConstraint& constraint,
                               const Preconditioner* preconditioner, const std::vector<Eigen::Index>* inversionSymmetry) {
     const Eigen::Index nv = X.cols();
+    if (inversionSymmetry && inversionSymmetry->size() != static_cast<size_t>(nv))
+        throw std::invalid_argument(fmt::format("minimizeEnergy: {} inversion partners for {} vertices",
+                                                inversionSymmetry->size(), nv));
     if (inversionSymmetry) symmetrizeUnderInversion(X, *inversionSymmetry);
     Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(X.data(), 3 * nv);
     Vertices Xv(3, nv), G(3, nv), W(3, nv);

@@ -277,12 +277,14 @@ Eigen::MatrixXd applyTransforms(const Eigen::Ref<const Eigen::MatrixXd>& x, cons
 void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<VariableTransform>& transforms) {
     for (std::size_t i = 0; i < transforms.size() && Eigen::Index(i) < y.rows(); ++i) {
         if (transforms[i] == VariableTransform::Log) y.row(Eigen::Index(i)) = y.row(Eigen::Index(i)).array().exp().matrix();
-        if (transforms[i] == VariableTransform::Sqrt) y.row(Eigen::Index(i)) = y.row(Eigen::Index(i)).array().square().matrix();
+        // max(0, .)^2: a negative network output is the boundary x = 0, not its mirror image
+        if (transforms[i] == VariableTransform::Sqrt)
+            y.row(Eigen::Index(i)) = y.row(Eigen::Index(i)).array().max(0.0).square().matrix();
     }
 }
 
 Eigen::MatrixXd TrainedNetwork::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& X, Precision precision) const {
-    // No copy of X for untransformed inputs (the batched evaluation path of the inference).
+    // No copy of X for a network without input transforms (the equilibrium network).
     const Eigen::MatrixXd Xs = inputTransforms.empty() ? inputScaling.apply(X) : inputScaling.apply(applyTransforms(X, inputTransforms));
     Eigen::MatrixXd Y = net.forward(Xs, precision);
     if (!ensemble.empty()) {
