@@ -186,8 +186,14 @@ std::vector<Eigen::Index> inversionPartners(const Vertices& X0, double tol) {
 }
 
 void symmetrizeUnderInversion(Vertices& W, const std::vector<Eigen::Index>& partner) {
-    const Vertices w = W;
-    for (Eigen::Index i = 0; i < W.cols(); ++i) W.col(i) = 0.5 * (w.col(i) - w.col(partner[static_cast<size_t>(i)]));
+    // In place, once per pair (no copy: it runs on every gradient of a symmetric minimisation).
+    for (Eigen::Index i = 0; i < W.cols(); ++i) {
+        const Eigen::Index j = partner[static_cast<size_t>(i)];
+        if (j < i) continue;
+        const Eigen::Vector3d half = 0.5 * (W.col(i) - W.col(j));
+        W.col(i) = half;
+        W.col(j) = -half;
+    }
 }
 
 double inversionAsymmetry(const Vertices& X0, const std::vector<Eigen::Index>& partner) {
