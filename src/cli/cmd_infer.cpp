@@ -1,5 +1,5 @@
-// trbc infer: the three-phase hierarchical Bayesian inference of INFERENCE.md on the surrogates
-// (issue 6). Parses options and calls runRbcInference (src/inference/rbc_pipeline.hpp).
+// trbc infer: the hierarchical Bayesian inference on the surrogates. Parses options and calls
+// runRbcInference (src/inference/rbc_pipeline.hpp).
 #include <fmt/format.h>
 #include <omp.h>
 
@@ -45,7 +45,8 @@ RbcPriorBox parsePriorBox(const std::vector<std::string>& specs) {
 
 void registerInfer(CLI::App& app) {
     struct Opts {
-        std::string phase = "all", out, model, dataDir, fvk = "closed", prior3b = "support", fvk3b = "all";
+        std::string phase = "all", out, model, dataDir, fvk = "closed", prior3b = "support", fvk3b = "all", method = "joint";
+        int chains = 16, warmup = 1000, draws = 2500, thin = 4;
         std::vector<std::string> priors;
         int samples = 50000, threads = 2;
         std::uint64_t seed = 0xC0FFEE;
@@ -60,7 +61,19 @@ void registerInfer(CLI::App& app) {
     cmd->add_option("--phase", o->phase, "phase to run: 1, 2, 3 or all (2 and 3 read the earlier phases from --out)")
         ->check(CLI::IsMember({"1", "2", "3", "all"}))
         ->capture_default_str();
-    cmd->add_option("--samples", o->samples, "population size N of every TMCMC run (INFERENCE.md 5: 50000)")
+    cmd->add_option("--method", o->method,
+                    "phases 2-3: joint (one multi-chain MCMC over hyper-parameters and every data set's parameters, theta_new "
+                    "Rao-Blackwellised over its draws; R-hat, ESS and MCSE for every statistic) or reweighting (the paper's "
+                    "route: phase-1 samples re-weighted, mixtures sampled with TMCMC/BASIS); docs/INFERENCE.md")
+        ->check(CLI::IsMember({"joint", "reweighting"}))
+        ->capture_default_str();
+    cmd->add_option("--chains", o->chains, "joint method: number of chains")->check(CLI::Range(2, 1024))->capture_default_str();
+    cmd->add_option("--warmup", o->warmup, "joint method: warm-up sweeps per chain (adaptation, discarded)")
+        ->check(CLI::Range(50, 10000000))
+        ->capture_default_str();
+    cmd->add_option("--draws", o->draws, "joint method: kept draws per chain")->check(CLI::Range(8, 10000000))->capture_default_str();
+    cmd->add_option("--thin", o->thin, "joint method: sweeps per kept draw")->check(CLI::Range(1, 10000))->capture_default_str();
+    cmd->add_option("--samples", o->samples, "population size N of every TMCMC/BASIS run (phase 1; phases 2-3 of --method reweighting)")
         ->check(CLI::Range(2, 100000000))
         ->capture_default_str();
     cmd->add_option("--seed", o->seed, "run seed (each run derives its own from it and its name)")->capture_default_str();
@@ -101,6 +114,11 @@ void registerInfer(CLI::App& app) {
         else
             opt.firstPhase = opt.lastPhase = std::stoi(o->phase);
         opt.populationSize = o->samples;
+        opt.method = o->method == "joint" ? HierarchicalMethod::Joint : HierarchicalMethod::Reweighting;
+        opt.chains = o->chains;
+        opt.warmup = o->warmup;
+        opt.draws = o->draws;
+        opt.thin = o->thin;
         opt.seed = o->seed;
         opt.resume = o->resume;
         opt.fvkRule = o->fvk == "closed"          ? FvkDensityRule::ClosedForm
@@ -158,11 +176,11 @@ void registerInfer(CLI::App& app) {
                                          ph + 1, t.wallSeconds, t.surrogateSeconds, t.populationSeconds, t.samplerSeconds());
         }
         if (!r.stats.empty()) {
-            std::cout << "theta_new (mean, median, ML, MAP, SD, q05, q95):\n";
+            std::cout << "theta_new: mean +- MCSE, median +- MCSE, SD +- MCSE, 5 % and 95 % quantiles:\n";
             for (const PosteriorStatsRow& s : r.stats)
                 if (s.posterior == "theta_new")
-                    std::cout << fmt::format("  {:<16} {:.4g}  {:.4g}  {:.4g}  {:.4g}  {:.4g}  {:.4g}  {:.4g}\n", s.parameter, s.mean,
-                                             s.median, s.ml, s.map, s.sd, s.q05, s.q95);
+                    std::cout << fmt::format("  {:<16} {:.4g} +- {:.2g}  {:.4g} +- {:.2g}  {:.4g} +- {:.2g}  [{:.4g}, {:.4g}]\n", s.parameter,
+                                             s.mean, s.mcseMean, s.median, s.mcseMedian, s.sd, s.mcseSd, s.q05, s.q95);
             std::cout << fmt::format("statistics: {}\ntable: {}\n", (std::filesystem::path(o->out) / "posterior_stats.csv").string(),
                                      (std::filesystem::path(o->out) / "posterior_table.md").string());
         }

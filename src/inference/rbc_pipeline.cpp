@@ -11,6 +11,8 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/version.hpp"
+#include "inference/mcmc_diagnostics.hpp"
+#include "inference/rbc_hierarchical.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
@@ -289,12 +291,16 @@ std::string tableMarkdown(const RbcInferenceOptions& o, const std::vector<Poster
                                           {"$\\kappa_b$", "kb_J", 1e19},
                                           {"$b_2$", "b2", 1.0},
                                           {"$\\eta_m$", "etam_Pa_s_um", 1.0}};
-    s += "| | mean | median | ML | MAP | standard deviation |\n|---|---|---|---|---|---|\n";
+    s += "| | mean | median | ML | MAP | standard deviation | MCSE of mean | MCSE of median | MCSE of SD |\n"
+         "|---|---|---|---|---|---|---|---|---|\n";
     for (const TableRow& t : table1)
         for (const PosteriorStatsRow& r : rows)
             if (r.posterior == "theta_new" && r.parameter == t.parameter)
-                s += fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", t.label, r.mean * t.factor,
-                                 r.median * t.factor, r.ml * t.factor, r.map * t.factor, r.sd * t.factor);
+                s += fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2g} | {:.2g} | {:.2g} |\n", t.label, r.mean * t.factor,
+                                 r.median * t.factor, r.ml * t.factor, r.map * t.factor, r.sd * t.factor, r.mcseMean * t.factor,
+                                 r.mcseMedian * t.factor, r.mcseSd * t.factor);
+    s += "\nMCSE: Monte Carlo standard error of the estimate (for the joint method from the multi-chain effective sample "
+         "size; for a BASIS population a lower bound that ignores its ancestry).\n";
     s += "\nWith the 90 % central credible intervals and $\\eta_m/\\mu$:\n\n";
     s += markdownTable(rows, "theta_new", tableLayout(rows, "theta_new"), false);
     if (!check.is_null() && check.contains("max_mean_difference_in_sd"))
@@ -353,6 +359,249 @@ nlohmann::json ancestralCheck(const Eigen::MatrixXd& tmcmc, const Eigen::MatrixX
     return j;
 }
 
+
+// ------------------------------------------------------------------------------------------------
+// The joint method (phases 2 and 3 from one multi-chain MCMC run)
+
+constexpr char kDrawsMagic[8] = {'T', 'R', 'B', 'C', 'J', 'M', 'C', '1'};
+
+/// Draws of the joint sampler as raw doubles (exact), with a JSON header of the settings they were
+/// made with; written to temporary names and renamed.
+void saveJointDraws(const fs::path& dir, const nlohmann::json& settings, const HierarchicalMcmcResult& r) {
+    fs::create_directories(dir);
+    const fs::path bin = dir / "draws.bin", tmp = dir / "draws.bin.tmp";
+    {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        auto put = [&f](const double* p, Eigen::Index n) { f.write(reinterpret_cast<const char*>(p), static_cast<std::streamsize>(sizeof(double) * n)); };
+        f.write(kDrawsMagic, 8);
+        for (const auto& h : r.hyper) put(h.data(), h.size());
+        for (std::size_t g = 0; g < r.group.size(); ++g)
+            for (std::size_t c = 0; c < r.group[g].size(); ++c) {
+                put(r.group[g][c].data(), r.group[g][c].size());
+                put(r.logLikelihood[g][c].data(), r.logLikelihood[g][c].size());
+            }
+        if (!f) throw InputError(fmt::format("cannot write {} (disk full?)", tmp.string()));
+    }
+    fs::rename(tmp, bin);
+    nlohmann::json h = settings;
+    h["group_dimensions"] = nlohmann::json::array();
+    for (const auto& g : r.group) h["group_dimensions"].push_back(g.empty() ? 0 : g[0].rows());
+    h["hyper_rows"] = r.hyper.empty() ? 0 : r.hyper[0].rows();
+    h["acceptance"] = {{"groups", r.groupAcceptance}, {"hyper", r.hyperAcceptance}, {"shift", r.shiftAcceptance}, {"scale", r.scaleAcceptance}};
+    h["likelihood_evaluations"] = r.likelihoodEvaluations;
+    h["wall_s"] = r.wallSeconds;
+    writeText(dir / "draws.json", h.dump(1) + "\n");
+}
+
+/// Loads draws saved with the same settings; false when there are none or they were made otherwise.
+bool loadJointDraws(const fs::path& dir, const nlohmann::json& settings, HierarchicalMcmcResult& r) {
+    const nlohmann::json h = readJsonOrEmpty(dir / "draws.json");
+    if (h.empty() || !fs::exists(dir / "draws.bin")) return false;
+    for (const auto& [k, v] : settings.items())
+        if (!h.contains(k) || h[k] != v) return false;
+    const int C = settings.at("chains").get<int>(), T = settings.at("draws").get<int>();
+    const auto dims = h.at("group_dimensions").get<std::vector<Eigen::Index>>();
+    const Eigen::Index rows = h.at("hyper_rows").get<Eigen::Index>();
+    std::ifstream f(dir / "draws.bin", std::ios::binary);
+    char magic[8];
+    f.read(magic, 8);
+    if (!f || !std::equal(magic, magic + 8, kDrawsMagic)) return false;
+    auto get = [&f](double* p, Eigen::Index n) { f.read(reinterpret_cast<char*>(p), static_cast<std::streamsize>(sizeof(double) * n)); };
+    r = HierarchicalMcmcResult{};
+    r.hyper.assign(static_cast<std::size_t>(C), Eigen::MatrixXd(rows, T));
+    for (auto& x : r.hyper) get(x.data(), x.size());
+    r.group.assign(dims.size(), {});
+    r.logLikelihood.assign(dims.size(), {});
+    for (std::size_t g = 0; g < dims.size(); ++g)
+        for (int c = 0; c < C; ++c) {
+            r.group[g].push_back(Eigen::MatrixXd(dims[g], T));
+            r.logLikelihood[g].push_back(Eigen::VectorXd(T));
+            get(r.group[g].back().data(), r.group[g].back().size());
+            get(r.logLikelihood[g].back().data(), T);
+        }
+    if (!f) return false;
+    r.groupAcceptance = h["acceptance"].value("groups", std::vector<double>{});
+    r.hyperAcceptance = h["acceptance"].value("hyper", std::vector<double>{});
+    r.shiftAcceptance = h["acceptance"].value("shift", 0.0);
+    r.scaleAcceptance = h["acceptance"].value("scale", 0.0);
+    r.likelihoodEvaluations = h.value("likelihood_evaluations", 0LL);
+    r.wallSeconds = h.value("wall_s", 0.0);
+    return true;
+}
+
+Eigen::MatrixXd concatenate(const std::vector<Eigen::MatrixXd>& blocks) {
+    Eigen::Index cols = 0;
+    for (const auto& b : blocks) cols += b.cols();
+    Eigen::MatrixXd x(blocks.empty() ? 0 : blocks[0].rows(), cols);
+    Eigen::Index k = 0;
+    for (const auto& b : blocks) {
+        x.middleCols(k, b.cols()) = b;
+        k += b.cols();
+    }
+    return x;
+}
+
+Eigen::VectorXd concatenate(const std::vector<Eigen::VectorXd>& blocks) {
+    Eigen::Index n = 0;
+    for (const auto& b : blocks) n += b.size();
+    Eigen::VectorXd x(n);
+    Eigen::Index k = 0;
+    for (const auto& b : blocks) {
+        x.segment(k, b.size()) = b;
+        k += b.size();
+    }
+    return x;
+}
+
+/// Writes a posterior given by draws (inference units) and returns its statistics rows.
+std::vector<PosteriorStatsRow> writeJointPosterior(Context& ctx, const Posterior& p, const Eigen::MatrixXd& samples,
+                                                   const Eigen::VectorXd& ll, const Eigen::VectorXd& lp, int chains,
+                                                   const nlohmann::json& info) {
+    const fs::path dir = ctx.runDirectory(p);
+    fs::create_directories(dir);
+    fs::remove_all(dir / "checkpoint");  // a BASIS run of the other method must not be taken for this one
+    std::vector<std::string> names;
+    const Eigen::MatrixXd phys = physicalSamples(p, samples, names);
+    writeSamples(dir / "samples.csv", phys, names, ll, lp);
+    nlohmann::json j = info;
+    j["posterior"] = p.name;
+    j["phase"] = p.phase;
+    j["parameters"] = names;
+    j["samples_columns"] = names;
+    j["chains"] = chains;
+    j["draws_per_chain"] = samples.cols() / std::max(chains, 1);
+    j["layout"] = "chain c holds the columns c * draws_per_chain ... (c + 1) * draws_per_chain - 1";
+    writeText(dir / "run.json", j.dump(2) + "\n");
+    ctx.runs[p.label()] = j;
+    return posteriorStatsRows(p.name, phys, names, ll, lp, chains);
+}
+
+template <class Begin, class End>
+void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInferenceResult& res, const std::vector<PosteriorStatsRow>&,
+                    const Begin& phaseBegin, const End& phaseEnd) {
+    const RbcInferenceOptions& o = ctx.o;
+    const fs::path jointDir = o.outputDirectory / "phase2" / "joint";
+    const std::uint64_t seed = rbcRunSeed(o.seed, "phase2/joint");
+    const nlohmann::json settings = {{"method", "joint MCMC"}, {"chains", o.chains}, {"warmup", o.warmup}, {"draws", o.draws}, {"thin", o.thin},
+                                     {"seed", seed}, {"phase1_samples", o.populationSize}};
+    {
+        const auto begin = phaseBegin(2);
+        const bool run = o.firstPhase <= 2;
+        if (run && !(o.resume && loadJointDraws(jointDir, settings, res.joint))) {
+            std::vector<Eigen::MatrixXd> starts;
+            for (const TmcmcResult& r : res.phase1) starts.push_back(r.samples);
+            HierarchicalMcmcOptions mo;
+            mo.chains = o.chains;
+            mo.warmup = o.warmup;
+            mo.draws = o.draws;
+            mo.thin = o.thin;
+            mo.seed = seed;
+            mo.progress = [&ctx](const std::string& line) { ctx.say("infer phase2/joint: " + line); };
+            res.joint = runHierarchicalMcmc(rbcHierarchicalModel(ctx.model, data, starts, rbcRunSeed(o.seed, "phase2/joint_start")), mo);
+            saveJointDraws(jointDir, settings, res.joint);
+        } else if (!run && !loadJointDraws(jointDir, settings, res.joint)) {
+            throw InputError(fmt::format("{}: no joint-MCMC draws made with these settings ({}); run `trbc infer --phase 2` with this --out first",
+                                         o.outputDirectory.string(), (jointDir / "draws.json").string()));
+        }
+        const HierarchicalMcmcResult& J = res.joint;
+        const int C = static_cast<int>(J.hyper.size());
+        Eigen::VectorXd llSum = Eigen::VectorXd::Zero(C * o.draws);
+        for (const auto& g : J.logLikelihood) llSum += concatenate(g);
+        const Posterior p{"phase2", "hyper", hyperOutputNames(), hyperOutputScale(), false};
+        const Eigen::MatrixXd psi = concatenate(J.hyper);
+        const auto hp = hyperPrior();
+        Eigen::VectorXd lp(psi.cols());
+        for (Eigen::Index k = 0; k < psi.cols(); ++k) lp[k] = hp->logDensity(psi.col(k));
+        nlohmann::json info = settings;
+        info["acceptance"] = {{"groups", J.groupAcceptance}, {"hyper", J.hyperAcceptance}, {"shift", J.shiftAcceptance}, {"scale", J.scaleAcceptance}};
+        info["likelihood_evaluations"] = J.likelihoodEvaluations;
+        info["wall_s"] = J.wallSeconds;
+        info["log_likelihood_column"] = "sum of the data sets' log-likelihoods at the draw";
+        const auto rows = writeJointPosterior(ctx, p, psi, llSum, lp, C, info);
+        writePosteriorStats(o.outputDirectory / "phase2" / "posterior_stats.csv", rows);
+        res.phase2 = TmcmcResult{};
+        res.phase2.samples = psi;
+        res.phase2.logLikelihood = llSum;
+        res.phase2.logPrior = lp;
+        res.phase2.exponent = 1.0;
+        res.phase2.completed = true;
+        res.phase2.likelihoodEvaluations = J.likelihoodEvaluations;
+        ctx.say(fmt::format("infer phase2/joint: {} chains x {} draws, {} likelihood evaluations, {:.1f} s", C, o.draws,
+                            J.likelihoodEvaluations, J.wallSeconds));
+        if (run) phaseEnd(2, begin);
+    }
+    if (o.lastPhase < 3) return;
+    const auto begin3 = phaseBegin(3);
+    const HierarchicalMcmcResult& J = res.joint;
+    const int C = static_cast<int>(J.hyper.size());
+    const Eigen::MatrixXd psi = concatenate(J.hyper);
+
+    // theta_new: Rao-Blackwellised statistics; draws of the restricted mixture for the sample file.
+    const Posterior pNew{"phase3", "theta_new", pooledOutputNames(), pooledOutputScale(), true};
+    const std::vector<NewCellStatistic> nc = newCellStatistics(J.hyper);
+    res.ancestral = sampleNewCellAncestral(psi, psi.cols(), rbcRunSeed(o.seed, "phase3/theta_new_ancestral"));
+    // The mixture density at the draws (for the ML column) with every k-th psi draw, <= 4000 components.
+    const Eigen::Index thin = std::max<Eigen::Index>(1, psi.cols() / 4000);
+    Eigen::MatrixXd psiThin(psi.rows(), psi.cols() / thin);
+    for (Eigen::Index k = 0; k < psiThin.cols(); ++k) psiThin.col(k) = psi.col(k * thin);
+    const PopulationMixture mixture(PopulationMixture::Layout::NewCell, psiThin);
+    res.phase3a = TmcmcResult{};
+    res.phase3a.samples = res.ancestral;
+    res.phase3a.logLikelihood = mixture.logMean(res.ancestral, ctx.populationTimer.get());
+    res.phase3a.logPrior = Eigen::VectorXd(res.ancestral.cols());
+    const auto box = newCellBoxPrior();
+    for (Eigen::Index k = 0; k < res.ancestral.cols(); ++k) res.phase3a.logPrior[k] = box->logDensity(res.ancestral.col(k));
+    res.phase3a.exponent = 1.0;
+    res.phase3a.completed = true;
+    nlohmann::json info = {{"method", "Rao-Blackwellised over the joint-MCMC hyper-parameter draws"},
+                           {"samples", "one draw of the box-restricted population mixture per hyper-parameter draw (4.5)"},
+                           {"log_likelihood_column", fmt::format("log of the mixture density over every {}-th hyper-parameter draw", thin)}};
+    const auto drawRows = writeJointPosterior(ctx, pNew, res.ancestral, res.phase3a.logLikelihood, res.phase3a.logPrior, 1, info);
+    std::vector<PosteriorStatsRow> rows;
+    for (const NewCellStatistic& s : nc) {
+        PosteriorStatsRow r{"theta_new", s.name, s.mean.value, s.median.value, 0.0, 0.0, s.sd.value, s.q05.value, s.q95.value};
+        for (const PosteriorStatsRow& d : drawRows)
+            if (d.parameter == s.name) r.ml = d.ml, r.map = d.map;
+        r.mcseMean = s.mean.mcse, r.mcseMedian = s.median.mcse, r.mcseSd = s.sd.mcse, r.mcseQ05 = s.q05.mcse, r.mcseQ95 = s.q95.mcse;
+        r.rhat = s.rhat, r.essBulk = s.essBulk, r.essTail = s.essTail;
+        rows.push_back(r);
+    }
+    ctx.extrapolation[pNew.label()] = massOutside(res.ancestral.row(kPooledR).transpose(), kRelaxationRLow, kRelaxationRHigh);
+
+    // Each data set given all data: the group draws.
+    res.phase3b.clear();
+    for (std::size_t i = 0; i < data.size(); ++i) {
+        const RbcDataSet& d = data[i];
+        std::vector<Eigen::MatrixXd> blocks;
+        for (const auto& g : J.group[i]) blocks.push_back(rbcGroupToPhase1(d.experiment, g));
+        TmcmcResult r;
+        r.samples = concatenate(blocks);
+        r.logLikelihood = concatenate(J.logLikelihood[i]);
+        r.logPrior = phase1LogPrior(d, r.samples);
+        r.exponent = 1.0;
+        r.completed = true;
+        const Posterior p3 = phase1Posterior(d, "phase3");
+        const auto rr = writeJointPosterior(ctx, p3, r.samples, r.logLikelihood, r.logPrior, C,
+                                            {{"method", "joint MCMC (this data set's block of the joint draws)"}});
+        rows.insert(rows.end(), rr.begin(), rr.end());
+        if (d.experiment == RbcExperiment::Relaxation)
+            ctx.extrapolation[p3.label()] = massOutside(r.samples.row(0).transpose(), kRelaxationRLow, kRelaxationRHigh);
+        res.phase3b.push_back(std::move(r));
+    }
+    writePosteriorStats(o.outputDirectory / "posterior_stats.csv", rows);
+    writeText(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, nlohmann::json()));
+    res.stats = rows;
+    double worstRhat = 0.0, leastBulk = kInf, leastTail = kInf;
+    for (const auto* set : {&rows}) for (const PosteriorStatsRow& r : *set) {
+        if (std::isnan(r.rhat)) continue;
+        worstRhat = std::max(worstRhat, r.rhat), leastBulk = std::min(leastBulk, r.essBulk), leastTail = std::min(leastTail, r.essTail);
+    }
+    ctx.runs["phase3/theta_new"]["diagnostics"] = {{"max_rhat", worstRhat}, {"min_ess_bulk", leastBulk}, {"min_ess_tail", leastTail}};
+    ctx.say(fmt::format("infer phase3: largest R-hat {:.4f}, smallest bulk ESS {:.0f}, smallest tail ESS {:.0f} (theta_new and every data set)",
+                        worstRhat, leastBulk, leastTail));
+    phaseEnd(3, begin3);
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------------
@@ -361,19 +610,37 @@ std::uint64_t rbcRunSeed(std::uint64_t seed, const std::string& runName) { retur
 
 std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, const Eigen::MatrixXd& samples,
                                                   const std::vector<std::string>& names, const Eigen::VectorXd& logLikelihood,
-                                                  const Eigen::VectorXd& logPrior) {
+                                                  const Eigen::VectorXd& logPrior, int chains) {
     const PosteriorSummary s = posteriorStatistics(samples, logLikelihood, logPrior, names);
     std::vector<PosteriorStatsRow> rows;
-    for (const ParameterSummary& p : s.parameters)
-        rows.push_back({posterior, p.name, p.mean, p.median, p.ml, p.map, p.sd, p.q05, p.q95});
+    const Eigen::Index T = chains > 0 ? samples.cols() / chains : 0;
+    for (std::size_t k = 0; k < s.parameters.size(); ++k) {
+        const ParameterSummary& p = s.parameters[k];
+        PosteriorStatsRow r{posterior, p.name, p.mean, p.median, p.ml, p.map, p.sd, p.q05, p.q95};
+        if (T >= 4 && T * chains == samples.cols()) {
+            Chains c;
+            for (int j = 0; j < chains; ++j) c.push_back(samples.row(static_cast<Eigen::Index>(k)).segment(j * T, T).transpose());
+            r.mcseMean = chainMean(c).mcse;
+            r.mcseSd = chainSd(c).mcse;
+            r.mcseMedian = chainQuantile(c, 0.5).mcse;
+            r.mcseQ05 = chainQuantile(c, 0.05).mcse;
+            r.mcseQ95 = chainQuantile(c, 0.95).mcse;
+            if (chains >= 2) {
+                const ChainDiagnostics d = chainDiagnostics(c);
+                r.rhat = d.rhat, r.essBulk = d.essBulk, r.essTail = d.essTail;
+            }
+        }
+        rows.push_back(r);
+    }
     return rows;
 }
 
 void writePosteriorStats(const fs::path& file, const std::vector<PosteriorStatsRow>& rows) {
-    std::string s = "posterior,parameter,mean,median,ml,map,sd,q05,q95\n";
+    std::string s = "posterior,parameter,mean,median,ml,map,sd,q05,q95,mcse_mean,mcse_median,mcse_sd,mcse_q05,mcse_q95,rhat,ess_bulk,ess_tail\n";
     for (const PosteriorStatsRow& r : rows)
-        s += fmt::format("{},{},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g}\n", r.posterior, r.parameter, r.mean,
-                         r.median, r.ml, r.map, r.sd, r.q05, r.q95);
+        s += fmt::format("{},{},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.4g},{:.4g},{:.4g},{:.4g},{:.4g},{:.5f},{:.0f},{:.0f}\n",
+                         r.posterior, r.parameter, r.mean, r.median, r.ml, r.map, r.sd, r.q05, r.q95, r.mcseMean, r.mcseMedian,
+                         r.mcseSd, r.mcseQ05, r.mcseQ95, r.rhat, r.essBulk, r.essTail);
     writeText(file, s);
 }
 
@@ -427,7 +694,9 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
             phaseEnd(1, begin);
         }
     }
-    if (o.lastPhase >= 2) {
+    if (o.lastPhase >= 2 && o.method == HierarchicalMethod::Joint) {
+        runJointPhases(ctx, data, res, rows1, phaseBegin, phaseEnd);
+    } else if (o.lastPhase >= 2) {
         // ---- Phase 2: hyper-parameters by re-weighting the phase-1 samples (4.4)
         std::vector<ReweightingSamples> sets;
         for (std::size_t i = 0; i < data.size(); ++i) {
@@ -453,6 +722,14 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
             const Posterior pNew{"phase3", "theta_new", pooledOutputNames(), pooledOutputScale(), true};
             res.phase3a = runPosterior(ctx, pNew, phase3aProblem(psi, ctx.populationTimer), rbcSamplerSettings(RbcRun::Phase3a));
             std::vector<PosteriorStatsRow> rows = statsOf(pNew, res.phase3a, res.phase3a.logPrior);
+            // Mean, SD and quantiles Rao-Blackwellised over the phase-2 population (no phase-3a sampling noise).
+            for (const NewCellStatistic& st : newCellStatistics({psi}))
+                for (PosteriorStatsRow& r : rows)
+                    if (r.parameter == st.name) {
+                        r.mean = st.mean.value, r.median = st.median.value, r.sd = st.sd.value, r.q05 = st.q05.value, r.q95 = st.q95.value;
+                        r.mcseMean = st.mean.mcse, r.mcseMedian = st.median.mcse, r.mcseSd = st.sd.mcse;
+                        r.mcseQ05 = st.q05.mcse, r.mcseQ95 = st.q95.mcse;
+                    }
             ctx.extrapolation[pNew.label()] = massOutside(res.phase3a.samples.row(kPooledR).transpose(), kRelaxationRLow, kRelaxationRHigh);
             res.ancestral = sampleNewCellAncestral(psi, o.populationSize, rbcRunSeed(o.seed, "phase3/theta_new_ancestral"));
             const nlohmann::json check = ancestralCheck(res.phase3a.samples, res.ancestral,

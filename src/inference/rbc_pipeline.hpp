@@ -22,18 +22,36 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "inference/hierarchical.hpp"
+#include "inference/hierarchical_mcmc.hpp"
 #include "inference/rbc_problem.hpp"
 #include "inference/statistics.hpp"
 
 namespace trbc {
 
+/// How phases 2 and 3 reach the hierarchical posterior.
+enum class HierarchicalMethod {
+    /// The joint posterior of hyper-parameters, every data set's parameters and error models by
+    /// multi-chain MCMC (hierarchical_mcmc.hpp), theta_new by Rao-Blackwellisation over its
+    /// hyper-parameter draws (rbc_hierarchical.hpp). Default: exact (no importance-sampling
+    /// estimator in the likelihood), with R-hat, ESS and MCSE for every statistic.
+    Joint,
+    /// The paper's route: phase 2 re-weights the phase-1 samples (4.4), phase 3 samples mixtures
+    /// over the phase-2 samples with TMCMC/BASIS (4.5-4.6).
+    Reweighting
+};
+
 struct RbcInferenceOptions {
     std::filesystem::path outputDirectory;
+    HierarchicalMethod method = HierarchicalMethod::Joint;
+    /// Joint method: chains, warm-up sweeps, kept draws per chain and sweeps per kept draw (the
+    /// seed is derived from `seed`).
+    int chains = 16, warmup = 1000, draws = 2500, thin = 4;
     int firstPhase = 1, lastPhase = 3;  ///< phases to run (1..3); earlier phases are loaded from outputDirectory
     int populationSize = 50000;         ///< N of every run (5)
     std::uint64_t seed = 0xC0FFEE;      ///< run seed; each run uses splitmix64(seed ^ FNV-1a(run name))
@@ -44,10 +62,14 @@ struct RbcInferenceOptions {
     std::function<void(const std::string&)> progress;      ///< one line per stage and run (may be empty)
 };
 
-/// One row of posterior_stats.csv.
+/// One row of posterior_stats.csv: the statistics of section 7, the Monte Carlo standard error of
+/// each, and the chain diagnostics (NaN where a route has none, e.g. the BASIS populations).
 struct PosteriorStatsRow {
     std::string posterior, parameter;
     double mean = 0, median = 0, ml = 0, map = 0, sd = 0, q05 = 0, q95 = 0;
+    double mcseMean = kNoValue, mcseMedian = kNoValue, mcseSd = kNoValue, mcseQ05 = kNoValue, mcseQ95 = kNoValue;
+    double rhat = kNoValue, essBulk = kNoValue, essTail = kNoValue;
+    static constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Wall time of a phase split into forward model (surrogate), population sums and the rest
@@ -65,6 +87,7 @@ struct RbcInferenceResult {
     TmcmcResult phase3a;               ///< theta_new
     std::vector<TmcmcResult> phase3b;  ///< per data set
     Eigen::MatrixXd ancestral;         ///< 4.5 cross-check samples of theta_new (5 x N)
+    HierarchicalMcmcResult joint;      ///< the joint method's draws (phases 2-3)
     RbcPhaseTiming timing[3];
     double wallSeconds = 0.0;
     std::vector<PosteriorStatsRow> stats;  ///< the rows of DIR/posterior_stats.csv (after phase 3)
@@ -75,10 +98,14 @@ struct RbcInferenceResult {
 RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& options);
 
 /// Statistics rows (7) of one posterior: samples (physical units) dim x N, their stored
-/// log-likelihoods and the log prior density used for the MAP.
+/// log-likelihoods and the log prior density used for the MAP. The samples are `chains` Markov
+/// chains of equal length laid end to end; MCSEs come from their multi-chain ESS
+/// (mcmc_diagnostics.hpp), and R-hat and ESS are filled when chains >= 2. A BASIS population
+/// (chains = 1, columns in the order of their parents) gets an MCSE that sees the repeats of a
+/// resampled sample but not the ancestry of earlier stages: a lower bound of its Monte Carlo error.
 std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, const Eigen::MatrixXd& samples,
                                                   const std::vector<std::string>& names, const Eigen::VectorXd& logLikelihood,
-                                                  const Eigen::VectorXd& logPrior);
+                                                  const Eigen::VectorXd& logPrior, int chains = 1);
 void writePosteriorStats(const std::filesystem::path& file, const std::vector<PosteriorStatsRow>& rows);
 
 /// Seed of one run: splitmix64(seed ^ FNV-1a(name)).

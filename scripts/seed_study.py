@@ -1,0 +1,100 @@
+#!/usr/bin/env python3
+"""Seed study of `trbc infer`: the same inference with several seeds, and how far its theta_new
+statistics scatter across seeds compared with the posterior SD and with the stated Monte Carlo
+standard errors.
+
+    scripts/seed_study.py --trbc build/trbc --out OUT --seeds 1 2 3 4 5 6 7 8 [-- extra infer options]
+
+Each seed runs `trbc infer --phase all --seed S --out OUT/seed_S` (skipped when OUT/seed_S already
+holds a finished run with the same options, so the study resumes). Writes OUT/seed_study.csv (one
+row per seed and parameter) and OUT/seed_study.md: per parameter of theta_new the mean over seeds
+of each statistic, the SD over seeds of the mean and median in units of the posterior SD, the
+relative SD over seeds of the posterior SD, the mean stated MCSE beside the observed scatter, and
+the wall time per run.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import time
+
+
+def read_stats(path):
+    rows = {}
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            if r["posterior"] == "theta_new":
+                rows[r["parameter"]] = {k: float(v) for k, v in r.items() if k not in ("posterior", "parameter")}
+    return rows
+
+
+def sd(values):
+    m = sum(values) / len(values)
+    return math.sqrt(sum((v - m) ** 2 for v in values) / (len(values) - 1)) if len(values) > 1 else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--trbc", default="build/trbc")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(1, 9)))
+    ap.add_argument("extra", nargs=argparse.REMAINDER, help="options passed to trbc infer (after --)")
+    a = ap.parse_args()
+    extra = [x for x in a.extra if x != "--"]
+    os.makedirs(a.out, exist_ok=True)
+    results, walls = {}, {}
+    for seed in a.seeds:
+        d = os.path.join(a.out, f"seed_{seed}")
+        cmd = [a.trbc, "infer", "--phase", "all", "--seed", str(seed), "--out", d, "--quiet"] + extra
+        done = os.path.join(d, "seed_study_run.json")
+        if os.path.exists(done) and json.load(open(done)).get("command") == cmd:
+            walls[seed] = json.load(open(done))["wall_s"]
+        else:
+            t0 = time.time()
+            print("seed study:", " ".join(shlex.quote(c) for c in cmd), file=sys.stderr, flush=True)
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            walls[seed] = time.time() - t0
+            json.dump({"command": cmd, "wall_s": walls[seed]}, open(done, "w"))
+        results[seed] = read_stats(os.path.join(d, "posterior_stats.csv"))
+
+    params = list(results[a.seeds[0]].keys())
+    with open(os.path.join(a.out, "seed_study.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["seed", "parameter", "mean", "median", "sd", "q05", "q95", "mcse_mean", "mcse_median", "mcse_sd", "wall_s"])
+        for seed in a.seeds:
+            for p in params:
+                r = results[seed][p]
+                w.writerow([seed, p, r["mean"], r["median"], r["sd"], r["q05"], r["q95"], r["mcse_mean"], r["mcse_median"], r["mcse_sd"],
+                            f"{walls[seed]:.1f}"])
+
+    lines = [f"# Seed study of `trbc infer`", "",
+             f"Command per seed: `{' '.join([a.trbc, 'infer', '--phase', 'all', '--seed', 'S', '--out', 'DIR'] + extra)}`, "
+             f"seeds {', '.join(map(str, a.seeds))}. Made by `scripts/seed_study.py`.", "",
+             "Scatter over seeds (SD over the seeds) of each theta_new statistic, the mean over the seeds of the statistic "
+             "and of its stated MCSE. 'in SD' divides by the posterior SD (mean over the seeds); 'rel.' divides by the statistic.", "",
+             "| parameter | mean | SD over seeds of the mean (in SD) | stated MCSE of the mean (in SD) | median | SD over seeds of the median (in SD) "
+             "| stated MCSE of the median (in SD) | posterior SD | SD over seeds of the SD (rel.) | stated MCSE of the SD (rel.) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    worst = {"mean": 0.0, "median": 0.0, "sd": 0.0}
+    for p in params:
+        col = lambda k: [results[s][p][k] for s in a.seeds]
+        m = lambda k: sum(col(k)) / len(a.seeds)
+        psd = m("sd")
+        smean, smed, ssd = sd(col("mean")) / psd, sd(col("median")) / psd, sd(col("sd")) / psd
+        worst["mean"], worst["median"], worst["sd"] = max(worst["mean"], smean), max(worst["median"], smed), max(worst["sd"], ssd)
+        lines.append(f"| {p} | {m('mean'):.4g} | {smean:.3f} | {m('mcse_mean') / psd:.3f} | {m('median'):.4g} | {smed:.3f} | "
+                     f"{m('mcse_median') / psd:.3f} | {psd:.4g} | {ssd:.3f} | {m('mcse_sd') / psd:.3f} |")
+    ws = sorted(walls.values())
+    lines += ["", f"Largest scatter over seeds: mean {worst['mean']:.3f} SD, median {worst['median']:.3f} SD, posterior SD "
+                  f"{100 * worst['sd']:.1f} %.",
+              f"Wall time per run: median {ws[len(ws) // 2]:.0f} s, min {ws[0]:.0f} s, max {ws[-1]:.0f} s (this machine, as run)."]
+    open(os.path.join(a.out, "seed_study.md"), "w").write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
