@@ -620,6 +620,10 @@ RbcInferenceOptions smallRun(const fs::path& out, int n) {
     o.outputDirectory = out;
     o.populationSize = n;
     o.seed = 42;
+    o.chains = 4;
+    o.warmup = 100;
+    o.draws = 100;
+    o.thin = 1;
     return o;
 }
 
@@ -628,7 +632,9 @@ TEST(RbcInference, AllPhasesEndToEndOnAnalyticModel) {
     const auto data = loadRbcDataSets(writeSyntheticData(tmp.path() / "experiments"));
     const fs::path out = tmp.path() / "out";
     omp_set_num_threads(2);
-    const RbcInferenceResult r = runRbcInference(analyticModel(), data, smallRun(out, 500));
+    RbcInferenceOptions options = smallRun(out, 500);
+    options.method = HierarchicalMethod::Reweighting;
+    const RbcInferenceResult r = runRbcInference(analyticModel(), data, options);
     omp_set_num_threads(1);
     ASSERT_EQ(r.phase1.size(), 7u);
     ASSERT_EQ(r.phase3b.size(), 7u);
@@ -640,7 +646,8 @@ TEST(RbcInference, AllPhasesEndToEndOnAnalyticModel) {
                           "phase3/theta_new/ancestral_check.csv", "phase3/hochmuth_1979_cell2/samples.csv"})
         EXPECT_TRUE(fs::exists(out / f)) << f;
     const std::string stats = test::slurp(out / "posterior_stats.csv");
-    EXPECT_EQ(stats.rfind("posterior,parameter,mean,median,ml,map,sd,q05,q95\n", 0), 0u);
+    EXPECT_EQ(stats.rfind("posterior,parameter,mean,median,ml,map,sd,q05,q95,mcse_mean,mcse_median,mcse_sd,mcse_q05,mcse_q95,rhat,"
+                          "ess_bulk,ess_tail\n", 0), 0u);
     for (const char* row : {"theta_new,v,", "theta_new,mu_uN_per_m,", "theta_new,kb_J,", "theta_new,b2,", "theta_new,etam_Pa_s_um,",
                             "evans_fung_1972,FvK,", "mills_2004,kb_J,", "suresh_2005,mu_uN_per_m,", "hochmuth_1979_cell1,etam_over_mu_s,",
                             "hochmuth_1979_cell4,tc_s,"})
@@ -674,6 +681,40 @@ TEST(RbcInference, AllPhasesEndToEndOnAnalyticModel) {
     EXPECT_TRUE(r.timing[0].ran && r.timing[1].ran && r.timing[2].ran);
     EXPECT_GT(r.timing[0].surrogateEvaluations, 0);
     EXPECT_GT(r.timing[1].populationTerms, 0);
+}
+
+TEST(RbcInference, JointMethodEndToEndOnAnalyticModelWithDiagnostics) {
+    test::TempDir tmp;
+    const auto data = loadRbcDataSets(writeSyntheticData(tmp.path() / "experiments"));
+    const fs::path out = tmp.path() / "out";
+    RbcInferenceOptions o = smallRun(out, 1000);
+    o.chains = 4, o.warmup = 400, o.draws = 500, o.thin = 2;
+    const RbcInferenceResult r = runRbcInference(analyticModel(), data, o);
+    ASSERT_EQ(r.joint.hyper.size(), 4u);
+    ASSERT_EQ(r.phase3b.size(), 7u);
+    for (const char* f : {"posterior_stats.csv", "posterior_table.md", "phase2/joint/draws.bin", "phase2/hyper/samples.csv",
+                          "phase3/theta_new/samples.csv", "phase3/mills_2004/samples.csv", "phase3/evans_fung_1972/run.json"})
+        EXPECT_TRUE(fs::exists(out / f)) << f;
+    int theta = 0;
+    for (const PosteriorStatsRow& s : r.stats) {
+        EXPECT_TRUE(std::isfinite(s.mcseMean) && s.mcseMean > 0.0) << s.posterior << " " << s.parameter;
+        EXPECT_TRUE(std::isfinite(s.rhat) && s.rhat < 1.2) << s.posterior << " " << s.parameter;
+        EXPECT_GT(s.essBulk, 20.0) << s.posterior << " " << s.parameter;
+        EXPECT_LE(s.q05, s.median);
+        EXPECT_LE(s.median, s.q95);
+        if (s.posterior == "theta_new") {
+            ++theta;
+            EXPECT_LT(s.mcseMean, 0.5 * s.sd) << s.parameter;
+        }
+        if (s.posterior == "mills_2004" && s.parameter == "mu_uN_per_m") EXPECT_NEAR(s.mean, 5.0, 1.5);
+        if (s.posterior == "hochmuth_1979_cell1" && s.parameter == "tc_s") EXPECT_NEAR(s.mean, 0.08, 0.01);
+    }
+    EXPECT_EQ(theta, 6);  // v, mu, kb, b2, r and eta_m
+    // The equilibrium draws are stored as (v, FvK, sigma) with FvK = mu R_A^2 / kb inside the prior support.
+    for (Eigen::Index k = 0; k < r.phase3b[0].samples.cols(); ++k) {
+        EXPECT_GE(r.phase3b[0].samples(1, k), 10.0);
+        EXPECT_LE(r.phase3b[0].samples(1, k), 1000.0);
+    }
 }
 
 TEST(RbcInference, ResultsDoNotDependOnThreadsOrOnPhaseByPhaseRuns) {

@@ -47,6 +47,9 @@ void registerInfer(CLI::App& app) {
     struct Opts {
         std::string phase = "all", out, model, dataDir, fvk = "closed", prior3b = "support", fvk3b = "all", method = "joint";
         int chains = 16, warmup = 1000, draws = 2500, thin = 4;
+        double hyperSdScale = 1.0;
+        int burnIn = 0;
+        std::string truncation = "on", box = "on";
         std::vector<std::string> priors;
         int samples = 50000, threads = 2;
         std::uint64_t seed = 0xC0FFEE;
@@ -54,17 +57,18 @@ void registerInfer(CLI::App& app) {
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
-        "infer", "Hierarchical Bayesian inference of (v, mu, kb, b2, etam) from the seven data sets with TMCMC/BASIS on "
-                 "the surrogates (INFERENCE.md): phase 1 individual posteriors, phase 2 population hyper-parameters, "
-                 "phase 3 theta_new and each data set given all data; writes DIR/posterior_stats.csv, "
-                 "DIR/posterior_table.md, DIR/infer.json and the samples of every posterior");
+        "infer", "Hierarchical Bayesian inference of (v, mu, kb, b2, etam) from the seven data sets on the surrogates "
+                 "(docs/BAYESIAN_INFERENCE.md): phase 1 each data set's posterior (TMCMC/BASIS), phases 2-3 the population "
+                 "hyper-parameters, each data set given all data and theta_new (a new cell), by default from one joint "
+                 "multi-chain MCMC; writes DIR/posterior_stats.csv (with MCSE, R-hat and ESS), DIR/posterior_table.md, "
+                 "DIR/infer.json and the samples of every posterior");
     cmd->add_option("--phase", o->phase, "phase to run: 1, 2, 3 or all (2 and 3 read the earlier phases from --out)")
         ->check(CLI::IsMember({"1", "2", "3", "all"}))
         ->capture_default_str();
     cmd->add_option("--method", o->method,
                     "phases 2-3: joint (one multi-chain MCMC over hyper-parameters and every data set's parameters, theta_new "
                     "Rao-Blackwellised over its draws; R-hat, ESS and MCSE for every statistic) or reweighting (the paper's "
-                    "route: phase-1 samples re-weighted, mixtures sampled with TMCMC/BASIS); docs/INFERENCE.md")
+                    "route: phase-1 samples re-weighted, mixtures sampled with TMCMC/BASIS); docs/BAYESIAN_INFERENCE.md")
         ->check(CLI::IsMember({"joint", "reweighting"}))
         ->capture_default_str();
     cmd->add_option("--chains", o->chains, "joint method: number of chains")->check(CLI::Range(2, 1024))->capture_default_str();
@@ -73,6 +77,24 @@ void registerInfer(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--draws", o->draws, "joint method: kept draws per chain")->check(CLI::Range(8, 10000000))->capture_default_str();
     cmd->add_option("--thin", o->thin, "joint method: sweeps per kept draw")->check(CLI::Range(1, 10000))->capture_default_str();
+    cmd->add_option("--phase1-burn-in", o->burnIn,
+                    "unrecorded Metropolis steps per BASIS stage of the phase-1 runs (0: the paper's BASIS; more steps spread "
+                    "the population along correlated posteriors at proportional cost)")
+        ->check(CLI::Range(0, 100))
+        ->capture_default_str();
+    cmd->add_option("--hyper-sd-scale", o->hyperSdScale,
+                    "joint method, for sensitivity studies: multiply the upper bound of every population-SD hyper-prior by this")
+        ->check(CLI::Range(0.05, 20.0))
+        ->capture_default_str();
+    cmd->add_option("--population-truncation", o->truncation,
+                    "joint method, for sensitivity studies: on (v truncated to [0, 1] and kb to its prior box in the population) or off")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    cmd->add_option("--theta-new-box", o->box,
+                    "on: theta_new restricted to v >= 0.65, mu <= 20 uN/m, b2 <= 10, etam/mu <= 2 s (the paper's box); off: only "
+                    "to v <= 1, the kb box and mu, b2, etam/mu >= 0")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
     cmd->add_option("--samples", o->samples, "population size N of every TMCMC/BASIS run (phase 1; phases 2-3 of --method reweighting)")
         ->check(CLI::Range(2, 100000000))
         ->capture_default_str();
@@ -87,16 +109,16 @@ void registerInfer(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--resume", o->resume, "continue unfinished runs from their per-stage checkpoints and reuse finished ones");
     cmd->add_flag("--single-precision", o->single, "evaluate the surrogate in float (about 3x faster)");
-    cmd->add_option("--fvk-density", o->fvk, "density of FvK under the population (INFERENCE.md 4.3): closed (closed form, "
+    cmd->add_option("--fvk-density", o->fvk, "density of FvK under the population (docs/BAYESIAN_INFERENCE.md): closed (closed form, "
                                               "mixed precision, |d log q| < 1e-5), closed-double (closed form in double "
                                               "precision, about 2x slower) or nodes50 (the reference's 50-node rule)")
         ->check(CLI::IsMember({"closed", "closed-double", "nodes50"}))
         ->capture_default_str();
-    cmd->add_option("--phase3b-prior", o->prior3b, "prior of phase 3b (4.6): support (indicator of the phase-1 support, "
+    cmd->add_option("--phase3b-prior", o->prior3b, "reweighting method: prior of phase 3b: support (indicator of the phase-1 support, "
                                                    "the derivation) or reference (phase-1 priors, equilibrium sigma >= 1e-4)")
         ->check(CLI::IsMember({"support", "reference"}))
         ->capture_default_str();
-    cmd->add_option("--phase3b-equilibrium-fvk", o->fvk3b, "phase 3b equilibrium: q(FvK | psi) at every phase-2 sample "
+    cmd->add_option("--phase3b-equilibrium-fvk", o->fvk3b, "reweighting method, phase 3b equilibrium: q(FvK | psi) at every phase-2 sample "
                                                            "(all, the derivation) or at the last one only (last, the reference's defect)")
         ->check(CLI::IsMember({"all", "last"}))
         ->capture_default_str();
@@ -119,6 +141,10 @@ void registerInfer(CLI::App& app) {
         opt.warmup = o->warmup;
         opt.draws = o->draws;
         opt.thin = o->thin;
+        opt.phase1BurnIn = o->burnIn;
+        opt.population.sdUpperScale = o->hyperSdScale;
+        opt.population.truncate = o->truncation == "on";
+        opt.population.newCellBox = o->box == "on";
         opt.seed = o->seed;
         opt.resume = o->resume;
         opt.fvkRule = o->fvk == "closed"          ? FvkDensityRule::ClosedForm

@@ -82,7 +82,7 @@ double solveCdf(const std::function<double(double)>& F, const std::function<doub
 
 }  // namespace
 
-std::vector<PopulationComponent> rbcPopulationComponents() {
+std::vector<PopulationComponent> rbcPopulationComponents(const PopulationVariant& variant) {
     const auto prior = hyperPrior();
     std::vector<PopulationComponent> out;
     const Eigen::VectorXd psi = prior->lowerBounds();
@@ -90,9 +90,10 @@ std::vector<PopulationComponent> rbcPopulationComponents() {
         PopulationComponent c;
         c.name = pooledParameterNames()[static_cast<std::size_t>(j)];
         const NormalFactor f = populationFactor(j, psi);
-        c.lo = f.lo, c.hi = f.hi;
+        if (variant.truncate) c.lo = f.lo, c.hi = f.hi;
         c.meanLo = prior->component(2 * j).lower(), c.meanHi = prior->component(2 * j).upper();
-        c.sdLo = prior->component(2 * j + 1).lower(), c.sdHi = prior->component(2 * j + 1).upper();
+        c.sdLo = prior->component(2 * j + 1).lower(), c.sdHi = variant.sdUpperScale * prior->component(2 * j + 1).upper();
+        if (!(c.sdHi > c.sdLo)) throw InputError(fmt::format("population: the SD bound scale {} leaves no SD range for {}", variant.sdUpperScale, c.name));
         out.push_back(c);
     }
     return out;
@@ -106,11 +107,12 @@ Eigen::MatrixXd rbcGroupToPhase1(RbcExperiment e, const Eigen::MatrixXd& y) {
 }
 
 HierarchicalModel rbcHierarchicalModel(const RbcModel& model, const std::vector<RbcDataSet>& data,
-                                       const std::vector<Eigen::MatrixXd>& phase1Samples, std::uint64_t seed) {
+                                       const std::vector<Eigen::MatrixXd>& phase1Samples, std::uint64_t seed,
+                                       const PopulationVariant& variant) {
     if (phase1Samples.size() != data.size())
         throw InputError(fmt::format("hierarchical model: {} phase-1 sample sets for {} data sets", phase1Samples.size(), data.size()));
     HierarchicalModel h;
-    h.population = rbcPopulationComponents();
+    h.population = rbcPopulationComponents(variant);
     for (std::size_t i = 0; i < data.size(); ++i) {
         const RbcDataSet& d = data[i];
         const auto prior = phase1Prior(d);
@@ -163,10 +165,14 @@ HierarchicalModel rbcHierarchicalModel(const RbcModel& model, const std::vector<
     return h;
 }
 
-std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixXd>& psiChains) {
+std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixXd>& psiChains, const PopulationVariant& variant) {
     if (psiChains.empty()) throw InputError("theta_new: no hyper-parameter draws");
-    const auto box = newCellBoxPrior();
-    const std::vector<PopulationComponent> pop = rbcPopulationComponents();
+    const std::vector<PopulationComponent> pop = rbcPopulationComponents(variant);
+    Eigen::VectorXd boxLo = newCellBoxPrior()->lowerBounds(), boxHi = newCellBoxPrior()->upperBounds();
+    if (!variant.newCellBox) {
+        boxLo << 0.0, 0.0, kKbLow, 0.0, 0.0;
+        boxHi << 1.0, kInf, kKbHigh, kInf, kInf;
+    }
     const std::size_t C = psiChains.size();
     const Eigen::Index T = psiChains[0].cols();
     // Restricted components and log weights log w = sum_j log P(B_j | psi) - log P([lo_j, hi_j] | psi).
@@ -183,7 +189,7 @@ std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixX
             for (int j = 0; j < kPooledDimension; ++j) {
                 const PopulationComponent& p = pop[static_cast<std::size_t>(j)];
                 const double m = psiChains[c](2 * j, t), s = psiChains[c](2 * j + 1, t);
-                const double a = std::max(p.lo, box->component(j).lower()), b = std::min(p.hi, box->component(j).upper());
+                const double a = std::max(p.lo, boxLo[j]), b = std::min(p.hi, boxHi[j]);
                 const TruncatedMoments tm = truncatedNormalMoments(m, s, a, b);
                 lw += tm.logMass - ((std::isfinite(p.lo) || std::isfinite(p.hi)) ? logNormalMass((p.lo - m) / s, (p.hi - m) / s) : 0.0);
                 comp[c][static_cast<std::size_t>(t)][static_cast<std::size_t>(j)] = {m, s, a, b};
@@ -212,6 +218,7 @@ std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixX
     auto summarise = [&](const std::string& name, double scale, const Chains& a1, const Chains& a2,
                          const std::function<double(std::size_t, Eigen::Index, double)>& cdf,
                          const std::function<double(std::size_t, Eigen::Index, double)>& pdf, double lo, double hi) {
+        // lo, hi: the support; narrowed to +-60 SD around the mean for the root search
         NewCellStatistic st;
         st.name = name;
         const McEstimate mean = selfNormalisedMean(w, a1), e2 = selfNormalisedMean(w, a2);
@@ -238,6 +245,7 @@ std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixX
             return s / wsum;
         };
         const double sdGuess = std::sqrt(var);
+        lo = std::max(lo, mean.value - 60.0 * sdGuess), hi = std::min(hi, mean.value + 60.0 * sdGuess);
         for (auto [p, out] : {std::pair{0.5, &st.median}, std::pair{0.05, &st.q05}, std::pair{0.95, &st.q95}}) {
             const double q = solveCdf(F, density, p, lo, hi, mean.value + sdGuess * normalQuantile(p));
             const double f = density(q);
@@ -254,7 +262,7 @@ std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixX
             pooledOutputNames()[J], outScale[j], moment[J][0], moment[J][1],
             [&](std::size_t c, Eigen::Index t, double x) { return comp[c][static_cast<std::size_t>(t)][J].cdf(x); },
             [&](std::size_t c, Eigen::Index t, double x) { return comp[c][static_cast<std::size_t>(t)][J].pdf(x); },
-            std::max(pop[J].lo, box->component(j).lower()), std::min(pop[J].hi, box->component(j).upper())));
+            std::max(pop[J].lo, boxLo[j]), std::min(pop[J].hi, boxHi[j])));
     }
     // eta_m = mu r: moments multiply; the CDF integrates F_r(x / mu) over the probability of mu.
     std::vector<double> gx, gw;
@@ -287,7 +295,7 @@ std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixX
         }
         return s;
     };
-    const double etaHi = box->component(kPooledMu).upper() * box->component(kPooledR).upper();
+    const double etaHi = boxHi[kPooledMu] * boxHi[kPooledR];
     out.push_back(summarise("etam_Pa_s_um", 1.0, e1, e2, etaCdf, etaPdf, 0.0, etaHi));
     return out;
 }

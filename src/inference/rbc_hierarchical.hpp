@@ -33,15 +33,26 @@
 
 namespace trbc {
 
-/// The population of 4.2: v TN on [0, 1], mu, b2, r normal, kb TN on [kappa_lo, kappa_hi]; the
-/// hyper-prior bounds of hyperPrior().
-std::vector<PopulationComponent> rbcPopulationComponents();
+/// Choices of the population model that a sensitivity study varies; the defaults are the model
+/// of the three-phase route.
+struct PopulationVariant {
+    double sdUpperScale = 1.0;  ///< multiplies the upper bound of every population-SD hyper-prior
+    bool truncate = true;       ///< v TN on [0, 1] and kb TN on [kappa_lo, kappa_hi]; false: untruncated normals
+    /// theta_new restricted to the box of newCellBoxPrior (v >= 0.65, mu <= 20, b2 <= 10, r <= 2);
+    /// false: to v in [0, 1], kb in [kappa_lo, kappa_hi] and mu, b2, r >= 0 only.
+    bool newCellBox = true;
+};
+
+/// The population: v TN on [0, 1], mu, b2, r normal, kb TN on [kappa_lo, kappa_hi]; the
+/// hyper-prior bounds of hyperPrior() (changed as `variant` says).
+std::vector<PopulationComponent> rbcPopulationComponents(const PopulationVariant& variant = {});
 
 /// The joint model of the data sets. `phase1Samples[i]` (phase-1 variables x N) are the starting
 /// points and first proposal covariances of group i; the equilibrium group splits each (v, FvK,
 /// sigma) into (v, mu, kb, sigma) with kb drawn uniformly (seeded) from [kappa_lo, kappa_hi].
 HierarchicalModel rbcHierarchicalModel(const RbcModel& model, const std::vector<RbcDataSet>& data,
-                                       const std::vector<Eigen::MatrixXd>& phase1Samples, std::uint64_t seed);
+                                       const std::vector<Eigen::MatrixXd>& phase1Samples, std::uint64_t seed,
+                                       const PopulationVariant& variant = {});
 
 /// A group's draws in the phase-1 variables of its data set (equilibrium: (v, mu, kb, sigma) ->
 /// (v, FvK, sigma); the others unchanged).
@@ -57,6 +68,6 @@ struct NewCellStatistic {
 
 /// theta_new statistics (physical units, kb in J) from hyper-parameter draws: psiChains[c] is
 /// 10 x draws (rows as hyperParameterNames, inference units).
-std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixXd>& psiChains);
+std::vector<NewCellStatistic> newCellStatistics(const std::vector<Eigen::MatrixXd>& psiChains, const PopulationVariant& variant = {});
 
 }  // namespace trbc

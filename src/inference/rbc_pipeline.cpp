@@ -68,6 +68,7 @@ struct Context {
         opt.targetCoV = st.targetCoV;
         opt.covarianceScaling = st.covarianceScaling;
         opt.maxChainLength = 1;  // BASIS (5)
+        if (p.phase == "phase1" && o.phase1BurnIn > 0) opt.burnIn = {o.phase1BurnIn};
         opt.seed = rbcRunSeed(o.seed, p.label());
         opt.checkpointDirectory = (runDirectory(p) / "checkpoint").string();
         return opt;
@@ -109,6 +110,7 @@ nlohmann::json runJson(const Posterior& p, const TmcmcOptions& opt, const TmcmcR
             {"target_cov", opt.targetCoV},
             {"covariance_scaling", opt.covarianceScaling},
             {"max_chain_length", opt.maxChainLength},
+            {"burn_in", opt.burnIn.empty() ? 0 : opt.burnIn.front()},
             {"completed", r.completed},
             {"log_evidence", r.logEvidence},
             {"stages", r.stages.size()},
@@ -483,7 +485,8 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
     const fs::path jointDir = o.outputDirectory / "phase2" / "joint";
     const std::uint64_t seed = rbcRunSeed(o.seed, "phase2/joint");
     const nlohmann::json settings = {{"method", "joint MCMC"}, {"chains", o.chains}, {"warmup", o.warmup}, {"draws", o.draws}, {"thin", o.thin},
-                                     {"seed", seed}, {"phase1_samples", o.populationSize}};
+                                     {"seed", seed}, {"phase1_samples", o.populationSize}, {"phase1_burn_in", o.phase1BurnIn},
+                                     {"hyper_sd_scale", o.population.sdUpperScale}, {"population_truncation", o.population.truncate}};
     {
         const auto begin = phaseBegin(2);
         const bool run = o.firstPhase <= 2;
@@ -497,7 +500,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
             mo.thin = o.thin;
             mo.seed = seed;
             mo.progress = [&ctx](const std::string& line) { ctx.say("infer phase2/joint: " + line); };
-            res.joint = runHierarchicalMcmc(rbcHierarchicalModel(ctx.model, data, starts, rbcRunSeed(o.seed, "phase2/joint_start")), mo);
+            res.joint = runHierarchicalMcmc(rbcHierarchicalModel(ctx.model, data, starts, rbcRunSeed(o.seed, "phase2/joint_start"), o.population), mo);
             saveJointDraws(jointDir, settings, res.joint);
         } else if (!run && !loadJointDraws(jointDir, settings, res.joint)) {
             throw InputError(fmt::format("{}: no joint-MCMC draws made with these settings ({}); run `trbc infer --phase 2` with this --out first",
@@ -538,7 +541,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
 
     // theta_new: Rao-Blackwellised statistics; draws of the restricted mixture for the sample file.
     const Posterior pNew{"phase3", "theta_new", pooledOutputNames(), pooledOutputScale(), true};
-    const std::vector<NewCellStatistic> nc = newCellStatistics(J.hyper);
+    const std::vector<NewCellStatistic> nc = newCellStatistics(J.hyper, o.population);
     res.ancestral = sampleNewCellAncestral(psi, psi.cols(), rbcRunSeed(o.seed, "phase3/theta_new_ancestral"));
     // The mixture density at the draws (for the ML column) with every k-th psi draw, <= 4000 components.
     const Eigen::Index thin = std::max<Eigen::Index>(1, psi.cols() / 4000);
@@ -647,6 +650,8 @@ void writePosteriorStats(const fs::path& file, const std::vector<PosteriorStatsR
 RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& o) {
     if (o.firstPhase < 1 || o.lastPhase > 3 || o.firstPhase > o.lastPhase)
         throw InputError(fmt::format("infer: phases {}..{} are invalid: the phases are 1, 2, 3", o.firstPhase, o.lastPhase));
+    if (o.method == HierarchicalMethod::Reweighting && (o.population.sdUpperScale != 1.0 || !o.population.truncate))
+        throw InputError("infer: --hyper-sd-scale and --population-truncation off need --method joint (the re-weighting route's population is fixed)");
     if (o.populationSize < 2) throw InputError(fmt::format("infer: --samples = {} is invalid: must be >= 2", o.populationSize));
     if (data.empty()) throw InputError("infer: no data sets");
     if (o.outputDirectory.empty()) throw InputError("infer: no output directory");
@@ -723,7 +728,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
             res.phase3a = runPosterior(ctx, pNew, phase3aProblem(psi, ctx.populationTimer), rbcSamplerSettings(RbcRun::Phase3a));
             std::vector<PosteriorStatsRow> rows = statsOf(pNew, res.phase3a, res.phase3a.logPrior);
             // Mean, SD and quantiles Rao-Blackwellised over the phase-2 population (no phase-3a sampling noise).
-            for (const NewCellStatistic& st : newCellStatistics({psi}))
+            for (const NewCellStatistic& st : newCellStatistics({psi}, o.population))
                 for (PosteriorStatsRow& r : rows)
                     if (r.parameter == st.name) {
                         r.mean = st.mean.value, r.median = st.median.value, r.sd = st.sd.value, r.q05 = st.q05.value, r.q95 = st.q95.value;
@@ -777,6 +782,10 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
     info["fvk_density"] = o.fvkRule == FvkDensityRule::ClosedForm         ? "closed form, mixed precision"
                           : o.fvkRule == FvkDensityRule::ClosedFormDouble ? "closed form, double precision"
                                                                           : "50-node rule";
+    info["method"] = o.method == HierarchicalMethod::Joint ? "joint" : "reweighting";
+    if (o.method == HierarchicalMethod::Joint) info["joint"] = {{"chains", o.chains}, {"warmup", o.warmup}, {"draws", o.draws}, {"thin", o.thin}};
+    info["population"] = {{"hyper_sd_scale", o.population.sdUpperScale}, {"truncation", o.population.truncate},
+                          {"theta_new_box", o.population.newCellBox}};
     info["phase3b_prior"] = o.phase3b.referencePrior ? "reference (phase-1 prior)" : "support indicator";
     info["phase3b_equilibrium_fvk"] = o.phase3b.referenceEquilibriumDefect ? "last phase-2 sample (reference)" : "every phase-2 sample";
     nlohmann::json files = nlohmann::json::array();

@@ -29,6 +29,7 @@
 
 #include "inference/hierarchical.hpp"
 #include "inference/hierarchical_mcmc.hpp"
+#include "inference/rbc_hierarchical.hpp"
 #include "inference/rbc_problem.hpp"
 #include "inference/statistics.hpp"
 
@@ -52,8 +53,13 @@ struct RbcInferenceOptions {
     /// Joint method: chains, warm-up sweeps, kept draws per chain and sweeps per kept draw (the
     /// seed is derived from `seed`).
     int chains = 16, warmup = 1000, draws = 2500, thin = 4;
+    /// Population model choices for sensitivity studies (hyper-prior SD bounds and truncation:
+    /// joint method only; the theta_new box: both methods).
+    PopulationVariant population;
     int firstPhase = 1, lastPhase = 3;  ///< phases to run (1..3); earlier phases are loaded from outputDirectory
     int populationSize = 50000;         ///< N of every run (5)
+    /// Unrecorded Metropolis steps per BASIS stage of the phase-1 runs (0: the paper's BASIS).
+    int phase1BurnIn = 0;
     std::uint64_t seed = 0xC0FFEE;      ///< run seed; each run uses splitmix64(seed ^ FNV-1a(run name))
     bool resume = false;                ///< continue from checkpoints / reuse finished runs
     FvkDensityRule fvkRule = FvkDensityRule::ClosedForm;  ///< q(FvK | psi) in phases 2-3 (4.3)
