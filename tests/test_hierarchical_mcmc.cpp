@@ -100,14 +100,14 @@ TEST(TruncatedNormal, MomentsAndCdfMatchQuadratureIncludingFarTails) {
         EXPECT_NEAR(std::sqrt(t.variance), sd, 1e-6 * sd) << k.m << " " << k.a << " " << k.b;
         const double logZ = std::log(z * h / 3.0 / (std::sqrt(2.0 * std::numbers::pi) * k.s)) - 0.5 * (peak - k.m) * (peak - k.m) / (k.s * k.s);
         EXPECT_NEAR(t.logMass, logZ, 1e-6);
-        EXPECT_NEAR(truncatedNormalCdf(t.mean, k.m, k.s, k.a, k.b) , [&] {
-            double s = 0;  // trapezoid mass below the mean
-            for (int i = 0; i < n; ++i) {
-                const double x = a + (i + 0.5) * h;
-                if (x < t.mean) s += std::exp(-0.5 * ((x - k.m) * (x - k.m) - (peak - k.m) * (peak - k.m)) / (k.s * k.s));
-            }
-            return s * h / (z * h / 3.0);
-        }(), 1e-4);
+        // CDF at the mean against Simpson on [a', mean].
+        double below = 0.0;
+        const double hb = (t.mean - a) / n;
+        for (int i = 0; i <= n; ++i) {
+            const double x = a + i * hb, w = (i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2);
+            below += w * std::exp(-0.5 * ((x - k.m) * (x - k.m) - (peak - k.m) * (peak - k.m)) / (k.s * k.s));
+        }
+        EXPECT_NEAR(truncatedNormalCdf(t.mean, k.m, k.s, k.a, k.b), below * hb / (z * h), 1e-8) << k.m << " " << k.a << " " << k.b;
     }
 }
 
@@ -272,6 +272,8 @@ TEST(HierarchicalMcmc, NormalNormalTheJointSamplerRecoversThetaNewWithinItsMcse)
         const NewCellStatistic& s = st[static_cast<std::size_t>(j)];
         const double m = exact[static_cast<std::size_t>(j)].mean * scale[j], sd = exact[static_cast<std::size_t>(j)].sd * scale[j];
         // 4 MCSE: a false alarm in 1 of ~16000 per check.
+        std::cerr << s.name << ": mean error " << (s.mean.value - m) / s.mean.mcse << " MCSE, SD error " << (s.sd.value - sd) / s.sd.mcse
+                  << " MCSE; MCSE of the mean " << s.mean.mcse / sd << " SD\n";
         EXPECT_NEAR(s.mean.value, m, 4.0 * s.mean.mcse) << s.name << " (MCSE " << s.mean.mcse / sd << " SD)";
         EXPECT_NEAR(s.sd.value, sd, 4.0 * s.sd.mcse) << s.name;
         EXPECT_LT(s.mean.mcse, 0.1 * sd) << s.name;
@@ -283,13 +285,13 @@ TEST(HierarchicalMcmc, NormalNormalTheThreePhaseRouteRecoversThetaNew) {
     std::vector<ReweightingSamples> sets;
     for (std::size_t i = 0; i < groups.size(); ++i) {
         const RbcDataSet d = layoutDataSet(groups[i].experiment, static_cast<int>(i));
-        sets.push_back(reweightingSamples(d, exactPhase1Samples(groups[i], d, 20000, 30 + i)));
+        sets.push_back(reweightingSamples(d, exactPhase1Samples(groups[i], d, 5000, 30 + i)));
     }
     TmcmcOptions opt;
-    opt.populationSize = 8000;
+    opt.populationSize = 4000;
     opt.targetCoV = 0.4;
     opt.covarianceScaling = 0.06;
-    opt.burnIn = {3};
+    opt.burnIn = {2};
     opt.seed = 7;
     const TmcmcResult r = runTmcmc(phase2Problem(sets), opt);
     const std::vector<Exact> exact = exactNewCell(groups);
@@ -298,8 +300,9 @@ TEST(HierarchicalMcmc, NormalNormalTheThreePhaseRouteRecoversThetaNew) {
     for (int j = 0; j < kPooledDimension; ++j) {
         const NewCellStatistic& s = st[static_cast<std::size_t>(j)];
         const double m = exact[static_cast<std::size_t>(j)].mean * scale[j], sd = exact[static_cast<std::size_t>(j)].sd * scale[j];
-        EXPECT_NEAR(s.mean.value, m, 0.1 * sd) << s.name;
-        EXPECT_NEAR(s.sd.value, sd, 0.1 * sd) << s.name;
+        std::cerr << s.name << ": mean error " << (s.mean.value - m) / sd << " SD, SD error " << (s.sd.value - sd) / sd << "\n";
+        EXPECT_NEAR(s.mean.value, m, 0.1 * sd) << s.name << " exact " << m << " sd " << sd;
+        EXPECT_NEAR(s.sd.value, sd, 0.1 * sd) << s.name << " exact sd " << sd;
     }
 }
 
