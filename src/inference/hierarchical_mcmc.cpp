@@ -164,7 +164,6 @@ public:
         for (double f : {0.2, 0.4, 0.7}) milestones.push_back(static_cast<int>(f * o_.warmup));
         std::vector<std::vector<Eigen::VectorXd>> windowY(static_cast<std::size_t>(G_));
         std::vector<std::vector<Eigen::Vector2d>> windowHyper(static_cast<std::size_t>(P_));
-        std::vector<Eigen::VectorXd> windowMean, windowLogSd;
         int windowStart = 0;
         for (int sweep = 0; sweep < total; ++sweep) {
             const bool warm = sweep < o_.warmup;
@@ -182,19 +181,11 @@ public:
                     for (int g = 0; g < G_; ++g)
                         for (const ChainState& s : state_)
                             windowY[static_cast<std::size_t>(g)].push_back(toWalk(m_.groups[static_cast<std::size_t>(g)], s.y[static_cast<std::size_t>(g)]));
-                    for (const ChainState& s : state_) {
-                        Eigen::VectorXd mm(P_), ls(P_);
-                        for (int j = 0; j < P_; ++j) {
-                            windowHyper[static_cast<std::size_t>(j)].push_back({s.psi[2 * j], s.psi[2 * j + 1]});
-                            mm[j] = s.psi[2 * j];
-                            ls[j] = std::log(s.psi[2 * j + 1]);
-                        }
-                        windowMean.push_back(mm);
-                        windowLogSd.push_back(ls);
-                    }
+                    for (const ChainState& s : state_)
+                        for (int j = 0; j < P_; ++j) windowHyper[static_cast<std::size_t>(j)].push_back({s.psi[2 * j], s.psi[2 * j + 1]});
                 }
                 if (!milestones.empty() && sweep + 1 == milestones.front()) {
-                    updateCovariances(windowY, windowHyper, windowMean, windowLogSd);
+                    updateCovariances(windowY, windowHyper);
                     windowStart = milestones.front();
                     milestones.erase(milestones.begin());
                 }
@@ -342,6 +333,7 @@ private:
                     const HierarchicalGroup& G = m_.groups[static_cast<std::size_t>(g)];
                     s.support[static_cast<std::size_t>(g)] = G.logSupport(s.y[static_cast<std::size_t>(g)]);
                     ok = s.support[static_cast<std::size_t>(g)] > -kInf && populationTerm(g, s.psi, s.y[static_cast<std::size_t>(g)]) > -kInf;
+                    for (int i : G.logVariables) ok = ok && s.y[static_cast<std::size_t>(g)][i] > 0.0;  // the walk runs on log y
                 }
                 if (!ok) continue;
                 for (int g = 0; g < G_ && ok; ++g) {
@@ -511,8 +503,7 @@ private:
         tally(b, accepted, C, sweep, warm);
     }
 
-    void updateCovariances(std::vector<std::vector<Eigen::VectorXd>>& windowY, std::vector<std::vector<Eigen::Vector2d>>& windowHyper,
-                           std::vector<Eigen::VectorXd>& windowMean, std::vector<Eigen::VectorXd>& windowLogSd) {
+    void updateCovariances(std::vector<std::vector<Eigen::VectorXd>>& windowY, std::vector<std::vector<Eigen::Vector2d>>& windowHyper) {
         for (int g = 0; g < G_; ++g) {
             const Eigen::MatrixXd w = toMatrix(windowY[static_cast<std::size_t>(g)]);
             if (w.cols() > 2 * w.rows()) {
@@ -533,8 +524,6 @@ private:
             }
             w.clear();
         }
-        windowMean.clear();
-        windowLogSd.clear();
     }
 };
 
