@@ -457,7 +457,11 @@ public:
         problem_ = phase2Problem(std::move(sets));
     }
     std::vector<std::string> names() const { return hyperOutputNames(); }
-    py::object logPosterior(const py::array& psi) const {
+    py::object logPosterior(const py::array& psi) const { return apply(psi, true); }
+    py::object logLikelihood(const py::array& psi) const { return apply(psi, false); }
+
+private:
+    py::object apply(const py::array& psi, bool withPrior) const {
         RowArray a = RowArray::ensure(psi);
         if (!a) throw InputError("psi: not a numeric array");
         const bool single = a.ndim() == 1;
@@ -469,6 +473,7 @@ public:
             Eigen::VectorXd lp(n);
             for (Eigen::Index k = 0; k < n; ++k) lp(k) = problem_.prior->logDensity(p.col(k));
             const Eigen::VectorXd ll = problem_.batchLogLikelihood(p);
+            if (!withPrior) return ll;
             for (Eigen::Index k = 0; k < n; ++k) lp(k) = std::isinf(lp(k)) && lp(k) < 0 ? lp(k) : lp(k) + ll(k);
             return lp;
         });
@@ -476,7 +481,6 @@ public:
         return ownedVector(std::move(out));
     }
 
-private:
     TmcmcProblem problem_;
 };
 
@@ -751,6 +755,7 @@ PYBIND11_MODULE(_core, m) {
     py::class_<HierarchicalPosterior>(m, "HierarchicalPosterior")
         .def(py::init<const std::vector<RbcDataSet>&, const std::vector<RowArray>&>(), "data_sets"_a, "phase1_samples"_a)
         .def_property_readonly("names", &HierarchicalPosterior::names)
+        .def("log_likelihood", &HierarchicalPosterior::logLikelihood, "psi"_a)
         .def("__call__", &HierarchicalPosterior::logPosterior, "psi"_a);
     m.def("run_inference", &runInference, "out"_a, "first_phase"_a, "last_phase"_a, "samples"_a, "seed"_a, "surrogate"_a, "data_sets"_a,
           "resume"_a, "threads"_a, "progress"_a);
