@@ -439,7 +439,8 @@ private:
 };
 
 /// Phase-2 (hierarchical) log-posterior of the hyper-parameters psi given the phase-1 samples of
-/// every data set (INFERENCE.md 4.4): log p(psi) + sum_i log b_i(psi).
+/// every data set (INFERENCE.md 4.4): log p(psi) + sum_i log b_i(psi); psi in the physical units of
+/// the samples files (hyperOutputNames), the density that of the inference variables.
 class HierarchicalPosterior {
 public:
     HierarchicalPosterior(const std::vector<RbcDataSet>& data, const std::vector<RowArray>& phase1Samples) {
@@ -468,7 +469,8 @@ private:
         if (!(single && a.shape(0) == kHyperDimension) && !(a.ndim() == 2 && a.shape(1) == kHyperDimension))
             throw InputError(fmt::format("psi: expected shape ({},) or (n, {})", kHyperDimension, kHyperDimension));
         const Eigen::Index n = single ? 1 : Eigen::Index(a.shape(0));
-        const Eigen::MatrixXd p = Eigen::Map<const Eigen::MatrixXd>(a.data(), kHyperDimension, n);
+        Eigen::MatrixXd p = Eigen::Map<const Eigen::MatrixXd>(a.data(), kHyperDimension, n);
+        p.array().colwise() /= hyperOutputScale().array();  // physical units (kb in J) -> inference units
         Eigen::VectorXd out = withoutGil([&] {
             Eigen::VectorXd lp(n);
             for (Eigen::Index k = 0; k < n; ++k) lp(k) = problem_.prior->logDensity(p.col(k));

