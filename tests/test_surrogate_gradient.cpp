@@ -78,10 +78,10 @@ TEST(SurrogateGradient, TransformsScalingsAndEnsembleMatchFiniteDifferences) {
     t.ensemble.push_back({Mlp::glorotUniform({3, 8, 8, 2}, 6), 6, 0.0});
     t.inputTransforms = {VariableTransform::Log, VariableTransform::Sqrt, VariableTransform::Identity};
     t.outputTransforms = {VariableTransform::Log, VariableTransform::Identity};
-    t.inputScaling.mean = Eigen::Vector3d(0.5, 1.2, -0.3);
-    t.inputScaling.sd = Eigen::Vector3d(0.7, 0.4, 2.0);
-    t.outputScaling.mean = Eigen::Vector2d(0.1, 3.0);
-    t.outputScaling.sd = Eigen::Vector2d(0.3, 1.5);
+    t.inputScaling.mean = (Eigen::VectorXd(3) << 0.5, 1.2, -0.3).finished();
+    t.inputScaling.sd = (Eigen::VectorXd(3) << 0.7, 0.4, 2.0).finished();
+    t.outputScaling.mean = (Eigen::VectorXd(2) << 0.1, 3.0).finished();
+    t.outputScaling.sd = (Eigen::VectorXd(2) << 0.3, 1.5).finished();
     Eigen::MatrixXd x(3, 5);
     x << 0.5, 1.0, 2.0, 4.0, 8.0,  //
         0.3, 1.0, 2.5, 0.7, 3.3,   //
