@@ -1,8 +1,9 @@
-# trbc: make build | make test | make demo | make showcase | make bench
+# trbc: make build | make test | make python | make demo | make showcase | make bench
 BUILD ?= build
 JOBS ?= $(shell nproc)
+VENV ?= .venv
 
-.PHONY: all build test demo showcase bench bootstrap clean
+.PHONY: all build test python demo showcase bench bootstrap clean
 
 all: build
 
@@ -17,7 +18,14 @@ build: $(BUILD)/CMakeCache.txt
 
 test: bootstrap
 	$(MAKE) build
+	$(MAKE) python
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+# The Python package (setup.py drives CMake in $(BUILD)) in a venv that sees Debian's numpy,
+# matplotlib, pytest, emcee and meshio; pip installs from the source tree only (--no-index).
+python: bootstrap
+	test -x $(VENV)/bin/python || /usr/bin/python3 -m venv --system-site-packages $(VENV)
+	TRBC_BUILD_DIR=$(abspath $(BUILD)) TRBC_JOBS=$(JOBS) $(VENV)/bin/pip install --no-build-isolation --no-index --no-deps -q .
 
 demo: bootstrap
 	$(MAKE) build
@@ -32,4 +40,4 @@ bench: bootstrap
 	bash scripts/run_benchmarks.sh
 
 clean:
-	rm -rf $(BUILD)
+	rm -rf $(BUILD) $(VENV) trbc.egg-info

@@ -24,23 +24,6 @@ std::filesystem::path cacheDirectory(const CacheOptions& c) {
     return c.dir.empty() ? defaultCacheDirectory() : std::filesystem::path(c.dir);
 }
 
-nlohmann::json sfsJson(const StressFreeState& s) {
-    return {{"v", s.v},
-            {"v_imposed", s.vTarget},
-            {"level", s.level},
-            {"reduced_volume", s.reducedVolume},
-            {"energy_kappa", s.energy},
-            {"max_tangential_force_kappa_per_R", s.gradientNorm},
-            {"tension_kappa_per_R2", s.tension},
-            {"pressure_kappa_per_R3", s.pressure},
-            {"iterations", s.iterations},
-            {"force_evaluations", s.evaluations},
-            {"converged", s.converged},
-            {"wall_s", s.wallSeconds},
-            {"principal_extents_rel", {s.principalExtents[0], s.principalExtents[1], s.principalExtents[2]}},
-            {"from_cache", s.fromCache}};
-}
-
 void registerSfs(CLI::App& app) {
     struct Opts {
         double v = 0.95;

@@ -13,23 +13,11 @@
 #include "core/error.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
-#include "experiments/reference_protocol.hpp"
+#include "experiments/simulation_report.hpp"
 #include "mesh/io.hpp"
 
 namespace trbc::cli {
 namespace {
-
-nlohmann::json staticJson(const SolverDiagnostics& d) {
-    return {{"converged", d.converged},
-            {"iterations", d.iterations},
-            {"force_evaluations", d.evaluations},
-            {"wall_s", d.wallSeconds},
-            {"max_tangential_force_pN", d.gradientNorm},
-            {"tension_pN_per_um", d.tension},
-            {"pressure_Pa", d.pressure},
-            {"energy_J", d.energy / cell::joule},
-            {"message", d.message}};
-}
 
 std::vector<double> parseForceList(const std::string& text) {
     std::vector<double> out;
@@ -51,21 +39,11 @@ std::vector<double> parseForceList(const std::string& text) {
 }
 
 ExperimentSet parseExperiments(const std::string& text) {
-    ExperimentSet s{false, false, false};
+    std::vector<std::string> names;
     std::stringstream ss(text);
     std::string item;
-    while (std::getline(ss, item, ',')) {
-        if (item == "eq")
-            s.equilibrium = true;
-        else if (item == "stretch")
-            s.stretching = true;
-        else if (item == "relax")
-            s.relaxation = true;
-        else
-            throw InputError(fmt::format("--experiments: unknown experiment '{}' (valid: eq, stretch, relax)", item));
-    }
-    s.equilibrium = true;  // stretching and relaxation start from the equilibrium shape
-    return s;
+    while (std::getline(ss, item, ',')) names.push_back(item);
+    return parseExperimentSet(names, "--experiments");
 }
 
 void writeCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {
@@ -171,8 +149,7 @@ void registerSimulate(CLI::App& app) {
         eo.cacheDir = cacheDirectory(o->cache);
 
         nlohmann::json j;
-        j["parameters"] = {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()},
-                           {"b2", p.b2}, {"etam_Pa_s_um", p.etam}, {"Fext_pN", o->fext}};
+        j["parameters"] = simulationParametersJson(p, o->fext);
         j["provenance"] = {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"command", commandLine()}, {"level", o->level},
                            {"vertices", 10 * (1 << (2 * o->level)) + 2}, {"sfs_model_version", kSfsModelVersion},
                            {"threads", o->threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
@@ -189,65 +166,9 @@ void registerSimulate(CLI::App& app) {
             throw;
         }
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        nlohmann::json obs = {{"D_um", nullptr}, {"hmin_um", nullptr}, {"hmax_um", nullptr},
-                              {"D0_um", nullptr}, {"D1_um", nullptr}, {"tc_s", nullptr}};
-        nlohmann::json diag;
-        diag["sfs"] = sfsJson(s.sfs);
-        const ReferenceProtocolSteps ref = referenceProtocolSteps(p, o->level);
-        long evaluations = s.sfs.fromCache ? 0 : s.sfs.evaluations;
-        double refSteps = s.sfs.fromCache ? 0.0 : ref.sfs;
-        diag["sfs"]["reference_protocol_steps"] = ref.sfs;
-        obs["D_um"] = s.equilibrium.observables.D;
-        obs["hmin_um"] = s.equilibrium.observables.hmin;
-        obs["hmax_um"] = s.equilibrium.observables.hmax;
-        diag["equilibrium"] = staticJson(s.equilibrium.diagnostics);
-        diag["equilibrium"]["reference_protocol_steps"] = ref.equilibrium;
-        evaluations += s.equilibrium.diagnostics.evaluations;
-        refSteps += ref.equilibrium;
-        if (which.stretching) {
-            obs["D0_um"] = s.stretching.front().observables.D0;
-            obs["D1_um"] = s.stretching.front().observables.D1;
-            diag["stretching"] = staticJson(s.stretching.front().diagnostics);
-            diag["stretching"]["reference_protocol_steps"] = ref.stretchPerForce;
-            evaluations += s.stretching.front().diagnostics.evaluations;
-            refSteps += ref.stretchPerForce;
-            if (s.stretching.size() > 1) {
-                nlohmann::json c = nlohmann::json::array();
-                int curveEvaluations = 0;
-                for (std::size_t k = 1; k < s.stretching.size(); ++k) {
-                    const auto& pt = s.stretching[k];
-                    c.push_back({{"Fext_pN", pt.fext}, {"D0_um", pt.observables.D0}, {"D1_um", pt.observables.D1},
-                                 {"force_evaluations", pt.diagnostics.evaluations}});
-                    curveEvaluations += pt.diagnostics.evaluations;
-                }
-                j["stretching_curve"] = c;
-                diag["stretching_curve"] = {{"levels", s.stretching.size() - 1},
-                                            {"force_evaluations", curveEvaluations},
-                                            {"reference_protocol_steps", ref.stretchPerForce * (s.stretching.size() - 1)}};
-            }
-        }
-        if (which.relaxation) {
-            const RelaxationResult& r = s.relaxation;
-            obs["tc_s"] = r.fit.tc;
-            j["relaxation_fit"] = {{"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
-                                   {"pre_stretch_force_pN", r.preStretchForce}};
-            diag["relaxation"] = {{"pre_stretch", staticJson(r.preStretch)},
-                                  {"converged", r.dynamics.converged},
-                                  {"time_steps", r.dynamics.iterations},
-                                  {"rejected_steps", r.rejectedSteps},
-                                  {"force_evaluations", r.dynamics.evaluations + r.preStretch.evaluations},
-                                  {"wall_s", r.dynamics.wallSeconds + r.preStretch.wallSeconds},
-                                  {"reference_protocol_steps", ref.preStretch + ref.relaxation}};
-            evaluations += r.dynamics.evaluations + r.preStretch.evaluations;
-            refSteps += ref.preStretch + ref.relaxation;
-        }
-        diag["total"] = {{"force_evaluations", evaluations},
-                         {"reference_protocol_steps", refSteps},
-                         {"reduction_factor", refSteps / std::max<long>(1, evaluations)},
-                         {"wall_s", wall}};
-        j["status"] = "ok";
-        j["observables"] = obs;
-        j["diagnostics"] = diag;
+        const nlohmann::json provenance = j["provenance"];
+        j = simulationJson(p, o->fext, o->level, which, s, wall);
+        j["provenance"] = provenance;
         if (!o->saveShapes.empty()) {
             saveShapes(o->saveShapes, s, which);
             std::ofstream out(o->saveShapes + "/simulate.json");

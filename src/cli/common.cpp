@@ -45,39 +45,7 @@ void addModulusOptions(CLI::App* app, ModulusOptions& m) {
 }
 
 MembraneParameters checkedParameters(const ModulusOptions& m) {
-    MembraneParameters p = m.p;
-    auto finite = [](const char* name, double v) {
-        if (!std::isfinite(v)) throw InputError(fmt::format("--{} must be a finite number (got {})", name, v));
-    };
-    auto nonNegative = [&](const char* name, double v) {
-        finite(name, v);
-        if (v < 0) throw InputError(fmt::format("--{} = {} is out of range: a modulus must be >= 0", name, v));
-    };
-    nonNegative("kb", p.bending.kb);
-    finite("C0", p.bending.C0);
-    nonNegative("kad", p.bending.kad);
-    finite("DA0", p.bending.DA0);
-    nonNegative("ka", p.lim.Kalpha);
-    finite("a3", p.lim.a3);
-    finite("a4", p.lim.a4);
-    nonNegative("mu", p.lim.mu);
-    finite("b1", p.lim.b1);
-    finite("b2", p.lim.b2);
-    nonNegative("kA", p.penalty.kA);
-    nonNegative("kV", p.penalty.kV);
-    if (p.penalty.kA > 0) {
-        if (!m.haveA0) throw InputError("--kA > 0 needs the target area --A0");
-        if (!std::isfinite(m.A0) || m.A0 <= 0)
-            throw InputError(fmt::format("--A0 = {} is out of range: the target area must be > 0", m.A0));
-    }
-    if (p.penalty.kV > 0) {
-        if (!m.haveV0) throw InputError("--kV > 0 needs the target volume --V0");
-        if (!std::isfinite(m.V0) || m.V0 <= 0)
-            throw InputError(fmt::format("--V0 = {} is out of range: the target volume must be > 0", m.V0));
-    }
-    p.penalty.A0 = m.A0;
-    p.penalty.V0 = m.V0;
-    return p;
+    return checkedMembraneParameters(m.p, m.haveA0, m.A0, m.haveV0, m.V0, "--");
 }
 
 void ensureWritableFile(const std::string& path) {

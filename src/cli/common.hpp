@@ -9,6 +9,7 @@
 #include "membrane/model.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/sfs.hpp"
+#include "experiments/simulation_report.hpp"
 #include "membrane/parameters.hpp"
 #include "mesh/mesh.hpp"
 
@@ -49,8 +50,6 @@ struct CacheOptions {
 };
 void addCacheOptions(CLI::App* cmd, CacheOptions& c);
 std::filesystem::path cacheDirectory(const CacheOptions& c);
-/// Diagnostics of a stress-free state as JSON.
-nlohmann::json sfsJson(const StressFreeState& s);
 
 /// Solver tolerances of the experiments: --tol --max-iter --relax-tol --relax-inner-tol --overdamped.
 void addSolverOptions(CLI::App* cmd, ExperimentOptions& e);

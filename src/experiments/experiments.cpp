@@ -46,6 +46,7 @@ MinimizeOptions staticOptions(const CellParameters& p, const MembraneModel& mode
     mo.gradientTolerance = opt.staticTolerance * p.mu * meanEdgeLength(X, model.topology());
     mo.maxIterations = opt.maxIterations;
     mo.deadline = opt.deadline;
+    mo.interruptCheck = opt.interruptCheck;
     // With the multigrid, its scale refreshed at every second pair (one V-cycle per iteration instead of two). Level 4,
     // equilibrium + stretching at 100 pN + a 5-force curve, summed over the reference point, the stiff corner,
     // (0.8, 2, 600, 1) and (0.9, 8, 400, 0.5): 3657 -> 3735 evaluations (every fourth pair: 4227; never,
@@ -256,6 +257,7 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     vo.inner.gradientTolerance = opt.relaxInnerTolerance * p.mu * meanEdgeLength(equilibrium, model.topology());
     vo.inner.maxIterations = 5000;
     vo.inner.deadline = opt.deadline;
+    vo.inner.interruptCheck = opt.interruptCheck;
     vo.interpolateSamples = true;
     vo.constraint = kCellConstraint;
     // Block-Jacobi H0 of the inner L-BFGS: friction and inertia blocks plus an elastic stiffness

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,8 @@ struct ExperimentOptions {
     /// Equilibrium, stretching and the relaxation's inner solves stop, not converged, after this
     /// instant (a campaign cell's wall-time budget; default: none).
     std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+    /// Passed on to every minimisation and time step of the experiments (MinimizeOptions::interruptCheck).
+    std::function<void()> interruptCheck;
 };
 
 /// "farthest-vertex" or "largest-variance" (CLI and provenance spelling).

@@ -5,6 +5,7 @@
 // fixed-duration damped run. Cached on disk by (v, level, model version).
 #include <Eigen/Core>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "mesh/mesh.hpp"
@@ -20,6 +21,7 @@ struct SfsOptions {
     double gradientTolerance = 1e-5;
     int maxIterations = 100000;
     bool multigrid = true;  ///< multigrid H0 for the L-BFGS (as ExperimentOptions::multigrid)
+    std::function<void()> interruptCheck;  ///< MinimizeOptions::interruptCheck of the minimisation
 };
 
 struct StressFreeState {

@@ -2,6 +2,7 @@
 // Moduli of the membrane energy terms (MODEL.md C). The engine is unit-agnostic: lengths and
 // moduli are in whatever consistent units the caller uses (trbc's experiments use um, pN, s).
 // A term whose modulus is zero is switched off.
+#include <string>
 
 namespace trbc {
 
@@ -38,5 +39,12 @@ struct MembraneParameters {
     bool hasArea() const { return penalty.kA != 0.0; }
     bool hasVolume() const { return penalty.kV != 0.0; }
 };
+
+/// Checks the moduli as given by a user (mesh units): kb, kad, Kalpha, mu, kA, kV finite and >= 0,
+/// C0, DA0, a3, a4, b1, b2 finite; with kA > 0 (kV > 0) a target area A0 (volume V0) must be given
+/// and be > 0. Sets p.penalty.A0 and V0. Throws InputError naming the parameter as
+/// `prefix` + its name (kb, C0, kad, DA0, ka, a3, a4, mu, b1, b2, kA, A0, kV, V0).
+MembraneParameters checkedMembraneParameters(MembraneParameters p, bool haveA0, double A0, bool haveV0, double V0,
+                                             const std::string& prefix = "");
 
 }  // namespace trbc

@@ -187,6 +187,215 @@ Mesh readOff(const std::string& path) {
     return m;
 }
 
+namespace {
+
+// Whitespace-separated tokens of a text file after its first `skipLines` lines, with line numbers.
+struct TokenStream {
+    std::string path;
+    std::vector<Token> tokens;
+    std::size_t pos = 0;
+    bool done() const { return pos >= tokens.size(); }
+    const Token& next(const char* what) {
+        if (done()) throw InputError(fmt::format("{}: unexpected end of file (expected {})", path, what));
+        return tokens[pos++];
+    }
+    double number(const char* what) {
+        const Token& t = next(what);
+        char* end = nullptr;
+        errno = 0;
+        const double v = std::strtod(t.text.c_str(), &end);
+        if (end == t.text.c_str() || *end != '\0' || !std::isfinite(v))
+            throw InputError(fmt::format("{}:{}: expected {} (a number), got '{}'", path, t.line, what, t.text));
+        return v;
+    }
+    long index(const char* what) {
+        const Token& t = tokens.at(pos);
+        const double v = number(what);
+        if (v != std::floor(v) || v < 0 || v > 2e9)
+            throw InputError(fmt::format("{}:{}: expected {} (a non-negative integer), got '{}'", path, t.line, what, t.text));
+        return static_cast<long>(v);
+    }
+};
+
+TokenStream tokenize(const std::string& path, std::istream& in, int firstLine) {
+    TokenStream ts;
+    ts.path = path;
+    std::string line;
+    int lineNo = firstLine;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        std::istringstream ls(line);
+        std::string w;
+        while (ls >> w) ts.tokens.push_back({w, lineNo});
+    }
+    return ts;
+}
+
+void checkFaceIndex(const TokenStream& ts, long v, Eigen::Index nv) {
+    if (v >= nv) throw InputError(fmt::format("{}: face vertex index {} out of range (the mesh has {} vertices)", ts.path, v, nv));
+}
+
+Mesh readPly(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw InputError(fmt::format("cannot open '{}'", path));
+    std::string line;
+    int lineNo = 0;
+    auto header = [&]() {
+        if (!std::getline(in, line)) throw InputError(fmt::format("{}: unexpected end of the PLY header", path));
+        ++lineNo;
+        std::istringstream ls(line);
+        std::vector<std::string> w;
+        std::string t;
+        while (ls >> t) w.push_back(t);
+        return w;
+    };
+    if (header() != std::vector<std::string>{"ply"}) throw InputError(fmt::format("{}:1: not a PLY file (first line must be 'ply')", path));
+    long nv = -1, nf = -1;
+    int vertexProperties = 0, xyz[3] = {-1, -1, -1}, faceScalarsBefore = 0, faceScalarsAfter = 0;
+    bool faceList = false;
+    std::string element;
+    for (;;) {
+        const std::vector<std::string> w = header();
+        if (w.empty() || w[0] == "comment" || w[0] == "obj_info") continue;
+        if (w[0] == "end_header") break;
+        if (w[0] == "format") {
+            if (w.size() < 2 || w[1] != "ascii")
+                throw InputError(fmt::format("{}:{}: only ASCII PLY is read (format '{}')", path, lineNo, w.size() > 1 ? w[1] : ""));
+        } else if (w[0] == "element" && w.size() == 3) {
+            element = w[1];
+            const long n = std::atol(w[2].c_str());
+            if (element == "vertex") nv = n;
+            else if (element == "face") nf = n;
+            else if (n > 0) throw InputError(fmt::format("{}:{}: unsupported PLY element '{}'", path, lineNo, element));
+        } else if (w[0] == "property" && element == "vertex") {
+            if (w.size() != 3) throw InputError(fmt::format("{}:{}: unsupported vertex property '{}'", path, lineNo, line));
+            for (int c = 0; c < 3; ++c)
+                if (w[2] == std::string(1, char('x' + c))) xyz[c] = vertexProperties;
+            ++vertexProperties;
+        } else if (w[0] == "property" && element == "face") {
+            if (w.size() == 5 && w[1] == "list" && (w[4] == "vertex_indices" || w[4] == "vertex_index")) faceList = true;
+            else (faceList ? faceScalarsAfter : faceScalarsBefore)++;
+        }
+    }
+    if (nv < 0 || nf < 0 || !faceList || xyz[0] < 0 || xyz[1] < 0 || xyz[2] < 0)
+        throw InputError(fmt::format("{}: the PLY header needs a vertex element with x, y, z and a face element with vertex_indices", path));
+    TokenStream ts = tokenize(path, in, lineNo);
+    Mesh m;
+    m.X.resize(3, nv);
+    for (long i = 0; i < nv; ++i)
+        for (int p = 0; p < vertexProperties; ++p) {
+            const double v = ts.number("a vertex property");
+            for (int c = 0; c < 3; ++c)
+                if (xyz[c] == p) m.X(c, i) = v;
+        }
+    m.F.resize(3, nf);
+    for (long f = 0; f < nf; ++f) {
+        for (int k = 0; k < faceScalarsBefore; ++k) ts.number("a face property");
+        if (ts.index("the number of face vertices") != 3)
+            throw InputError(fmt::format("{}:{}: face {} is not a triangle", path, ts.tokens[ts.pos - 1].line, f));
+        for (int c = 0; c < 3; ++c) {
+            const long v = ts.index("a vertex index");
+            checkFaceIndex(ts, v, nv);
+            m.F(c, f) = static_cast<int>(v);
+        }
+        for (int k = 0; k < faceScalarsAfter; ++k) ts.number("a face property");
+    }
+    return m;
+}
+
+Mesh readVtk(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw InputError(fmt::format("cannot open '{}'", path));
+    std::string line;
+    int lineNo = 0;
+    std::string head[3];
+    for (std::string& h : head) {
+        if (!std::getline(in, h)) throw InputError(fmt::format("{}: not a legacy VTK file (fewer than 3 lines)", path));
+        ++lineNo;
+    }
+    if (head[0].rfind("# vtk DataFile", 0) != 0) throw InputError(fmt::format("{}:1: not a legacy VTK file", path));
+    if (head[2].find("ASCII") == std::string::npos) throw InputError(fmt::format("{}:3: only ASCII VTK is read", path));
+    TokenStream ts = tokenize(path, in, lineNo);
+    Mesh m;
+    bool havePoints = false, haveFaces = false;
+    std::vector<long> cellTypes;
+    while (!ts.done()) {
+        const Token& key = ts.next("a keyword");
+        if (key.text == "DATASET") {
+            const Token& kind = ts.next("the dataset type");
+            if (kind.text != "POLYDATA" && kind.text != "UNSTRUCTURED_GRID")
+                throw InputError(fmt::format("{}:{}: dataset {} is not read (POLYDATA or UNSTRUCTURED_GRID)", path, kind.line, kind.text));
+        } else if (key.text == "POINTS") {
+            const long n = ts.index("the number of points");
+            ts.next("the point data type");
+            m.X.resize(3, n);
+            for (long i = 0; i < n; ++i)
+                for (int c = 0; c < 3; ++c) m.X(c, i) = ts.number("a point coordinate");
+            havePoints = true;
+        } else if (key.text == "POLYGONS" || key.text == "CELLS") {
+            const long a = ts.index("the number of cells");
+            const long b = ts.index("the size of the cell list");
+            std::vector<long> offsets, connectivity;
+            if (!ts.done() && ts.tokens[ts.pos].text == "OFFSETS") {  // VTK 5.1: offsets and connectivity arrays
+                ts.pos += 2;
+                for (long i = 0; i < a; ++i) offsets.push_back(ts.index("a cell offset"));
+                if (ts.next("CONNECTIVITY").text != "CONNECTIVITY") throw InputError(fmt::format("{}: CONNECTIVITY expected after OFFSETS", path));
+                ts.next("the connectivity data type");
+                for (long i = 0; i < b; ++i) connectivity.push_back(ts.index("a vertex index"));
+            } else {
+                offsets.push_back(0);
+                for (long i = 0; i < a; ++i) {
+                    const long k = ts.index("the number of cell vertices");
+                    for (long j = 0; j < k; ++j) connectivity.push_back(ts.index("a vertex index"));
+                    offsets.push_back(static_cast<long>(connectivity.size()));
+                }
+            }
+            const long nf = static_cast<long>(offsets.size()) - 1;
+            m.F.resize(3, std::max(0L, nf));
+            for (long f = 0; f < nf; ++f) {
+                if (offsets[f + 1] - offsets[f] != 3) throw InputError(fmt::format("{}: cell {} is not a triangle", path, f));
+                for (int c = 0; c < 3; ++c) m.F(c, f) = static_cast<int>(connectivity[offsets[f] + c]);
+            }
+            haveFaces = true;
+        } else if (key.text == "CELL_TYPES") {
+            const long n = ts.index("the number of cell types");
+            for (long i = 0; i < n; ++i) cellTypes.push_back(ts.index("a cell type"));
+        } else if (key.text == "POINT_DATA" || key.text == "CELL_DATA" || key.text == "METADATA" || key.text == "FIELD") {
+            break;  // per-vertex fields are not part of the mesh
+        } else {
+            throw InputError(fmt::format("{}:{}: unexpected '{}' in a legacy VTK file", path, key.line, key.text));
+        }
+    }
+    if (!havePoints || !haveFaces) throw InputError(fmt::format("{}: the VTK file needs POINTS and POLYGONS (or triangle CELLS)", path));
+    for (long t : cellTypes)
+        if (t != 5) throw InputError(fmt::format("{}: cell type {} is not a triangle (5)", path, t));
+    for (Eigen::Index f = 0; f < m.F.cols(); ++f)
+        for (int c = 0; c < 3; ++c) checkFaceIndex(ts, m.F(c, f), m.X.cols());
+    return m;
+}
+
+bool hasExtension(const std::string& path, const char* ext) {
+    const std::string e(ext);
+    return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+}
+
+}  // namespace
+
+Mesh readMesh(const std::string& path) {
+    if (hasExtension(path, ".off")) return readOff(path);
+    Mesh m;
+    if (hasExtension(path, ".ply"))
+        m = readPly(path);
+    else if (hasExtension(path, ".vtk"))
+        m = readVtk(path);
+    else
+        throw InputError(fmt::format("{}: unknown mesh format (the extension must be .off, .ply or .vtk)", path));
+    MeshSource source;
+    source.path = path;
+    validateClosedManifold(m, &source);
+    return m;
+}
+
 void writeOff(const std::string& path, const Mesh& mesh) {
     auto out = openForWriting(path);
     out << "OFF\n" << mesh.numVertices() << ' ' << mesh.numFaces() << " 0\n";

@@ -19,6 +19,12 @@ struct MeshSource {
 /// naming the file, line and problem.
 Mesh readOff(const std::string& path);
 
+/// Reads an ASCII triangle mesh by its extension: .off (readOff), .ply (ASCII PLY: x, y, z of the
+/// vertex element, the vertex_indices list of the face element), .vtk (legacy ASCII POLYDATA with
+/// POLYGONS, or UNSTRUCTURED_GRID with triangle CELLS in the 4.2 or 5.1 layout). Validated like
+/// readOff; InputError naming the file and the problem (binary files, other cell types, ...).
+Mesh readMesh(const std::string& path);
+
 /// Parses an OFF file without topological validation (for tools that inspect broken meshes).
 Mesh parseOff(const std::string& path, MeshSource* source = nullptr);
 

@@ -156,6 +156,7 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
             res.converged = true;
             break;
         }
+        if (opt.interruptCheck) opt.interruptCheck();
         if (deadlinePassed(opt.deadline)) {
             res.message = fmt::format("time limit reached after {} iterations, gradient norm {:.3g} > {:.3g}",
                                       res.iterations, res.gradientNorm, opt.gradientTolerance);

@@ -27,6 +27,9 @@ struct MinimizeOptions {
     /// Stop (not converged) once this instant has passed: a wall-time budget shared by several
     /// minimisations (a campaign cell's --cell-time-limit).
     std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+    /// Called once per iteration from the calling thread when set; a front end throws from it to
+    /// abandon the run (Ctrl-C in the Python module).
+    std::function<void()> interruptCheck;
 };
 
 /// Whether a deadline has passed (the default, time_point::max(), never does and reads no clock).

@@ -133,6 +133,7 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
     Vertices Xnew(3, X.cols());
 
     while (t < opt.tEnd * (1 - 1e-14)) {
+        if (opt.inner.interruptCheck) opt.inner.interruptCheck();
         if (deadlinePassed(opt.inner.deadline)) {
             res.message = fmt::format("time limit reached at t = {:.6g}", t);
             return res;

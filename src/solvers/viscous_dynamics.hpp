@@ -50,7 +50,12 @@ struct ViscousDynamicsOptions {
     /// isotropic; the blocks carry their edge directions, which dominate the early, friction-bound
     /// steps. A sum of two symmetric positive definite operators, so still one.
     double blockJacobiWeight = 0.0;
-    MinimizeOptions inner = {1e-8, 2000, 12, 0.0};  ///< per-step minimisation (gradient in force units)
+    MinimizeOptions inner = [] {
+        MinimizeOptions o;
+        o.gradientTolerance = 1e-8;
+        o.maxIterations = 2000;
+        return o;
+    }();  ///< per-step minimisation (gradient in force units)
     AreaVolumeConstraint constraint;  ///< exact area/volume constraints during the motion (none by default)
 };
 

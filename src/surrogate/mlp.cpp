@@ -267,6 +267,40 @@ void Mlp::forward(const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::Ref<Eigen::
     }
 }
 
+Eigen::MatrixXd Mlp::inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& G) const {
+    checkShape("input", X.rows(), X.cols(), numInputs(), X.cols());
+    checkShape("output weight", G.rows(), G.cols(), numOutputs(), X.cols());
+    const Eigen::Index n = X.cols();
+    const int L = numLayers();
+    Eigen::MatrixXd out(numInputs(), n);
+    const Eigen::Index blocks = (n + kBlockColumns - 1) / kBlockColumns;
+    const int threads = static_cast<int>(std::min<Eigen::Index>(omp_get_max_threads(), blocks));
+    const SerialEigenScope serial;
+#pragma omp parallel num_threads(std::max(threads, 1)) if (threads > 1)
+    {
+        std::vector<Eigen::MatrixXd> a(L);  // a[l] = a_l, the hidden activations (l = 1..L-1)
+        Eigen::MatrixXd delta, back;
+#pragma omp for schedule(static)
+        for (Eigen::Index b = 0; b < blocks; ++b) {
+            const Eigen::Index c0 = b * kBlockColumns, nc = std::min(kBlockColumns, n - c0);
+            for (int l = 1; l < L; ++l) {
+                a[l].resize(sizes_[l], nc);
+                if (l == 1)
+                    affineLayer(weights(0), biases(0), X.middleCols(c0, nc), a[1], true);
+                else
+                    affineLayer(weights(l - 1), biases(l - 1), a[l - 1], a[l], true);
+            }
+            delta = G.middleCols(c0, nc);
+            for (int l = L - 1; l >= 1; --l) {
+                back.noalias() = weights(l).transpose() * delta;
+                delta = back.array() * (1.0 - a[l].array().square());
+            }
+            out.middleCols(c0, nc).noalias() = weights(0).transpose() * delta;
+        }
+    }
+    return out;
+}
+
 double Mlp::loss(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& Y) const {
     checkShape("input", X.rows(), X.cols(), numInputs(), X.cols());
     checkShape("target", Y.rows(), Y.cols(), numOutputs(), X.cols());

@@ -101,6 +101,12 @@ public:
                            const Eigen::Ref<const Eigen::MatrixXd>& Y, Eigen::VectorXd& grad,
                            MlpWorkspace& ws) const;
 
+    /// Input gradient of sum_i G_ij NN(X)_ij for every column j, i.e. J_j^T G_j with J_j = dNN/dx at
+    /// column j (n_0 x n; G is n_L x n). Back-propagation through the layers: delta_{L-1} = G,
+    /// delta_{l-1} = (W_l^T delta_l) .* (1 - a_l^2), result W_0^T delta_0. Double precision, in blocks
+    /// of kBlockColumns columns, OpenMP-parallel over blocks like forward().
+    Eigen::MatrixXd inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& G) const;
+
     static constexpr Eigen::Index kBlockColumns = 256;
 
 private:

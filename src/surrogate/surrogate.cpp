@@ -101,6 +101,45 @@ Eigen::MatrixXd Surrogate::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) 
     return y;
 }
 
+Eigen::MatrixXd Surrogate::inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::MatrixXd>& w) const {
+    expectRows(x, 6, "surrogate gradient");
+    if (w.rows() != 6 || w.cols() != x.cols())
+        throw InputError(fmt::format("surrogate gradient: output weights are {} x {}, expected 6 x {}", w.rows(), w.cols(), x.cols()));
+    Eigen::MatrixXd g = Eigen::MatrixXd::Zero(6, x.cols());
+    if (!w.topRows(3).isZero(0.0)) {
+        const Eigen::MatrixXd ge = equilibrium.inputGradient(pickRows(x, kEqRows), w.topRows(3));
+        for (int k = 0; k < 2; ++k) g.row(kEqRows[k]) += ge.row(k);
+    }
+    if (!w.middleRows(3, 2).isZero(0.0)) {
+        const Eigen::MatrixXd gs = stretching.inputGradient(pickRows(x, kStretchRows), w.middleRows(3, 2));
+        for (int k = 0; k < 5; ++k) g.row(kStretchRows[k]) += gs.row(k);
+    }
+    if (!w.row(5).isZero(0.0)) {
+        // tc = h(x) etam / mu with h the relaxation network's output tc mu / etam.
+        const Eigen::MatrixXd xr = pickRows(x, kRelaxRows);
+        const Eigen::ArrayXd h = relaxation.evaluate(xr).row(0).transpose().array();
+        const Eigen::ArrayXd mu = x.row(1).transpose().array(), etam = x.row(4).transpose().array();
+        const Eigen::ArrayXd w5 = w.row(5).transpose().array();
+        const Eigen::MatrixXd gr = relaxation.inputGradient(xr, (w5 * etam / mu).matrix().transpose());
+        for (int k = 0; k < 5; ++k) g.row(kRelaxRows[k]) += gr.row(k);
+        g.row(4).array() += (w5 * h / mu).transpose();
+        g.row(1).array() -= (w5 * h * etam / mu.square()).transpose();
+    }
+    return g;
+}
+
+Eigen::MatrixXd Surrogate::inputJacobian(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    expectRows(x, 6, "surrogate Jacobian");
+    Eigen::MatrixXd J(36, x.cols());
+    Eigen::MatrixXd w = Eigen::MatrixXd::Zero(6, x.cols());
+    for (int i = 0; i < 6; ++i) {
+        w.row(i).setOnes();
+        J.middleRows(6 * i, 6) = inputGradient(x, w);
+        w.row(i).setZero();
+    }
+    return J;
+}
+
 std::vector<bool> outsideTrainingBox(const Eigen::Ref<const Eigen::MatrixXd>& x) {
     const PriorRange box[6] = {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam, kPriorFext};
     std::vector<bool> out(x.cols(), false);

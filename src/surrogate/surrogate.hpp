@@ -34,6 +34,16 @@ struct Surrogate {
     Eigen::VectorXd relaxationTime(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
     /// All six outputs for the six inputs, 6 x n -> 6 x n.
     Eigen::MatrixXd evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+
+    /// Vector-Jacobian product: for every column j of x (6 x n), sum_i w_ij dy_i/dx (6 x n), y the six
+    /// outputs of evaluate() and w 6 x n output weights (e.g. dlogL/dy of a likelihood). Always
+    /// double precision (TrainedNetwork::inputGradient). tc = g(x) etam / mu adds
+    /// w_5 g / mu to d/detam and -w_5 g etam / mu^2 to d/dmu. Networks whose weights are all zero
+    /// are skipped.
+    Eigen::MatrixXd inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::MatrixXd>& w) const;
+    /// Jacobians of the six outputs with respect to the six inputs, 36 x n: row 6 i + j of column k is
+    /// dy_i/dx_j at column k of x (so each column is the row-major 6 x 6 Jacobian).
+    Eigen::MatrixXd inputJacobian(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
 };
 
 /// For each column of a 6 x n input batch, whether it lies outside the training box of

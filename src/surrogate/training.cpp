@@ -300,4 +300,47 @@ Eigen::MatrixXd TrainedNetwork::evaluate(const Eigen::Ref<const Eigen::MatrixXd>
     return Y;
 }
 
+Eigen::MatrixXd TrainedNetwork::inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& X,
+                                              const Eigen::Ref<const Eigen::MatrixXd>& G) const {
+    if (X.rows() != net.numInputs() || G.rows() != net.numOutputs() || G.cols() != X.cols())
+        throw InputError(fmt::format("network input gradient: inputs {} x {} and output weights {} x {}, expected {} and {} rows "
+                                     "with the same number of columns", X.rows(), X.cols(), G.rows(), G.cols(),
+                                     net.numInputs(), net.numOutputs()));
+    const Eigen::MatrixXd Xs = inputScaling.apply(applyTransforms(X, inputTransforms));
+    // Output weights in the standardised network space: G .* dy/dy' .* s_y, y' = s_y NN + m_y.
+    Eigen::MatrixXd Gs = G;
+    bool transformedOutput = false;
+    for (VariableTransform t : outputTransforms) transformedOutput = transformedOutput || t != VariableTransform::Identity;
+    if (transformedOutput) {
+        Eigen::MatrixXd Yt = net.forward(Xs);
+        if (!ensemble.empty()) {
+            Eigen::MatrixXd Yk(Yt.rows(), Yt.cols());
+            for (const EnsembleMember& m : ensemble) {
+                m.net.forward(Xs, Yk);
+                Yt += Yk;
+            }
+            Yt /= double(1 + ensemble.size());
+        }
+        outputScaling.invertInPlace(Yt);
+        for (std::size_t i = 0; i < outputTransforms.size() && Eigen::Index(i) < Gs.rows(); ++i) {
+            const Eigen::Index r = Eigen::Index(i);
+            if (outputTransforms[i] == VariableTransform::Log) Gs.row(r).array() *= Yt.row(r).array().exp();
+            if (outputTransforms[i] == VariableTransform::Sqrt) Gs.row(r).array() *= 2.0 * Yt.row(r).array().max(0.0);
+        }
+    }
+    Gs.array().colwise() *= outputScaling.sd.array();
+    Eigen::MatrixXd g = net.inputGradient(Xs, Gs);
+    if (!ensemble.empty()) {
+        for (const EnsembleMember& m : ensemble) g += m.net.inputGradient(Xs, Gs);
+        g /= double(1 + ensemble.size());
+    }
+    g.array().colwise() /= inputScaling.sd.array();
+    for (std::size_t i = 0; i < inputTransforms.size() && Eigen::Index(i) < g.rows(); ++i) {
+        const Eigen::Index r = Eigen::Index(i);
+        if (inputTransforms[i] == VariableTransform::Log) g.row(r).array() /= X.row(r).array();
+        if (inputTransforms[i] == VariableTransform::Sqrt) g.row(r).array() /= 2.0 * X.row(r).array().sqrt();
+    }
+    return g;
+}
+
 }  // namespace trbc

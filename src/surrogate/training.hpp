@@ -134,6 +134,13 @@ struct TrainedNetwork {
     /// OpenMP-parallel like Mlp::forward (whose precision option it passes on).
     Eigen::MatrixXd evaluate(const Eigen::Ref<const Eigen::MatrixXd>& X,
                              Precision precision = Precision::Double) const;
+
+    /// Input gradient of sum_i G_ij y_ij for every column j of physical inputs X (numInputs x n),
+    /// G numOutputs x n, in double precision: back-propagation through the output transform
+    /// (dy/dy' = 1, y for log, 2 max(0, y') for sqrt), the output scaling (s_y), the network (mean
+    /// over the ensemble members, Mlp::inputGradient), the input scaling (1/s_x) and the input
+    /// transform (1, 1/x for log, 1/(2 sqrt x) for sqrt). Returns numInputs x n.
+    Eigen::MatrixXd inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& G) const;
 };
 
 struct TrainingResult {

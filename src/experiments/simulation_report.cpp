@@ -1,0 +1,128 @@
+#include "experiments/simulation_report.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "core/error.hpp"
+#include "experiments/reference_protocol.hpp"
+
+namespace trbc {
+
+nlohmann::json sfsJson(const StressFreeState& s) {
+    return {{"v", s.v},
+            {"v_imposed", s.vTarget},
+            {"level", s.level},
+            {"reduced_volume", s.reducedVolume},
+            {"energy_kappa", s.energy},
+            {"max_tangential_force_kappa_per_R", s.gradientNorm},
+            {"tension_kappa_per_R2", s.tension},
+            {"pressure_kappa_per_R3", s.pressure},
+            {"iterations", s.iterations},
+            {"force_evaluations", s.evaluations},
+            {"converged", s.converged},
+            {"wall_s", s.wallSeconds},
+            {"principal_extents_rel", {s.principalExtents[0], s.principalExtents[1], s.principalExtents[2]}},
+            {"from_cache", s.fromCache}};
+}
+
+nlohmann::json staticSolverJson(const SolverDiagnostics& d) {
+    return {{"converged", d.converged},
+            {"iterations", d.iterations},
+            {"force_evaluations", d.evaluations},
+            {"wall_s", d.wallSeconds},
+            {"max_tangential_force_pN", d.gradientNorm},
+            {"tension_pN_per_um", d.tension},
+            {"pressure_Pa", d.pressure},
+            {"energy_J", d.energy / cell::joule},
+            {"message", d.message}};
+}
+
+ExperimentSet parseExperimentSet(const std::vector<std::string>& names, const std::string& option) {
+    ExperimentSet s{false, false, false};
+    for (const std::string& item : names) {
+        if (item == "eq")
+            s.equilibrium = true;
+        else if (item == "stretch")
+            s.stretching = true;
+        else if (item == "relax")
+            s.relaxation = true;
+        else
+            throw InputError(fmt::format("{}: unknown experiment '{}' (valid: eq, stretch, relax)", option, item));
+    }
+    s.equilibrium = true;  // stretching and relaxation start from the equilibrium shape
+    return s;
+}
+
+nlohmann::json simulationParametersJson(const CellParameters& p, double fextPn) {
+    return {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()},
+            {"b2", p.b2}, {"etam_Pa_s_um", p.etam}, {"Fext_pN", fextPn}};
+}
+
+nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level, const ExperimentSet& which,
+                              const SampleResult& s, double wallSeconds) {
+    nlohmann::json j;
+    j["parameters"] = simulationParametersJson(p, fextPn);
+    nlohmann::json obs = {{"D_um", nullptr}, {"hmin_um", nullptr}, {"hmax_um", nullptr},
+                          {"D0_um", nullptr}, {"D1_um", nullptr}, {"tc_s", nullptr}};
+    nlohmann::json diag;
+    diag["sfs"] = sfsJson(s.sfs);
+    const ReferenceProtocolSteps ref = referenceProtocolSteps(p, level);
+    long evaluations = s.sfs.fromCache ? 0 : s.sfs.evaluations;
+    double refSteps = s.sfs.fromCache ? 0.0 : ref.sfs;
+    diag["sfs"]["reference_protocol_steps"] = ref.sfs;
+    obs["D_um"] = s.equilibrium.observables.D;
+    obs["hmin_um"] = s.equilibrium.observables.hmin;
+    obs["hmax_um"] = s.equilibrium.observables.hmax;
+    diag["equilibrium"] = staticSolverJson(s.equilibrium.diagnostics);
+    diag["equilibrium"]["reference_protocol_steps"] = ref.equilibrium;
+    evaluations += s.equilibrium.diagnostics.evaluations;
+    refSteps += ref.equilibrium;
+    if (which.stretching) {
+        obs["D0_um"] = s.stretching.front().observables.D0;
+        obs["D1_um"] = s.stretching.front().observables.D1;
+        diag["stretching"] = staticSolverJson(s.stretching.front().diagnostics);
+        diag["stretching"]["reference_protocol_steps"] = ref.stretchPerForce;
+        evaluations += s.stretching.front().diagnostics.evaluations;
+        refSteps += ref.stretchPerForce;
+        if (s.stretching.size() > 1) {
+            nlohmann::json c = nlohmann::json::array();
+            int curveEvaluations = 0;
+            for (std::size_t k = 1; k < s.stretching.size(); ++k) {
+                const auto& pt = s.stretching[k];
+                c.push_back({{"Fext_pN", pt.fext}, {"D0_um", pt.observables.D0}, {"D1_um", pt.observables.D1},
+                             {"force_evaluations", pt.diagnostics.evaluations}});
+                curveEvaluations += pt.diagnostics.evaluations;
+            }
+            j["stretching_curve"] = c;
+            diag["stretching_curve"] = {{"levels", s.stretching.size() - 1},
+                                        {"force_evaluations", curveEvaluations},
+                                        {"reference_protocol_steps", ref.stretchPerForce * (s.stretching.size() - 1)}};
+        }
+    }
+    if (which.relaxation) {
+        const RelaxationResult& r = s.relaxation;
+        obs["tc_s"] = r.fit.tc;
+        j["relaxation_fit"] = {{"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
+                               {"pre_stretch_force_pN", r.preStretchForce}};
+        diag["relaxation"] = {{"pre_stretch", staticSolverJson(r.preStretch)},
+                              {"converged", r.dynamics.converged},
+                              {"time_steps", r.dynamics.iterations},
+                              {"rejected_steps", r.rejectedSteps},
+                              {"force_evaluations", r.dynamics.evaluations + r.preStretch.evaluations},
+                              {"wall_s", r.dynamics.wallSeconds + r.preStretch.wallSeconds},
+                              {"reference_protocol_steps", ref.preStretch + ref.relaxation}};
+        evaluations += r.dynamics.evaluations + r.preStretch.evaluations;
+        refSteps += ref.preStretch + ref.relaxation;
+    }
+    diag["total"] = {{"force_evaluations", evaluations},
+                     {"reference_protocol_steps", refSteps},
+                     {"reduction_factor", refSteps / std::max<long>(1, evaluations)},
+                     {"wall_s", wallSeconds}};
+    j["status"] = "ok";
+    j["observables"] = obs;
+    j["diagnostics"] = diag;
+    return j;
+}
+
+}  // namespace trbc

@@ -1,0 +1,31 @@
+#pragma once
+// One forward-model sample as the JSON object that `trbc simulate` prints (parameters, observables,
+// diagnostics per experiment, stretching curve, relaxation fit), shared by the CLI and the Python
+// module so that both report the same numbers.
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "experiments/experiments.hpp"
+
+namespace trbc {
+
+/// Diagnostics of a stress-free state (dimensionless units of MODEL.md D.2).
+nlohmann::json sfsJson(const StressFreeState& s);
+/// Diagnostics of a static state (equilibrium, stretching): pN, pN/um, Pa, J, s.
+nlohmann::json staticSolverJson(const SolverDiagnostics& d);
+
+/// The experiments named in `names` (eq, stretch, relax); the equilibrium is always run because
+/// stretching and relaxation start from it. InputError "<option>: unknown experiment ..." otherwise.
+ExperimentSet parseExperimentSet(const std::vector<std::string>& names, const std::string& option);
+
+/// {"v", "mu_uN_per_m", "FvK", "kb_J", "b2", "etam_Pa_s_um", "Fext_pN"}.
+nlohmann::json simulationParametersJson(const CellParameters& p, double fextPn);
+
+/// "parameters", "status" ("ok"), "observables" (D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s; null for
+/// an experiment not run), "diagnostics" (per experiment, with the steps of the reference's protocol,
+/// and the totals with `wallSeconds`), "stretching_curve" and "relaxation_fit" when they apply.
+nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level, const ExperimentSet& which,
+                              const SampleResult& s, double wallSeconds);
+
+}  // namespace trbc

@@ -1,0 +1,344 @@
+"""trbc from Python: the red-blood-cell membrane model, its surrogates, the hierarchical Bayesian
+inference and the Stokes flows of the trbc C++ library, with numpy arrays in and out.
+
+Units follow the project's canonical names: v (reduced volume), mu_uN_per_m (uN/m), FvK
+(mu R_A^2 / kb), kb_J (J), b2, etam_Pa_s_um (Pa s um), Fext_pN (pN) in; D_um, hmin_um, hmax_um,
+D0_um, D1_um (um) and tc_s (s) out. Bad input raises ValueError with the library's message
+(naming the parameter); a solver that does not converge raises trbc.NumericalError. Long calls
+release the GIL and stop on Ctrl-C (KeyboardInterrupt).
+
+See docs/PYTHON.md for the whole API.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterable, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _core
+from ._core import Mesh, NumericalError, DataSet
+
+__version__ = _core.__version__
+
+__all__ = [
+    "Mesh", "NumericalError", "DataSet", "Surrogate", "Posterior", "membrane_energy", "simulate", "sfs",
+    "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
+    "load_inference", "predict", "flow_shear", "INPUT_NAMES", "OUTPUT_NAMES",
+]
+
+INPUT_NAMES = tuple(_core.surrogate_input_names)    #: v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN
+OUTPUT_NAMES = tuple(_core.surrogate_output_names)  #: D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s
+
+_PathLike = Union[str, os.PathLike]
+
+
+def data_dir(*parts: str) -> Path:
+    """The data shipped with the package (surrogates, experiments, examples): $TRBC_DATA_DIR if
+    set, else the copy installed inside the package."""
+    base = Path(os.environ.get("TRBC_DATA_DIR", Path(__file__).resolve().parent / "data"))
+    return base.joinpath(*parts)
+
+
+# ---- meshes and the membrane energy --------------------------------------------------------------
+
+def membrane_energy(mesh: Mesh, reference: Optional[Mesh] = None, **moduli) -> dict:
+    """Energy, energy terms and per-vertex forces of a mesh (the numbers of `trbc forces`).
+
+    Lengths and moduli are in the mesh's own units; every modulus defaults to 0 (term off):
+    kb, C0 (Juelicher bending 2 kb sum A_i (H_i - C0/2)^2), kad, DA0 (area difference),
+    ka, a3, a4, mu, b1, b2 (Lim in-plane elasticity against `reference`, the stress-free mesh),
+    kA with A0 and kV with V0 (penalties kA/2 (A-A0)^2/A0, kV/2 (V-V0)^2/V0).
+
+    Returns {"energy": float, "terms": {"bending": .., "lim": .., ...} (terms that are on),
+    "forces": (n, 3) array, -dU/dx}.
+    """
+    return _core.membrane_energy(mesh, reference, **moduli)
+
+
+# ---- the forward model ---------------------------------------------------------------------------
+
+def simulate(v: float = 0.95, mu_uN_per_m: float = 4.0, FvK: Optional[float] = None, b2: float = 1.5,
+             etam_Pa_s_um: float = 0.7, Fext_pN: float = 100.0, level: int = 4,
+             experiments: Sequence[str] = ("eq", "stretch", "relax"), *, kb_J: Optional[float] = None,
+             force_curve: Optional[Sequence[float]] = None, allow_outside_prior: bool = False, threads: int = 1,
+             cache: bool = True, cache_dir: Optional[_PathLike] = None, overdamped: bool = False,
+             in_plane_axis: str = "farthest-vertex") -> dict:
+    """One forward-model sample, as `trbc simulate`: stress-free state, equilibrium shape,
+    two-bead stretching at Fext_pN and relaxation (MODEL.md D-E).
+
+    Parameters: v (reduced volume of the SFS, prior [0.65, 1]), mu_uN_per_m (uN/m, [1, 10]),
+    FvK (mu R_A^2 / kb, [10, 1000]; default 250) or kb_J (J, replaces FvK), b2 ([0, 4]),
+    etam_Pa_s_um (Pa s um, [0.1, 1]), Fext_pN (pN per bead, [0, 200]); level: icosphere level of
+    the meshes (2..6, Nv = 10 4^level + 2); experiments: subset of "eq", "stretch", "relax";
+    force_curve: extra forces (pN) for a whole stretching curve. The SFS is cached on disk like the
+    CLI's ($TRBC_CACHE_DIR or ~/.cache/trbc; cache=False: none).
+
+    Returns the CLI's JSON object as a dict ("parameters", "observables" with D_um, hmin_um,
+    hmax_um, D0_um, D1_um, tc_s (None for an experiment not run), "diagnostics",
+    "stretching_curve", "relaxation_fit", "status", "provenance") plus numpy arrays and meshes:
+    "equilibrium_profile" (r_um, zlow_um, zhigh_um, h_um), "stretching_curve_arrays" (Fext_pN,
+    D0_um, D1_um), "relaxation" (t_s, L_um, W_um, z) and "shapes" (Mesh objects in um: sfs,
+    equilibrium, stretched = [(Fext_pN, Mesh), ...], relaxation_release, relaxation_end).
+    Raises trbc.NumericalError when a stage does not converge.
+    """
+    if isinstance(experiments, str):
+        experiments = experiments.split(",")
+    return _core.simulate(v=float(v), mu_uN_per_m=float(mu_uN_per_m), FvK=None if FvK is None else float(FvK),
+                          kb_J=None if kb_J is None else float(kb_J), b2=float(b2), etam_Pa_s_um=float(etam_Pa_s_um),
+                          Fext_pN=float(Fext_pN), level=int(level), experiments=list(experiments),
+                          force_curve=[float(f) for f in (force_curve or [])], allow_outside_prior=bool(allow_outside_prior),
+                          threads=int(threads), cache=bool(cache), cache_dir=None if cache_dir is None else str(cache_dir),
+                          overdamped=bool(overdamped), in_plane_axis=in_plane_axis)
+
+
+def sfs(v: float, level: int = 4, *, tol: float = 1e-5, preconditioner: str = "multigrid", cache: bool = True,
+        cache_dir: Optional[_PathLike] = None) -> dict:
+    """The stress-free state of the cytoskeleton for reduced volume v (MODEL.md D), as `trbc sfs`.
+
+    Returns {"mesh": Mesh in um at the cell area 135 um^2, "diagnostics": dict (dimensionless
+    units of MODEL.md D.2: energy_kappa, iterations, converged, ...)}. tol: largest tangential force
+    at convergence, kappa / R'_A.
+    """
+    return _core.sfs(v=float(v), level=int(level), tol=float(tol), preconditioner=preconditioner, cache=bool(cache),
+                     cache_dir=None if cache_dir is None else str(cache_dir))
+
+
+# ---- surrogates ----------------------------------------------------------------------------------
+
+def _as_inputs(x) -> np.ndarray:
+    """(n, 6) float64 C-contiguous inputs from an array or a dict of arrays with the canonical names
+    (kb_J instead of FvK is accepted: FvK = mu R_A^2 / kb)."""
+    if isinstance(x, Mapping):
+        missing = [k for k in INPUT_NAMES if k not in x and not (k == "FvK" and "kb_J" in x)]
+        if missing:
+            raise ValueError(f"x: missing input(s) {', '.join(missing)} (inputs: {', '.join(INPUT_NAMES)}; kb_J may replace FvK)")
+        cols = []
+        for k in INPUT_NAMES:
+            if k == "FvK" and "FvK" not in x:
+                mu = np.asarray(x["mu_uN_per_m"], dtype=float)
+                cols.append(mu * 10.742958658 / (np.asarray(x["kb_J"], dtype=float) * 1e18))
+            else:
+                cols.append(np.asarray(x[k], dtype=float))
+        cols = np.broadcast_arrays(*[np.atleast_1d(c) for c in cols])
+        return np.ascontiguousarray(np.stack(cols, axis=1))
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim == 1 and a.shape[0] == 6:
+        a = a[None, :]
+    return np.ascontiguousarray(a)
+
+
+class Surrogate(_core.Surrogate):
+    """The three surrogate networks (SURROGATE.md 3) as one model of the six outputs.
+
+    Surrogate(model_dir=None, precision="double"): model_dir holds equilibrium.json,
+    stretching.json and relaxation.json (default: the shipped networks). precision "single"
+    evaluates in float (about 3x faster, ~1e-6 relative difference), as `--single-precision`.
+    """
+
+    input_names = INPUT_NAMES
+    output_names = OUTPUT_NAMES
+
+    def __init__(self, model_dir: Optional[_PathLike] = None, precision: str = "double"):
+        super().__init__(str(model_dir if model_dir is not None else data_dir("surrogates")), precision)
+
+    def evaluate_array(self, x, threads: int = 0) -> np.ndarray:
+        """Outputs as one (n, 6) array (columns OUTPUT_NAMES) for inputs x (n, 6) (columns
+        INPUT_NAMES) or a dict of arrays. A float64 C-contiguous array is read without a copy;
+        threads > 0 sets the OpenMP threads of this call."""
+        return self._evaluate(_as_inputs(x), threads)
+
+    def evaluate(self, x, threads: int = 0) -> dict:
+        """{name: (n,) array} of D_um, hmin_um, hmax_um, D0_um, D1_um (um) and tc_s (s) for inputs
+        x: an (n, 6) array with columns v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN, or a dict of
+        arrays with those names (kb_J in J may replace FvK). The arrays are views of one result."""
+        y = self.evaluate_array(x, threads)
+        return {name: y[:, k] for k, name in enumerate(OUTPUT_NAMES)}
+
+    def gradient(self, x, weights=None, threads: int = 0) -> np.ndarray:
+        """Derivatives of the outputs with respect to the inputs (back-propagation through the
+        networks, double precision). Without weights: the Jacobians, (n, 6, 6) with
+        J[k, i, j] = d output_i / d input_j (units: output unit per input unit). With weights
+        (n, 6): the vector-Jacobian products sum_i w_i d output_i / d input_j, (n, 6)."""
+        w = None if weights is None else _as_inputs(weights)
+        return self._gradient(_as_inputs(x), w, threads)
+
+    @staticmethod
+    def outside_training_box(x) -> np.ndarray:
+        """(n,) bool: whether each input row lies outside the training box (an extrapolation)."""
+        return _core.outside_training_box(_as_inputs(x))
+
+
+# ---- inference -----------------------------------------------------------------------------------
+
+def load_data_sets(data: Optional[_PathLike] = None) -> list:
+    """The experimental data sets (INFERENCE.md 2) of a directory (default: the shipped seven,
+    evans_fung_1972, mills_2004, suresh_2005, hochmuth_1979_cell1..4), as trbc.DataSet objects."""
+    return _core.load_data_sets(str(data if data is not None else data_dir("experiments")))
+
+
+def _data_set(data_set, data: Optional[_PathLike] = None) -> DataSet:
+    if isinstance(data_set, DataSet):
+        return data_set
+    sets = load_data_sets(data)
+    for d in sets:
+        if d.name == data_set:
+            return d
+    raise ValueError(f"data_set: no data set named '{data_set}' (valid: {', '.join(d.name for d in sets)})")
+
+
+def phase1_log_posterior(data_set, surrogate: Optional[Surrogate] = None, data: Optional[_PathLike] = None):
+    """The phase-1 log-posterior log pi_i(theta) + log L_i(theta) of one data set (INFERENCE.md 3),
+    on the surrogate, as a callable: f(theta) with theta (d,) -> float or (n, d) -> (n,) array,
+    -inf outside the prior's support.
+
+    theta is in the physical units of the samples files, columns f.names: equilibrium (v, FvK,
+    sigma_rel), stretching (v, mu_uN_per_m, kb_J, b2, sigma0_um, sigma1_um), relaxation
+    (etam_over_mu_s, sigma_tc_rel, tc_s, z0, zinf, sigma_z). The density is that of trbc's own
+    sampler, whose variable is kb in 1e-18 J (a constant offset against a density in J). Also
+    f.log_prior, f.log_likelihood, f.lower, f.upper (prior support) and f.sample_prior(n, seed).
+    No gradient: the likelihoods have none in the library (Surrogate.gradient gives the networks').
+    """
+    return _core.Phase1Posterior(surrogate if surrogate is not None else Surrogate(), _data_set(data_set, data))
+
+
+def hierarchical_log_posterior(phase1_samples: Mapping[str, np.ndarray], data: Optional[_PathLike] = None):
+    """The phase-2 log-posterior of the population hyper-parameters psi (INFERENCE.md 4.4),
+    log p(psi) + sum_i log b_i(psi), from the phase-1 samples of each data set
+    ({data set name: (N, d) array in the units of phase1_log_posterior}, e.g. from trbc.infer).
+    Callable on psi (10,) or (n, 10), columns f.names (mean_v, sd_v, ...)."""
+    by_name = {d.name: d for d in load_data_sets(data)}
+    sets, arrays = [], []
+    for name, samples in phase1_samples.items():
+        if name not in by_name:
+            raise ValueError(f"phase1_samples: no data set named '{name}' (valid: {', '.join(by_name)})")
+        s = samples.samples if isinstance(samples, Posterior) else samples
+        sets.append(by_name[name])
+        arrays.append(np.ascontiguousarray(s, dtype=np.float64))
+    return _core.HierarchicalPosterior(sets, arrays)
+
+
+class Posterior:
+    """Samples of one posterior as written by `trbc infer` (DIR/<phase>/<name>/samples.csv):
+    names (parameters, physical units), samples (N, d), log_likelihood and log_prior (N,).
+    p["v"] gives one column; p.to_dict() all of them."""
+
+    def __init__(self, file: _PathLike):
+        self.file = Path(file)
+        self.name = self.file.parent.name
+        self.phase = self.file.parent.parent.name
+        columns, values = _core.read_samples(str(self.file))
+        extra = [c for c in ("log_likelihood", "log_prior") if c in columns]
+        keep = [k for k, c in enumerate(columns) if c not in extra]
+        self.names = [columns[k] for k in keep]
+        self.samples = np.ascontiguousarray(values[:, keep])
+        self.log_likelihood = values[:, columns.index("log_likelihood")] if "log_likelihood" in columns else None
+        self.log_prior = values[:, columns.index("log_prior")] if "log_prior" in columns else None
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self.names:
+            raise KeyError(f"{name} (parameters: {', '.join(self.names)})")
+        return self.samples[:, self.names.index(name)]
+
+    def __len__(self) -> int:
+        return self.samples.shape[0]
+
+    def to_dict(self) -> dict:
+        return {n: self.samples[:, k] for k, n in enumerate(self.names)}
+
+    def mean(self) -> dict:
+        return {n: float(self.samples[:, k].mean()) for k, n in enumerate(self.names)}
+
+    def __repr__(self) -> str:
+        return f"trbc.Posterior({self.phase}/{self.name}: {len(self)} samples of {', '.join(self.names)})"
+
+
+def load_inference(out: _PathLike) -> dict:
+    """The posteriors of an inference output directory: {"phase1": {name: Posterior}, "phase2":
+    {"hyper": Posterior}, "phase3": {"theta_new": Posterior, name: Posterior}} (phases present)."""
+    out = Path(out)
+    result = {}
+    for phase in ("phase1", "phase2", "phase3"):
+        d = out / phase
+        if d.is_dir():
+            posts = {p.parent.name: Posterior(p) for p in sorted(d.glob("*/samples.csv"))}
+            if posts:
+                result[phase] = posts
+    return result
+
+
+def infer(out: Optional[_PathLike] = None, phase: Union[int, str] = "all", *, samples: int = 50000, seed: int = 0xC0FFEE,
+          data_sets: Optional[Iterable[str]] = None, data: Optional[_PathLike] = None, surrogate: Optional[Surrogate] = None,
+          resume: bool = False, threads: int = 0, progress=None) -> dict:
+    """The hierarchical Bayesian inference of INFERENCE.md with TMCMC/BASIS on the surrogates, as
+    `trbc infer --phase PHASE --samples N --seed S --out OUT` (same runs, seeds and files).
+
+    phase: 1, 2, 3 or "all" (2 and 3 read the earlier phases from out). data_sets: names of a
+    subset of the data sets (phase 1 only). out: output directory (default: a new temporary one).
+    progress: callable receiving one line per stage. Returns load_inference(out) plus "out",
+    "wall_s", "timing" and "phase1_log_evidence".
+    """
+    if out is None:
+        out = tempfile.mkdtemp(prefix="trbc-infer-")
+    first, last = (1, 3) if str(phase) == "all" else (int(phase), int(phase))
+    sets = load_data_sets(data)
+    if data_sets is not None:
+        wanted = list(data_sets)
+        if last > 1:
+            raise ValueError("data_sets: a subset of the data sets can only be used with phase=1")
+        sets = [_data_set(n, data) for n in wanted]
+    Path(out).mkdir(parents=True, exist_ok=True)
+    info = _core.run_inference(str(out), first, last, int(samples), int(seed), surrogate if surrogate is not None else Surrogate(),
+                               sets, bool(resume), int(threads), progress)
+    result = load_inference(out)
+    result.update(info)
+    result["out"] = Path(out)
+    return result
+
+
+def predict(posterior: Union[Posterior, _PathLike], data_set=None, *, surrogate: Optional[Surrogate] = None, grid: int = 100,
+            max_samples: int = 0, seed: int = 1, data: Optional[_PathLike] = None) -> dict:
+    """Posterior predictions (INFERENCE.md 8), as `trbc predict`: every sample through the surrogate
+    (or Hochmuth's law) with its error model. data_set: a name or DataSet for the coverage check
+    (default: the data set named like the posterior, if any).
+
+    Returns {"bands": {observable: {"x", "mean", "q005", "q05", ..., "q995"}}, "coverage": [...],
+    "x_name" (Fext_pN, t_s or "" for the equilibrium), "experiment", "samples_used"}; x in pN or s,
+    observables in um (D0_um, D1_um, D_um, hmin_um, hmax_um) or dimensionless (z = L/W).
+    """
+    path = posterior.file if isinstance(posterior, Posterior) else Path(posterior)
+    if data_set is None:
+        name = path.parent.name if path.name == "samples.csv" else path.name
+        matches = [d for d in load_data_sets(data) if d.name == name]
+        ds = matches[0] if matches else None
+    else:
+        ds = _data_set(data_set, data)
+    return _core.predict(str(path), surrogate if surrogate is not None else Surrogate(), ds, int(grid), int(max_samples), int(seed))
+
+
+# ---- flows ---------------------------------------------------------------------------------------
+
+def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: float = 10.0, *, v: float = 0.94,
+               mu_uN_per_m: float = 4.99, FvK: Optional[float] = None, kb_J: Optional[float] = None, b2: float = 1.84,
+               etam_Pa_s_um: float = 0.69, allow_outside_prior: bool = False, level: int = 3, rotations: float = 10.0,
+               step_tol: float = 1e-3, frame_interval: float = 0.1, dt: Optional[float] = None, max_steps: int = 200000,
+               threads: int = 0, cache: bool = True, cache_dir: Optional[_PathLike] = None) -> dict:
+    """One cell in unbounded simple shear flow (VALIDATION.md 3), as `trbc flow shear`:
+    boundary-integral Stokes flow, membrane forces with membrane viscosity, adaptive BDF2.
+
+    eta_out_mPa_s, eta_in_mPa_s (mPa s), shear_rate_per_s (1/s); the cell (default: the paper's
+    Table 1 means, kb_J = 2.10e-19 J); rotations: duration in rigid-sphere turns 4 pi / rate;
+    frame_interval, dt in 1/rate; step_tol in R_A. Returns {"observables": regime, inclination_deg,
+    swing_amplitude_deg, ttf_4pi_f_over_shear_rate (None unless tank-treading), "time_series":
+    t_s, shear_strain, inclination_deg, orientation_unwrapped_deg, area_drift, volume_drift,
+    centroid_um (k, 3), "parameters", "diagnostics", "final_shape": Mesh (um)}.
+    """
+    return _core.flow_shear(eta_out_mPa_s=float(eta_out_mPa_s), shear_rate_per_s=float(shear_rate_per_s),
+                            eta_in_mPa_s=float(eta_in_mPa_s), v=float(v), mu_uN_per_m=float(mu_uN_per_m),
+                            FvK=None if FvK is None else float(FvK), kb_J=None if kb_J is None else float(kb_J), b2=float(b2),
+                            etam_Pa_s_um=float(etam_Pa_s_um), allow_outside_prior=bool(allow_outside_prior), level=int(level),
+                            rotations=float(rotations), step_tol=float(step_tol), frame_interval=float(frame_interval),
+                            dt=None if dt is None else float(dt), max_steps=int(max_steps), threads=int(threads),
+                            cache=bool(cache), cache_dir=None if cache_dir is None else str(cache_dir))
