@@ -60,17 +60,18 @@ void registerInfer(CLI::App& app) {
     cmd->add_option("--phase", o->phase, "phase to run: 1, 2, 3 or all (2 and 3 read the earlier phases from --out)")
         ->check(CLI::IsMember({"1", "2", "3", "all"}))
         ->capture_default_str();
-    cmd->add_option("--samples", o->samples, "population size N of every TMCMC run (INFERENCE.md 5: 50000)")
-        ->check(CLI::Range(2, 100000000))
+    // Below 100 samples the TMCMC stages cannot resample the population (the same floor as [inference] samples).
+    addNumber(cmd, "--samples", o->samples, "population size N of every TMCMC run (INFERENCE.md 5: 50000)",
+              NumberRange::closed(100, 1e8))
         ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "run seed (each run derives its own from it and its name)")->capture_default_str();
+    addNumber(cmd, "--seed", o->seed, "run seed (each run derives its own from it and its name)", NumberRange::nonNegative())
+        ->capture_default_str();
     cmd->add_option("--out", o->out, "output directory DIR")->required();
     addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
                     "else the shipped copy data/experiments)");
-    cmd->add_option("--threads", o->threads, "OpenMP threads (results do not depend on it)")
-        ->check(CLI::Range(1, 1024))
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads (results do not depend on it)", NumberRange::closed(1, 1024))
         ->capture_default_str();
     cmd->add_flag("--resume", o->resume, "continue unfinished runs from their per-stage checkpoints and reuse finished ones");
     cmd->add_flag("--single-precision", o->single, "evaluate the surrogate in float (about 3x faster)");
@@ -109,7 +110,14 @@ void registerInfer(CLI::App& app) {
         opt.phase3b.rule = opt.fvkRule;
         opt.phase3b.referencePrior = o->prior3b == "reference";
         opt.phase3b.referenceEquilibriumDefect = o->fvk3b == "last";
-        const RbcPriorBox box = parsePriorBox(o->priors);  // before anything is written
+        const RbcPriorBox box = parsePriorBox(o->priors);
+        // Every input is read and checked before anything is written to --out.
+        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
+        surrogate->precision = o->single ? Precision::Single : Precision::Double;
+        const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
+        std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
+        for (RbcDataSet& d : data) d.prior = box;
         ensureWritableDirectory(o->out);
         // Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box.
         nlohmann::json boxJson = nlohmann::json::object();
@@ -127,13 +135,6 @@ void registerInfer(CLI::App& app) {
                                              boxFile.string(), o->out, previous.dump(), boxJson.dump()));
         }
         if (opt.firstPhase == 1) writeFileAtomically(boxFile, boxJson.dump(1) + "\n");
-
-        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
-        auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
-        surrogate->precision = o->single ? Precision::Single : Precision::Double;
-        const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
-        std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
-        for (RbcDataSet& d : data) d.prior = box;
 
         nlohmann::json networks = nlohmann::json::object();
         const std::pair<const char*, const TrainedNetwork*> nets[3] = {

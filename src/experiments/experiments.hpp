@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,8 @@ struct ExperimentOptions {
     /// Equilibrium, stretching and the relaxation's inner solves stop, not converged, after this
     /// instant (a campaign cell's wall-time budget; default: none).
     std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+    /// Told the name of each stage of runSample as it starts (a command's progress on stderr).
+    std::function<void(const std::string&)> progress;
 };
 
 /// "farthest-vertex" or "largest-variance" (CLI and provenance spelling).

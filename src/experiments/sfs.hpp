@@ -4,6 +4,7 @@
 // volume set by v, found by a converged constrained minimisation instead of the reference's
 // fixed-duration damped run. Cached on disk by (v, level, model version).
 #include <Eigen/Core>
+#include <chrono>
 #include <filesystem>
 #include <string>
 
@@ -20,6 +21,9 @@ struct SfsOptions {
     double gradientTolerance = 1e-5;
     int maxIterations = 100000;
     bool multigrid = true;  ///< multigrid H0 for the L-BFGS (as ExperimentOptions::multigrid)
+    /// The minimisation stops, not converged (so nothing is cached), after this instant
+    /// (`simulate --time-limit`; default: none).
+    std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
 struct StressFreeState {

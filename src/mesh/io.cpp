@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -109,10 +110,140 @@ void checkFields(const Mesh& mesh, const std::vector<VertexField>& fields) {
 
 }  // namespace
 
-Mesh parseOff(const std::string& path, MeshSource* source) {
+namespace {
+
+std::vector<Token> tokenizeFile(const std::string& path) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+        throw InputError(fmt::format("mesh file '{}' is a directory, not a mesh file", path));
     std::ifstream in(path);
     if (!in) throw InputError(fmt::format("cannot open mesh file '{}' (missing or unreadable)", path));
-    TokenReader r(path, tokenize(in));
+    return tokenize(in);
+}
+
+bool hasExtension(const std::string& path, const std::string& ext) {
+    return path.size() >= ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0;
+}
+
+/// Triangles '3 i j k', one per line, as trbc's PLY and VTK writers lay them out.
+void readFaceRecords(TokenReader& r, const std::string& path, Mesh& m, MeshSource& source) {
+    const long nv = m.X.cols(), nf = m.F.cols();
+    source.faceLine.resize(static_cast<std::size_t>(nf));
+    for (long f = 0; f < nf; ++f) {
+        source.faceLine[f] = r.line();
+        if (r.leftOnLine() != 4)
+            throw InputError(fmt::format("{}:{}: face {} needs 4 values '3 i j k' on its line", path, source.faceLine[f], f));
+        if (r.integer(fmt::format("the vertex count of face {}", f)) != 3)
+            throw InputError(fmt::format("{}:{}: face {} is not a triangle", path, source.faceLine[f], f));
+        for (int k = 0; k < 3; ++k) {
+            const long idx = r.integer(fmt::format("vertex index {} of face {}", k, f));
+            if (idx < 0 || idx >= nv)
+                throw InputError(fmt::format("{}:{}: face {} has vertex index {} out of range [0, {}]", path, source.faceLine[f], f,
+                                             idx, nv - 1));
+            m.F(k, f) = static_cast<int>(idx);
+        }
+    }
+}
+
+/// PLY vertex records: x y z and then the other properties, one vertex per line.
+void readPlyVertices(TokenReader& r, const std::string& path, Mesh& m, MeshSource& source, long valuesPerVertex) {
+    const long nv = m.X.cols();
+    source.vertexLine.resize(static_cast<std::size_t>(nv));
+    for (long i = 0; i < nv; ++i) {
+        source.vertexLine[i] = r.line();
+        if (const auto n = r.leftOnLine(); n != static_cast<std::size_t>(valuesPerVertex))
+            throw InputError(fmt::format("{}:{}: vertex {} needs {} values on its line but there are {}", path,
+                                         source.vertexLine[i], i, valuesPerVertex, n));
+        for (long k = 0; k < valuesPerVertex; ++k) {
+            const double v = r.number(fmt::format("value {} of vertex {} (of {})", k, i, nv));
+            if (k < 3) m.X(k, i) = v;
+        }
+    }
+}
+
+/// A count from a header: at least 4 (closed triangle mesh) and at most the tokens left, which
+/// bounds the allocation.
+long headerCount(TokenReader& r, const std::string& path, const std::string& what) {
+    const int line = r.line();
+    const long n = r.integer(what);
+    if (n < 4 || static_cast<std::size_t>(n) > r.remaining())
+        throw InputError(fmt::format("{}:{}: {} = {} is impossible here (at least 4, at most the {} values that follow)", path, line,
+                                     what, n, r.remaining()));
+    return n;
+}
+
+/// ASCII PLY with x y z first among the vertex properties (others skipped) and triangle faces.
+Mesh parsePly(const std::string& path, MeshSource& source) {
+    TokenReader r(path, tokenizeFile(path));
+    if (r.done() || r.next("the header 'ply'").text != "ply") throw InputError(fmt::format("{}:1: not a PLY file (no 'ply' header)", path));
+    long nv = -1, nf = -1, props = 0;
+    std::string element;
+    while (true) {
+        const int line = r.line();
+        const std::string key = r.next("the PLY header ('end_header')").text;
+        if (key == "end_header") break;
+        if (key == "format") {
+            if (r.next("the PLY format").text != "ascii")
+                throw InputError(fmt::format("{}:{}: only ASCII PLY is supported", path, line));
+            r.next("the PLY version");
+        } else if (key == "element") {
+            element = r.next("the element name").text;
+            if (element == "vertex")
+                nv = headerCount(r, path, "the vertex count");
+            else if (element == "face")
+                nf = headerCount(r, path, "the face count");
+            else
+                throw InputError(fmt::format("{}:{}: unsupported PLY element '{}'", path, line, element));
+        } else if (key == "property") {
+            while (r.leftOnLine() > 0 && r.line() == line) r.next("a property");
+            if (element == "vertex") ++props;
+        } else if (key == "comment" || key == "obj_info") {
+            while (!r.done() && r.line() == line) r.next("a comment");
+        } else {
+            throw InputError(fmt::format("{}:{}: unexpected '{}' in the PLY header", path, line, key));
+        }
+    }
+    if (nv < 0 || nf < 0) throw InputError(fmt::format("{}: the PLY header lacks the vertex or the face element", path));
+    if (props < 3) throw InputError(fmt::format("{}: the PLY vertices need the properties x y z", path));
+    Mesh m;
+    m.X.resize(3, nv);
+    m.F.resize(3, nf);
+    source.path = path;
+    readPlyVertices(r, path, m, source, props);
+    readFaceRecords(r, path, m, source);
+    return m;
+}
+
+/// Legacy ASCII VTK POLYDATA: POINTS then POLYGONS of triangles; POINT_DATA after them is ignored.
+Mesh parseVtk(const std::string& path, MeshSource& source) {
+    TokenReader r(path, tokenizeFile(path));
+    while (!r.done() && r.next("POINTS").text != "POINTS") {
+    }
+    if (r.done()) throw InputError(fmt::format("{}: no POINTS section (not a legacy VTK POLYDATA file)", path));
+    const long nv = headerCount(r, path, "the point count");
+    r.next("the point type");
+    Mesh m;
+    m.X.resize(3, nv);
+    source.path = path;
+    source.vertexLine.resize(static_cast<std::size_t>(nv));
+    for (long i = 0; i < nv; ++i) {
+        source.vertexLine[i] = r.line();
+        for (int k = 0; k < 3; ++k) m.X(k, i) = r.number(fmt::format("coordinate {} of point {} (of {})", "xyz"[k], i, nv));
+    }
+    const int line = r.line();
+    if (r.next("POLYGONS").text != "POLYGONS") throw InputError(fmt::format("{}:{}: expected POLYGONS after the points", path, line));
+    const long nf = headerCount(r, path, "the polygon count");
+    if (r.integer("the POLYGONS size") != 4 * nf)
+        throw InputError(fmt::format("{}:{}: only triangles are supported (POLYGONS size must be 4 x {})", path, line, nf));
+    m.F.resize(3, nf);
+    readFaceRecords(r, path, m, source);
+    return m;
+}
+
+}  // namespace
+
+Mesh parseOff(const std::string& path, MeshSource* source) {
+    TokenReader r(path, tokenizeFile(path));
     if (r.done()) throw InputError(fmt::format("{}:1: empty file, expected an OFF mesh", path));
     {
         const int line = r.line();
@@ -187,6 +318,14 @@ Mesh readOff(const std::string& path) {
     return m;
 }
 
+Mesh readMesh(const std::string& path) {
+    if (!hasExtension(path, ".ply") && !hasExtension(path, ".vtk")) return readOff(path);
+    MeshSource source;
+    Mesh m = hasExtension(path, ".ply") ? parsePly(path, source) : parseVtk(path, source);
+    validateClosedManifold(m, &source);
+    return m;
+}
+
 void writeOff(const std::string& path, const Mesh& mesh) {
     auto out = openForWriting(path);
     out << "OFF\n" << mesh.numVertices() << ' ' << mesh.numFaces() << " 0\n";
@@ -249,10 +388,31 @@ void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<Vert
         const std::string e(ext);
         return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
     };
-    if (endsWith(".off")) return writeOff(path, mesh);
-    if (endsWith(".ply")) return writePly(path, mesh, fields);
-    if (endsWith(".vtk")) return writeVtk(path, mesh, fields);
-    throw InputError(fmt::format("cannot tell the mesh format of '{}': use the extension .off, .ply or .vtk", path));
+    const auto write = [&](const std::string& p) {
+        if (endsWith(".off")) return writeOff(p, mesh);
+        if (endsWith(".ply")) return writePly(p, mesh, fields);
+        if (endsWith(".vtk")) return writeVtk(p, mesh, fields);
+        throw InputError(fmt::format("cannot tell the mesh format of '{}': use the extension .off, .ply or .vtk", path));
+    };
+    std::error_code ec;
+    const auto kind = std::filesystem::status(path, ec).type();
+    if (kind != std::filesystem::file_type::not_found && kind != std::filesystem::file_type::regular &&
+        kind != std::filesystem::file_type::none)
+        return write(path);  // a device or a pipe: in place, checked at the flush
+    // Through PATH.tmp and rename(2), so that a failed write leaves no partial mesh behind.
+    const std::string tmp = path + ".tmp";
+    try {
+        write(tmp);
+    } catch (const InputError& e) {
+        std::filesystem::remove(tmp, ec);
+        throw InputError(fmt::format("cannot write '{}': {}", path, e.what()));
+    }
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        const std::string why = ec.message();
+        std::filesystem::remove(tmp, ec);
+        throw InputError(fmt::format("cannot write '{}': {}", path, why));
+    }
 }
 
 }  // namespace trbc

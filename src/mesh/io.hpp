@@ -1,6 +1,6 @@
 #pragma once
-// Mesh files: OFF in and out (MODEL.md B.1), PLY and legacy VTK out with per-vertex fields
-// (force, mean curvature, vertex area, ...) for ParaView.
+// Mesh files: OFF in and out (MODEL.md B.1); PLY and legacy VTK out with per-vertex fields
+// (force, mean curvature, vertex area, ...) for ParaView, and back in as trbc writes them.
 #include <string>
 #include <vector>
 
@@ -18,6 +18,10 @@ struct MeshSource {
 /// Reads an ASCII OFF file and validates it (validateClosedManifold). Throws InputError
 /// naming the file, line and problem.
 Mesh readOff(const std::string& path);
+
+/// Reads a mesh by its extension: .ply (ASCII, x y z first) and .vtk (legacy ASCII POLYDATA) as
+/// trbc writes them, anything else as OFF; validated like readOff.
+Mesh readMesh(const std::string& path);
 
 /// Parses an OFF file without topological validation (for tools that inspect broken meshes).
 Mesh parseOff(const std::string& path, MeshSource* source = nullptr);
