@@ -205,7 +205,8 @@ TEST(CliFuzz, FlowCommands) {
     TempDir tmp;
     const std::string cache = (tmp.path() / "cache").string();
     fuzzCommand({"flow shear",
-                 {{"--eta-out", "1"}, {"--shear-rate", "100"}, {"--level", "1"}, {"--rotations", "0.01"}, {"--max-steps", "20"},
+                 {{"--eta-out", "1"}, {"--shear-rate", "100"}, {"--level", "1"}, {"--rotations", "0.1"}, {"--frame-interval", "0.05"},
+                  {"--max-steps", "30"},
                   {"--cache", cache}},
                  "", "", 20},
                 tmp.path());

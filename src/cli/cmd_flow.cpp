@@ -376,7 +376,14 @@ void registerShear(CLI::App* flow) {
             removeCheckpoints(o->step);  // a resume would only repeat the failure
             throw NumericalError("flow shear: " + r.message);
         }
-        const ShearObservables obs = analyzeShearFrames(r.times, r.frames, 1.0);
+        ShearObservables obs;
+        try {
+            obs = analyzeShearFrames(r.times, r.frames, 1.0);
+        } catch (const InputError& e) {
+            throw InputError(fmt::format("{}: too few frames for the analysis; give more --rotations (now {:g}) or a smaller "
+                                         "--frame-interval (now {:g})",
+                                         e.what(), o->rotations, o->step.frameInterval));
+        }
         const bool tt = obs.regime == ShearRegime::TankTreading;
         j["status"] = "ok";
         j["observables"] = {{"regime", regimeName(obs.regime)},
@@ -596,7 +603,7 @@ void registerTube(CLI::App* flow) {
             initialUm = fitIntoTube(cell.initial, cell.faces, o->radius, clearanceUm, fc.A0, fc.V0);
         } catch (const NumericalError& e) {
             j["status"] = "failed";
-            const std::string why = fmt::format("the cell cannot be fitted into a tube of --radius {} um: {} (um)", o->radius, e.what());
+            const std::string why = fmt::format("the cell cannot be fitted into a tube of --radius {} um: {}", o->radius, e.what());
             j["reason"] = why;
             std::cout << j.dump(2) << std::endl;
             throw NumericalError("flow tube: " + why);
