@@ -138,6 +138,7 @@ TEST(BadInput, SurrogateEvalRefusesImpossibleRowsAndFlagsExtrapolation) {
 fs::path dataWithForce(const fs::path& dir, const std::string& force) {
     const fs::path src = fs::path(TRBC_SOURCE_DIR) / "data" / "experiments";
     const fs::path dst = dir / "experiments";
+    fs::create_directories(dir);
     fs::copy(src, dst, fs::copy_options::recursive);
     const fs::path mills = dst / "stretching" / "mills_2004" / "mills_2004.csv";
     std::string text = test::slurp(mills);

@@ -91,9 +91,14 @@ void fuzzCommand(const Command& c, const fs::path& scratch) {
             fs::create_directories(run);
             std::string args = c.name;
             for (const auto& [k, v] : c.args)
-                if (k != option) args += " " + k + (v.empty() ? "" : " " + shellQuote(expand(v, run)));
+                if (k != option) {
+                    args += ' ';
+                    args += k;
+                    if (!v.empty()) args += ' ' + shellQuote(expand(v, run));
+                }
             args += " " + option + " " + value;
-            const std::string what = "trbc " + args;
+            std::string what = "trbc ";
+            what += args;
             const CliRun r = runShell(fmt::format("timeout -k 5 {} {} {}", kTimeoutSeconds, shellQuote(TRBC_CLI), args), run);
             // stdout.txt and stderr.txt of runShell live in `run` too: not outputs.
             std::vector<fs::path> written;
@@ -119,7 +124,9 @@ void fuzzCommand(const Command& c, const fs::path& scratch) {
                 const fs::path out = run / c.output;
                 if (r.status == 0) {
                     EXPECT_TRUE(fs::exists(out)) << what << ": exit 0 without " << out;
-                    if (fs::is_regular_file(out)) EXPECT_FALSE(printsNonFinite(test::slurp(out))) << what << ": " << out;
+                    if (fs::is_regular_file(out)) {
+                        EXPECT_FALSE(printsNonFinite(test::slurp(out))) << what << ": " << out;
+                    }
                 } else {
                     EXPECT_FALSE(fs::exists(out)) << what << ": failed (exit " << r.status << ") but left " << out;
                 }
@@ -173,7 +180,7 @@ fs::path thetaSamples(const fs::path& dir) {
 TEST(CliFuzz, MeshAndMembraneCommands) {
     TempDir tmp;
     const std::string ico = icosphere(tmp.path()).string();
-    fuzzCommand({"mesh icosphere", {{"--level", "1"}, {"--out", "{RUN}/m.off"}}, "m.off"}, tmp.path());
+    fuzzCommand({"mesh icosphere", {{"--level", "1"}, {"--out", "{RUN}/m.off"}}, "m.off", "", 2}, tmp.path());
     fuzzCommand({"forces", {{"--mesh", ico}, {"--reference", ico}, {"--kb", "1"}, {"--out", "{RUN}/f.csv"}}, "f.csv", "", 14},
                 tmp.path());
     fuzzCommand({"minimize",
@@ -232,8 +239,8 @@ TEST(CliFuzz, SurrogateAndInferenceCommands) {
                   {"--threads", "1"}, {"--out", "{RUN}/m"}},
                  "m/relaxation.json", "", 9},
                 tmp.path());
-    fuzzCommand({"surrogate eval", {{"--in", in}, {"--out", "{RUN}/e.csv"}}, "e.csv"}, tmp.path());
-    fuzzCommand({"surrogate test", {{"--data", table}, {"--out", "{RUN}/t"}}, "t/test.json"}, tmp.path());
+    fuzzCommand({"surrogate eval", {{"--in", in}, {"--out", "{RUN}/e.csv"}}, "e.csv", "", 1}, tmp.path());
+    fuzzCommand({"surrogate test", {{"--data", table}, {"--out", "{RUN}/t"}}, "t/test.json", "", 1}, tmp.path());
     fuzzCommand({"sobol", {{"--samples", "16"}, {"--forces", "2"}, {"--resamples", "2"}, {"--no-plot", ""}, {"--out", "{RUN}/s"}},
                  "s/sobol_indices.csv", "", 5},
                 tmp.path());
@@ -252,7 +259,7 @@ TEST(CliFuzz, SurrogateAndInferenceCommands) {
     // calibrate's valid --threads values reach the configuration, which is refused on purpose
     // (running the whole pipeline is the calibrate tests' job).
     const std::string bad = writeFile(tmp.path() / "bad.toml", "[inference]\nsamples = 1\n").string();
-    fuzzCommand({"calibrate", {{"--config", bad}, {"--out", "{RUN}/cal"}}, "", "samples"}, tmp.path());
+    fuzzCommand({"calibrate", {{"--config", bad}, {"--out", "{RUN}/cal"}}, "", "samples", 1}, tmp.path());
 }
 
 }  // namespace

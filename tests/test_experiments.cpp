@@ -479,7 +479,8 @@ TEST(SimulateCli, WritesJsonWithCanonicalNamesAndTheShapes) {
     const CliRun r = runSimulate("--level 3 --experiments eq,stretch --Fext 50 --force-curve 0,25 --save-shapes " +
                                  dir.string());
     ASSERT_EQ(r.status, 0) << r.out;
-    const nlohmann::json j = nlohmann::json::parse(r.out);
+    // stderr (the progress lines) is merged in: the JSON is the outermost braces.
+    const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find('{'), r.out.rfind('}') - r.out.find('{') + 1));
     EXPECT_EQ(j.at("status"), "ok");
     for (const char* k : {"v", "mu_uN_per_m", "FvK", "kb_J", "b2", "etam_Pa_s_um", "Fext_pN"})
         EXPECT_TRUE(j.at("parameters").contains(k)) << k;

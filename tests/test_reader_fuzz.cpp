@@ -159,7 +159,9 @@ TEST(ReaderFuzz, CampaignTable) {
     const int errors = fuzzReader(table, tmp.path() / "c.csv", 200, 31, [](const fs::path& p) {
         for (const CampaignRow& r : readCampaignCsv(p)) {
             EXPECT_TRUE(std::isfinite(r.point.p.v) && std::isfinite(r.point.fext)) << p;
-            if (r.ok()) EXPECT_TRUE(std::isfinite(r.D) && std::isfinite(r.tc));
+            if (r.ok()) {
+                EXPECT_TRUE(std::isfinite(r.D) && std::isfinite(r.tc));
+            }
         }
     });
     EXPECT_GT(errors, 100);
@@ -190,6 +192,8 @@ TEST(ReaderFuzz, TomlConfigs) {
     TempDir tmp;
     const fs::path experiments = fs::path(TRBC_SOURCE_DIR) / "data" / "experiments";
     const fs::path target = tmp.path() / "c.toml";
+    // paper.toml names validation.toml next to it.
+    fs::copy_file(fs::path(TRBC_SOURCE_DIR) / "configs" / "validation.toml", tmp.path() / "validation.toml");
     int errors = 0;
     errors += fuzzReader(fs::path(TRBC_SOURCE_DIR) / "configs" / "paper.toml", target, 120, 51,
                          [&](const fs::path& p) { readCalibrateConfig(p, experiments); });
