@@ -82,7 +82,7 @@ void registerMinimize(CLI::App& app) {
         EnergyTerms terms;
         model.evaluate(mesh.X, &grad, &terms);
         const auto d = model.vertexDiagnostics(mesh.X);
-        const bool finite = std::isfinite(terms.total()) && mesh.X.allFinite();
+        const bool finite = std::isfinite(terms.total()) && grad.allFinite() && mesh.X.allFinite();
         // A shape that did not converge is not the relaxed mesh that --out promises: not written.
         const bool ok = r.converged && finite;
         if (ok)
@@ -91,7 +91,7 @@ void registerMinimize(CLI::App& app) {
                        {"vertex_area", d.area.transpose()}});
         nlohmann::json j;
         j["status"] = ok ? "ok" : "failed";
-        if (!ok) j["reason"] = finite ? "did not converge: " + r.message : std::string("the energy or the shape is not finite");
+        if (!ok) j["reason"] = finite ? "did not converge: " + r.message : std::string("the energy, the forces or the shape are not finite");
         j["energy"] = terms.total();
         j["terms"] = energyTermsJson(p, terms);
         j["mesh"] = meshSummary(mesh);
@@ -101,7 +101,7 @@ void registerMinimize(CLI::App& app) {
         j["output"] = ok ? nlohmann::json(o->out) : nlohmann::json(nullptr);
         j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
         std::cout << j.dump(2) << std::endl;
-        if (!finite) throw NumericalError("minimisation diverged (non-finite energy or shape); nothing written to " + o->out);
+        if (!finite) throw NumericalError("minimisation diverged (non-finite energy, forces or shape); nothing written to " + o->out);
         if (!r.converged) throw NumericalError("minimisation did not converge: " + r.message + "; nothing written to " + o->out);
     });
 }

@@ -87,11 +87,13 @@ void addModulusOptions(CLI::App* app, ModulusOptions& m) {
     auto& b = m.p.bending;
     auto& l = m.p.lim;
     auto& g = m.p.penalty;
-    const NumberRange modulus = NumberRange::nonNegative("(mesh units)"), coefficient = NumberRange::any();
+    // Moduli in the mesh's own units: 1e12 is far beyond any use and keeps energies and forces of a
+    // mesh of sensible size finite; the Lim coefficients multiply strain invariants of order one.
+    const NumberRange modulus = NumberRange::closed(0.0, 1e12, "(mesh units)"), coefficient = NumberRange::closed(-1e6, 1e6);
     addNumber(app, "--kb", b.kb, "Juelicher bending modulus kb (energy units; 0 = off)", modulus)->group("Bending");
-    addNumber(app, "--C0", b.C0, "spontaneous curvature C0 (1/length; H0 = C0/2)", NumberRange::any("1/length"))->group("Bending");
+    addNumber(app, "--C0", b.C0, "spontaneous curvature C0 (1/length; H0 = C0/2)", NumberRange::closed(-1e6, 1e6, "1/length"))->group("Bending");
     addNumber(app, "--kad", b.kad, "area-difference modulus k_AD (energy; 0 = off)", modulus)->group("Bending");
-    addNumber(app, "--DA0", b.DA0, "reference area difference Delta A0 / delta (length)", NumberRange::any("length"))->group("Bending");
+    addNumber(app, "--DA0", b.DA0, "reference area difference Delta A0 / delta (length)", NumberRange::closed(-1e6, 1e6, "length"))->group("Bending");
     addNumber(app, "--ka", l.Kalpha, "Lim area-dilation modulus K_alpha (energy/area; 0 = off)", modulus)->group("Lim");
     addNumber(app, "--a3", l.a3, "Lim coefficient a3", coefficient)->group("Lim");
     addNumber(app, "--a4", l.a4, "Lim coefficient a4", coefficient)->group("Lim");
