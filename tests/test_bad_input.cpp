@@ -263,3 +263,34 @@ TEST(BadInput, ExportOfATailQuantileOutsideThePriorBoxWarns) {
 
 }  // namespace
 }  // namespace trbc
+
+namespace trbc {
+namespace {
+
+TEST(BadInput, MessagesAndOutputsSayWhatTheirNumbersMean) {
+    TempDir tmp;
+    const std::string cache = " --cache " + shellQuote((tmp.path() / "cache").string());
+    // The tube fit names the user's option and its unit (um), not the internal length unit R_A.
+    CliRun r = runTrbc("flow tube --level 1 --radius 1.5 --pressure-gradient 1 --duration 0.01 --settle 0" + cache, tmp.path());
+    EXPECT_EQ(r.status, 3) << r.err;
+    EXPECT_TRUE(contains(r.err, "a tube of --radius 1.5 um")) << r.err;
+    EXPECT_FALSE(contains(r.err, "R_A")) << r.err;
+    // The relaxation fit's z, z0, zinf and rms are explained next to them.
+    r = runTrbc("simulate --level 2 --experiments relax" + cache, tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    const std::string law = j["relaxation_fit"]["law"];
+    for (const char* term : {"z = L/W", "z0 = z at the first sample", "zinf", "rms = root-mean-square residual"})
+        EXPECT_TRUE(contains(law, term)) << term;
+    // coverage.csv's x and y are explained in coverage.md.
+    const fs::path inf = tmp.path() / "inference", pred = tmp.path() / "predict";
+    ASSERT_EQ(runTrbc("infer --phase 1 --samples 100 --quiet --out " + inf.string(), tmp.path()).status, 0);
+    r = runTrbc("predict --posterior " + (inf / "phase1" / "mills_2004").string() + " --max-samples 50 --quiet --out " + pred.string(),
+                tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string md = test::slurp(pred / "coverage.md");
+    EXPECT_TRUE(contains(md, "x is that force (pN, stretching) or time (s, relaxation")) << md;
+}
+
+}  // namespace
+}  // namespace trbc

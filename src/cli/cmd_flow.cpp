@@ -500,7 +500,7 @@ void registerTube(CLI::App* flow) {
                         "relaxation time eta_m / mu of the settling stage, R/V (> 0): its membrane viscosity is this x mu "
                         "R / V (at most the cell's own). The slow shape mode relaxes on eta_m / mu, so a fixed time in "
                         "R/V keeps the settling stage's length in R/V independent of the capillary number",
-                  NumberRange::leftOpen(0.0, 1e3, "R/V"))
+                  NumberRange::leftOpen(0.0, 1e9, "R/V"))
             ->capture_default_str();
     o->settleEtamOption = addNumber(cmd, "--settle-etam", o->settleEtam,
                                     "membrane viscosity of the settling stage; replaces --settle-relax",
