@@ -30,6 +30,7 @@
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "inference/rbc_problem.hpp"
 #include "surrogate/surrogate.hpp"
@@ -137,7 +138,7 @@ std::map<std::string, std::string> stageData(Pipeline& P) {
         fs::copy_file(d.file, dir / rel, fs::copy_options::overwrite_existing);
         manifest.push_back({{"name", d.name}, {"experiment", d.experiment}, {"file", rel.string()}, {"source", d.file.string()}});
     }
-    std::ofstream(dir / kRbcDataManifest) << manifest.dump(2) << '\n';
+    writeFileAtomically(dir / kRbcDataManifest, manifest.dump(2) + "\n");
     P.ledger.finished("data", fingerprint, {{"files", manifest}}, std::chrono::duration<double>(Clock::now() - t0).count());
     P.say(fmt::format("calibrate: {:<28} staged {} data sets", "data", P.cfg.data.size()));
     return fp;
@@ -368,7 +369,7 @@ void registerCalibrate(CLI::App& app) {
                             {"skipped", P.ledger.skippedStages()},
                             {"wall_s", wall},
                             {"report", {(out / "report.html").string(), (out / "report.md").string()}}};
-        std::ofstream(out / "calibrate.json") << j.dump(2) << '\n';
+        writeFileAtomically(out / "calibrate.json", j.dump(2) + "\n");
         std::cout << fmt::format("trbc calibrate: {} stage(s) ran, {} up to date, {:.1f} s\nreport: {}\n        {}\n", P.ledger.ran().size(),
                                  P.ledger.skippedStages().size(), wall, (out / "report.html").string(), (out / "report.md").string());
     });

@@ -14,6 +14,7 @@
 #include "cli/common.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/sfs.hpp"
@@ -138,9 +139,7 @@ void registerExport(CLI::App& app) {
                       {"mesh", {{"level", o->level}, {"vertices", meshes.reference.cols()}, {"faces", meshes.faces.cols()}, {"units", "um"}}}};
         j["diagnostics"] = {{"sfs_from_cache", sfs.fromCache}, {"equilibrium_converged", eq.diagnostics.converged}, {"wall_s", wall}};
         j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
-        std::ofstream out(dir / "cell.json");
-        out << j.dump(2) << '\n';
-        if (!out) throw InputError(fmt::format("cannot write {}", (dir / "cell.json").string()));
+        writeFileAtomically(dir / "cell.json", j.dump(2) + "\n");
         std::cout << j.dump(2) << std::endl;
     });
 }

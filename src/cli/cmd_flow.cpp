@@ -13,6 +13,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "analysis/stage_ledger.hpp"
 #include "core/version.hpp"
 #include "flow/cell_flow.hpp"
@@ -29,11 +30,7 @@ constexpr double kPi = std::numbers::pi;
 
 nlohmann::json nullable(bool ok, double v) { return ok ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-void writeText(const std::string& path, const std::string& text) {
-    std::ofstream out(path);
-    out << text;
-    if (!out) throw InputError("cannot write " + path);
-}
+void writeText(const std::string& path, const std::string& text) { writeFileAtomically(path, text); }
 
 void writeShapesAndSteps(const std::string& dir, const CellFlowModel& model, const Faces& faces,
                          const Vertices& reference, const Vertices& initial, const CellFlowResult& r, int vtkEvery);

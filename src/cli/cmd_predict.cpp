@@ -12,6 +12,7 @@
 #include "analysis/prediction.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/hash.hpp"
 #include "core/version.hpp"
 #include "surrogate/surrogate.hpp"
@@ -21,11 +22,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-void writeFile(const fs::path& p, const std::string& text) {
-    std::ofstream out(p, std::ios::trunc);
-    out << text;
-    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
-}
+void writeFile(const fs::path& p, const std::string& text) { writeFileAtomically(p, text); }
 
 }  // namespace
 

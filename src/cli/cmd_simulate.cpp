@@ -11,6 +11,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/reference_protocol.hpp"
@@ -71,14 +72,14 @@ ExperimentSet parseExperiments(const std::string& text) {
 }
 
 void writeCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {
-    std::ofstream out(path);
+    std::ostringstream out;
     out.precision(10);
     out << header << '\n';
     for (std::size_t i = 0; i < cols.front().size(); ++i) {
         for (std::size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c][i];
         out << '\n';
     }
-    if (!out) throw InputError("cannot write " + path);
+    writeFileAtomically(path, out.str());
 }
 
 void saveShapes(const std::string& dir, const SampleResult& s, const ExperimentSet& which) {
@@ -274,9 +275,7 @@ void registerSimulate(CLI::App& app) {
         j["diagnostics"] = diag;
         if (!o->saveShapes.empty()) {
             saveShapes(o->saveShapes, s, which);
-            std::ofstream out(o->saveShapes + "/simulate.json");
-            out << j.dump(2) << '\n';
-            if (!out) throw InputError("cannot write " + o->saveShapes + "/simulate.json");
+            writeFileAtomically(o->saveShapes + "/simulate.json", j.dump(2) + "\n");
         }
         std::cout << j.dump(2) << std::endl;
     });

@@ -12,6 +12,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "surrogate/sobol.hpp"
 #include "surrogate/sobol_io.hpp"
@@ -112,7 +113,7 @@ void registerSobol(CLI::App& app) {
                             {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall},
                             {"resolved", resolved}};
         if (!resolved) j["warning"] = warning;
-        std::ofstream(dir / "sobol.json") << j.dump(2) << '\n';
+        writeFileAtomically(dir / "sobol.json", j.dump(2) + "\n");
         if (!resolved) std::cerr << "sobol: warning: " << warning << '\n';
         std::cout << fmt::format("sobol: {} outputs x {} inputs, {} model evaluations per output, {:.2f} s\n", outputs.size(),
                                  inputs.size(), r.evaluations, wall);
