@@ -70,6 +70,10 @@ TEST(BadInput, UnknownCommandsAreNamedWithASuggestion) {
     r = runTrbc("surrogate evl --in x", tmp.path());
     EXPECT_EQ(r.status, 2);
     EXPECT_TRUE(contains(r.err, "did you mean 'eval'?")) << r.err;
+    r = runTrbc("mesh", tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, "trbc: error: 'mesh' needs a command: one of info, icosphere")) << r.err;
+    EXPECT_EQ(runTrbc("mesh --help", tmp.path()).status, 0);
 }
 
 TEST(BadInput, MeshReadersNameDirectoriesAndReadTheirOwnPlyAndVtk) {

@@ -52,6 +52,14 @@ void checkCommandWords(CLI::App& app, int argc, char** argv) {
         }
         current = next;
     }
+    // Out of words where a (sub)command must follow: list them.
+    const std::vector<CLI::App*> subs = current->get_subcommands([](CLI::App*) { return true; });
+    if (!subs.empty()) {
+        std::string names;
+        for (CLI::App* s : subs) names += (names.empty() ? "" : ", ") + s->get_name();
+        throw trbc::InputError(fmt::format("'{}' needs a command: one of {} (add --help for what each does)",
+                                           current == &app ? std::string("trbc") : current->get_name(), names));
+    }
 }
 
 }  // namespace
