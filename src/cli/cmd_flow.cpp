@@ -468,8 +468,8 @@ void registerTube(CLI::App* flow) {
     // (the capsule of radius R), which must be >= V0: R >= minimumTubeRadius(A0, V0).
     const FlowConditions cellSize;
     addNumber(cmd, "--radius", o->radius,
-              fmt::format("tube radius R (>= {:.4f} um, the smallest radius whose capsule holds the cell's area {} um^2 and "
-                          "volume {} um^3)", minimumTubeRadius(cellSize.A0, cellSize.V0), cellSize.A0, cellSize.V0),
+              fmt::format("tube radius R (from the smallest radius whose capsule holds the cell's area {} um^2 and volume {} um^3)",
+                          cellSize.A0, cellSize.V0),
               NumberRange::closed(std::ceil(minimumTubeRadius(cellSize.A0, cellSize.V0) * 1e4) / 1e4, 100.0, "um"))
         ->required();
     addNumber(cmd, "--pressure-gradient", o->pg, "pressure gradient (1 mmHg/mm = 1.33322e5 Pa/m)",
