@@ -461,13 +461,15 @@ TEST(CampaignCli, RejectsBadOptions) {
     TempDir tmp;
     const std::string out = " --out " + shellQuote((tmp.path() / "x").string());
     const std::pair<std::string, std::string> cases[] = {
-        {"--samples 0", "--samples 0 is outside [1, 1e8]"},
+        {"--samples 0", "--samples: 0 is out of range (valid: [1, 1e8])"},
         {"--samples 4 " "--design sobol", "unknown design 'sobol' (valid: uniform, lhs)"},
-        {"--samples 4 " "--forces-per-cell 0", "--forces-per-cell 0 is outside [1, 1000]"},
-        {"--samples 4 " "--threads 0", "--threads 0 is outside [1, 1024]"},
-        {"--samples 4 " "--level 9", "--level 9 is outside [1, 6]"},
+        {"--samples 4 " "--forces-per-cell 0", "--forces-per-cell: 0 is out of range (valid: [1, 1000])"},
+        {"--samples 4 " "--threads 0", "--threads: 0 is out of range (valid: [1, 1024])"},
+        {"--samples 4 " "--level 9", "--level: 9 is out of range (valid: [2, 6])"},
+        {"--samples 4 " "--level 1", "--level: 1 is out of range (valid: [2, 6])"},
+        {"--samples 4 " "--cell-time-limit nan", "--cell-time-limit: 'nan' is not a finite number (valid: [0, 1e6] s)"},
         {"--samples 4 " "--inject-failures 3,x", "'x' is not a sample id"},
-        {"--samples 4 " "--cell-time-limit -1", "--cell-time-limit -1 is outside [0, 1e6] s"},
+        {"--samples 4 " "--cell-time-limit -1", "--cell-time-limit: -1 is out of range (valid: [0, 1e6] s)"},
     };
     for (const auto& [args, phrase] : cases) {
         const CliRun r = runTrbc("campaign " + args + out, tmp.path());

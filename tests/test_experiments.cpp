@@ -430,16 +430,22 @@ TEST(SimulateCli, RejectsBadParametersWithTheValidRange) {
         std::string args, expect;
     };
     const std::vector<Case> cases = {
-        {"--mu nan", "mu_uN_per_m = nan is not a finite number (valid range [1, 10])"},
-        {"--mu -3", "mu_uN_per_m = -3 is not physical"},
+        {"--mu nan", "trbc: error: --mu: 'nan' is not a finite number (valid: > 0 uN/m)"},
+        {"--mu -3", "--mu: -3 is out of range (valid: > 0 uN/m)"},
+        {"--relax-tol nan", "--relax-tol: 'nan' is not a finite number (valid: (0, 1] um)"},
+        {"--tol nan", "--tol: 'nan' is not a finite number"},
+        {"--tol 1e300", "--tol: 1e300 is out of range (valid: (0, 1] (relative))"},
+        {"--kb 1e-17 --mu 10", "kb_J = 1e-17 is outside the prior range"},
+        {"--experiments ''", "--experiments: the list is empty"},
+        {"--time-limit -1", "--time-limit: -1 is out of range (valid: [0, 1e7] s)"},
         {"--mu 12", "mu_uN_per_m = 12 is outside the prior range [1, 10]"},
         {"--v 0.5", "v = 0.5 is outside the prior range [0.65, 1]"},
-        {"--v 1.5 --allow-outside-prior", "closed surface has v <= 1"},
-        {"--etam 0", "etam_Pa_s_um = 0 is not physical"},
+        {"--v 1.5 --allow-outside-prior", "--v: 1.5 is out of range (valid: (0, 1])"},
+        {"--etam 0", "--etam: 0 is out of range (valid: > 0 Pa s um)"},
         {"--b2 5", "b2 = 5 is outside the prior range [0, 4]"},
         {"--FvK 5", "FvK = 5 is outside the prior range [10, 1000]"},
         {"--Fext 250", "Fext_pN = 250 is outside the prior range [0, 200]"},
-        {"--Fext -1 --allow-outside-prior", "Fext_pN = -1 is not physical"},
+        {"--Fext -1 --allow-outside-prior", "--Fext: -1 is out of range (valid: >= 0 pN)"},
         {"--experiments eq,bend", "unknown experiment 'bend'"},
         {"--force-curve 10,x", "'x' is not a number"},
         {"--save-shapes /proc/forbidden/dir", "cannot create the output directory"},
@@ -475,7 +481,8 @@ TEST(SimulateCli, WritesJsonWithCanonicalNamesAndTheShapes) {
     const CliRun r = runSimulate("--level 3 --experiments eq,stretch --Fext 50 --force-curve 0,25 --save-shapes " +
                                  dir.string());
     ASSERT_EQ(r.status, 0) << r.out;
-    const nlohmann::json j = nlohmann::json::parse(r.out);
+    // stderr (the progress lines) is merged in: the JSON is the outermost braces.
+    const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find('{'), r.out.rfind('}') - r.out.find('{') + 1));
     EXPECT_EQ(j.at("status"), "ok");
     for (const char* k : {"v", "mu_uN_per_m", "FvK", "kb_J", "b2", "etam_Pa_s_um", "Fext_pN"})
         EXPECT_TRUE(j.at("parameters").contains(k)) << k;

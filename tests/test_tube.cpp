@@ -345,7 +345,7 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     };
     for (const Case& c : {Case{"--radius 0 --pressure-gradient 30", "--radius"},
                           Case{"--radius -2 --pressure-gradient 30", "--radius"},
-                          Case{"--radius 1.2 --pressure-gradient 30", "1.4966"},  // cannot hold V0 with A0
+                          Case{"--radius 1.2 --pressure-gradient 30", "--radius: 1.2 is out of range (valid: [1.4967, 100] um)"},  // cannot hold V0 with A0
                           Case{"--radius 3.3 --pressure-gradient 0", "--pressure-gradient"},
                           Case{"--radius 3.3 --pressure-gradient -5", "--pressure-gradient"},
                           Case{"--radius 3.3 --pressure-gradient 30 --eta-out 0", "--eta-out"},
@@ -381,9 +381,9 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     EXPECT_NEAR(settling.at("relaxation_time_R_over_V").get<double>(), 1.5, 1e-12);
     // The tube's default step tolerance (docs/FLOW.md, "Step tolerance in the tube"); the shear's stays 1e-3.
     const std::string tubeHelp = test::runTrbc("flow tube --help", dir.path()).out;
-    EXPECT_NE(tubeHelp.find("--step-tol FLOAT:POSITIVE=6.25e-05"), std::string::npos) << tubeHelp;
+    EXPECT_NE(tubeHelp.find("--step-tol FLOAT:(0, 1] R_A=6.25e-05"), std::string::npos) << tubeHelp;
     const std::string shearHelp = test::runTrbc("flow shear --help", dir.path()).out;
-    EXPECT_NE(shearHelp.find("--step-tol FLOAT:POSITIVE=0.001"), std::string::npos) << shearHelp;
+    EXPECT_NE(shearHelp.find("--step-tol FLOAT:(0, 1] R_A=0.001"), std::string::npos) << shearHelp;
     // --settle-etam replaces it; recorded as given.
     const nlohmann::json je = nlohmann::json::parse(
         test::runTrbc("flow tube --level 2 --radius 3.3 --pressure-gradient 30 --wall-points 12 --max-steps 2 "

@@ -86,6 +86,12 @@ std::vector<CalibrateDataSet> defaultCalibrateData(const fs::path& dir) {
 
 CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experiments) {
     const toml::table root = parseTomlFile(file);
+    // Every key has a default (the paper's setup), so an empty file would silently run the whole
+    // pipeline at full size: more likely a wrong or truncated file than a choice.
+    if (root.empty())
+        throw InputError(fmt::format("{}: the configuration is empty; give at least one section (configs/paper.toml lists every "
+                                     "key with the paper's values)",
+                                     file.string()));
     CalibrateConfig c;
     c.file = fs::absolute(file).lexically_normal();
     TableReader top(file, root, "");

@@ -30,6 +30,7 @@
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "inference/rbc_problem.hpp"
 #include "surrogate/surrogate.hpp"
@@ -137,7 +138,7 @@ std::map<std::string, std::string> stageData(Pipeline& P) {
         fs::copy_file(d.file, dir / rel, fs::copy_options::overwrite_existing);
         manifest.push_back({{"name", d.name}, {"experiment", d.experiment}, {"file", rel.string()}, {"source", d.file.string()}});
     }
-    std::ofstream(dir / kRbcDataManifest) << manifest.dump(2) << '\n';
+    writeFileAtomically(dir / kRbcDataManifest, manifest.dump(2) + "\n");
     P.ledger.finished("data", fingerprint, {{"files", manifest}}, std::chrono::duration<double>(Clock::now() - t0).count());
     P.say(fmt::format("calibrate: {:<28} staged {} data sets", "data", P.cfg.data.size()));
     return fp;
@@ -170,12 +171,23 @@ void registerCalibrate(CLI::App& app) {
                      "See configs/paper.toml for every key.");
     cmd->add_option("--config", o->config, "TOML configuration (configs/paper.toml: the paper's setup)")->required();
     cmd->add_option("--out", o->out, "output directory (re-use it to skip finished stages)")->required();
-    cmd->add_option("--threads", o->threads, "OpenMP threads of every stage (overrides [run] threads; results do not depend on it)")
-        ->check(CLI::Range(0, 1024));
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads of every stage (overrides [run] threads; results do not depend on it)",
+              NumberRange::closed(0, 1024));
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     cmd->callback([o]() {
         const auto t0 = Clock::now();
         CalibrateConfig cfg = readCalibrateConfig(o->config, defaultExperimentDirectory());
+        // OUT is new, empty, an earlier calibrate output (it has the stage ledger) or holds nothing but
+        // the --config file itself: anything else would have its report.md and config.toml overwritten.
+        if (fs::is_directory(o->out) && !fs::exists(fs::path(o->out) / "stages.json")) {
+            for (const auto& e : fs::directory_iterator(o->out)) {
+                std::error_code ec;
+                if (!fs::equivalent(e.path(), cfg.file, ec))
+                    throw InputError(fmt::format("--out {}: the directory holds files ({}, ...) but is not the output of `trbc "
+                                                 "calibrate` (no stages.json); choose a new or empty directory",
+                                                 o->out, e.path().filename().string()));
+            }
+        }
         ensureWritableDirectory(o->out);
         const fs::path out = fs::absolute(o->out).lexically_normal();
         fs::create_directories(out / "logs");
@@ -187,7 +199,11 @@ void registerCalibrate(CLI::App& app) {
         P.python = pythonInterpreter();
         P.threads = o->threads > 0 ? o->threads : cfg.threads;
         P.quiet = o->quiet;
-        fs::copy_file(cfg.file, out / "config.toml", fs::copy_options::overwrite_existing);
+        {
+            std::error_code ec;
+            if (!fs::equivalent(cfg.file, out / "config.toml", ec))  // --config OUT/config.toml is already in place
+                fs::copy_file(cfg.file, out / "config.toml", fs::copy_options::overwrite_existing);
+        }
         const std::string seed = std::to_string(cfg.seed), threads = std::to_string(P.threads);
 
         const std::map<std::string, std::string> dataFp = stageData(P);
@@ -353,7 +369,7 @@ void registerCalibrate(CLI::App& app) {
                             {"skipped", P.ledger.skippedStages()},
                             {"wall_s", wall},
                             {"report", {(out / "report.html").string(), (out / "report.md").string()}}};
-        std::ofstream(out / "calibrate.json") << j.dump(2) << '\n';
+        writeFileAtomically(out / "calibrate.json", j.dump(2) + "\n");
         std::cout << fmt::format("trbc calibrate: {} stage(s) ran, {} up to date, {:.1f} s\nreport: {}\n        {}\n", P.ledger.ran().size(),
                                  P.ledger.skippedStages().size(), wall, (out / "report.html").string(), (out / "report.md").string());
     });

@@ -118,22 +118,26 @@ void registerCampaign(CLI::App& app) {
         "etam_Pa_s_um, Fext_pN -> D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s, status, reason, wall_s) in "
         "OUT/samples.csv, provenance in OUT/campaign.json. Checkpoints every cell; --resume continues a killed run. "
         "Under MPI (mpirun -n P trbc campaign ...) the cells are shared between ranks");
-    cmd->add_option("--samples", o->c.samples, "number of samples (rows)")->capture_default_str();
+    addNumber(cmd, "--samples", o->c.samples, "number of samples (rows)", NumberRange::closed(1, 1e8))->capture_default_str();
     cmd->add_option("--design", o->design, "uniform (i.i.d., as the reference) or lhs (Latin hypercube)")
         ->capture_default_str();
-    cmd->add_option("--seed", o->c.seed, "seed of the design")->capture_default_str();
-    cmd->add_option("--level", o->level, "icosphere level of the meshes (4: Nv = 2562, the training level)")
+    addNumber(cmd, "--seed", o->c.seed, "seed of the design", NumberRange::nonNegative())->capture_default_str();
+    addNumber(cmd, "--level", o->level, "icosphere level of the meshes (4: Nv = 2562, the training level)",
+              NumberRange::closed(2, 6))
         ->capture_default_str();
-    cmd->add_option("--forces-per-cell", o->c.forcesPerCell,
+    addNumber(cmd, "--forces-per-cell", o->c.forcesPerCell,
                     "rows per cell: the rows of a cell share (v, mu, FvK, b2, etam) and one SFS, equilibrium, "
-                    "stretching continuation and relaxation, and differ in Fext. 1 = the paper's one force per sample")
+                    "stretching continuation and relaxation, and differ in Fext. 1 = the paper's one force per sample",
+              NumberRange::closed(1, 1000))
         ->capture_default_str();
     cmd->add_option("--out", o->out, "output directory")->required();
-    cmd->add_option("--threads", o->c.threads, "cells run concurrently (one thread each)")->capture_default_str();
-    cmd->add_option("--cell-time-limit", o->c.cellTimeLimit,
-                    "wall-time budget of one cell in s (0: none); over it the cell's rows are recorded as failed with "
+    addNumber(cmd, "--threads", o->c.threads, "cells run concurrently (one thread each)", NumberRange::closed(1, 1024))
+        ->capture_default_str();
+    addNumber(cmd, "--cell-time-limit", o->c.cellTimeLimit,
+                    "wall-time budget of one cell (0: none); over it the cell's rows are recorded as failed with "
                     "the reason 'time limit reached' (equilibrium outputs computed before it are kept; which cells hit "
-                    "it depends on the machine). Part of the settings: a resume must give the same value")
+                    "it depends on the machine). Part of the settings: a resume must give the same value",
+              NumberRange::closed(0.0, 1e6, "s"))
         ->capture_default_str();
     cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
     cmd->add_option("--inject-failures", o->inject,

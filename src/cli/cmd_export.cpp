@@ -14,6 +14,7 @@
 #include "cli/common.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/sfs.hpp"
@@ -50,12 +51,12 @@ void registerExport(CLI::App& app) {
                   "PLY meshes (um) and OUT/cell.json with the parameters in physical units (v, mu_uN_per_m, kb_J, FvK, b2, "
                   "etam_Pa_s_um, A0_um2, V0_um3) and in the dimensionless units of MODEL.md");
     cmd->add_option("--posterior", o->posterior, "posterior directory with samples.csv (or the file), e.g. DIR/phase3/theta_new")->required();
-    cmd->add_option("--quantile", o->quantile, "quantile of each marginal, in (0, 1) (0.5: the medians)")
-        ->check(CLI::Range(1e-9, 1.0 - 1e-9))
+    addNumber(cmd, "--quantile", o->quantile, "quantile of each marginal (0.5: the medians)", NumberRange::open(0.0, 1.0))
         ->capture_default_str();
-    cmd->add_option("--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2)")->check(CLI::Range(1, 6))->capture_default_str();
+    addNumber(cmd, "--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2)", NumberRange::closed(1, 6))
+        ->capture_default_str();
     cmd->add_option("--out", o->out, "output directory")->required();
-    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
     addSolverOptions(cmd, o->exp);
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
@@ -74,13 +75,25 @@ void registerExport(CLI::App& app) {
         p.b2 = sampleQuantile(t.column("b2"), q);
         p.etam = sampleQuantile(t.column("etam_Pa_s_um"), q);
         validateCellParameters(p, true);
+        // Tail quantiles of a theta_new posterior can leave the prior box (the surrogates' training
+        // box, where the posterior was never checked against data): said loudly and recorded.
+        std::string warning;
+        try {
+            validateCellParameters(p, false);
+        } catch (const InputError& e) {
+            warning = fmt::format("--quantile {:g} gives a cell outside the prior box: {}", q, e.what());
+            std::cerr << "export: warning: " << warning << '\n';
+        }
 
         ExperimentOptions eo = o->exp;
         eo.level = o->level;
         eo.cacheDir = cacheDirectory(o->cache);
         const auto t0 = std::chrono::steady_clock::now();
+        ProgressLine progress("export");
+        progress.stage(fmt::format("stress-free state (v = {:g}, level {})", p.v, o->level));
         const StressFreeState sfs = stressFreeState(p.v, o->level, eo.cacheDir);
         const CellMeshes meshes = cellMeshes(sfs);
+        progress.stage("equilibrium shape");
         const EquilibriumResult eq = runEquilibrium(p, meshes, eo);
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -93,6 +106,7 @@ void registerExport(CLI::App& app) {
         nlohmann::json j;
         j["source"] = {{"posterior", fs::absolute(file).lexically_normal().string()}, {"samples", t.values.rows()}};
         j["quantile"] = q;
+        if (!warning.empty()) j["warning"] = warning;
         j["note"] = "each parameter is the given quantile of its own marginal; FvK = mu R_A^2 / kb from those";
         j["physical"] = {{"v", p.v},
                          {"mu_uN_per_m", p.mu},
@@ -125,9 +139,7 @@ void registerExport(CLI::App& app) {
                       {"mesh", {{"level", o->level}, {"vertices", meshes.reference.cols()}, {"faces", meshes.faces.cols()}, {"units", "um"}}}};
         j["diagnostics"] = {{"sfs_from_cache", sfs.fromCache}, {"equilibrium_converged", eq.diagnostics.converged}, {"wall_s", wall}};
         j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
-        std::ofstream out(dir / "cell.json");
-        out << j.dump(2) << '\n';
-        if (!out) throw InputError(fmt::format("cannot write {}", (dir / "cell.json").string()));
+        writeFileAtomically(dir / "cell.json", j.dump(2) + "\n");
         std::cout << j.dump(2) << std::endl;
     });
 }

@@ -13,6 +13,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "analysis/stage_ledger.hpp"
 #include "core/version.hpp"
 #include "flow/cell_flow.hpp"
@@ -29,11 +30,7 @@ constexpr double kPi = std::numbers::pi;
 
 nlohmann::json nullable(bool ok, double v) { return ok ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-void writeText(const std::string& path, const std::string& text) {
-    std::ofstream out(path);
-    out << text;
-    if (!out) throw InputError("cannot write " + path);
-}
+void writeText(const std::string& path, const std::string& text) { writeFileAtomically(path, text); }
 
 void writeShapesAndSteps(const std::string& dir, const CellFlowModel& model, const Faces& faces,
                          const Vertices& reference, const Vertices& initial, const CellFlowResult& r, int vtkEvery);
@@ -65,13 +62,13 @@ struct CellOptions {
 };
 
 void addCellOptions(CLI::App* cmd, CellOptions& c) {
-    c.ov = cmd->add_option("--v", c.v, "reduced volume of the stress-free state, prior [0.65, 1]");
-    c.omu = cmd->add_option("--mu", c.mu, "shear modulus, uN/m, prior [1, 10]");
-    c.fvk = cmd->add_option("--FvK", c.FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]");
-    c.okb = cmd->add_option("--kb", c.kbJ, "bending modulus, J, replaces --FvK; prior [1.074e-19, 1.074e-18]")
+    c.ov = addNumber(cmd, "--v", c.v, "reduced volume of the stress-free state, prior [0.65, 1]", NumberRange::leftOpen(0.0, 1.0));
+    c.omu = addNumber(cmd, "--mu", c.mu, "shear modulus, prior [1, 10] uN/m", NumberRange::positive("uN/m"));
+    c.fvk = addNumber(cmd, "--FvK", c.FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]", NumberRange::positive());
+    c.okb = addNumber(cmd, "--kb", c.kbJ, "bending modulus, replaces --FvK; prior [1.074e-19, 1.074e-18] J", NumberRange::positive("J"))
                 ->excludes(c.fvk);
-    c.ob2 = cmd->add_option("--b2", c.b2, "Lim non-linear shear coefficient, prior [0, 4]");
-    c.oetam = cmd->add_option("--etam", c.etam, "membrane viscosity, Pa s um, prior [0.1, 1]");
+    c.ob2 = addNumber(cmd, "--b2", c.b2, "Lim non-linear shear coefficient, prior [0, 4]", NumberRange::nonNegative());
+    c.oetam = addNumber(cmd, "--etam", c.etam, "membrane viscosity, prior [0.1, 1] Pa s um", NumberRange::positive("Pa s um"));
     cmd->add_flag("--allow-outside-prior", c.allowOutside, "accept cell parameters outside the prior box");
     c.opost = cmd->add_option("--posterior", c.posterior,
                               "take the cell from a theta_new posterior (DIR/phase3/theta_new of `trbc infer`, or its "
@@ -100,8 +97,7 @@ CellParameters cellParameters(const CellOptions& c) {
         p.FvK = c.FvK;
     } else {
         const double kb = c.okb->count() > 0 ? c.kbJ : table1::kbJ;
-        if (!(kb > 0.0) || !std::isfinite(kb))
-            throw InputError(fmt::format("parameter --kb = {} J: must be positive (prior [1.074e-19, 1.074e-18] J)", kb));
+        validateBendingModulus(kb, c.allowOutside);
         p.FvK = CellParameters::fvkFromKb(p.mu, kb);
     }
     validateCellParameters(p, c.allowOutside);
@@ -119,12 +115,6 @@ std::string cellSource(const CellOptions& c) {
                          c.oetam->count() > 0;
     return any ? "command line (options not given: the paper's Table 1 means)"
                : "the paper's Table 1 means of the theta_new posterior (no cell options given)";
-}
-
-void requirePositiveOption(const char* option, double value, const char* unit) {
-    if (!(value > 0.0) || !std::isfinite(value))
-        throw InputError(fmt::format("parameter {} = {} {}: must be finite and > 0 (valid range (0, inf))", option,
-                                     value, unit));
 }
 
 /// The diagnostics of the time stepping that do not depend on the flow's time unit.
@@ -243,25 +233,24 @@ CellFlowObserver progressReporter(const std::string& name, double tEnd, const st
 }
 
 void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& unit) {
-    cmd->add_option("--frame-interval", s.frameInterval, "interval of the saved frames, units of " + unit)
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--step-tol", s.tol, "local error per time step, largest vertex displacement in units of R_A")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--dt", s.dt, "fixed time step in units of " + unit + " (disables the adaptive step control)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--max-steps", s.maxSteps, "limit on time-step attempts (the run fails beyond it)")
-        ->check(CLI::Range(1, 100000000))->capture_default_str();
+    addNumber(cmd, "--frame-interval", s.frameInterval, "interval of the saved frames", NumberRange::leftOpen(0.0, 1e6, unit))
+        ->capture_default_str();
+    addNumber(cmd, "--step-tol", s.tol, "local error per time step, largest vertex displacement",
+              NumberRange::leftOpen(0.0, 1.0, "R_A"))
+        ->capture_default_str();
+    addNumber(cmd, "--dt", s.dt, "fixed time step (disables the adaptive step control)", NumberRange::leftOpen(0.0, 100.0, unit));
+    addNumber(cmd, "--max-steps", s.maxSteps, "limit on time-step attempts (the run fails beyond it)", NumberRange::closed(1, 1e8))
+        ->capture_default_str();
     cmd->add_option("--out", s.out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
-    cmd->add_option("--vtk-every", s.vtkEvery, "write every k-th frame as VTK")
-        ->check(CLI::Range(1, 1000000))->capture_default_str();
-    cmd->add_option("--threads", s.threads, "OpenMP threads (0: OpenMP default)")->check(CLI::Range(0, 1024));
+    addNumber(cmd, "--vtk-every", s.vtkEvery, "write every k-th frame as VTK", NumberRange::closed(1, 1e6))->capture_default_str();
+    addNumber(cmd, "--threads", s.threads, "OpenMP threads (0: OpenMP default)", NumberRange::closed(0, 1024));
     cmd->add_flag("--resume", s.resume,
                   "continue a killed run from its snapshots in OUT/checkpoint/ (same command; a snapshot of another "
                   "run or a damaged one is ignored and the run starts afresh); needs --out");
-    cmd->add_option("--checkpoint-interval", s.checkpointInterval,
-                    "wall seconds between snapshots in OUT/checkpoint/ (0: after every step; removed when the run "
-                    "has written its outputs)")
-        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    addNumber(cmd, "--checkpoint-interval", s.checkpointInterval,
+              "wall time between snapshots in OUT/checkpoint/ (0: after every step; removed when the run has written its outputs)",
+              NumberRange::closed(0.0, 1e7, "s"))
+        ->capture_default_str();
 }
 
 /// Checks --resume against --out, prepares the output directory and sets the thread count.
@@ -304,14 +293,15 @@ void registerShear(CLI::App* flow) {
         "Stokes flow, membrane forces of MODEL.md C with membrane viscosity, semi-implicit adaptive BDF2. Prints "
         "regime, inclination angle, swinging amplitude and 4 pi f / rate as JSON. Without cell options the cell "
         "is the paper's Table 1 posterior means (v=0.94, mu=4.99 uN/m, kb=2.10e-19 J, b2=1.84, etam=0.69 Pa s um)");
-    cmd->add_option("--eta-out", o->etaOut, "outer (suspending) viscosity, mPa s (> 0)")->required();
-    cmd->add_option("--shear-rate", o->shearRate, "shear rate, 1/s (> 0)")->required();
-    cmd->add_option("--eta-in", o->etaIn, "inner (cytosol) viscosity, mPa s (> 0)")->capture_default_str();
+    addNumber(cmd, "--eta-out", o->etaOut, "outer (suspending) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->required();
+    addNumber(cmd, "--shear-rate", o->shearRate, "shear rate", NumberRange::leftOpen(0.0, 1e6, "1/s"))->required();
+    addNumber(cmd, "--eta-in", o->etaIn, "inner (cytosol) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->capture_default_str();
     addCellOptions(cmd, o->cell);
-    cmd->add_option("--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)")
-        ->check(CLI::Range(1, 5))->capture_default_str();
-    cmd->add_option("--rotations", o->rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate")
-        ->check(CLI::PositiveNumber)->capture_default_str();
+    addNumber(cmd, "--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)", NumberRange::closed(1, 5))
+        ->capture_default_str();
+    addNumber(cmd, "--rotations", o->rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate",
+              NumberRange::leftOpen(0.0, 1000.0))
+        ->capture_default_str();
     addSteppingOptions(cmd, o->step, "1/rate");
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
@@ -320,9 +310,6 @@ void registerShear(CLI::App* flow) {
         fc.etaOut = o->etaOut;
         fc.etaIn = o->etaIn;
         fc.shearRate = o->shearRate;
-        requirePositiveOption("--shear-rate", fc.shearRate, "1/s");
-        requirePositiveOption("--eta-out", fc.etaOut, "mPa s");
-        requirePositiveOption("--eta-in", fc.etaIn, "mPa s");
         validateFlowConditions(fc);
         const CellParameters p = cellParameters(o->cell);
         applySteppingOptions(o->step);
@@ -386,7 +373,14 @@ void registerShear(CLI::App* flow) {
             removeCheckpoints(o->step);  // a resume would only repeat the failure
             throw NumericalError("flow shear: " + r.message);
         }
-        const ShearObservables obs = analyzeShearFrames(r.times, r.frames, 1.0);
+        ShearObservables obs;
+        try {
+            obs = analyzeShearFrames(r.times, r.frames, 1.0);
+        } catch (const InputError& e) {
+            throw InputError(fmt::format("{}: too few frames for the analysis; give more --rotations (now {:g}) or a smaller "
+                                         "--frame-interval (now {:g})",
+                                         e.what(), o->rotations, o->step.frameInterval));
+        }
         const bool tt = obs.regime == ShearRegime::TankTreading;
         j["status"] = "ok";
         j["observables"] = {{"regime", regimeName(obs.regime)},
@@ -470,72 +464,71 @@ void registerTube(CLI::App* flow) {
         "(viscosity ratio 1), membrane forces of MODEL.md C with membrane viscosity, semi-implicit adaptive BDF2. "
         "Prints the cell velocity, length and width as JSON. Time unit R/V with V = (pressure gradient / 45) cm/s "
         "(VALIDATION.md 4.1). Without cell options the cell is the paper's Table 1 posterior means");
-    cmd->add_option("--radius", o->radius, "tube radius R, um (>= the smallest radius that can hold the cell, 1.497 um "
-                                           "for A0 = 135 um^2, V0 = 94 um^3)")
+    // A closed surface of area A0 inside a tube of radius R encloses at most R A0 / 2 - 2 pi R^3 / 3
+    // (the capsule of radius R), which must be >= V0: R >= minimumTubeRadius(A0, V0).
+    const FlowConditions cellSize;
+    addNumber(cmd, "--radius", o->radius,
+              fmt::format("tube radius R (from the smallest radius whose capsule holds the cell's area {} um^2 and volume {} um^3)",
+                          cellSize.A0, cellSize.V0),
+              NumberRange::closed(std::ceil(minimumTubeRadius(cellSize.A0, cellSize.V0) * 1e4) / 1e4, 100.0, "um"))
         ->required();
-    cmd->add_option("--pressure-gradient", o->pg, "pressure gradient, mmHg/mm (> 0; 1 mmHg/mm = 1.33322e5 Pa/m)")
+    addNumber(cmd, "--pressure-gradient", o->pg, "pressure gradient (1 mmHg/mm = 1.33322e5 Pa/m)",
+              NumberRange::leftOpen(0.0, 1e4, "mmHg/mm"))
         ->required();
-    cmd->add_option("--eta-out", o->etaOut, "viscosity of the suspending fluid, mPa s (> 0)")->capture_default_str();
-    cmd->add_option("--viscosity-ratio", o->lambda, "cytosol / outer viscosity; the tube solver supports 1 only")
+    addNumber(cmd, "--eta-out", o->etaOut, "viscosity of the suspending fluid", NumberRange::leftOpen(0.0, 1e6, "mPa s"))
+        ->capture_default_str();
+    addNumber(cmd, "--viscosity-ratio", o->lambda, "cytosol / outer viscosity; the tube solver supports 1 only",
+              NumberRange::closed(1.0, 1.0))
         ->capture_default_str();
     addCellOptions(cmd, o->cell);
-    cmd->add_option("--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)")
-        ->check(CLI::Range(1, 4))->capture_default_str();
-    cmd->add_option("--duration", o->duration, "simulated time of the main run (after --settle), units of R/V")
-        ->check(CLI::PositiveNumber)
+    addNumber(cmd, "--level", o->level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)", NumberRange::closed(1, 4))
         ->capture_default_str();
-    cmd->add_option("--settle", o->settle,
+    addNumber(cmd, "--duration", o->duration, "simulated time of the main run (after --settle)", NumberRange::leftOpen(0.0, 1e4, "R/V"))
+        ->capture_default_str();
+    addNumber(cmd, "--settle", o->settle,
                     "longest settling stage before the main run, R/V (0: none, else >= 10): the cell with the small "
                     "membrane viscosity of --settle-relax reaches the steady shape fast; a cell at rest in the co-moving frame "
                     "feels no membrane viscosity, and the main run, with the cell's own etam, continues from that "
-                    "shape and gives the observables")
-        ->check(CLI::NonNegativeNumber)->capture_default_str();
+                    "shape and gives the observables",
+              NumberRange::closed(0.0, 1e4, "R/V"))
+        ->capture_default_str();
     CLI::Option* relax =
-        cmd->add_option("--settle-relax", o->settleRelax,
+        addNumber(cmd, "--settle-relax", o->settleRelax,
                         "relaxation time eta_m / mu of the settling stage, R/V (> 0): its membrane viscosity is this x mu "
                         "R / V (at most the cell's own). The slow shape mode relaxes on eta_m / mu, so a fixed time in "
-                        "R/V keeps the settling stage's length in R/V independent of the capillary number")
-            ->check(CLI::PositiveNumber)
+                        "R/V keeps the settling stage's length in R/V independent of the capillary number",
+                  NumberRange::leftOpen(0.0, 1e9, "R/V"))
             ->capture_default_str();
-    o->settleEtamOption = cmd->add_option("--settle-etam", o->settleEtam,
-                                          "membrane viscosity of the settling stage, Pa s um (> 0); replaces "
-                                          "--settle-relax")
-                              ->check(CLI::PositiveNumber)
+    o->settleEtamOption = addNumber(cmd, "--settle-etam", o->settleEtam,
+                                    "membrane viscosity of the settling stage; replaces --settle-relax",
+                                    NumberRange::leftOpen(0.0, 1e3, "Pa s um"))
                               ->excludes(relax);
-    cmd->add_option("--settle-tol", o->settleTol,
-                    fmt::format("the settling stage ends when the cell's extents along x, y and z vary by less "
-                                "than this (relative) over the last {:g} R/V", kSettleSpan))
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--wall-points", o->wallPoints, "wall vertices per ring (0: chord ~ 1.5 x the cell's mean edge)")
-        ->check(CLI::Range(0, 400))->capture_default_str();
-    cmd->add_option("--tube-length", o->tubeLength,
-                    "length of the discretised wall, um (0: the fitted cell's length x 1.15 plus 2 R at each end)")
-        ->check(CLI::NonNegativeNumber)->capture_default_str();
-    cmd->add_option("--repulsion-range", o->repulsionRange, "range of the wall repulsion on the vertices, um")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--repulsion-pressure", o->repulsionPressure,
-                    "strength p0 of the wall repulsion in units of eta_out V / R (pressure p0 (delta/d - 1)^2)")
-        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    addNumber(cmd, "--settle-tol", o->settleTol,
+              fmt::format("the settling stage ends when the cell's extents along x, y and z vary by less "
+                          "than this over the last {:g} R/V", kSettleSpan),
+              NumberRange::leftOpen(0.0, 1.0, "(relative)"))
+        ->capture_default_str();
+    addNumber(cmd, "--wall-points", o->wallPoints, "wall vertices per ring (0: chord ~ 1.5 x the cell's mean edge)",
+              NumberRange::closed(0, 400))
+        ->capture_default_str();
+    addNumber(cmd, "--tube-length", o->tubeLength,
+              "length of the discretised wall (0: the fitted cell's length x 1.15 plus 2 R at each end)",
+              NumberRange::closed(0.0, 1e3, "um"))
+        ->capture_default_str();
+    addNumber(cmd, "--repulsion-range", o->repulsionRange, "range of the wall repulsion on the vertices",
+              NumberRange::leftOpen(0.0, 10.0, "um"))
+        ->capture_default_str();
+    addNumber(cmd, "--repulsion-pressure", o->repulsionPressure,
+              "strength p0 of the wall repulsion in units of eta_out V / R (pressure p0 (delta/d - 1)^2)",
+              NumberRange::closed(0.0, 1e6))
+        ->capture_default_str();
     addSteppingOptions(cmd, o->step, "R/V");
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
         const auto tStart = std::chrono::steady_clock::now();
         // ---- Input (exit 2 naming the option and its valid range).
-        requirePositiveOption("--pressure-gradient", o->pg, "mmHg/mm");
-        requirePositiveOption("--eta-out", o->etaOut, "mPa s");
-        requirePositiveOption("--viscosity-ratio", o->lambda, "");
-        if (o->lambda != 1.0)
-            throw InputError(fmt::format("parameter --viscosity-ratio = {}: the tube solver supports viscosity ratio 1 only "
-                                         "(valid range [1, 1]; the paper's production runs use 1, VALIDATION.md 4.1)",
-                                         o->lambda));
         FlowConditions fc;
         const double Rmin = minimumTubeRadius(fc.A0, fc.V0);
-        if (!(o->radius > 0.0) || !std::isfinite(o->radius) || o->radius < Rmin)
-            throw InputError(fmt::format(
-                "parameter --radius = {} um: must be >= {:.4f} um (valid range [{:.4f}, inf) um): a closed surface of "
-                "area A0 = {} um^2 inside a tube of radius R encloses at most R A0 / 2 - 2 pi R^3 / 3 (the capsule of "
-                "radius R), which must be >= V0 = {} um^3",
-                o->radius, Rmin, Rmin, fc.A0, fc.V0));
         const CellParameters p = cellParameters(o->cell);
         if (o->settle > 0.0 && o->settle < kSettleSpan)
             throw InputError(fmt::format("parameter --settle = {} R/V: the settling criterion spans {:g} R/V (valid: 0 "
@@ -607,9 +600,10 @@ void registerTube(CLI::App* flow) {
             initialUm = fitIntoTube(cell.initial, cell.faces, o->radius, clearanceUm, fc.A0, fc.V0);
         } catch (const NumericalError& e) {
             j["status"] = "failed";
-            j["reason"] = std::string("the cell cannot be fitted into the tube: ") + e.what();
+            const std::string why = fmt::format("the cell cannot be fitted into a tube of --radius {} um: {}", o->radius, e.what());
+            j["reason"] = why;
             std::cout << j.dump(2) << std::endl;
-            throw NumericalError(std::string("flow tube: ") + e.what());
+            throw NumericalError("flow tube: " + why);
         }
         const Eigen::Vector3d fitted = extents(initialUm), equilibrium = extents(cell.initial);
         const double reachUm = initialUm.row(0).cwiseAbs().maxCoeff();

@@ -8,6 +8,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "membrane/model.hpp"
 #include "mesh/io.hpp"
 #include "mesh/validate.hpp"
@@ -40,6 +41,7 @@ void registerForces(CLI::App& app) {
     addModulusOptions(cmd, o->moduli);
     cmd->callback([o]() {
         const MembraneParameters p = checkedParameters(o->moduli);
+        ensureWritableFile(o->out);
         const Mesh mesh = readOff(o->mesh);
         std::unique_ptr<Mesh> ref;
         if (!o->reference.empty()) {
@@ -54,13 +56,10 @@ void registerForces(CLI::App& app) {
         const double energy = model.evaluate(mesh.X, &grad, &terms);
         if (!std::isfinite(energy) || !grad.allFinite())
             throw NumericalError(fmt::format("energy or forces are not finite on '{}'", o->mesh));
-        std::ofstream out(o->out);
-        if (!out) throw InputError(fmt::format("cannot open '{}' for writing", o->out));
-        out << "fx,fy,fz\n";
+        std::string csv = "fx,fy,fz\n";
         for (Eigen::Index i = 0; i < grad.cols(); ++i)
-            out << fmt::format("{:.17g},{:.17g},{:.17g}\n", -grad(0, i), -grad(1, i), -grad(2, i));
-        out.flush();
-        if (!out) throw InputError(fmt::format("error while writing '{}'", o->out));
+            csv += fmt::format("{:.17g},{:.17g},{:.17g}\n", -grad(0, i), -grad(1, i), -grad(2, i));
+        writeFileAtomically(o->out, csv);
         nlohmann::json j;
         j["energy"] = energy;
         j["terms"] = energyTermsJson(p, terms);

@@ -71,20 +71,19 @@ void registerInfer(CLI::App& app) {
                     "route: phase-1 samples re-weighted, mixtures sampled with TMCMC/BASIS); docs/BAYESIAN_INFERENCE.md")
         ->check(CLI::IsMember({"joint", "reweighting"}))
         ->capture_default_str();
-    cmd->add_option("--chains", o->chains, "joint method: number of chains")->check(CLI::Range(2, 1024))->capture_default_str();
-    cmd->add_option("--warmup", o->warmup, "joint method: warm-up sweeps per chain (adaptation, discarded)")
-        ->check(CLI::Range(50, 10000000))
+    addNumber(cmd, "--chains", o->chains, "joint method: number of chains", NumberRange::closed(2, 1024))->capture_default_str();
+    addNumber(cmd, "--warmup", o->warmup, "joint method: warm-up sweeps per chain (adaptation, discarded)", NumberRange::closed(50, 1e7))
         ->capture_default_str();
-    cmd->add_option("--draws", o->draws, "joint method: kept draws per chain")->check(CLI::Range(8, 10000000))->capture_default_str();
-    cmd->add_option("--thin", o->thin, "joint method: sweeps per kept draw")->check(CLI::Range(1, 10000))->capture_default_str();
-    cmd->add_option("--phase1-burn-in", o->burnIn,
-                    "unrecorded Metropolis steps per BASIS stage of the phase-1 runs (0: the paper's BASIS; more steps spread "
-                    "the population along correlated posteriors at proportional cost)")
-        ->check(CLI::Range(0, 100))
+    addNumber(cmd, "--draws", o->draws, "joint method: kept draws per chain", NumberRange::closed(8, 1e7))->capture_default_str();
+    addNumber(cmd, "--thin", o->thin, "joint method: sweeps per kept draw", NumberRange::closed(1, 1e4))->capture_default_str();
+    addNumber(cmd, "--phase1-burn-in", o->burnIn,
+              "unrecorded Metropolis steps per BASIS stage of the phase-1 runs (0: the paper's BASIS; more steps spread the "
+              "population along correlated posteriors at proportional cost)",
+              NumberRange::closed(0, 100))
         ->capture_default_str();
-    cmd->add_option("--hyper-sd-scale", o->hyperSdScale,
-                    "joint method, for sensitivity studies: multiply the upper bound of every population-SD hyper-prior by this")
-        ->check(CLI::Range(0.05, 20.0))
+    addNumber(cmd, "--hyper-sd-scale", o->hyperSdScale,
+              "joint method, for sensitivity studies: multiply the upper bound of every population-SD hyper-prior by this",
+              NumberRange::closed(0.05, 20.0))
         ->capture_default_str();
     cmd->add_option("--population-truncation", o->truncation,
                     "joint method, for sensitivity studies: on (v truncated to [0, 1] and kb to its prior box in the population) or off")
@@ -95,17 +94,18 @@ void registerInfer(CLI::App& app) {
                     "to v <= 1, the kb box and mu, b2, etam/mu >= 0")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
-    cmd->add_option("--samples", o->samples, "population size N of every TMCMC/BASIS run (phase 1; phases 2-3 of --method reweighting)")
-        ->check(CLI::Range(2, 100000000))
+    // Below 100 samples the TMCMC stages cannot resample the population (the same floor as [inference] samples).
+    addNumber(cmd, "--samples", o->samples, "population size N of every TMCMC/BASIS run (phase 1; phases 2-3 of --method reweighting)",
+              NumberRange::closed(100, 1e8))
         ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "run seed (each run derives its own from it and its name)")->capture_default_str();
+    addNumber(cmd, "--seed", o->seed, "run seed (each run derives its own from it and its name)", NumberRange::nonNegative())
+        ->capture_default_str();
     cmd->add_option("--out", o->out, "output directory DIR")->required();
     addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
                     "else the shipped copy data/experiments)");
-    cmd->add_option("--threads", o->threads, "OpenMP threads (results do not depend on it)")
-        ->check(CLI::Range(1, 1024))
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads (results do not depend on it)", NumberRange::closed(1, 1024))
         ->capture_default_str();
     cmd->add_flag("--resume", o->resume, "continue unfinished runs from their per-stage checkpoints and reuse finished ones");
     cmd->add_flag("--single-precision", o->single, "evaluate the surrogate in float (about 3x faster)");
@@ -153,7 +153,14 @@ void registerInfer(CLI::App& app) {
         opt.phase3b.rule = opt.fvkRule;
         opt.phase3b.referencePrior = o->prior3b == "reference";
         opt.phase3b.referenceEquilibriumDefect = o->fvk3b == "last";
-        const RbcPriorBox box = parsePriorBox(o->priors);  // before anything is written
+        const RbcPriorBox box = parsePriorBox(o->priors);
+        // Every input is read and checked before anything is written to --out.
+        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
+        surrogate->precision = o->single ? Precision::Single : Precision::Double;
+        const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
+        std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
+        for (RbcDataSet& d : data) d.prior = box;
         ensureWritableDirectory(o->out);
         // Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box.
         nlohmann::json boxJson = nlohmann::json::object();
@@ -171,13 +178,6 @@ void registerInfer(CLI::App& app) {
                                              boxFile.string(), o->out, previous.dump(), boxJson.dump()));
         }
         if (opt.firstPhase == 1) writeFileAtomically(boxFile, boxJson.dump(1) + "\n");
-
-        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
-        auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
-        surrogate->precision = o->single ? Precision::Single : Precision::Double;
-        const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
-        std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
-        for (RbcDataSet& d : data) d.prior = box;
 
         nlohmann::json networks = nlohmann::json::object();
         const std::pair<const char*, const TrainedNetwork*> nets[3] = {

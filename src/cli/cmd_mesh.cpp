@@ -40,8 +40,8 @@ void registerMesh(CLI::App& app) {
     CLI::App* infoCmd = cmd->add_subcommand(
         "info", "Validate a mesh (closed, oriented, genus 0) and print its size, area, volume, reduced "
                 "volume and principal extents as JSON");
-    infoCmd->add_option("mesh", *info, "OFF mesh")->required();
-    infoCmd->callback([info]() { std::cout << meshSummary(readOff(*info)).dump(2) << std::endl; });
+    infoCmd->add_option("mesh", *info, "mesh: OFF, or the PLY and VTK files that trbc writes")->required();
+    infoCmd->callback([info]() { std::cout << meshSummary(readMesh(*info)).dump(2) << std::endl; });
 
     struct IcoOpts {
         int level = 3;
@@ -54,9 +54,10 @@ void registerMesh(CLI::App& app) {
         "icosphere", "Unit icosphere (Nv = 10 4^L + 2), optionally mapped to the Evans-Fung biconcave "
                      "shape (um) and scaled to a target area; written as OFF, PLY or VTK (with mean "
                      "curvature and vertex area fields)");
-    ico->add_option("--level", o->level, "subdivision level L")->check(CLI::Range(0, 7))->capture_default_str();
+    addNumber(ico, "--level", o->level, "subdivision level L", NumberRange::closed(0, 7))->capture_default_str();
     ico->add_flag("--biconcave", o->biconcave, "map onto the Evans-Fung (1972) resting cell");
-    ico->add_option("--area", o->area, "scale uniformly to this area (0 = keep)")->check(CLI::NonNegativeNumber);
+    // Bounded so that area, volume and every coordinate stay finite doubles (volume ~ area^1.5).
+    addNumber(ico, "--area", o->area, "scale uniformly to this area (0 = keep)", NumberRange::closed(0.0, 1e100, "(length^2, um^2 with --biconcave)"));
     ico->add_option("--out", o->out, "output mesh (.off, .ply or .vtk)")->required();
     ico->callback([o]() {
         Mesh m = icosphere(o->level);

@@ -34,21 +34,23 @@ void registerMinimize(CLI::App& app) {
     cmd->add_option("--reference", o->reference, "stress-free mesh for the Lim term (OFF)");
     cmd->add_option("--out", o->out, "relaxed mesh (.off, .ply or .vtk)")->required();
     addModulusOptions(cmd, o->moduli);
-    cmd->add_option("--reduced-volume", o->reducedVolume,
-                    "set V0 from a reduced volume v in (0, 1]: V0 = v A0^{3/2} / (6 sqrt(pi)), A0 = --A0 or the "
-                    "mesh area")->check(CLI::Range(0.0, 1.0));
-    cmd->add_option("--oblate-seed", o->oblate,
-                    "scale the initial z coordinates by this factor (< 1 seeds the oblate/discocyte branch)")
-        ->check(CLI::Range(0.05, 1.0))->capture_default_str();
-    cmd->add_option("--tol", o->tolerance, "stop when the largest vertex force is below this")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--max-step", o->maxStep, "cap on any vertex displacement per iteration (0 = none)")
-        ->check(CLI::NonNegativeNumber)->capture_default_str();
-    cmd->add_option("--max-iter", o->maxIterations, "iteration limit")->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->callback([o]() {
+    auto* reduced = addNumber(cmd, "--reduced-volume", o->reducedVolume,
+                              "set V0 from a reduced volume v: V0 = v A0^{3/2} / (6 sqrt(pi)), A0 = --A0 or the mesh area",
+                              NumberRange::leftOpen(0.0, 1.0));
+    addNumber(cmd, "--oblate-seed", o->oblate, "scale the initial z coordinates by this factor (< 1 seeds the oblate/discocyte branch)",
+              NumberRange::closed(0.05, 1.0))
+        ->capture_default_str();
+    addNumber(cmd, "--tol", o->tolerance, "stop when the largest vertex force is below this", NumberRange::positive("(mesh force units)"))
+        ->capture_default_str();
+    addNumber(cmd, "--max-step", o->maxStep, "cap on any vertex displacement per iteration (0 = none)",
+              NumberRange::nonNegative("(mesh length units)"))
+        ->capture_default_str();
+    addNumber(cmd, "--max-iter", o->maxIterations, "iteration limit", NumberRange::closed(1, 1e9))->capture_default_str();
+    cmd->callback([o, reduced]() {
+        ensureWritableFile(o->out);
         Mesh mesh = readOff(o->mesh);
         ModulusOptions moduli = o->moduli;
-        if (o->reducedVolume > 0) {
+        if (reduced->count() > 0) {
             if (!moduli.haveA0) moduli.A0 = totalArea(mesh.X, mesh.F);
             moduli.haveA0 = true;
             moduli.V0 = o->reducedVolume * std::pow(moduli.A0, 1.5) / (6.0 * std::sqrt(std::numbers::pi));
@@ -72,26 +74,35 @@ void registerMinimize(CLI::App& app) {
         opt.maxIterations = o->maxIterations;
         opt.maxVertexStep = o->maxStep;
         const auto t0 = std::chrono::steady_clock::now();
+        ProgressLine progress("minimize");
+        progress.stage(fmt::format("L-BFGS on {} vertices", mesh.numVertices()));
         const MinimizeResult r = minimizeEnergy(model, mesh.X, opt);
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         Vertices grad;
         EnergyTerms terms;
         model.evaluate(mesh.X, &grad, &terms);
         const auto d = model.vertexDiagnostics(mesh.X);
-        writeMesh(o->out, mesh,
-                  {{"force", -grad}, {"mean_curvature", d.meanCurvature.transpose()},
-                   {"vertex_area", d.area.transpose()}});
+        const bool finite = std::isfinite(terms.total()) && grad.allFinite() && mesh.X.allFinite();
+        // A shape that did not converge is not the relaxed mesh that --out promises: not written.
+        const bool ok = r.converged && finite;
+        if (ok)
+            writeMesh(o->out, mesh,
+                      {{"force", -grad}, {"mean_curvature", d.meanCurvature.transpose()},
+                       {"vertex_area", d.area.transpose()}});
         nlohmann::json j;
+        j["status"] = ok ? "ok" : "failed";
+        if (!ok) j["reason"] = finite ? "did not converge: " + r.message : std::string("the energy, the forces or the shape are not finite");
         j["energy"] = terms.total();
         j["terms"] = energyTermsJson(p, terms);
         j["mesh"] = meshSummary(mesh);
         j["diagnostics"] = {{"converged", r.converged}, {"iterations", r.iterations},
                             {"evaluations", r.evaluations}, {"max_vertex_force", r.gradientNorm},
                             {"message", r.message}, {"wall_s", wall}};
-        j["output"] = o->out;
+        j["output"] = ok ? nlohmann::json(o->out) : nlohmann::json(nullptr);
         j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
         std::cout << j.dump(2) << std::endl;
-        if (!r.converged) throw NumericalError("minimisation did not converge: " + r.message);
+        if (!finite) throw NumericalError("minimisation diverged (non-finite energy, forces or shape); nothing written to " + o->out);
+        if (!r.converged) throw NumericalError("minimisation did not converge: " + r.message + "; nothing written to " + o->out);
     });
 }
 

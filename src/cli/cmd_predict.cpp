@@ -12,6 +12,7 @@
 #include "analysis/prediction.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/hash.hpp"
 #include "core/version.hpp"
 #include "surrogate/surrogate.hpp"
@@ -21,11 +22,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-void writeFile(const fs::path& p, const std::string& text) {
-    std::ofstream out(p, std::ios::trunc);
-    out << text;
-    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
-}
+void writeFile(const fs::path& p, const std::string& text) { writeFileAtomically(p, text); }
 
 }  // namespace
 
@@ -55,20 +52,20 @@ void registerPredict(CLI::App& app) {
     cmd->add_option("--data-dir", o->dataDir,
                     "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
                     "else the shipped copy data/experiments)");
-    cmd->add_option("--max-samples", o->maxSamples, "use at most this many posterior samples (seeded choice; 0 = all)")
-        ->check(CLI::Range(0, 100000000))
+    addNumber(cmd, "--max-samples", o->maxSamples, "use at most this many posterior samples (seeded choice; 0 = all)",
+              NumberRange::closed(0, 1e8))
         ->capture_default_str();
-    cmd->add_option("--grid", o->gridPoints, "forces on [0, 200] pN / times on [0, 0.5] s of the prediction curves")
-        ->check(CLI::Range(2, 100000))
+    addNumber(cmd, "--grid", o->gridPoints, "forces on [0, 200] pN / times on [0, 0.5] s of the prediction curves",
+              NumberRange::closed(2, 100000))
         ->capture_default_str();
-    cmd->add_option("--direct", o->direct, "run the direct forward model on N posterior samples per posterior and compare")
-        ->check(CLI::Range(0, 100000))
+    addNumber(cmd, "--direct", o->direct, "run the direct forward model on N posterior samples per posterior and compare",
+              NumberRange::closed(0, 100000))
         ->capture_default_str();
-    cmd->add_option("--direct-level", o->directLevel, "icosphere level of the direct forward model")
-        ->check(CLI::Range(1, 7))
+    addNumber(cmd, "--direct-level", o->directLevel, "icosphere level of the direct forward model", NumberRange::closed(2, 6))
         ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "seed of the sample choices (--direct, --max-samples)")->capture_default_str();
-    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    addNumber(cmd, "--seed", o->seed, "seed of the sample choices (--direct, --max-samples)", NumberRange::nonNegative())
+        ->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     addSolverOptions(cmd, o->experiment);
     addCacheOptions(cmd, o->cache);

@@ -37,20 +37,23 @@ void registerSfs(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "sfs", "Stress-free state of the cytoskeleton for a reduced volume v (MODEL.md D), written at the "
                "cell area A0 = 135 um^2 (um), cached on disk by (v, level, model version)");
-    cmd->add_option("--v", o->v, "reduced volume v in (0, 1] (prior [0.65, 1])")->required();
-    cmd->add_option("--level", o->level, "icosphere level (Nv = 10 4^L + 2)")->check(CLI::Range(1, 6))->capture_default_str();
+    addNumber(cmd, "--v", o->v, "reduced volume v (prior [0.65, 1])", NumberRange::leftOpen(0.0, 1.0))->required();
+    addNumber(cmd, "--level", o->level, "icosphere level (Nv = 10 4^L + 2)", NumberRange::closed(1, 6))->capture_default_str();
     cmd->add_option("--out", o->out, "output mesh (.off, .ply or .vtk), in um at area 135 um^2")->required();
     cmd->add_option("--preconditioner", o->preconditioner,
                     "H0 of the L-BFGS: multigrid on the icosphere hierarchy, or none (docs/FORWARD_MODEL.md)")
         ->check(CLI::IsMember({"multigrid", "none"}))->capture_default_str();
-    cmd->add_option("--tol", o->tolerance, "stop when the largest tangential force is below this (kappa / R'_A)")
-        ->check(CLI::PositiveNumber)->capture_default_str();
+    addNumber(cmd, "--tol", o->tolerance, "stop when the largest tangential force is below this",
+              NumberRange::leftOpen(0.0, 1.0, "kappa / R'_A"))
+        ->capture_default_str();
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
         ensureWritableFile(o->out);
         SfsOptions so;
         so.gradientTolerance = o->tolerance;
         so.multigrid = o->preconditioner == "multigrid";
+        ProgressLine progress("sfs");
+        progress.stage(fmt::format("stress-free state (v = {:g}, level {})", o->v, o->level));
         const StressFreeState s = stressFreeState(o->v, o->level, cacheDirectory(o->cache), so);
         Mesh out = s.mesh;
         out.X = scaleToArea(out.X, out.F, cell::area);

@@ -11,10 +11,12 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/simulation_report.hpp"
 #include "mesh/io.hpp"
+#include "solvers/minimize.hpp"
 
 namespace trbc::cli {
 namespace {
@@ -39,6 +41,7 @@ std::vector<double> parseForceList(const std::string& text) {
 }
 
 ExperimentSet parseExperiments(const std::string& text) {
+    if (text.empty()) throw InputError("--experiments: the list is empty (valid: a comma-separated subset of eq, stretch, relax)");
     std::vector<std::string> names;
     std::stringstream ss(text);
     std::string item;
@@ -47,14 +50,14 @@ ExperimentSet parseExperiments(const std::string& text) {
 }
 
 void writeCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {
-    std::ofstream out(path);
+    std::ostringstream out;
     out.precision(10);
     out << header << '\n';
     for (std::size_t i = 0; i < cols.front().size(); ++i) {
         for (std::size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c][i];
         out << '\n';
     }
-    if (!out) throw InputError("cannot write " + path);
+    writeFileAtomically(path, out.str());
 }
 
 void saveShapes(const std::string& dir, const SampleResult& s, const ExperimentSet& which) {
@@ -93,7 +96,7 @@ void saveShapes(const std::string& dir, const SampleResult& s, const ExperimentS
 void registerSimulate(CLI::App& app) {
     struct Opts {
         CellParameters p;
-        double kbJ = 0.0, fext = 100.0;
+        double kbJ = 0.0, fext = 100.0, timeLimit = 0.0;
         int level = 4, threads = 1;
         std::string experiments = "eq,stretch,relax", saveShapes, forceCurve;
         bool allowOutside = false;
@@ -105,17 +108,22 @@ void registerSimulate(CLI::App& app) {
         "simulate", "One forward-model sample: stress-free state, equilibrium shape (D, hmin, hmax), two-bead "
                     "stretching (D0, D1) and relaxation (tc) of MODEL.md D-E, printed as JSON (um, pN, s). "
                     "Defaults: the reference point v=0.95, mu=4, FvK=250, b2=1.5, etam=0.7, Fext=100");
-    cmd->add_option("--v", o->p.v, "reduced volume v of the stress-free state, prior [0.65, 1]")->capture_default_str();
-    cmd->add_option("--mu", o->p.mu, "shear modulus mu_uN_per_m (uN/m), prior [1, 10]")->capture_default_str();
-    auto* fvk = cmd->add_option("--FvK", o->p.FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]")
+    addNumber(cmd, "--v", o->p.v, "reduced volume v of the stress-free state, prior [0.65, 1]", NumberRange::leftOpen(0.0, 1.0))
+        ->capture_default_str();
+    addNumber(cmd, "--mu", o->p.mu, "shear modulus mu_uN_per_m, prior [1, 10] uN/m", NumberRange::positive("uN/m"))
+        ->capture_default_str();
+    auto* fvk = addNumber(cmd, "--FvK", o->p.FvK, "Foppl-von Karman number mu R_A^2 / kb, prior [10, 1000]", NumberRange::positive())
                     ->capture_default_str();
-    cmd->add_option("--kb", o->kbJ, "bending modulus kb_J (J), replaces --FvK; prior [1.074e-19, 1.074e-18]")
+    addNumber(cmd, "--kb", o->kbJ, "bending modulus kb_J, replaces --FvK; prior [1.074e-19, 1.074e-18] J", NumberRange::positive("J"))
         ->excludes(fvk);
-    cmd->add_option("--b2", o->p.b2, "Lim non-linear shear coefficient b2, prior [0, 4]")->capture_default_str();
-    cmd->add_option("--etam", o->p.etam, "membrane viscosity etam_Pa_s_um (Pa s um), prior [0.1, 1]")->capture_default_str();
-    cmd->add_option("--Fext", o->fext, "bead force Fext_pN (pN, per bead), prior [0, 200]")->capture_default_str();
-    cmd->add_option("--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2; 4 as in the paper)")
-        ->check(CLI::Range(2, 6))->capture_default_str();
+    addNumber(cmd, "--b2", o->p.b2, "Lim non-linear shear coefficient b2, prior [0, 4]", NumberRange::nonNegative())
+        ->capture_default_str();
+    addNumber(cmd, "--etam", o->p.etam, "membrane viscosity etam_Pa_s_um, prior [0.1, 1] Pa s um", NumberRange::positive("Pa s um"))
+        ->capture_default_str();
+    addNumber(cmd, "--Fext", o->fext, "bead force Fext_pN per bead, prior [0, 200] pN", NumberRange::nonNegative("pN"))
+        ->capture_default_str();
+    addNumber(cmd, "--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2; 4 as in the paper)", NumberRange::closed(2, 6))
+        ->capture_default_str();
     cmd->add_option("--experiments", o->experiments, "comma-separated subset of eq,stretch,relax")->capture_default_str();
     cmd->add_option("--save-shapes", o->saveShapes,
                     "directory for the shapes (VTK/PLY), the equilibrium profile, the stretching curve and the "
@@ -124,14 +132,18 @@ void registerSimulate(CLI::App& app) {
                     "extra force levels in pN, comma-separated, for a whole stretching curve (continuation)");
     cmd->add_flag("--allow-outside-prior", o->allowOutside, "accept parameters outside the prior box (studies)");
     addSolverOptions(cmd, o->exp);
-    cmd->add_option("--threads", o->threads, "OpenMP threads for the force evaluation")
-        ->check(CLI::Range(1, 1024))->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads for the force evaluation", NumberRange::closed(1, 1024))
+        ->capture_default_str();
+    addNumber(cmd, "--time-limit", o->timeLimit,
+              "wall-time budget (0: none); past it the run stops with \"status\": \"failed\", the reason \"time limit "
+              "reached\" and exit 3",
+              NumberRange::closed(0.0, 1e7, "s"))
+        ->capture_default_str();
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
         CellParameters p = o->p;
         if (o->kbJ != 0.0) {
-            if (!(o->kbJ > 0.0))
-                throw InputError(fmt::format("parameter kb_J = {} must be positive (prior [1.074e-19, 1.074e-18] J)", o->kbJ));
+            validateBendingModulus(o->kbJ, o->allowOutside);
             p.FvK = CellParameters::fvkFromKb(p.mu, o->kbJ);
         }
         validateCellParameters(p, o->allowOutside);
@@ -147,6 +159,11 @@ void registerSimulate(CLI::App& app) {
         ExperimentOptions eo = o->exp;
         eo.level = o->level;
         eo.cacheDir = cacheDirectory(o->cache);
+        if (o->timeLimit > 0)
+            eo.deadline = eo.sfs.deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                                                   std::chrono::duration<double>(o->timeLimit));
+        ProgressLine progress("simulate");
+        eo.progress = [&progress](const std::string& stage) { progress.stage(stage); };
 
         nlohmann::json j;
         j["parameters"] = simulationParametersJson(p, o->fext);
@@ -160,9 +177,14 @@ void registerSimulate(CLI::App& app) {
         try {
             s = runSample(p, o->fext, which, eo, curve, !o->saveShapes.empty());
         } catch (const NumericalError& e) {
+            const bool late = o->timeLimit > 0 && deadlinePassed(eo.deadline);
+            const std::string reason =
+                late ? fmt::format("time limit reached: --time-limit {:g} s ran out during the {}", o->timeLimit, progress.current())
+                     : std::string(e.what());
             j["status"] = "failed";
-            j["reason"] = e.what();
+            j["reason"] = reason;
             std::cout << j.dump(2) << std::endl;
+            if (late) throw NumericalError(reason);
             throw;
         }
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -171,9 +193,7 @@ void registerSimulate(CLI::App& app) {
         j["provenance"] = provenance;
         if (!o->saveShapes.empty()) {
             saveShapes(o->saveShapes, s, which);
-            std::ofstream out(o->saveShapes + "/simulate.json");
-            out << j.dump(2) << '\n';
-            if (!out) throw InputError("cannot write " + o->saveShapes + "/simulate.json");
+            writeFileAtomically(o->saveShapes + "/simulate.json", j.dump(2) + "\n");
         }
         std::cout << j.dump(2) << std::endl;
     });

@@ -12,6 +12,7 @@
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "surrogate/sobol.hpp"
 #include "surrogate/sobol_io.hpp"
@@ -56,16 +57,18 @@ void registerSobol(CLI::App& app) {
                  "etam_Pa_s_um uniform on the prior box; writes OUT/sobol_indices.csv, sobol_second_order.csv, sobol.json "
                  "and the figures");
     addSurrogateModelOption(cmd, o->model);
-    cmd->add_option("--samples", o->samples, "N, base rows of the Saltelli design (N(2D+2) evaluations)")
-        ->check(CLI::Range(2L, 1L << 24))->capture_default_str();
-    cmd->add_option("--seed", o->seed, "seed of the bootstrap (and of the base sample with --base random)")->capture_default_str();
+    addNumber(cmd, "--samples", o->samples, "N, base rows of the Saltelli design (N(2D+2) evaluations)",
+              NumberRange::closed(2, double(1L << 24)))
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o->seed, "seed of the bootstrap (and of the base sample with --base random)", NumberRange::nonNegative())
+        ->capture_default_str();
     cmd->add_option("--base", o->base, "base sample: sobol (Joe-Kuo low-discrepancy) or random")
         ->check(CLI::IsMember({"sobol", "random"}))->capture_default_str();
-    cmd->add_option("--forces", o->forces, "number of forces F_j = 200 j / (n - 1) pN for D0 and D1")
-        ->check(CLI::Range(2, 1000))->capture_default_str();
-    cmd->add_option("--resamples", o->resamples, "bootstrap resamples")->check(CLI::Range(2, 100000))->capture_default_str();
+    addNumber(cmd, "--forces", o->forces, "number of forces F_j = 200 j / (n - 1) pN for D0 and D1", NumberRange::closed(2, 1000))
+        ->capture_default_str();
+    addNumber(cmd, "--resamples", o->resamples, "bootstrap resamples", NumberRange::closed(2, 100000))->capture_default_str();
     cmd->add_option("--out", o->out, "output directory")->required();
-    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
     cmd->add_flag("--no-plot", o->noPlot, "skip the figures (scripts/plot_sobol.py)");
     cmd->callback([o]() {
         const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
@@ -91,17 +94,35 @@ void registerSobol(CLI::App& app) {
         const std::filesystem::path dir = o->out;
         writeSobolCsv(dir / "sobol_indices.csv", r);
         writeSobolSecondOrderCsv(dir / "sobol_second_order.csv", r);
-        const nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"model", modelDir.string()},
-                                  {"seed", o->seed}, {"base", o->base}, {"n_base", r.n_base},
-                                  {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall}};
-        std::ofstream(dir / "sobol.json") << j.dump(2) << '\n';
+        // Indices are resolved when every 95 % CI half-width of the scalar outputs is below 0.1 and
+        // every index lies in [0, 1] up to that width; otherwise the numbers are sampling noise.
+        double widest = 0.0, outside = 0.0;
+        for (int out = 0; out < 4; ++out)
+            for (int in = 0; in < 5; ++in) {
+                widest = std::max({widest, r.S1_ci(out, in), r.ST_ci(out, in)});
+                for (const double S : {r.S1(out, in), r.ST(out, in)}) outside = std::max({outside, S - 1.0, -S});
+            }
+        const bool resolved = std::isfinite(widest) && widest < 0.1 && outside < 0.1;
+        const std::string warning =
+            resolved ? std::string()
+                     : fmt::format("N = {} base rows do not resolve the indices (95 % CI half-widths up to {:.3g}{}): they are "
+                                   "sampling noise; use --samples 1024 or more",
+                                   r.n_base, widest, outside > 0.1 ? ", indices outside [0, 1]" : "");
+        nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"model", modelDir.string()},
+                            {"seed", o->seed}, {"base", o->base}, {"n_base", r.n_base},
+                            {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall},
+                            {"resolved", resolved}};
+        if (!resolved) j["warning"] = warning;
+        writeFileAtomically(dir / "sobol.json", j.dump(2) + "\n");
+        if (!resolved) std::cerr << "sobol: warning: " << warning << '\n';
         std::cout << fmt::format("sobol: {} outputs x {} inputs, {} model evaluations per output, {:.2f} s\n", outputs.size(),
                                  inputs.size(), r.evaluations, wall);
-        std::cout << "first-order / total indices (95 % CI half-width):\n";
+        std::cout << "first-order / total indices, each +- its 95 % CI half-width:\n";
         for (int out = 0; out < 4; ++out) {
             std::cout << fmt::format("  {:<8}", outputs[out]);
             for (int in = 0; in < 5; ++in)
-                std::cout << fmt::format("  {}: {:.3f}/{:.3f}", inputs[in], r.S1(out, in), r.ST(out, in));
+                std::cout << fmt::format("  {}: {:.3f}+-{:.3f}/{:.3f}+-{:.3f}", inputs[in], r.S1(out, in), r.S1_ci(out, in), r.ST(out, in),
+                                         r.ST_ci(out, in));
             std::cout << '\n';
         }
         if (!o->noPlot) {

@@ -14,6 +14,7 @@
 #include "cli/common.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "sampling/campaign.hpp"
 #include "surrogate/surrogate.hpp"
@@ -37,11 +38,7 @@ std::string accuracyMarkdown(const std::vector<OutputAccuracy>& acc) {
     return s;
 }
 
-void writeText(const std::filesystem::path& p, const std::string& text) {
-    std::ofstream out(p);
-    out << text;
-    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
-}
+void writeText(const std::filesystem::path& p, const std::string& text) { writeFileAtomically(p, text); }
 
 /// Held-out rows with truth and prediction: inputs, outputs, outputs_pred.
 void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
@@ -110,19 +107,22 @@ void registerTrain(CLI::App* parent) {
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
     cmd->add_option("--out", o->out, "model directory")->required();
-    cmd->add_option("--seed", o->t.network.seed, "seed of the initial weights and mini-batch order")->capture_default_str();
-    cmd->add_option("--split-seed", o->t.network.splitSeed, "seed of the training/validation split")->capture_default_str();
-    cmd->add_option("--test-fraction", o->t.testFraction, "share of the cells held out as the test set, [0, 0.5)")
+    addNumber(cmd, "--seed", o->t.network.seed, "seed of the initial weights and mini-batch order", NumberRange::nonNegative())
         ->capture_default_str();
-    cmd->add_option("--test-seed", o->t.testSeed, "seed of the choice of test cells")->capture_default_str();
-    cmd->add_option("--restarts", o->t.restarts,
+    addNumber(cmd, "--split-seed", o->t.network.splitSeed, "seed of the training/validation split", NumberRange::nonNegative())
+        ->capture_default_str();
+    addNumber(cmd, "--test-fraction", o->t.testFraction, "share of the cells held out as the test set", NumberRange::rightOpen(0.0, 0.5))
+        ->capture_default_str();
+    addNumber(cmd, "--test-seed", o->t.testSeed, "seed of the choice of test cells", NumberRange::nonNegative())->capture_default_str();
+    addNumber(cmd, "--restarts", o->t.restarts,
                     "trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept, or all of "
-                    "them for the networks of --ensemble")
-        ->check(CLI::Range(1, 100))->capture_default_str();
-    cmd->add_option("--max-epochs", o->t.network.maxEpochs, "epoch cap of each network")->check(CLI::PositiveNumber)
+                    "them for the networks of --ensemble",
+              NumberRange::closed(1, 100))
         ->capture_default_str();
-    cmd->add_option("--threads", o->threads, "networks trained concurrently (results do not depend on it)")
-        ->check(CLI::Range(1, 3))->capture_default_str();
+    addNumber(cmd, "--max-epochs", o->t.network.maxEpochs, "epoch cap of each network", NumberRange::closed(1, 1e7))
+        ->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "networks trained concurrently (results do not depend on it)", NumberRange::closed(1, 3))
+        ->capture_default_str();
     cmd->add_option("--relaxation-variables", o->relaxationVariables,
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
                     "variables (networks before session 7 (2026-11-23))")
@@ -141,12 +141,13 @@ void registerTrain(CLI::App* parent) {
                     "per member; the default since session 20 (2026-11-25)): any of the --ensemble networks, or none; "
                     "when not given, the default's networks that are not in --ensemble are left out")
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
-    cmd->add_option("--distill-samples", o->t.distillSamples, "box points of each distillation, [1000, 1e8]")
-        ->check(CLI::Range(1000L, 100000000L))->capture_default_str();
-    cmd->add_option("--cv-folds", o->cvFolds,
+    addNumber(cmd, "--distill-samples", o->t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
+        ->capture_default_str();
+    addNumber(cmd, "--cv-folds", o->cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
-                    "writes cv.md, cv.json, cv_predictions.csv); 0: off")
-        ->check(CLI::Range(0, 100))->capture_default_str();
+                    "writes cv.md, cv.json, cv_predictions.csv); 0: off",
+              NumberRange::closed(0, 100))
+        ->capture_default_str();
     cmd->callback([o, cmd]() {
         if (o->cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
         if (cmd->count("--distill") == 0) {
@@ -275,7 +276,7 @@ void registerEval(CLI::App* parent) {
     cmd->add_option("--in", o->in, "input CSV")->required();
     cmd->add_option("--out", o->out, "output CSV")->required();
     cmd->add_flag("--single-precision", o->single, "evaluate in float (about 3x faster, ~1e-6 relative difference)");
-    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
     cmd->callback([o]() {
         const std::filesystem::path modelDir = modelDirectory(o->model);
         Surrogate s = Surrogate::load(modelDir);
@@ -294,22 +295,33 @@ void registerEval(CLI::App* parent) {
         x.row(3) = t.column("b2").transpose();
         x.row(4) = t.column("etam_Pa_s_um", "membrane viscosity, Pa s um").transpose();
         x.row(5) = t.column("Fext_pN", "bead force, pN").transpose();
-        for (Eigen::Index i = 0; i < x.cols(); ++i)
-            if (!(x(1, i) > 0 && x(2, i) > 0 && x(4, i) > 0))
-                throw InputError(fmt::format("{}:{}: mu_uN_per_m, FvK and etam_Pa_s_um must be positive", o->in, t.lines[i]));
+        // Physically impossible rows (v outside (0, 1], non-positive moduli, negative b2 or force)
+        // are errors; rows inside the physical domain but outside the training box are evaluated
+        // and flagged as extrapolations.
+        for (Eigen::Index i = 0; i < x.cols(); ++i) {
+            try {
+                validateCellParameters(CellParameters{x(0, i), x(1, i), x(2, i), x(3, i), x(4, i)}, true);
+                validateForce(x(5, i), true);
+            } catch (const InputError& e) {
+                throw InputError(fmt::format("{}:{}: {}", o->in, t.lines[static_cast<std::size_t>(i)], e.what()));
+            }
+        }
         omp_set_num_threads(o->threads);
         const Eigen::MatrixXd y = s.evaluate(x);
         const auto outside = outsideTrainingBox(x);
-        std::ofstream out(o->out);
-        out << "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,outside_training_box\n";
+        std::string text = "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,outside_training_box\n";
         long nOutside = 0;
         for (Eigen::Index i = 0; i < x.cols(); ++i) {
-            for (int r = 0; r < 6; ++r) out << fmt::format("{:.10g},", x(r, i));
-            for (int r = 0; r < 6; ++r) out << fmt::format("{:.10g},", y(r, i));
-            out << (outside[i] ? 1 : 0) << '\n';
+            for (int r = 0; r < 6; ++r)
+                if (!std::isfinite(y(r, i)))
+                    throw NumericalError(fmt::format("{}:{}: the surrogate gives a non-finite output for this row; nothing written",
+                                                     o->in, t.lines[static_cast<std::size_t>(i)]));
+            for (int r = 0; r < 6; ++r) text += fmt::format("{:.10g},", x(r, i));
+            for (int r = 0; r < 6; ++r) text += fmt::format("{:.10g},", y(r, i));
+            text += outside[i] ? "1\n" : "0\n";
             nOutside += outside[i];
         }
-        if (!out) throw InputError(fmt::format("cannot write {}", o->out));
+        writeFileAtomically(o->out, text);
         std::cerr << fmt::format("surrogate eval: {} rows -> {}{}\n", x.cols(), o->out,
                                  nOutside ? fmt::format(" ({} outside the training box: extrapolated, flagged)", nOutside) : "");
     });
@@ -329,7 +341,7 @@ void registerTest(CLI::App* parent) {
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
     cmd->add_option("--out", o->out, "directory for test.md, test.json and test_predictions.csv");
-    cmd->add_option("--threads", o->threads, "OpenMP threads")->check(CLI::Range(1, 1024))->capture_default_str();
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
     cmd->callback([o]() {
         const std::filesystem::path modelDir = modelDirectory(o->model);
         const Surrogate s = Surrogate::load(modelDir);

@@ -389,11 +389,11 @@ void registerValidate(CLI::App& app) {
     cmd->add_option("--out", o->out, "output directory")->required();
     cmd->add_option("--posterior", o->posterior,
                     "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
-    cmd->add_option("--level", o->level, "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level "
-                                         "unless that is 0)")
-        ->check(CLI::Range(1, 4));
-    cmd->add_option("--jobs", o->jobs, "cases run at the same time (overrides run.jobs)")->check(CLI::Range(1, 256));
-    cmd->add_option("--threads", o->threads, "OpenMP threads per case (overrides run.threads)")->check(CLI::Range(1, 1024));
+    addNumber(cmd, "--level", o->level,
+              "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level unless that is 0)",
+              NumberRange::closed(1, 4));
+    addNumber(cmd, "--jobs", o->jobs, "cases run at the same time (overrides run.jobs)", NumberRange::closed(1, 256));
+    addNumber(cmd, "--threads", o->threads, "OpenMP threads per case (overrides run.threads)", NumberRange::closed(1, 1024));
     cmd->add_option("--only", o->only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
                                        "the tables cover what has been run")
         ->delimiter(',')

@@ -4,9 +4,14 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <iostream>
 #include <string>
+#include <string_view>
 
 #include "core/error.hpp"
 
@@ -16,8 +21,64 @@ std::string g_commandLine;
 }
 
 void setCommandLine(int argc, char** argv) {
+    // Quoted where the shell would split or expand, so that the provenance can be pasted back.
     g_commandLine.clear();
-    for (int i = 0; i < argc; ++i) g_commandLine += (i ? " " : "") + std::string(argv[i]);
+    for (int i = 0; i < argc; ++i) {
+        const std::string a = argv[i];
+        const bool plain = !a.empty() && std::all_of(a.begin(), a.end(), [](unsigned char c) {
+            return std::isalnum(c) || std::string_view("-_=:,./+@%").find(char(c)) != std::string_view::npos;
+        });
+        g_commandLine += (i ? " " : "") + (plain ? a : shellQuote(a));
+    }
+}
+
+namespace {
+/// %g without the exponent's plus sign and leading zeros: 1e8, 1.5e-6.
+std::string shortNumber(double x) {
+    std::string s = fmt::format("{:g}", x);
+    const std::size_t e = s.find('e');
+    if (e == std::string::npos) return s;
+    std::string exponent = s.substr(e + 1);
+    const bool negative = exponent[0] == '-';
+    exponent.erase(0, exponent.find_first_not_of("+-0"));
+    return s.substr(0, e + 1) + (negative ? "-" : "") + (exponent.empty() ? "0" : exponent);
+}
+}  // namespace
+
+std::string NumberRange::describe() const {
+    const bool haveLo = std::isfinite(lo), haveHi = std::isfinite(hi);
+    std::string s;
+    if (haveLo && haveHi)
+        s = fmt::format("{}{}, {}{}", loOpen ? "(" : "[", shortNumber(lo), shortNumber(hi), hiOpen ? ")" : "]");
+    else if (haveLo)
+        s = fmt::format("{} {}", loOpen ? ">" : ">=", shortNumber(lo));
+    else if (haveHi)
+        s = fmt::format("{} {}", hiOpen ? "<" : "<=", shortNumber(hi));
+    else
+        s = "any finite number";
+    return unit.empty() ? s : s + " " + unit;
+}
+
+CLI::Validator numberValidator(const NumberRange& range, bool integer) {
+    return CLI::Validator(
+        [range, integer](std::string& text) -> std::string {
+            const std::string valid = "(valid: " + range.describe() + ")";
+            const char* begin = text.c_str();
+            char* end = nullptr;
+            errno = 0;
+            const double x = std::strtod(begin, &end);
+            const bool whole = !text.empty() && end == begin + text.size() && !std::isspace(static_cast<unsigned char>(text[0]));
+            if (!whole) return fmt::format("'{}' is not a number {}", text, valid);
+            if (!std::isfinite(x)) return fmt::format("'{}' is not a finite number {}", text, valid);
+            if (integer) {
+                const std::size_t digits = text[0] == '-' || text[0] == '+' ? 1 : 0;
+                if (text.size() == digits || text.find_first_not_of("0123456789", digits) != std::string::npos)
+                    return fmt::format("'{}' is not a whole number {}", text, valid);
+            }
+            if (!range.contains(x)) return fmt::format("{} is out of range {}", text, valid);
+            return {};
+        },
+        range.describe(), "NUMBER");
 }
 
 std::string commandLine() { return g_commandLine; }
@@ -26,26 +87,68 @@ void addModulusOptions(CLI::App* app, ModulusOptions& m) {
     auto& b = m.p.bending;
     auto& l = m.p.lim;
     auto& g = m.p.penalty;
-    app->add_option("--kb", b.kb, "Juelicher bending modulus kb (energy units; 0 = off)")->group("Bending");
-    app->add_option("--C0", b.C0, "spontaneous curvature C0 (1/length; H0 = C0/2)")->group("Bending");
-    app->add_option("--kad", b.kad, "area-difference modulus k_AD (energy; 0 = off)")->group("Bending");
-    app->add_option("--DA0", b.DA0, "reference area difference Delta A0 / delta (length)")->group("Bending");
-    app->add_option("--ka", l.Kalpha, "Lim area-dilation modulus K_alpha (energy/area; 0 = off)")->group("Lim");
-    app->add_option("--a3", l.a3, "Lim coefficient a3")->group("Lim");
-    app->add_option("--a4", l.a4, "Lim coefficient a4")->group("Lim");
-    app->add_option("--mu", l.mu, "Lim shear modulus mu (energy/area; 0 = off)")->group("Lim");
-    app->add_option("--b1", l.b1, "Lim coefficient b1")->group("Lim");
-    app->add_option("--b2", l.b2, "Lim coefficient b2")->group("Lim");
-    app->add_option("--kA", g.kA, "global area penalty kA, U = kA/2 (A-A0)^2/A0 (0 = off)")->group("Penalties");
-    app->add_option("--A0", m.A0, "target area A0 (required when --kA > 0)")->group("Penalties")
+    // Moduli in the mesh's own units: 1e12 is far beyond any use and keeps energies and forces of a
+    // mesh of sensible size finite; the Lim coefficients multiply strain invariants of order one.
+    const NumberRange modulus = NumberRange::closed(0.0, 1e12, "(mesh units)"), coefficient = NumberRange::closed(-1e6, 1e6);
+    addNumber(app, "--kb", b.kb, "Juelicher bending modulus kb (energy units; 0 = off)", modulus)->group("Bending");
+    addNumber(app, "--C0", b.C0, "spontaneous curvature C0 (1/length; H0 = C0/2)", NumberRange::closed(-1e6, 1e6, "1/length"))->group("Bending");
+    addNumber(app, "--kad", b.kad, "area-difference modulus k_AD (energy; 0 = off)", modulus)->group("Bending");
+    addNumber(app, "--DA0", b.DA0, "reference area difference Delta A0 / delta (length)", NumberRange::closed(-1e6, 1e6, "length"))->group("Bending");
+    addNumber(app, "--ka", l.Kalpha, "Lim area-dilation modulus K_alpha (energy/area; 0 = off)", modulus)->group("Lim");
+    addNumber(app, "--a3", l.a3, "Lim coefficient a3", coefficient)->group("Lim");
+    addNumber(app, "--a4", l.a4, "Lim coefficient a4", coefficient)->group("Lim");
+    addNumber(app, "--mu", l.mu, "Lim shear modulus mu (energy/area; 0 = off)", modulus)->group("Lim");
+    addNumber(app, "--b1", l.b1, "Lim coefficient b1", coefficient)->group("Lim");
+    addNumber(app, "--b2", l.b2, "Lim coefficient b2", coefficient)->group("Lim");
+    addNumber(app, "--kA", g.kA, "global area penalty kA, U = kA/2 (A-A0)^2/A0 (0 = off)", modulus)->group("Penalties");
+    addNumber(app, "--A0", m.A0, "target area A0 (required when --kA > 0)", NumberRange::positive("(mesh units)"))
+        ->group("Penalties")
         ->each([&m](const std::string&) { m.haveA0 = true; });
-    app->add_option("--kV", g.kV, "global volume penalty kV, U = kV/2 (V-V0)^2/V0 (0 = off)")->group("Penalties");
-    app->add_option("--V0", m.V0, "target volume V0 (required when --kV > 0)")->group("Penalties")
+    addNumber(app, "--kV", g.kV, "global volume penalty kV, U = kV/2 (V-V0)^2/V0 (0 = off)", modulus)->group("Penalties");
+    addNumber(app, "--V0", m.V0, "target volume V0 (required when --kV > 0)", NumberRange::positive("(mesh units)"))
+        ->group("Penalties")
         ->each([&m](const std::string&) { m.haveV0 = true; });
 }
 
 MembraneParameters checkedParameters(const ModulusOptions& m) {
     return checkedMembraneParameters(m.p, m.haveA0, m.A0, m.haveV0, m.V0, "--");
+}
+
+ProgressLine::ProgressLine(std::string command, std::chrono::duration<double> interval)
+    : command_(std::move(command)), start_(std::chrono::steady_clock::now()) {
+    ticker_ = std::thread([this, interval] {
+        std::unique_lock lock(mutex_);
+        while (!wake_.wait_for(lock, interval, [this] { return done_; }))
+            if (!stage_.empty()) print(", running");
+    });
+}
+
+ProgressLine::~ProgressLine() {
+    {
+        std::lock_guard lock(mutex_);
+        done_ = true;
+    }
+    wake_.notify_all();
+    ticker_.join();
+}
+
+void ProgressLine::stage(const std::string& what) {
+    std::lock_guard lock(mutex_);
+    stage_ = what;
+    print("");
+}
+
+std::string ProgressLine::current() const {
+    std::lock_guard lock(mutex_);
+    return stage_;
+}
+
+double ProgressLine::elapsedSeconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+void ProgressLine::print(const char* suffix) const {
+    std::cerr << fmt::format("{}: {} ({:.0f} s{})\n", command_, stage_, elapsedSeconds(), suffix) << std::flush;
 }
 
 void ensureWritableFile(const std::string& path) {
@@ -67,17 +170,18 @@ void ensureWritableDirectory(const std::string& dir) {
 }
 
 void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
-    cmd->add_option("--tol", e.staticTolerance,
-                    "static states stop when the largest tangential vertex force < tol * mu * l0")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--max-iter", e.maxIterations, "iteration limit of each static minimisation")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--relax-tol", e.relaxErrorTolerance,
-                    "relaxation: local error per time step (largest vertex displacement, um)")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--relax-inner-tol", e.relaxInnerTolerance,
-                    "relaxation: each implicit step stops when the largest vertex force residual < this * mu * l0")
-        ->check(CLI::PositiveNumber)->capture_default_str();
+    addNumber(cmd, "--tol", e.staticTolerance, "static states stop when the largest tangential vertex force < tol * mu * l0",
+              NumberRange::leftOpen(0.0, 1.0, "(relative)"))
+        ->capture_default_str();
+    addNumber(cmd, "--max-iter", e.maxIterations, "iteration limit of each static minimisation", NumberRange::closed(1, 1e9))
+        ->capture_default_str();
+    addNumber(cmd, "--relax-tol", e.relaxErrorTolerance, "relaxation: local error per time step (largest vertex displacement)",
+              NumberRange::leftOpen(0.0, 1.0, "um"))
+        ->capture_default_str();
+    addNumber(cmd, "--relax-inner-tol", e.relaxInnerTolerance,
+              "relaxation: each implicit step stops when the largest vertex force residual < this * mu * l0",
+              NumberRange::leftOpen(0.0, 1.0, "(relative)"))
+        ->capture_default_str();
     cmd->add_flag("--overdamped", e.overdamped,
                   "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
     cmd->add_option_function<std::string>(

@@ -1,9 +1,16 @@
 #pragma once
 // Helpers shared by the subcommands: membrane-modulus options, validation, JSON printing.
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
 #include <nlohmann/json.hpp>
 #include <filesystem>
+#include <limits>
 #include <string>
+#include <type_traits>
 
 #include "core/csv.hpp"
 #include "membrane/model.hpp"
@@ -14,6 +21,73 @@
 #include "mesh/mesh.hpp"
 
 namespace trbc::cli {
+
+/// The valid values of a numeric option: an interval whose ends may be open, closed or infinite,
+/// and the unit that the messages and the help name.
+struct NumberRange {
+    double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+    bool loOpen = false, hiOpen = false;
+    std::string unit;
+
+    static NumberRange any(std::string unit = "") { return {.unit = std::move(unit)}; }
+    static NumberRange positive(std::string unit = "") { return {.lo = 0.0, .loOpen = true, .unit = std::move(unit)}; }
+    static NumberRange nonNegative(std::string unit = "") { return {.lo = 0.0, .unit = std::move(unit)}; }
+    static NumberRange closed(double lo, double hi, std::string unit = "") { return {.lo = lo, .hi = hi, .unit = std::move(unit)}; }
+    static NumberRange open(double lo, double hi, std::string unit = "") {
+        return {.lo = lo, .hi = hi, .loOpen = true, .hiOpen = true, .unit = std::move(unit)};
+    }
+    /// (lo, hi]
+    static NumberRange leftOpen(double lo, double hi, std::string unit = "") {
+        return {.lo = lo, .hi = hi, .loOpen = true, .unit = std::move(unit)};
+    }
+    /// [lo, hi)
+    static NumberRange rightOpen(double lo, double hi, std::string unit = "") {
+        return {.lo = lo, .hi = hi, .hiOpen = true, .unit = std::move(unit)};
+    }
+    bool contains(double x) const { return (loOpen ? x > lo : x >= lo) && (hiOpen ? x < hi : x <= hi); }
+    /// "> 0 um", "[0, 1]", "in [1, 1024]": short, numbers in %g (never the 309 digits of DBL_MAX).
+    std::string describe() const;
+};
+
+/// The one check of every numeric option: the text must be a whole number (integer options) or
+/// a finite decimal number (no nan, inf), inside `range`. A failure stops parsing with exit 2 and
+/// "--name: ..." naming the option, the value as typed, the valid range and the unit.
+CLI::Validator numberValidator(const NumberRange& range, bool integer);
+
+/// Adds a numeric option checked by numberValidator (the help shows the range and unit after the type).
+template <class T>
+CLI::Option* addNumber(CLI::App* cmd, const std::string& name, T& value, const std::string& help, const NumberRange& range) {
+    static_assert(std::is_arithmetic_v<T>, "addNumber is for numeric options");
+    NumberRange r = range;
+    if constexpr (std::is_integral_v<T>) {  // what the variable can hold
+        r.lo = std::max(r.lo, static_cast<double>(std::numeric_limits<T>::lowest()));
+        r.hi = std::min(r.hi, static_cast<double>(std::numeric_limits<T>::max()));
+    }
+    return cmd->add_option(name, value, help)->check(numberValidator(r, std::is_integral_v<T>));
+}
+
+/// Progress of a long command on stderr: "<command>: <stage> (<elapsed> s)" when a stage starts, and
+/// the same line again every `interval` while it runs, so that a long stage is visibly alive.
+class ProgressLine {
+public:
+    explicit ProgressLine(std::string command, std::chrono::duration<double> interval = std::chrono::seconds(15));
+    ~ProgressLine();
+    ProgressLine(const ProgressLine&) = delete;
+    ProgressLine& operator=(const ProgressLine&) = delete;
+    void stage(const std::string& what);
+    /// The stage running now ("" before the first).
+    std::string current() const;
+    double elapsedSeconds() const;
+
+private:
+    void print(const char* suffix) const;
+    std::string command_, stage_;
+    std::chrono::steady_clock::time_point start_;
+    mutable std::mutex mutex_;
+    std::condition_variable wake_;
+    bool done_ = false;
+    std::thread ticker_;
+};
 
 /// Values of the modulus options as given on the command line (mesh units, no conversion).
 struct ModulusOptions {

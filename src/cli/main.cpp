@@ -2,11 +2,67 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
+
+namespace {
+
+/// Levenshtein distance, for "did you mean" on a mistyped command.
+std::size_t editDistance(const std::string& a, const std::string& b) {
+    std::vector<std::size_t> row(b.size() + 1);
+    for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+    for (std::size_t i = 1; i <= a.size(); ++i) {
+        std::size_t diagonal = row[0];
+        row[0] = i;
+        for (std::size_t j = 1; j <= b.size(); ++j) {
+            const std::size_t up = row[j];
+            row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+            diagonal = up;
+        }
+    }
+    return row[b.size()];
+}
+
+/// The leading words of the command line name (sub)commands: an unknown one is an error that lists
+/// the valid ones and suggests the closest, instead of CLI11's "A subcommand is required".
+void checkCommandWords(CLI::App& app, int argc, char** argv) {
+    CLI::App* current = &app;
+    for (int i = 1; i < argc; ++i) {
+        const std::vector<CLI::App*> subs = current->get_subcommands([](CLI::App*) { return true; });
+        const std::string word = argv[i];
+        if (subs.empty() || word.empty() || word[0] == '-') return;
+        CLI::App* next = nullptr;
+        std::string names, closest;
+        std::size_t best = 3;  // suggest only within two edits
+        for (CLI::App* s : subs) {
+            if (s->get_name() == word) next = s;
+            names += (names.empty() ? "" : ", ") + s->get_name();
+            if (const std::size_t d = editDistance(word, s->get_name()); d < best) best = d, closest = s->get_name();
+        }
+        if (!next) {
+            const std::string where = current == &app ? std::string("trbc") : "trbc ... " + current->get_name();
+            throw trbc::InputError(fmt::format("unknown command '{}' after '{}'{} (commands: {})", word, where,
+                                               closest.empty() ? "" : fmt::format("; did you mean '{}'?", closest), names));
+        }
+        current = next;
+    }
+    // Out of words where a (sub)command must follow: list them.
+    const std::vector<CLI::App*> subs = current->get_subcommands([](CLI::App*) { return true; });
+    if (!subs.empty()) {
+        std::string names;
+        for (CLI::App* s : subs) names += (names.empty() ? "" : ", ") + s->get_name();
+        throw trbc::InputError(fmt::format("'{}' needs a command: one of {} (add --help for what each does)",
+                                           current == &app ? std::string("trbc") : current->get_name(), names));
+    }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     trbc::cli::setCommandLine(argc, argv);
@@ -27,7 +83,12 @@ int main(int argc, char** argv) {
     trbc::cli::registerCalibrate(app);
     trbc::cli::registerExport(app);
     trbc::cli::registerValidate(app);
+    // Command-line errors in the same "trbc: error: ..." form as every other bad input.
+    app.failure_message([](const CLI::App*, const CLI::Error& e) {
+        return fmt::format("trbc: error: {}\nRun with --help for the options and their valid ranges.\n", e.what());
+    });
     try {
+        checkCommandWords(app, argc, argv);
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         // --help and --version exit 0; every other command-line error is bad input (exit 2, as

@@ -9,17 +9,37 @@
 namespace trbc {
 
 void writeFileAtomically(const std::filesystem::path& path, std::string_view text) {
+    std::error_code ec;
+    const auto kind = std::filesystem::status(path, ec).type();
+    if (kind != std::filesystem::file_type::not_found && kind != std::filesystem::file_type::regular &&
+        kind != std::filesystem::file_type::none) {
+        // A device or a pipe (/dev/stdout, /dev/full) cannot be replaced: written in place, and its
+        // errors (a full device) surface at the flush and the close.
+        std::ofstream out(path, std::ios::binary);
+        out.write(text.data(), static_cast<std::streamsize>(text.size()));
+        out.flush();
+        out.close();
+        if (!out) throw InputError(fmt::format("cannot write {} (device full or not writable)", path.string()));
+        return;
+    }
     std::filesystem::path tmp = path;
     tmp += ".tmp";
     {
         std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
         out.write(text.data(), static_cast<std::streamsize>(text.size()));
         out.flush();
-        if (!out) throw InputError(fmt::format("cannot write {}", tmp.string()));
+        out.close();
+        if (!out) {
+            std::filesystem::remove(tmp, ec);
+            throw InputError(fmt::format("cannot write {} (disk full or not writable)", path.string()));
+        }
     }
-    std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
-    if (ec) throw InputError(fmt::format("cannot replace {}: {}", path.string(), ec.message()));
+    if (ec) {
+        const std::string why = ec.message();
+        std::filesystem::remove(tmp, ec);
+        throw InputError(fmt::format("cannot replace {}: {}", path.string(), why));
+    }
 }
 
 }  // namespace trbc

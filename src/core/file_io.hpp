@@ -7,7 +7,9 @@
 
 namespace trbc {
 
-/// Writes `text` to `path` atomically; InputError naming the file when it cannot be written.
+/// Writes `text` to `path` atomically; InputError naming the file when it cannot be written (the
+/// temporary is removed, so no partial file is left). A path that is a device or a pipe is written
+/// in place and checked after the flush.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view text);
 
 }  // namespace trbc

@@ -316,23 +316,33 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
 
 SampleResult runSample(const CellParameters& p, double fext, const ExperimentSet& which, const ExperimentOptions& opt,
                        const std::vector<double>& curveForces, bool keepShapes) {
+    const auto stage = [&opt](const std::string& what) {
+        if (opt.progress) opt.progress(what);
+    };
     SampleResult s;
     s.parameters = p;
     s.fext = fext;
+    stage(fmt::format("stress-free state (v = {:g}, level {})", p.v, opt.level));
     s.sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
     if (!which.equilibrium && !which.stretching && !which.relaxation) return s;
     const CellMeshes meshes = cellMeshes(s.sfs, opt.symmetricEquilibrium);
+    stage("equilibrium shape");
     s.equilibrium = runEquilibrium(p, meshes, opt);
     if (which.stretching) {
         std::vector<double> forces{fext};
+        stage(fmt::format("stretching at {:g} pN", fext));
         s.stretching = runStretching(p, meshes, s.equilibrium.shape, forces, opt, keepShapes ? &s.stretchShapes : nullptr);
         if (!curveForces.empty()) {
+            stage(fmt::format("stretching curve ({} forces)", curveForces.size()));
             const auto curve = runStretching(p, meshes, s.equilibrium.shape, curveForces, opt,
                                              keepShapes ? &s.stretchShapes : nullptr);
             s.stretching.insert(s.stretching.end(), curve.begin(), curve.end());
         }
     }
-    if (which.relaxation) s.relaxation = runRelaxation(p, meshes, s.equilibrium.shape, opt);
+    if (which.relaxation) {
+        stage("relaxation");
+        s.relaxation = runRelaxation(p, meshes, s.equilibrium.shape, opt);
+    }
     return s;
 }
 

@@ -62,6 +62,8 @@ struct ExperimentOptions {
     std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
     /// Passed on to every minimisation and time step of the experiments (MinimizeOptions::interruptCheck).
     std::function<void()> interruptCheck;
+    /// Told the name of each stage of runSample as it starts (a command's progress on stderr).
+    std::function<void(const std::string&)> progress;
 };
 
 /// "farthest-vertex" or "largest-variance" (CLI and provenance spelling).

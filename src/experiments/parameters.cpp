@@ -39,6 +39,10 @@ void validateForce(double fextPn, bool allowOutsidePrior) {
     checkRange(kPriorFext, fextPn, allowOutsidePrior, 0.0, false);
 }
 
+void validateBendingModulus(double kbJoule, bool allowOutsidePrior) {
+    checkRange(kPriorKbJ, kbJoule, allowOutsidePrior, 0.0, true);
+}
+
 MembraneParameters experimentMembrane(const CellParameters& p) {
     MembraneParameters m;
     m.bending.kb = p.kbPnUm();

@@ -55,12 +55,16 @@ inline constexpr PriorRange kPriorFvK{"FvK", 10.0, 1000.0};
 inline constexpr PriorRange kPriorB2{"b2", 0.0, 4.0};
 inline constexpr PriorRange kPriorEtam{"etam_Pa_s_um", 0.1, 1.0};
 inline constexpr PriorRange kPriorFext{"Fext_pN", 0.0, 200.0};
+/// kb / R_A^2 in [0.01, 0.1] uN/m (INFERENCE.md prior of kb; rbc_problem.hpp kKbLow, kKbHigh), in J.
+inline constexpr PriorRange kPriorKbJ{"kb_J", 1.074295866e-19, 1.074295866e-18};
 
 /// Throws InputError naming the parameter and its valid range when a value is not finite or
 /// (unless `allowOutsidePrior`) outside the prior box; physically impossible values (v outside
 /// (0, 1], non-positive moduli, negative b2 or force) are rejected in any case.
 void validateCellParameters(const CellParameters& p, bool allowOutsidePrior);
 void validateForce(double fextPn, bool allowOutsidePrior);
+/// A bending modulus given in J (instead of FvK): > 0, and inside kPriorKbJ unless allowOutsidePrior.
+void validateBendingModulus(double kbJoule, bool allowOutsidePrior);
 
 /// Membrane moduli of the experiments (E): Kalpha = mu, kb = mu R_A^2 / FvK, Lim coefficients of
 /// F.1, C0 = 0, no ADE. The global area and volume are imposed exactly (solvers), so the penalty

@@ -185,6 +185,7 @@ StressFreeState generateStressFreeState(double v, int level, const SfsOptions& o
     mo.gradientTolerance = opt.gradientTolerance;
     mo.maxIterations = opt.maxIterations;
     mo.interruptCheck = opt.interruptCheck;
+    mo.deadline = opt.deadline;
     // Multigrid H0 with the stiffness model of the experiments (R_c = 0.5 um in units of R'_A).
     std::optional<IcosphereMultigrid> mg;
     if (opt.multigrid) {

@@ -4,6 +4,7 @@
 // volume set by v, found by a converged constrained minimisation instead of the reference's
 // fixed-duration damped run. Cached on disk by (v, level, model version).
 #include <Eigen/Core>
+#include <chrono>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -22,6 +23,9 @@ struct SfsOptions {
     int maxIterations = 100000;
     bool multigrid = true;  ///< multigrid H0 for the L-BFGS (as ExperimentOptions::multigrid)
     std::function<void()> interruptCheck;  ///< MinimizeOptions::interruptCheck of the minimisation
+    /// The minimisation stops, not converged (so nothing is cached), after this instant
+    /// (`simulate --time-limit`; default: none).
+    std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
 struct StressFreeState {

@@ -103,7 +103,10 @@ nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level,
     if (which.relaxation) {
         const RelaxationResult& r = s.relaxation;
         obs["tc_s"] = r.fit.tc;
-        j["relaxation_fit"] = {{"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
+        j["relaxation_fit"] = {{"law", "z = L/W (largest over second-largest extent; relaxation.csv); Hochmuth fit z(t) = zinf "
+                                       "(Lambda + exp(-t/tc)) / (Lambda - exp(-t/tc)), Lambda = (z0 + zinf) / (z0 - zinf), z0 "
+                                       "= z at the first sample; rms = root-mean-square residual of z"},
+                               {"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
                                {"pre_stretch_force_pN", r.preStretchForce}};
         diag["relaxation"] = {{"pre_stretch", staticSolverJson(r.preStretch)},
                               {"converged", r.dynamics.converged},

@@ -404,7 +404,7 @@ Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double cl
         if (wallClearance(Z, radius) >= clearance) return Z;
     }
     throw NumericalError(fmt::format("tube: no affine deformation of the cell with its area and volume fits a tube of "
-                                     "radius {:.4g} R_A with clearance {:.3g} R_A",
+                                     "radius {:.4g} with clearance {:.3g} (um)",
                                      radius, clearance));
 }
 

@@ -190,7 +190,7 @@ double wallClearance(const Vertices& X, double radius);
 
 /// The affine fit of the file comment: returns X unchanged when every vertex already keeps
 /// `clearance` from the wall, otherwise (a x, c y, b z) about the centroid (centred on the axis)
-/// with area A0 and volume V0. Throws NumericalError when no such shape is found.
+/// with area A0 and volume V0 (lengths in um). Throws NumericalError when no such shape is found.
 Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double clearance, double A0, double V0);
 
 /// Observables of VALIDATION.md 4.3 from frames at times t (any consistent units).

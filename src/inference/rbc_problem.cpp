@@ -122,6 +122,14 @@ RbcDataSet readStretchingData(const fs::path& file, std::string name) {
     requireRows(t, 1, "one row per force");
     for (Eigen::Index r = 0; r < d.force.size(); ++r) {
         if (!(d.force[r] >= 0.0)) outOfRange(t, r, "Fext", d.force[r], "the force must be >= 0 pN");
+        // The stretching surrogate is trained on Fext in the prior box only; beyond it its D0 and D1
+        // are extrapolations that would enter the likelihood unnoticed.
+        if (d.force[r] > kPriorFext.hi)
+            outOfRange(t, r, "Fext", d.force[r],
+                       fmt::format("the surrogates are trained on [{:g}, {:g}] pN only (drop the row, or train a surrogate on a "
+                                   "campaign over a wider force box)",
+                                   kPriorFext.lo, kPriorFext.hi)
+                           .c_str());
         if (!(d.d0[r] > 0.0)) outOfRange(t, r, "D0", d.d0[r], "a diameter must be > 0 um");
         if (!(d.d1[r] > 0.0)) outOfRange(t, r, "D1", d.d1[r], "a diameter must be > 0 um");
     }

@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -109,10 +110,21 @@ void checkFields(const Mesh& mesh, const std::vector<VertexField>& fields) {
 
 }  // namespace
 
-Mesh parseOff(const std::string& path, MeshSource* source) {
+namespace {
+
+std::vector<Token> tokenizeFile(const std::string& path) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+        throw InputError(fmt::format("mesh file '{}' is a directory, not a mesh file", path));
     std::ifstream in(path);
     if (!in) throw InputError(fmt::format("cannot open mesh file '{}' (missing or unreadable)", path));
-    TokenReader r(path, tokenize(in));
+    return tokenize(in);
+}
+
+}  // namespace
+
+Mesh parseOff(const std::string& path, MeshSource* source) {
+    TokenReader r(path, tokenizeFile(path));
     if (r.done()) throw InputError(fmt::format("{}:1: empty file, expected an OFF mesh", path));
     {
         const int line = r.line();
@@ -458,10 +470,31 @@ void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<Vert
         const std::string e(ext);
         return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
     };
-    if (endsWith(".off")) return writeOff(path, mesh);
-    if (endsWith(".ply")) return writePly(path, mesh, fields);
-    if (endsWith(".vtk")) return writeVtk(path, mesh, fields);
-    throw InputError(fmt::format("cannot tell the mesh format of '{}': use the extension .off, .ply or .vtk", path));
+    const auto write = [&](const std::string& p) {
+        if (endsWith(".off")) return writeOff(p, mesh);
+        if (endsWith(".ply")) return writePly(p, mesh, fields);
+        if (endsWith(".vtk")) return writeVtk(p, mesh, fields);
+        throw InputError(fmt::format("cannot tell the mesh format of '{}': use the extension .off, .ply or .vtk", path));
+    };
+    std::error_code ec;
+    const auto kind = std::filesystem::status(path, ec).type();
+    if (kind != std::filesystem::file_type::not_found && kind != std::filesystem::file_type::regular &&
+        kind != std::filesystem::file_type::none)
+        return write(path);  // a device or a pipe: in place, checked at the flush
+    // Through PATH.tmp and rename(2), so that a failed write leaves no partial mesh behind.
+    const std::string tmp = path + ".tmp";
+    try {
+        write(tmp);
+    } catch (const InputError& e) {
+        std::filesystem::remove(tmp, ec);
+        throw InputError(fmt::format("cannot write '{}': {}", path, e.what()));
+    }
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        const std::string why = ec.message();
+        std::filesystem::remove(tmp, ec);
+        throw InputError(fmt::format("cannot write '{}': {}", path, why));
+    }
 }
 
 }  // namespace trbc

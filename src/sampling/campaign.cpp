@@ -81,8 +81,9 @@ void validateOptions(const CampaignOptions& o) {
     if (o.forcesPerCell < 1 || o.forcesPerCell > 1000)
         throw InputError(fmt::format("--forces-per-cell {} is outside [1, 1000]", o.forcesPerCell));
     if (o.threads < 1 || o.threads > 1024) throw InputError(fmt::format("--threads {} is outside [1, 1024]", o.threads));
-    if (o.experiment.level < 1 || o.experiment.level > 6)
-        throw InputError(fmt::format("--level {} is outside [1, 6]", o.experiment.level));
+    // Level 1 (42 vertices) has no bead contact set at the stretching's 2 um contact diameter.
+    if (o.experiment.level < 2 || o.experiment.level > 6)
+        throw InputError(fmt::format("--level {} is outside [2, 6]", o.experiment.level));
     if (o.outDir.empty()) throw InputError("--out: an output directory is required");
     if (!(o.cellTimeLimit >= 0.0 && o.cellTimeLimit <= 1e6))
         throw InputError(fmt::format("--cell-time-limit {} is outside [0, 1e6] s (0: none)", o.cellTimeLimit));

@@ -381,10 +381,14 @@ TrainedNetwork loadNetwork(const std::string& path) {
     json j;
     try {
         j = json::parse(in);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // syntax errors, and numbers beyond a double (out_of_range)
         throw InputError(path + ": not valid JSON: " + e.what());
     }
-    return networkFromJson(j, path);
+    try {
+        return networkFromJson(j, path);
+    } catch (const json::exception& e) {  // a field of the wrong JSON type that no check above caught
+        throw InputError(path + ": " + e.what());
+    }
 }
 
 }  // namespace trbc
