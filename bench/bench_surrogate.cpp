@@ -1,4 +1,4 @@
-// Surrogate networks (SURROGATE.md 3): batched evaluation throughput of the 3 x 32 network,
+// Surrogate networks (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training): batched evaluation throughput of the 3 x 32 network,
 // the tanh kernel, one training epoch at the paper's data size, and the complete training schedule
 // of 3.4 on the known function of 5.1.5 with 50 000 samples (reports the held-out RMSE).
 //
@@ -59,8 +59,8 @@ void BM_MlpForward(benchmark::State& state) {
 
 // The shipped model (data/surrogates, or $TRBC_SURROGATE_DIR) as the inference calls it:
 // Surrogate::evaluate of all six outputs (argument 1 = 0), or the relaxation time alone (1),
-// for n samples uniform in the prior box, one thread. items/s = samples per second. Since
-// session 8 the relaxation network is an ensemble of 8, so a tc costs 8 network evaluations.
+// for n samples uniform in the prior box, one thread. items/s = samples per second. The shipped
+// relaxation network is distilled from an ensemble of 8, so a tc costs one network pass.
 void BM_ShippedSurrogate(benchmark::State& state) {
     const char* env = std::getenv("TRBC_SURROGATE_DIR");
     Surrogate model;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Campaign throughput at the training level (issue 5): one campaign of CELLS cells of 20 forces at
+# Campaign throughput at the training level : one campaign of CELLS cells of 20 forces at
 # level 4, run with 1 and with 2 threads (cells concurrently) and, when trbc was built with MPI,
 # as 2 MPI ranks of one thread each; timed by farm-bench (median of RUNS).
 # Usage: bench/campaign_throughput.sh [CELLS=4] [RUNS=3] [SEED=7]

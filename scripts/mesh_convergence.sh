@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Mesh convergence of the six observables (issue 4): levels 3, 4, 5 at the reference point and at
+# Mesh convergence of the six observables: levels 3, 4, 5 at the reference point and at
 # two corners of the prior box. Writes docs/mesh_convergence.md (and the raw JSON beside it).
 # Usage: scripts/mesh_convergence.sh [build/trbc] [out-dir]
 set -euo pipefail

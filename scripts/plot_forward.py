@@ -3,7 +3,7 @@
 
 Reads DIR/simulate.json (required) and the optional CSV files written next to it
 (equilibrium_profile.csv, stretching_curve.csv, relaxation.csv) and writes three
-figures (see docs/MODEL.md, sections B.4 and E.1-E.3):
+figures (see docs/MEMBRANE_MODEL.md and docs/FORWARD_MODEL.md):
 
   <prefix>equilibrium.png  aligned cross-section vs the Evans-Fung (1972) shape,
                            simulated D, hmin, hmax vs measured mean +- sd
@@ -39,7 +39,7 @@ REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = (REPO / "data" / "experiments").resolve()
 DEFAULT_OUT = REPO / "docs" / "figures"
 
-# Evans & Fung (1972) biconcave shape, MODEL.md B.4
+# Evans & Fung (1972) biconcave shape, docs/MEMBRANE_MODEL.md, Evans-Fung shape
 EF_R0 = 3.91
 EF_C = (0.207161, 2.002558, -1.122762)
 
@@ -258,7 +258,7 @@ def fit_hochmuth(t, z):
 
 # ---------------------------------------------------------------- figure 1
 def thickness_extrema(r, h):
-    """hmax, r*, and hmin = min of h over r <= r* (MODEL.md E.1)."""
+    """hmax, r*, and hmin = min of h over r <= r* (docs/FORWARD_MODEL.md, equilibrium)."""
     k = int(np.nanargmax(h))
     rs = r[k]
     inner = r <= rs
@@ -325,7 +325,7 @@ def plot_equilibrium(sim, d, data, out):
     for sgn in (1, -1):
         ax.plot([sgn * r[-1]] * 2, [zl[-1], zh[-1]], color=C_SIM, lw=1.8, zorder=3)
     ax.plot(ref_ef, hef_full / 2, color="k", ls="--", lw=1.1, zorder=4,
-            label="Evans & Fung (1972)\nanalytic shape (B.4)")
+            label="Evans & Fung (1972)\nanalytic shape")
     ax.plot(ref_ef, -hef_full / 2, color="k", ls="--", lw=1.1, zorder=4)
     ax.axhline(0, color="0.85", lw=0.6, zorder=0)
     ax.axvline(0, color="0.85", lw=0.6, zorder=0)

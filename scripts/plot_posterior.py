@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Corner plots of the posteriors written by `trbc infer` (INFERENCE.md; issue 6).
+"""Corner plots of the posteriors written by `trbc infer` (docs/BAYESIAN_INFERENCE.md).
 
 Reads the samples.csv files of an inference directory DIR (columns: the parameters in physical
 units, then log_likelihood and log_prior; one row per equally weighted sample) and writes

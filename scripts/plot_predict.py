@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Figures of `trbc predict` (INFERENCE.md 8): per posterior the predictive bands with the data.
+"""Figures of `trbc predict` (docs/BAYESIAN_INFERENCE.md, prediction): per posterior the predictive bands with the data.
 
 Usage: scripts/plot_predict.py OUT [--data-dir EXPERIMENTS_DIR]
 

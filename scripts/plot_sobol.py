@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Plot Sobol' sensitivity indices of the surrogate (docs: SURROGATE.md section 4).
+"""Plot Sobol' sensitivity indices of the surrogate (docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices).
 
 Reads DIR/sobol_indices.csv with columns output,input,S1,S1_ci,ST,ST_ci (one row per output and
 input, as written by trbc::writeSobolCsv; *_ci are 95 % bootstrap half-widths) and writes:

@@ -2,7 +2,7 @@
 """Plot the output of ``trbc validate`` against the flow-validation experiments.
 
 Reads the CSV files written by ``trbc validate`` into DIR (see
-docs/VALIDATION.md, sections 3 and 4) and overlays the simulated observables
+docs/FLOW.md) and overlays the simulated observables
 on the experimental data of data/experiments/validation:
 
   angle_vs_shear_rate.png      mean inclination angle (error bar = swinging
@@ -586,7 +586,7 @@ def plot_angle(run):
                         zorder=6, clip_on=False, **tkw(run, ctx.stack(ax, s)))
                 anchor(ax, run, tb, np.zeros(len(tb)))
                 xs_all += tb
-        if xs_all and min(xs_all) > 0:  # shear rates span decades (VALIDATION.md 3.2)
+        if xs_all and min(xs_all) > 0:  # shear rates span decades (docs/FLOW.md, shear)
             ax.set_xscale("log")
         ax.axhline(0, color="0.8", lw=0.6, zorder=0)
         ax.set_xlabel(r"shear rate $\dot\gamma$ [1/s]")
@@ -950,7 +950,7 @@ def parse_args(argv):
     ap = argparse.ArgumentParser(
         usage=USAGE,
         description="Plot `trbc validate` outputs (shear.csv, threshold.csv, tube.csv) against "
-                    "the flow-validation experiments (docs/VALIDATION.md sections 3-4); with "
+                    "the flow-validation experiments (docs/FLOW.md); with "
                     "--series, several labelled result sets on the same figures.")
     ap.add_argument("dir", metavar="DIR", nargs="?", default=None,
                     help="output directory of `trbc validate` (single-directory form)")

@@ -2,7 +2,7 @@
 # make showcase: a short tour of the membrane engine and the forward model.
 #  1. a level-4 icosphere (Nv = 2562) and the Evans-Fung resting cell, scaled to A0 = 135 um^2;
 #  2. forces of the full model on the cell (cross-check command);
-#  3. relaxation of a sphere to the biconcave discocyte at reduced volume 0.64 (MODEL.md D units);
+#  3. relaxation of a sphere to the biconcave discocyte at reduced volume 0.64 (the dimensionless units of docs/MEMBRANE_MODEL.md);
 #  4. one forward-model sample at the reference point with a stretching curve, and its figures.
 # Outputs go to out/showcase/ (VTK files open in ParaView with force, mean curvature and area fields).
 set -euo pipefail
@@ -26,7 +26,7 @@ $T forces --mesh "$O/evans_fung_L4.off" --reference "$O/sphere_L4_135.off" \
   --kb 0.0429 --ka 4 --a3 -2 --a4 8 --mu 4 --b1 0.7 --b2 1.5 \
   --kA 5e5 --A0 135 --kV 7.23e5 --V0 94 --out "$O/evans_fung_forces.csv" | tee "$O/evans_fung_energy.json"
 
-echo "== sphere -> discocyte at v = 0.64 (bending + Lim + area + volume, MODEL.md D units)"
+echo "== sphere -> discocyte at v = 0.64 (bending + Lim + area + volume, the dimensionless units of docs/MEMBRANE_MODEL.md)"
 $T minimize --mesh "$O/sphere_L4.off" --reference "$O/sphere_L4.off" \
   --kb 1 --ka 11.140846 --a3 -2 --a4 8 --mu 2.228169 --b1 0.7 --b2 0.75 \
   --kA 1e4 --kV 1e4 --A0 12.566370614359172 --reduced-volume 0.64 --oblate-seed 0.8 \

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Surrogate against the direct forward model on fresh random points (issue 5).
+"""Surrogate against the direct forward model on fresh random points.
 
 Draws N points uniformly in the training box (seeded), runs `trbc simulate` at the training level
 for each and `trbc surrogate eval` on all of them, and writes OUT/points.csv (inputs, direct and

@@ -1,4 +1,4 @@
-// trbc calibrate (issue 7): configuration errors name file, line and key; malformed data fails
+// trbc calibrate: configuration errors name file, line and key; malformed data fails
 // before any stage; an unchanged re-run skips every stage; changing one data CSV re-runs exactly
 // the stages that depend on it; the report and the exported cell are written.
 #include <algorithm>

@@ -1,4 +1,4 @@
-// The campaign runner (issue 5, SURROGATE.md 2): designs, the table format, failure records, and
+// The campaign runner (docs/CAMPAIGN_AND_SURROGATE.md, campaign): designs, the table format, failure records, and
 // resume after SIGKILL giving the same final table as an uninterrupted run.
 #include <fmt/format.h>
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // `trbc forces` end to end: runs the CLI on the provided meshes and checks its JSON energies
-// against MODEL.md C.5 and its CSV forces against central finite differences of the library energy.
+// against docs/MEMBRANE_MODEL.md, reference values, and its CSV forces against central finite differences of the library energy.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 

@@ -1,5 +1,5 @@
-// The forward model of MODEL.md D-E: stress-free states and their cache, the reference point of
-// issue 4, the physics of the three experiments, invariances, the reference-protocol cost model
+// The forward model of docs/FORWARD_MODEL.md: stress-free states and their cache, the reference point
+// (observables of the reference implementation at the default parameters), the physics of the three experiments, invariances, the reference-protocol cost model
 // and the bad-input behaviour of `trbc simulate`.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -103,13 +103,13 @@ TEST(StressFreeStateCache, ReusesValidEntriesAndRebuildsCorruptOnes) {
     std::filesystem::remove_all(dir);
 }
 
-// --- Reference point (issue 4) -----------------------------------------------------------------
+// --- Reference point --------------------------------------------------------------------------
 
 struct ReferenceValues {
     double D = 7.75, hmin = 0.77, hmax = 2.63, D0 = 5.12, D1 = 13.98, tc = 0.169;
 };
 
-// Level 3 (Nv = 642): every observable within the tolerances of issue 4 (2 % on D, hmax, D0, D1;
+// Level 3 (Nv = 642): every observable within the acceptance tolerances (2 % on D, hmax, D0, D1;
 // 0.1 um on hmin; 5 % on tc).
 TEST(ReferencePoint, Level3MatchesTheReferenceImplementation) {
     const ReferenceValues ref;
@@ -122,8 +122,8 @@ TEST(ReferencePoint, Level3MatchesTheReferenceImplementation) {
     EXPECT_NEAR(s.relaxation.fit.tc, ref.tc, 0.05 * ref.tc);
 }
 
-// Level 4 (Nv = 2562, the paper's level): D, hmin, hmax, D0 and tc within the issue's tolerances.
-// D1 comes out 2.4 % below the reference's 13.98 um (13.65 um); the bead bands of E.2 see the
+// Level 4 (Nv = 2562, the paper's level): D, hmin, hmax, D0 and tc within the acceptance tolerances.
+// D1 comes out 2.4 % below the reference's 13.98 um (13.65 um); the bead bands of stretching see the
 // mesh's in-plane structure and D1 spans 13.64-13.91 um over in-plane bead angles at this level
 // (docs/FORWARD_MODEL.md), so D1 is held to 3 % here and the deviation is reported, not hidden.
 TEST(ReferencePoint, Level4MatchesTheReferenceImplementation) {
@@ -204,7 +204,7 @@ TEST(Stretching, DiametersAreMonotoneInForceAndEqualTheRestingDiameterAtZero) {
         EXPECT_GT(pts[k].observables.D1, pts[k - 1].observables.D1 + 0.1) << pts[k].fext << " pN";
         EXPECT_LT(pts[k].observables.D0, pts[k - 1].observables.D0) << pts[k].fext << " pN";
     }
-    // Continuation (E.2 / G.3): the same state as a run started from the equilibrium shape.
+    // Continuation (stretching / exact constraints): the same state as a run started from the equilibrium shape.
     const auto direct = runStretching(p, meshes, eq.shape, {100.0}, opt);
     ASSERT_EQ(pts[3].fext, 100.0);
     EXPECT_NEAR(direct[0].observables.D1, pts[3].observables.D1, 0.02);
@@ -221,9 +221,9 @@ double relaxationTime(const CellParameters& p, const ExperimentOptions& opt) {
 // Overdamped (Gamma dX/dt = -dU/dX): time scales exactly as eta_m (the regulariser eps gamma
 // scales with it too), so the shape path is the same and only the fixed protocol window (Hochmuth
 // fit over 1 s, 100 samples, which covers fewer relaxation times at higher eta_m) and the step
-// control differ: tc proportional to eta_m within 3 %. Halving eps must not change tc (G.3).
+// control differ: tc proportional to eta_m within 3 %. Halving eps must not change tc (exact constraints).
 // docs/FORWARD_MODEL.md "Two equilibria near v = 1": with a near-spherical SFS the cell has a
-// dimpled disc and, lower in energy, an undimpled cup. E.1's dynamics from the centrally symmetric
+// dimpled disc and, lower in energy, an undimpled cup. the equilibrium's dynamics from the centrally symmetric
 // biconcave start keeps that symmetry and ends in the disc; so does the symmetric minimisation,
 // whatever the solver's steps, and the disc it returns is a minimum of the unrestricted problem.
 TEST(Equilibrium, NearASphericalSfsTheSymmetricEquilibriumIsTheDiscALocalMinimumBesideALowerCup) {
@@ -303,7 +303,7 @@ TEST(Relaxation, InertialTimeGrowsWithViscosityAndFallsWithStiffness) {
     EXPECT_GT(relaxationTime(p, opt), 1.3 * tcRef);
 }
 
-// E.3: z = L/W with L the largest and W the second-largest extent. In the stiff, low-viscosity corner
+// relaxation: z = L/W with L the largest and W the second-largest extent. In the stiff, low-viscosity corner
 // the reference's inertia makes the cell overshoot through a round shape; ordering the extents by
 // the principal axes instead (revision 1) gave z < 1 at 45 of 101 samples here (level 2) and a jump
 // of tc between neighbouring viscosities.
@@ -381,7 +381,7 @@ TEST(ForwardModel, ObservablesInvariantUnderRotationAndRelabellingOfTheInputMesh
         EXPECT_NEAR(sa[0].observables.D0, sb[0].observables.D0, 2e-3);
         EXPECT_NEAR(sa[0].observables.D1, sb[0].observables.D1, 2e-3);
         if (axis == InPlaneAxis::LargestVariance) {
-            // E.0: x is the in-plane axis of largest variance, the vertex with the largest |x| on +x.
+            // alignment: x is the in-plane axis of largest variance, the vertex with the largest |x| on +x.
             const Eigen::Matrix3d cov = a.shape * a.shape.transpose();
             EXPECT_LT(std::abs(cov(0, 1)), 1e-9 * cov(0, 0));
             EXPECT_GT(cov(0, 0), cov(1, 1));
@@ -392,7 +392,7 @@ TEST(ForwardModel, ObservablesInvariantUnderRotationAndRelabellingOfTheInputMesh
     }
 }
 
-// --- Cost of the reference protocol (G.1) ------------------------------------------------------
+// --- Cost of the reference protocol ------------------------------------------------------------------
 
 TEST(ReferenceProtocol, StepCountsReproduceTheSpecTable) {
     CellParameters p;

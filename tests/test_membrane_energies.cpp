@@ -1,4 +1,4 @@
-// Energy terms of MODEL.md C: analytic gradients against central finite differences, zero net
+// Energy terms of docs/MEMBRANE_MODEL.md: analytic gradients against central finite differences, zero net
 // force and torque, invariance under rigid motions and relabelling, and analytic limits.
 #include <gtest/gtest.h>
 
@@ -181,7 +181,7 @@ std::string energyTestName(const ::testing::TestParamInfo<EnergyTermTest::ParamT
 INSTANTIATE_TEST_SUITE_P(AllTermsAllMeshes, EnergyTermTest,
                          ::testing::Combine(::testing::ValuesIn(kTerms), ::testing::Range(0, 5)), energyTestName);
 
-// --- Reference values of MODEL.md C.5 (unscaled meshes, kb = 1, C0 = 0) --------------------------
+// --- Reference values of docs/MEMBRANE_MODEL.md, reference values (unscaled meshes, kb = 1, C0 = 0) --------------------------
 
 struct ReferenceRow {
     const char* mesh;
@@ -254,7 +254,7 @@ TEST(AnalyticLimits, JuelicherSphereConvergesTo8PiKb) {
 }
 
 TEST(AnalyticLimits, SphereWithMatchingSpontaneousCurvatureHasNearZeroBending) {
-    // MODEL.md C.5: unit icospheres, kb = 1, C0 = 2.
+    // docs/MEMBRANE_MODEL.md, reference values: unit icospheres, kb = 1, C0 = 2.
     const double expected[] = {0.03190, 0.007845, 0.001954};
     for (int level = 2; level <= 4; ++level) {
         const Mesh m = icosphere(level);
@@ -336,7 +336,7 @@ TEST(FastAtan2, AgreesWithLibmOverTheCircle) {
     EXPECT_EQ(kernels::fastAtan2(0.0, 1.0), 0.0);
 }
 
-// --- Membrane viscosity (C.4) ---------------------------------------------------------------------
+// --- Membrane viscosity ------------------------------------------------------------------------------------------
 
 TEST(MembraneViscosity, RigidMotionsAreFreeAndDissipationIsGammaSumLdot2) {
     const Mesh m = readOff(meshPath("rbc_642.off"));

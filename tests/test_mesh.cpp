@@ -1,5 +1,5 @@
 // Meshes: icosphere counts and nesting, agreement with the provided sph_L*.off, the Evans-Fung
-// map check values of MODEL.md B.4, geometry, principal axes and file round trips.
+// map check values of docs/MEMBRANE_MODEL.md, Evans-Fung shape, geometry, principal axes and file round trips.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -69,7 +69,7 @@ TEST(EvansFung, MapOfProvidedIcospheresGivesTheSpecCheckValues) {
 
 TEST(Geometry, ReducedVolumeVertexAreasAndPrincipalAxes) {
     const Mesh s = icosphere(4);
-    EXPECT_NEAR(reducedVolume(s.X, s.F), 0.9996, 1e-4);  // MODEL.md D: polyhedra stay below 1
+    EXPECT_NEAR(reducedVolume(s.X, s.F), 0.9996, 1e-4);  // docs/FORWARD_MODEL.md, stress-free state: polyhedra stay below 1
     EXPECT_NEAR(vertexAreas(s.X, s.F).sum(), totalArea(s.X, s.F), 1e-12);
     Vertices ell = s.X;
     ell.row(0) *= 1.0;

@@ -1,4 +1,4 @@
-// Network code of the surrogates (SURROGATE.md 5.1): forward pass, back-propagation, scaling,
+// Network code of the surrogates (docs/CAMPAIGN_AND_SURROGATE.md): forward pass, back-propagation, scaling,
 // seeded split and training determinism, learning a known function with the schedule of 3.4,
 // JSON save/load.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Measurement primitives of MODEL.md E.0-E.3: the sliced ray casting on meshes with degenerate
+// Measurement primitives of docs/FORWARD_MODEL.md, measurements: the sliced ray casting on meshes with degenerate
 // slices, the equilibrium observables of the Evans-Fung cell and of convex shapes against closed
 // forms, their invariances, the stretch observables and deformation index of ellipsoids, and the
 // Hochmuth fit on synthetic data.
@@ -158,7 +158,7 @@ TEST(ThicknessProfile, NoRayLostOnTheMirrorPlaneOfTheEvansFungMesh) {
     }
 }
 
-// --- E.1 equilibrium observables ----------------------------------------------------------------
+// --- equilibrium observables ------- ----------------------------------------------------------------
 
 TEST(EquilibriumObservables, EvansFungCellMatchesTheAnalyticProfile) {
     const EvansFung ef;
@@ -264,7 +264,7 @@ TEST(EquilibriumObservables, ConvexShapesHaveNoDimple) {
     }
 }
 
-// --- E.2 / E.3 extents --------------------------------------------------------------------------
+// --- stretching / relaxation extents --------------------------------------------------------------------------
 
 TEST(StretchObservables, EllipsoidExtentsAndDeformationIndex) {
     const Mesh s = icosphere(3);  // has the vertices (+-1,0,0), (0,+-1,0), (0,0,+-1)
@@ -286,7 +286,7 @@ TEST(StretchObservables, EllipsoidExtentsAndDeformationIndex) {
     EXPECT_THROW(deformationIndex(bad), NumericalError);
 }
 
-// --- E.3 Hochmuth fit ---------------------------------------------------------------------------
+// --- relaxation Hochmuth fit ---------------------------------------------------------------------------
 
 /// 100 samples at 0.01 s intervals starting at t = 0.01 s (the fit uses t - t[0]).
 std::vector<double> sampleTimes() {

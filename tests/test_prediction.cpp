@@ -1,4 +1,4 @@
-// Forward propagation of posteriors (src/analysis/prediction.hpp, INFERENCE.md 8).
+// Forward propagation of posteriors (src/analysis/prediction.hpp, docs/BAYESIAN_INFERENCE.md, prediction).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,4 +1,4 @@
-// Priors of the generic sampler (INFERENCE.md 3.0, 6.1) and their random numbers.
+// Priors of the generic sampler (docs/BAYESIAN_INFERENCE.md) and their random numbers.
 //
 // Monte-Carlo tolerances: a sample mean of n draws has standard error sd / sqrt(n), a sample
 // variance sqrt((m4 - var^2) / n) (m4 = fourth central moment, estimated from the same draws).
@@ -81,7 +81,7 @@ void truncatedNormalMoments(double m, double s, double lo, double hi, double& me
     var = s * s * (1 + (aPhi - bPhi) / Z - r * r);
 }
 
-// The two ratio-uniform priors of INFERENCE.md 3.0.
+// The two ratio-uniform priors of docs/BAYESIAN_INFERENCE.md.
 ScalarPriorPtr fvkPrior() { return ratioUniformPrior(1.0, 10.0, 0.01, 0.1); }
 ScalarPriorPtr rPrior() { return ratioUniformPrior(0.1, 1.0, 1.0, 10.0); }
 

@@ -1,4 +1,4 @@
-// The red-cell hierarchical inference (INFERENCE.md 2-4, issue 6): data readers and their errors,
+// The red-cell hierarchical inference (docs/BAYESIAN_INFERENCE.md, data): data readers and their errors,
 // the seven likelihoods against hand computations on analytic forward models, the ratio-uniform
 // priors, the population density q(FvK | psi) against quadrature, phase-2 re-weighting on a toy
 // problem with an analytic hyper-posterior, and small end-to-end runs of all phases (outputs,
@@ -136,7 +136,7 @@ TEST(RbcInference, ReadsTheShippedExperimentalData) {
     const fs::path shipped = fs::path(TRBC_TEST_DATA) / ".." / ".." / "data" / "experiments";
     const auto data = loadRbcDataSets(shipped);
     ASSERT_EQ(data.size(), 7u);
-    EXPECT_DOUBLE_EQ(data[0].shape[0], 7.82);  // INFERENCE.md 2
+    EXPECT_DOUBLE_EQ(data[0].shape[0], 7.82);  // docs/BAYESIAN_INFERENCE.md, data
     EXPECT_DOUBLE_EQ(data[0].shape[1], 0.81);
     EXPECT_DOUBLE_EQ(data[0].shape[2], 2.58);
     EXPECT_EQ(data[1].force.size(), 13);
@@ -419,7 +419,7 @@ TEST(RbcInference, FvkDensityClosedFormMatchesQuadrature) {
                 worst50 = std::max(worst50, std::abs(std::exp(logFvkDensityNodes50(z[i], p)) / quad - 1.0));
         }
     }
-    EXPECT_LT(worstQuad, 1e-8);    // INFERENCE.md 4.3: closed form = quadrature
+    EXPECT_LT(worstQuad, 1e-8);    // docs/BAYESIAN_INFERENCE.md: closed form = quadrature
     EXPECT_LT(worstArray, 1e-11);  // vectorised = scalar
     EXPECT_GT(worst50, 1e-4);      // the 50-node rule is only approximate ...
     EXPECT_LT(worst50, 1.0);       // ... (per cents, more for narrow populations: the nodes are 0.0018 apart)

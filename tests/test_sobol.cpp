@@ -1,4 +1,4 @@
-// Sobol' sequence and Sobol' sensitivity indices (SURROGATE.md 4 and 5.3): Joe-Kuo points,
+// Sobol' sequence and Sobol' sensitivity indices (docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices): Joe-Kuo points,
 // stratification, QMC integration; Ishigami and linear-model analytic indices, bootstrap coverage,
 // invariances, ignored inputs, determinism, batching, CSV output and bad options.
 #include <gtest/gtest.h>

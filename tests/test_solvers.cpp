@@ -1,5 +1,5 @@
 // Solvers: L-BFGS on a problem with a known minimum, the sphere-to-discocyte relaxation of
-// MODEL.md D at Nv = 2562, and the variational BDF2 integrator of the viscous dynamics.
+// docs/FORWARD_MODEL.md, stress-free state at Nv = 2562, and the variational BDF2 integrator of the viscous dynamics.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -138,7 +138,7 @@ std::vector<double> thicknessProfile(const Vertices& Xa, double rMax, int bins) 
 }
 
 TEST(Minimizer, SphereRelaxesToBiconcaveDiscocyteAtReducedVolume064) {
-    // MODEL.md D in its dimensionless units (length R'_A, energy kappa): bending kappa = 1, area and
+    // docs/FORWARD_MODEL.md, stress-free state in its dimensionless units (length R'_A, energy kappa): bending kappa = 1, area and
     // volume penalties, and the weak Lim in-plane term relative to the initial sphere that the SFS
     // protocol uses. Without an in-plane term vertices slide tangentially at no cost and the
     // triangulation degenerates (measured: max force 3e5 after 3000 iterations). Penalties are
@@ -152,7 +152,7 @@ TEST(Minimizer, SphereRelaxesToBiconcaveDiscocyteAtReducedVolume064) {
     p.penalty = {1e4, A0, 1e4, v * 4.0 * std::numbers::pi / 3.0};
     const MembraneModel model(sphere.F, sphere.numVertices(), p, &ref);
     Vertices X = ref;
-    X.row(2) *= 0.8;  // seed the oblate branch (MODEL.md D, implementation guidance)
+    X.row(2) *= 0.8;  // seed the oblate branch (docs/FORWARD_MODEL.md, stress-free state)
     MinimizeOptions opt;
     opt.gradientTolerance = 1e-6;
     opt.maxIterations = 20000;
@@ -240,7 +240,7 @@ Relaxation stretchedSphere() {
 }
 
 // Edge friction 1 plus isotropic friction 0.2, which regularises the friction-free
-// near-isometric modes (MODEL.md G.3); tight inner solves.
+// near-isometric modes (docs/FORWARD_MODEL.md, exact constraints); tight inner solves.
 ViscousDynamicsOptions relaxationOptions() {
     ViscousDynamicsOptions opt;
     opt.gamma = 1.0;

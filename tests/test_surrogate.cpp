@@ -1,4 +1,4 @@
-// The three-network surrogate (SURROGATE.md 3, 5.2): training from a campaign table, the held-out
+// The three-network surrogate (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training): training from a campaign table, the held-out
 // test set of whole cells, invariances, save/load, the training-box flag, and the surrogate and
 // sobol commands on bad input.
 #include <gtest/gtest.h>
@@ -297,7 +297,7 @@ TEST_F(TrainedFixture, DistilledRelaxationNetworkReproducesItsEnsemble) {
     EXPECT_THROW(trainSurrogate(fakeCampaign(400, 8), opt), InputError);
 }
 
-// The command's default (session 20): the relaxation ensemble is distilled into one network; with
+// The command's default: the relaxation ensemble is distilled into one network; with
 // --ensemble none and no --distill there is nothing to distill and training goes on without it.
 TEST(SurrogateTrainCli, DistillsTheRelaxationEnsembleByDefault) {
     TempDir tmp;

@@ -1,4 +1,4 @@
-// TMCMC / BASIS (INFERENCE.md 6) on the verification problems with known answers (9), its
+// TMCMC / BASIS (docs/BAYESIAN_INFERENCE.md) on the verification problems with known answers, its
 // reproducibility (threads, checkpoint/resume), errors, and the posterior statistics (7).
 //
 // Monte-Carlo tolerances. TMCMC/BASIS output is a correlated, resampled population, so the naive
@@ -7,7 +7,7 @@
 // settings (DISABLED_TmcmcAccuracy.SeedSweep prints them, "mean +- SD" quoted next to each check).
 // "mean err" is max_i |posterior mean_i - exact_i| / exact sd_i, "cov err" is
 // max_ij |cov_ij - exact_ij| / (sd_i sd_j). Classical TMCMC (long chains) has a systematic
-// log-evidence bias (INFERENCE.md 6.2, "Why BASIS"), visible below as a non-zero mean error; BASIS
+// log-evidence bias (docs/BAYESIAN_INFERENCE.md, "Why BASIS"), visible below as a non-zero mean error; BASIS
 // has none within the scatter. The seeds are fixed, so outcomes are reproducible.
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -38,7 +38,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 const double kLog2Pi = std::log(2 * std::numbers::pi);
 
 // ------------------------------------------------------------------------------------------------
-// Verification problems (INFERENCE.md 9) with their exact answers
+// Verification problems (docs/BAYESIAN_INFERENCE.md) with their exact answers
 
 struct Verification {
     std::string name;

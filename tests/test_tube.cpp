@@ -1,4 +1,4 @@
-// One cell in a straight circular microtube (flow/tube.hpp, VALIDATION.md 4): the wall
+// One cell in a straight circular microtube (flow/tube.hpp, docs/FLOW.md, tube): the wall
 // discretisation against exact and classical results, a short coupled run, bad input.
 //  * rigid sphere translating along the axis of a tube in fluid at rest: drag
 //    F = 6 pi mu a U K(beta), beta = a / R, Haberman & Sayre (1958) wall correction
@@ -69,7 +69,7 @@ TEST(TubeGeometry, CapsuleCriterionAndMesh) {
     const double R = 1.2, l = 3.0, A = 4 * kPi * R * R + 2 * kPi * R * l, V = 4.0 / 3.0 * kPi * R * R * R + kPi * R * R * l;
     EXPECT_NEAR(maxVolumeInTube(A, R), V, 1e-12 * V);
     EXPECT_NEAR(minimumTubeRadius(A, V), R, 1e-10);
-    // The cell of VALIDATION.md (A0 = 135 um^2, V0 = 94 um^3) needs R >= 1.497 um.
+    // The cell of docs/FLOW.md (A0 = 135 um^2, V0 = 94 um^3) needs R >= 1.497 um.
     EXPECT_NEAR(minimumTubeRadius(135.0, 94.0), 1.4966, 2e-4);
     EXPECT_THROW(minimumTubeRadius(135.0, 200.0), InputError);
     // The wall: a closed, outward oriented prism of 24 flat strips with two polygonal caps.
@@ -261,7 +261,7 @@ TEST(TubeFlow, ShortCoupledRunMovesAlongTheAxisAndKeepsAreaAndVolume) {
     }
 }
 
-// VALIDATION.md 4.3 post-processing on synthetic frames with known answers: a spheroid (semi-axes
+// docs/FLOW.md, tube post-processing on synthetic frames with known answers: a spheroid (semi-axes
 // a along the axis x, b across) translating at speed U, first rigidly, then with its membrane
 // turning about the axis at rate w (the shape, hence length and width, unchanged): the
 // co-moving-frame path of the fastest vertex over the second half is the number of frame

@@ -1,4 +1,4 @@
-// trbc validate (issue 9 item 3): configuration, the cases of VALIDATION.md 3.2/4.2, the
+// trbc validate: configuration, the cases of docs/FLOW.md, the
 // tumbling/tank-treading bracket and its refinement, the comparison with the experimental scatter,
 // and the resumable runner on a tiny set.
 #include <gtest/gtest.h>

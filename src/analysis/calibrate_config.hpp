@@ -1,5 +1,5 @@
 #pragma once
-// The TOML configuration of `trbc calibrate` (issue 7): which data, whether to run a campaign and
+// The TOML configuration of `trbc calibrate`: which data, whether to run a campaign and
 // train surrogates or use the shipped ones, and the settings of every stage. Every key is checked:
 // a syntax error, an unknown key, a wrong type or a value outside its range is an InputError that
 // names the file, the line and the key (and the valid range). configs/paper.toml documents every
@@ -12,7 +12,7 @@
 
 namespace trbc {
 
-/// One experimental data set (INFERENCE.md 2): a CSV in the format of the shipped experiments.
+/// One experimental data set (docs/BAYESIAN_INFERENCE.md, data): a CSV in the format of the shipped experiments.
 struct CalibrateDataSet {
     std::string name;        ///< unique; names the posterior directories and figures
     std::string experiment;  ///< equilibrium | stretching | relaxation
@@ -25,7 +25,7 @@ struct CalibrateConfig {
     std::uint64_t seed = 20261123;  ///< [run] every stochastic stage derives its seed from it
     int threads = 2;
 
-    std::vector<CalibrateDataSet> data;  ///< [[data]]; default: the seven data sets of INFERENCE.md 2
+    std::vector<CalibrateDataSet> data;  ///< [[data]]; default: the seven data sets of docs/BAYESIAN_INFERENCE.md
 
     /// [campaign] mode: "shipped" (use the shipped surrogates' training set, nothing to run) or
     /// "run" (trbc campaign into OUT/campaign, resumable).
@@ -61,7 +61,7 @@ struct CalibrateConfig {
     std::vector<std::string> validationOnly; ///< kinds of case to run (empty: all)
 };
 
-/// The seven data sets of INFERENCE.md 2 under an experiments directory.
+/// The seven data sets of docs/BAYESIAN_INFERENCE.md under an experiments directory.
 std::vector<CalibrateDataSet> defaultCalibrateData(const std::filesystem::path& experimentsDirectory);
 
 /// Parses and checks a configuration. Data file paths: relative to the configuration file's

@@ -422,7 +422,7 @@ void writeCoverageCsv(const fs::path& file, const std::vector<PosteriorPredictio
 std::string coverageMarkdown(const std::vector<PosteriorPrediction>& predictions) {
     std::string s = "## Experimental data against the 90 % prediction bands\n\n"
                     "Each data point is compared with the central 90 % band [q05, q95] of the posterior predictive mixture "
-                    "(every sample with its own error model, INFERENCE.md 8) evaluated at the point's own force or time. In coverage.csv, "
+                    "(every sample with its own error model, docs/BAYESIAN_INFERENCE.md, prediction) evaluated at the point's own force or time. In coverage.csv, "
                     "x is that force (pN, stretching) or time (s, relaxation; 0 for the equilibrium dimensions) and y the "
                     "measured value (um, or L/W for the relaxation).\n\n"
                     "| posterior | experiment | samples | data points | inside 90 % band | outside |\n|---|---|---|---|---|---|\n";

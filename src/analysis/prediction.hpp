@@ -1,5 +1,5 @@
 #pragma once
-// Forward propagation of a posterior (INFERENCE.md 8, issue 6 `trbc predict`): every posterior
+// Forward propagation of a posterior (docs/BAYESIAN_INFERENCE.md, prediction; `trbc predict`): every posterior
 // sample is pushed through the surrogate (equilibrium, stretching) or Hochmuth's law (relaxation)
 // and combined with its own error model, giving a predictive mixture of normals per observable
 // and abscissa. Quantiles of the mixture are found by bisection on its CDF (the "better numerics"

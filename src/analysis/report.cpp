@@ -253,7 +253,7 @@ void predictionSection(ReportDocument& doc, const fs::path& out) {
         return;
     }
     doc.paragraph("Each experiment's data against the posterior predictive median and bands (phase-3 posterior of its data set "
-                  "given all data; every posterior sample with its own error model, INFERENCE.md 8). A point counts as covered "
+                  "given all data; every posterior sample with its own error model, docs/BAYESIAN_INFERENCE.md, prediction). A point counts as covered "
                   "when it lies inside the central 90 % band.");
     const auto& h = rows[0];
     const int cPost = columnOf(h, "posterior"), cExp = columnOf(h, "experiment"), cIn = columnOf(h, "inside_90");
@@ -308,7 +308,7 @@ void sobolSection(ReportDocument& doc, const fs::path& out) {
     std::vector<std::string> header = {"output (first order / total)"};
     header.insert(header.end(), inputs.begin(), inputs.end());
     doc.table(header, table);
-    doc.paragraph("Inputs uniform on the prior box (SURROGATE.md 4); 95 % bootstrap intervals in `sobol/sobol_indices.csv`.");
+    doc.paragraph("Inputs uniform on the prior box (docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices); 95 % bootstrap intervals in `sobol/sobol_indices.csv`.");
     doc.image(out / "sobol" / "sobol_scalar.png", "Sobol' indices of the equilibrium observables and tc");
     doc.image(out / "sobol" / "sobol_force.png", "Sobol' indices of D0 and D1 against the stretching force");
 }
@@ -390,7 +390,7 @@ void transferabilitySection(ReportDocument& doc, const fs::path& out) {
         return;
     }
     const nlohmann::json& s = v["summary"];
-    doc.paragraph(fmt::format("`trbc validate` (VALIDATION.md 3.2 and 4.2) with the θ_new posterior means, level {}: {} cases "
+    doc.paragraph(fmt::format("`trbc validate` (docs/FLOW.md) with the θ_new posterior means, level {}: {} cases "
                               "({} failed); {} predictions inside the experimental scatter, {} outside, {} without data nearby, {} "
                               "neither (threshold not bracketed). Nothing was tuned to these data. Tables in `validation/`.",
                               v.value("level", 0), s.value("cases", 0), s.value("failed", 0), s.value("inside", 0),
@@ -470,8 +470,8 @@ ReportDocument writeCalibrationReport(const CalibrationReportInputs& in) {
     ReportDocument doc;
     doc.heading(1, "trbc calibration report");
     doc.paragraph(fmt::format("A red-blood-cell model (Jülicher bending, Lim elasticity against the stress-free state, "
-                              "membrane viscosity; MODEL.md) calibrated by hierarchical Bayesian inference (TMCMC/BASIS on "
-                              "neural-network surrogates of the three single-cell experiments; INFERENCE.md) from {} data sets. "
+                              "membrane viscosity; docs/MEMBRANE_MODEL.md) calibrated by hierarchical Bayesian inference (TMCMC/BASIS on "
+                              "neural-network surrogates of the three single-cell experiments; docs/BAYESIAN_INFERENCE.md) from {} data sets. "
                               "Made by trbc {} from `{}`.",
                               in.dataSets.size(), in.version, in.configFile.filename().string()));
     parametersSection(doc, out);

@@ -1,5 +1,5 @@
 #pragma once
-// The calibration report of `trbc calibrate` (issue 7): one document rendered twice, as
+// The calibration report of `trbc calibrate`: one document rendered twice, as
 // OUT/report.md (figures linked) and as a self-contained OUT/report.html (figures embedded as
 // base64 PNG). It is assembled from the files the pipeline's stages leave in OUT (posterior
 // statistics, corner plot, predictive bands and coverage, Sobol' indices, surrogate accuracy,

@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 namespace {
 
 
-/// The default sweeps of VALIDATION.md 3.2: angles at 10.7 and 23.9 mPa s (14 rates in [1, 200]),
+/// The default shear sweeps (docs/FLOW.md): angles at 10.7 and 23.9 mPa s (14 rates in [1, 200]),
 /// TTF at 28.9 mPa s (6 rates in [8, 264]) and the scripted threshold sweeps.
 std::vector<ShearSweep> defaultSweeps() {
     std::vector<ShearSweep> s = {{"angle", 10.7, 1.0, 200.0, 14}, {"angle", 23.9, 1.0, 200.0, 14}, {"ttf", 28.9, 8.0, 264.0, 6}};
@@ -104,7 +104,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         std::string post;
         r.string("posterior", post);
         if (!post.empty()) c.posterior = resolveConfigPath(post, dir, experiments);
-        // Prior box of MODEL.md (SURROGATE.md 1); flow solvers accept no cell outside it.
+        // Prior box of docs/MEMBRANE_MODEL.md (docs/CAMPAIGN_AND_SURROGATE.md, input box); flow solvers accept no cell outside it.
         const RbcPriorBox box;
         for (const auto& [key, value] : {std::pair{"v", &c.v}, {"mu_uN_per_m", &c.mu}, {"kb_J", &c.kbJ}, {"b2", &c.b2},
                                         {"etam_Pa_s_um", &c.etam}}) {

@@ -1,5 +1,5 @@
 #pragma once
-// The flow-validation set of VALIDATION.md 3.2 and 4.2 (issue 9): its configuration
+// The flow-validation set of docs/FLOW.md: its configuration
 // (configs/validation.toml), the cases it expands to, the tumbling/tank-treading bracket and its
 // refinement (3.3), and the comparison of each prediction with the experimental scatter.
 // The cases themselves are `trbc flow shear|tube` runs driven by `trbc validate` (cli/cmd_validate.cpp).
@@ -33,7 +33,7 @@ struct ValidationConfig {
     std::filesystem::path posterior;
     double v = table1::v, mu = table1::mu, kbJ = table1::kbJ, b2 = table1::b2, etam = table1::etam;
     double etaIn = 10.0, rotations = 10.0;  ///< shear flow: cytosol (mPa s), duration in rigid-sphere turns
-    std::vector<ShearSweep> sweeps;         ///< the defaults of VALIDATION.md 3.2 unless the file gives any [[shear.*]]
+    std::vector<ShearSweep> sweeps;         ///< the defaults of docs/FLOW.md unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
@@ -78,7 +78,7 @@ struct RegimePoint {
     std::string regime;  ///< tank-treading | tumbling | intermittent | "" (failed)
 };
 
-/// VALIDATION.md 3.3: gammaLo = highest rate with tumbling, gammaHi = lowest rate with tank-treading.
+/// Threshold bracket (docs/FLOW.md): gammaLo = highest rate with tumbling, gammaHi = lowest rate with tank-treading.
 struct ThresholdBracket {
     std::optional<double> gammaLo, gammaHi;
     bool monotone = true;                 ///< gammaLo < gammaHi (false: tumbling above tank-treading)

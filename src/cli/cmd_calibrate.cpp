@@ -1,4 +1,4 @@
-// trbc calibrate: the whole pipeline of the paper from one TOML file (issue 7). Each stage is the
+// trbc calibrate: the whole pipeline of the paper from one TOML file. Each stage is the
 // very trbc command a user could type (so its own outputs carry their provenance), run as a child
 // process with its log in OUT/logs/; the stage ledger (analysis/stage_ledger.hpp) skips stages
 // whose inputs have not changed. Stages and what they depend on:
@@ -323,7 +323,7 @@ void registerCalibrate(CLI::App& app) {
                     {}, {out / "cell"});
         }
 
-        // Transferability (issue 9): the flow validations with the theta_new means; optional (hours).
+        // Transferability: the flow validations with the theta_new means; optional (hours).
         std::string validationFp = "disabled";
         if (cfg.validationEnabled) {
             const fs::path vcfg = cfg.validationConfig.empty() ? fs::path(TRBC_SOURCE_DIR) / "configs" / "validation.toml" : cfg.validationConfig;

@@ -1,4 +1,4 @@
-// trbc campaign: the training campaign of SURROGATE.md 2 (issue 5). Parses, then calls
+// trbc campaign: the training campaign of docs/CAMPAIGN_AND_SURROGATE.md. Parses, then calls
 // sampling/campaign; under MPI (built with TRBC_WITH_MPI, run with mpirun) the cells are shared
 // round robin between ranks, each rank checkpointing to its own part file.
 #include <fmt/format.h>
@@ -114,7 +114,7 @@ void registerCampaign(CLI::App& app) {
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
         "campaign",
-        "Training campaign over the input box of SURROGATE.md 1.1: one CSV row per sample (v, mu_uN_per_m, FvK, b2, "
+        "Training campaign over the input box of docs/CAMPAIGN_AND_SURROGATE.md: one CSV row per sample (v, mu_uN_per_m, FvK, b2, "
         "etam_Pa_s_um, Fext_pN -> D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s, status, reason, wall_s) in "
         "OUT/samples.csv, provenance in OUT/campaign.json. Checkpoints every cell; --resume continues a killed run. "
         "Under MPI (mpirun -n P trbc campaign ...) the cells are shared between ranks");

@@ -1,4 +1,4 @@
-// trbc export: the calibrated cell for other RBC codes (issue 7 item 4): the theta_new posterior
+// trbc export: the calibrated cell for other RBC codes: the theta_new posterior
 // summarised by a quantile of each marginal, its stress-free state and equilibrium shape (OFF and
 // PLY, um) and its parameters in physical and in dimensionless units (JSON).
 #include <fmt/format.h>
@@ -49,7 +49,7 @@ void registerExport(CLI::App& app) {
         "export", "Export the calibrated cell for flow solvers: the given quantile of each marginal of a theta_new posterior "
                   "(samples.csv of `trbc infer`: DIR/phase3/theta_new), its stress-free state and equilibrium shape as OFF and "
                   "PLY meshes (um) and OUT/cell.json with the parameters in physical units (v, mu_uN_per_m, kb_J, FvK, b2, "
-                  "etam_Pa_s_um, A0_um2, V0_um3) and in the dimensionless units of MODEL.md");
+                  "etam_Pa_s_um, A0_um2, V0_um3) and in the dimensionless units of docs/MEMBRANE_MODEL.md");
     cmd->add_option("--posterior", o->posterior, "posterior directory with samples.csv (or the file), e.g. DIR/phase3/theta_new")->required();
     addNumber(cmd, "--quantile", o->quantile, "quantile of each marginal (0.5: the medians)", NumberRange::open(0.0, 1.0))
         ->capture_default_str();
@@ -132,7 +132,7 @@ void registerExport(CLI::App& app) {
                               {"area", 4.0 * M_PI},
                               {"volume", cell::volume / (RA * RA * RA)},
                               {"note", "lengths in R_A = sqrt(A0 / 4 pi), moduli in mu, kb = 1 / FvK, times in etam / mu "
-                                       "(membrane relaxation scale; MODEL.md C)"}};
+                                       "(membrane relaxation scale; docs/MEMBRANE_MODEL.md)"}};
         j["observables"] = {{"D_um", eq.observables.D}, {"hmin_um", eq.observables.hmin}, {"hmax_um", eq.observables.hmax}};
         j["files"] = {{"stress_free", {"sfs.off", "sfs.ply"}},
                       {"equilibrium", {"equilibrium.off", "equilibrium.ply"}},

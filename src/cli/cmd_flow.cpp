@@ -1,4 +1,4 @@
-// trbc flow shear: one red cell in unbounded simple shear flow (VALIDATION.md 3), boundary-integral
+// trbc flow shear: one red cell in unbounded simple shear flow (docs/FLOW.md, shear), boundary-integral
 // Stokes solver coupled to the membrane model (flow/cell_flow.hpp); prints one JSON object.
 #include <fmt/format.h>
 #include <omp.h>
@@ -72,7 +72,7 @@ void addCellOptions(CLI::App* cmd, CellOptions& c) {
     cmd->add_flag("--allow-outside-prior", c.allowOutside, "accept cell parameters outside the prior box");
     c.opost = cmd->add_option("--posterior", c.posterior,
                               "take the cell from a theta_new posterior (DIR/phase3/theta_new of `trbc infer`, or its "
-                              "samples.csv): the means of v, mu, kb, b2 and etam (VALIDATION.md 1)");
+                              "samples.csv): the means of v, mu, kb, b2 and etam (docs/FLOW.md)");
     for (CLI::Option* opt : {c.ov, c.omu, c.fvk, c.okb, c.ob2, c.oetam}) c.opost->excludes(opt);
 }
 
@@ -289,8 +289,8 @@ void registerShear(CLI::App* flow) {
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = flow->add_subcommand(
         "shear",
-        "One red cell in unbounded simple shear flow u = (rate y, 0, 0) (VALIDATION.md 3): boundary-integral "
-        "Stokes flow, membrane forces of MODEL.md C with membrane viscosity, semi-implicit adaptive BDF2. Prints "
+        "One red cell in unbounded simple shear flow u = (rate y, 0, 0) (docs/FLOW.md, shear): boundary-integral "
+        "Stokes flow, membrane forces of docs/MEMBRANE_MODEL.md with membrane viscosity, semi-implicit adaptive BDF2. Prints "
         "regime, inclination angle, swinging amplitude and 4 pi f / rate as JSON. Without cell options the cell "
         "is the paper's Table 1 posterior means (v=0.94, mu=4.99 uN/m, kb=2.10e-19 J, b2=1.84, etam=0.69 Pa s um)");
     addNumber(cmd, "--eta-out", o->etaOut, "outer (suspending) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->required();
@@ -411,7 +411,7 @@ void registerShear(CLI::App* flow) {
 
 // ---- flow tube ----------------------------------------------------------------------------------
 
-constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;  // 1 mmHg/mm = 133.322 Pa/mm (VALIDATION.md 4.2)
+constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;  // 1 mmHg/mm = 133.322 Pa/mm (docs/FLOW.md, tube)
 constexpr double kSettleSpan = 10.0;  // R/V over which the settling stage's shape must be steady
 
 /// Wall points per ring at the default resolution: wall chord ~ 1.5 x the cell's mean edge.
@@ -459,11 +459,11 @@ void registerTube(CLI::App* flow) {
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = flow->add_subcommand(
         "tube",
-        "One red cell in a straight circular microtube driven by a pressure gradient (VALIDATION.md 4): Poiseuille "
+        "One red cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md, tube): Poiseuille "
         "flow plus the disturbance of the cell in the infinite tube, boundary-integral method with a no-slip wall "
-        "(viscosity ratio 1), membrane forces of MODEL.md C with membrane viscosity, semi-implicit adaptive BDF2. "
+        "(viscosity ratio 1), membrane forces of docs/MEMBRANE_MODEL.md with membrane viscosity, semi-implicit adaptive BDF2. "
         "Prints the cell velocity, length and width as JSON. Time unit R/V with V = (pressure gradient / 45) cm/s "
-        "(VALIDATION.md 4.1). Without cell options the cell is the paper's Table 1 posterior means");
+        "(docs/FLOW.md, tube). Without cell options the cell is the paper's Table 1 posterior means");
     // A closed surface of area A0 inside a tube of radius R encloses at most R A0 / 2 - 2 pi R^3 / 3
     // (the capsule of radius R), which must be >= V0: R >= minimumTubeRadius(A0, V0).
     const FlowConditions cellSize;
@@ -536,7 +536,7 @@ void registerTube(CLI::App* flow) {
                                          o->settle, kSettleSpan, kSettleSpan));
         applySteppingOptions(o->step);
 
-        // Units: V = pg / 45 cm/s (VALIDATION.md 4.1), time unit R / V; Poiseuille centre-line speed
+        // Units: V = pg / 45 cm/s (docs/FLOW.md, tube), time unit R / V; Poiseuille centre-line speed
         // U_c = G R^2 / (4 eta) with G = pg x 1.33322e5 Pa/m.
         const double Vum = o->pg / 45.0 * 1e4;  // um/s
         const double timeUnit = o->radius / Vum;  // s
@@ -664,7 +664,7 @@ void registerTube(CLI::App* flow) {
             {"repulsion_pressure_Pa", o->repulsionPressure * fc.etaOut * 1e-3 * Vum / o->radius},
             {"contact_clearance_um", env.wall().sagitta() * L}};
         j["parameters"]["initial_condition"] = {
-            {"description", "equilibrium shape (MODEL.md E.1) on the axis, disc plane containing the axis (x-z); when "
+            {"description", "equilibrium shape (docs/FORWARD_MODEL.md, equilibrium) on the axis, disc plane containing the axis (x-z); when "
                             "wider than the tube minus a clearance of 0.1 R, mapped by (a x, c y, b z) with b squeezing "
                             "the disc's diameter and a, c keeping area and volume exact"},
             {"equilibrium_extents_um", {equilibrium.x(), equilibrium.y(), equilibrium.z()}},
@@ -834,7 +834,7 @@ void registerTube(CLI::App* flow) {
 
 void registerFlow(CLI::App& app) {
     CLI::App* flow =
-        app.add_subcommand("flow", "Flow validations (VALIDATION.md): one cell in simple shear flow or in a microtube");
+        app.add_subcommand("flow", "Flow validations (docs/FLOW.md): one cell in simple shear flow or in a microtube");
     flow->require_subcommand(1);
     registerShear(flow);
     registerTube(flow);

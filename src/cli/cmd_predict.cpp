@@ -1,4 +1,4 @@
-// trbc predict: forward propagation of posteriors (INFERENCE.md 8, issue 6). Parses options and
+// trbc predict: forward propagation of posteriors (docs/BAYESIAN_INFERENCE.md, prediction). Parses options and
 // calls the prediction library (src/analysis/prediction.hpp).
 #include <fmt/format.h>
 #include <omp.h>
@@ -38,7 +38,7 @@ void registerPredict(CLI::App& app) {
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
-        "predict", "Forward propagation of posteriors (INFERENCE.md 8): every posterior sample through the surrogate (or "
+        "predict", "Forward propagation of posteriors (docs/BAYESIAN_INFERENCE.md, prediction): every posterior sample through the surrogate (or "
                    "Hochmuth's law) and its own error model; predictive quantiles (5 %..95 %, 50/75/90/99 % bands) per "
                    "force / time / observable in OUT/predict_<posterior>_<experiment>.csv, the data against the 90 % band "
                    "in OUT/coverage.md and OUT/coverage.csv, provenance in OUT/predict.json; --direct N checks the "

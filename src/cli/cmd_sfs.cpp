@@ -1,4 +1,4 @@
-// trbc sfs: the stress-free state for a reduced volume (MODEL.md D), cached by (v, level, version).
+// trbc sfs: the stress-free state for a reduced volume (docs/FORWARD_MODEL.md, stress-free state), cached by (v, level, version).
 #include <fmt/format.h>
 
 #include <iostream>
@@ -35,7 +35,7 @@ void registerSfs(CLI::App& app) {
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
-        "sfs", "Stress-free state of the cytoskeleton for a reduced volume v (MODEL.md D), written at the "
+        "sfs", "Stress-free state of the cytoskeleton for a reduced volume v (docs/FORWARD_MODEL.md, stress-free state), written at the "
                "cell area A0 = 135 um^2 (um), cached on disk by (v, level, model version)");
     addNumber(cmd, "--v", o->v, "reduced volume v (prior [0.65, 1])", NumberRange::leftOpen(0.0, 1.0))->required();
     addNumber(cmd, "--level", o->level, "icosphere level (Nv = 10 4^L + 2)", NumberRange::closed(1, 6))->capture_default_str();

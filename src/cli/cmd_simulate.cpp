@@ -1,4 +1,4 @@
-// trbc simulate: one forward-model sample (SFS + equilibrium, stretching, relaxation; MODEL.md D, E)
+// trbc simulate: one forward-model sample (SFS + equilibrium, stretching, relaxation; docs/FORWARD_MODEL.md)
 // in physical units, printed as one JSON object.
 #include <fmt/format.h>
 #include <omp.h>
@@ -106,7 +106,7 @@ void registerSimulate(CLI::App& app) {
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
         "simulate", "One forward-model sample: stress-free state, equilibrium shape (D, hmin, hmax), two-bead "
-                    "stretching (D0, D1) and relaxation (tc) of MODEL.md D-E, printed as JSON (um, pN, s). "
+                    "stretching (D0, D1) and relaxation (tc) of docs/FORWARD_MODEL.md, printed as JSON (um, pN, s). "
                     "Defaults: the reference point v=0.95, mu=4, FvK=250, b2=1.5, etam=0.7, Fext=100");
     addNumber(cmd, "--v", o->p.v, "reduced volume v of the stress-free state, prior [0.65, 1]", NumberRange::leftOpen(0.0, 1.0))
         ->capture_default_str();

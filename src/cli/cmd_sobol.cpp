@@ -1,5 +1,5 @@
 // trbc sobol: first-order and total Sobol' indices of every surrogate output with respect to
-// (v, mu, FvK, b2, etam) on the box of SURROGATE.md 1.1 (section 4): D, hmin, hmax, tc, and D0, D1
+// (v, mu, FvK, b2, etam) on the input box (docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices): D, hmin, hmax, tc, and D0, D1
 // at each force of a grid over [0, 200] pN.
 #include <fmt/format.h>
 #include <omp.h>
@@ -52,7 +52,7 @@ void registerSobol(CLI::App& app) {
     };
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = app.add_subcommand(
-        "sobol", "Sobol' sensitivity indices (first order and total, bootstrap 95 % intervals; SURROGATE.md 4) of D_um, "
+        "sobol", "Sobol' sensitivity indices (first order and total, bootstrap 95 % intervals; docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices) of D_um, "
                  "hmin_um, hmax_um, tc_s and of D0_um, D1_um at each force, with respect to v, mu_uN_per_m, FvK, b2, "
                  "etam_Pa_s_um uniform on the prior box; writes OUT/sobol_indices.csv, sobol_second_order.csv, sobol.json "
                  "and the figures");

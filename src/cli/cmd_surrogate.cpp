@@ -1,5 +1,5 @@
-// trbc surrogate train | eval: the three networks of SURROGATE.md 3, trained from a campaign
-// (issue 5) and evaluated in batches on a CSV of inputs.
+// trbc surrogate train | eval: the three networks of docs/CAMPAIGN_AND_SURROGATE.md, trained from a campaign
+// and evaluated in batches on a CSV of inputs.
 #include <fmt/format.h>
 #include <omp.h>
 
@@ -102,7 +102,7 @@ void registerTrain(CLI::App* parent) {
     auto o = std::make_shared<Opts>();
     CLI::App* cmd = parent->add_subcommand(
         "train", "Train the equilibrium, stretching and relaxation networks (3 x 32 tanh, Adam, early stopping; "
-                 "SURROGATE.md 3) on a campaign table; writes MODEL_DIR/{equilibrium,stretching,relaxation}.json and "
+                 "docs/CAMPAIGN_AND_SURROGATE.md, surrogate training) on a campaign table; writes MODEL_DIR/{equilibrium,stretching,relaxation}.json and "
                  "the held-out accuracy (accuracy.md, accuracy.json, test_predictions.csv)");
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
@@ -125,11 +125,11 @@ void registerTrain(CLI::App* parent) {
         ->capture_default_str();
     cmd->add_option("--relaxation-variables", o->relaxationVariables,
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
-                    "variables (networks before session 7 (2026-11-23))")
+                    "variables")
         ->check(CLI::IsMember({"log", "linear"}))->capture_default_str();
     cmd->add_option("--stretching-variables", o->stretchingVariables,
                     "sqrt-b2: the stretching network sees sqrt(b2) (the hardening sets in at stretches ~ 1/sqrt(b2)); "
-                    "linear: b2 (networks before session 22 (2026-11-26))")
+                    "linear: b2")
         ->check(CLI::IsMember({"sqrt-b2", "linear"}))->capture_default_str();
     cmd->add_option("--ensemble", o->ensemble,
                     "networks that keep all their restarts and predict with the members' mean (geometric mean for log "
@@ -138,7 +138,7 @@ void registerTrain(CLI::App* parent) {
     cmd->add_option("--distill", o->distill,
                     "ensemble networks replaced by one network trained on the ensemble's predictions at "
                     "--distill-samples uniform points of the prior box (one network pass per evaluation instead of one "
-                    "per member; the default since session 20 (2026-11-25)): any of the --ensemble networks, or none; "
+                    "per member; the default): any of the --ensemble networks, or none; "
                     "when not given, the default's networks that are not in --ensemble are left out")
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
     addNumber(cmd, "--distill-samples", o->t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
@@ -400,7 +400,7 @@ std::filesystem::path defaultExperimentDirectory() {
 }
 
 void registerSurrogate(CLI::App& app) {
-    CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (SURROGATE.md 3)");
+    CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training)");
     cmd->require_subcommand(1);
     registerTrain(cmd);
     registerEval(cmd);

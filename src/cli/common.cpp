@@ -183,7 +183,7 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
               NumberRange::leftOpen(0.0, 1.0, "(relative)"))
         ->capture_default_str();
     cmd->add_flag("--overdamped", e.overdamped,
-                  "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; MODEL.md E.3)");
+                  "relaxation without the reference's artificial vertex mass (Gamma dX/dt = -dU/dX; docs/FORWARD_MODEL.md, relaxation)");
     cmd->add_option_function<std::string>(
            "--preconditioner", [&e](const std::string& a) { e.multigrid = e.sfs.multigrid = a == "multigrid"; },
            "H0 of the L-BFGS of the SFS, the static states and the relaxation's implicit steps: multigrid on the "
@@ -194,8 +194,8 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
     cmd->add_option_function<std::string>(
            "--equilibrium-symmetry", [&e](const std::string& a) { e.symmetricEquilibrium = a == "inversion"; },
            "equilibrium shape: minimised within the centrally symmetric shapes of the biconcave start (inversion: "
-           "the disc that E.1's dynamics reaches, also for a near-spherical SFS) or unrestricted (none: disc or "
-           "undimpled cup near v = 1 depending on the solver's path; campaigns before session 22); "
+           "the disc that the equilibrium's dynamics reaches, also for a near-spherical SFS) or unrestricted (none: disc or "
+           "undimpled cup near v = 1 depending on the solver's path); "
            "docs/FORWARD_MODEL.md")
         ->check(CLI::IsMember({"inversion", "none"}))
         ->default_str("inversion");
@@ -206,7 +206,7 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
                                                                                   : InPlaneAxis::FarthestVertex;
            },
            "bead axis of the resting cell: through the vertex farthest from the symmetry axis (forward-model "
-           "revision 2) or E.0's in-plane axis of largest variance (docs/FORWARD_MODEL.md)")
+           "revision 2) or the alignment's in-plane axis of largest variance (docs/FORWARD_MODEL.md)")
         ->check(CLI::IsMember({inPlaneAxisName(InPlaneAxis::FarthestVertex), inPlaneAxisName(InPlaneAxis::LargestVariance)}))
         ->default_str(inPlaneAxisName(InPlaneAxis::FarthestVertex));
 }

@@ -1,11 +1,11 @@
 #pragma once
 namespace trbc {
 inline constexpr const char* kVersion = TRBC_VERSION;
-/// Revision of the forward model's outputs (MODEL.md D-E) within one version: campaigns and
+/// Revision of the forward model's outputs (docs/FORWARD_MODEL.md) within one version: campaigns and
 /// `trbc simulate` record it, and a campaign refuses to resume across it, so that rows of two
 /// revisions never mix.
 ///   1: first release;
 ///   2: the relaxation's deformation index z = L/W from the extents sorted in decreasing order
-///      (E.3), not in the order of the principal axes (which swapped L and W near a round shape).
+///      (relaxation), not in the order of the principal axes (which swapped L and W near a round shape).
 inline constexpr int kForwardModelRevision = 2;
 }  // namespace trbc

@@ -79,8 +79,8 @@ void requireConverged(const SolverDiagnostics& d, const std::string& what) {
     if (!d.converged) throw NumericalError(fmt::format("{} did not converge: {}", what, d.message));
 }
 
-// The in-plane axes of a resting (axisymmetric) cell are degenerate, so E.0 leaves x to round-off;
-// but the bead bands of E.2 and the half-line of E.1 see the mesh's discrete in-plane structure
+// The in-plane axes of a resting (axisymmetric) cell are degenerate, so alignment leaves x to round-off;
+// but the bead bands of stretching and the half-line of equilibrium see the mesh's discrete in-plane structure
 // (D1 varies by about 1 % with the angle at level 3). Fix the angle geometrically: rotate about z
 // so that the vertex farthest from the axis lies on +x (labels and rigid motions of the input
 // then no longer matter).
@@ -93,7 +93,7 @@ Vertices canonicalInPlaneOrientation(const Vertices& aligned) {
     return R * aligned;
 }
 
-// E.0 literally: x = the in-plane axis of largest variance (alignPrincipalAxes), its sign fixed so
+// alignment literally: x = the in-plane axis of largest variance (alignPrincipalAxes), its sign fixed so
 // that the vertex with the largest |x| lies on +x (a rotation by pi about z otherwise).
 Vertices largestVarianceOrientation(const Vertices& aligned) {
     Eigen::Index far = 0;
@@ -127,13 +127,13 @@ CellMeshes cellMeshes(const StressFreeState& sfs, bool symmetricReference) {
     CellMeshes m;
     m.faces = sfs.mesh.F;
     m.reference = scaleToArea(sfs.mesh.X, sfs.mesh.F, cell::area);
-    // E.1 variant: Evans-Fung map of the same icosphere, whose symmetry axis z is the SFS
+    // equilibrium variant: Evans-Fung map of the same icosphere, whose symmetry axis z is the SFS
     // material axis (the SFS was seeded along z), so the material and shape axes coincide.
     const Mesh ico = icosphere(sfs.level);
     m.initial = scaleToArea(evansFungMap(ico.X), ico.F, cell::area);
     // The SFS is seeded as the (centrally symmetric) icosphere and its minimiser keeps the symmetry
     // to its tolerance (|x_i + x_j| up to 1.8e-5 of the size at v 0.9999, level 4): the reference is
-    // its symmetric part, so that the energy is exactly invariant under the inversion (E.1's
+    // its symmetric part, so that the energy is exactly invariant under the inversion (the equilibrium's
     // symmetric equilibrium). A mesh of another kind keeps its own reference.
     m.inversionPartners = inversionPartners(ico.X);
     if (symmetricReference && !m.inversionPartners.empty() &&
@@ -292,7 +292,7 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     for (int k = 1; k <= opt.relaxSamples; ++k) times.push_back(opt.relaxDuration * k / opt.relaxSamples);
     Vertices X = res.released;
     const DynamicsObserver observe = [&](double t, const Vertices& Y) {
-        const Eigen::Vector3d e = sortedExtents(Y);  // E.3: L = largest extent, W = second largest
+        const Eigen::Vector3d e = sortedExtents(Y);  // relaxation: L = largest extent, W = second largest
         res.t.push_back(t);
         res.L.push_back(e[0]);
         res.W.push_back(e[1]);
@@ -307,7 +307,7 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     res.rejectedSteps = r.rejectedSteps;
     requireConverged(res.dynamics, "relaxation");
     res.final = X;
-    // E.3: the fit starts at the first sample after release, z0 fixed to it.
+    // relaxation: the fit starts at the first sample after release, z0 fixed to it.
     const std::vector<double> tf(res.t.begin() + 1, res.t.end()), zf(res.z.begin() + 1, res.z.end());
     res.fit = fitHochmuth(tf, zf);
     if (!res.fit.converged) throw NumericalError("Hochmuth fit of the relaxation did not converge: " + res.fit.message);

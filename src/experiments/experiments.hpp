@@ -1,7 +1,7 @@
 #pragma once
-// The three single-cell experiments of MODEL.md E (equilibrium, two-bead stretching, relaxation
+// The three single-cell experiments of docs/FORWARD_MODEL.md (equilibrium, two-bead stretching, relaxation
 // after stretching), chained as SFS -> equilibrium -> stretching -> relaxation, in physical
-// units (um, pN, s). Static states are constrained minimisations (A = A0, V = V0 exactly, G.3);
+// units (um, pN, s). Static states are constrained minimisations (A = A0, V = V0 exactly, exact constraints);
 // the stretching continues over force levels; the relaxation integrates the overdamped
 // membrane-viscous dynamics with adaptive variational BDF2 steps.
 #include <Eigen/Core>
@@ -19,27 +19,27 @@
 
 namespace trbc {
 
-/// How the resting cell's in-plane axes are fixed before stretching (E.0, E.2; see
+/// How the resting cell's in-plane axes are fixed before stretching (see
 /// docs/FORWARD_MODEL.md "In-plane orientation"): the axis through the vertex farthest from the
-/// symmetry axis (forward-model revision 2, the default), or E.0's axis of largest in-plane variance.
+/// symmetry axis (forward-model revision 2, the default), or the alignment's axis of largest in-plane variance.
 enum class InPlaneAxis { FarthestVertex, LargestVariance };
 
 struct ExperimentOptions {
     int level = 4;                       ///< icosphere level of every mesh (Nv = 10 4^L + 2)
     /// Static states stop when the largest tangential vertex force is below
-    /// staticTolerance * mu * l0 (l0 = mean edge length; G.3 suggests 1e-6).
+    /// staticTolerance * mu * l0 (l0 = mean edge length; 1e-6 suffices for exact constraints).
     double staticTolerance = 1e-5;
     int maxIterations = 200000;
     /// Relaxation: local error per step (max vertex displacement, um) and inner tolerance
     /// (relative, like staticTolerance).
     double relaxErrorTolerance = 5e-3;
     double relaxInnerTolerance = 1e-3;
-    /// Relaxation dynamics (E.3): false = the reference's second-order dynamics with the vertex
+    /// Relaxation dynamics: false = the reference's second-order dynamics with the vertex
     /// mass below (baseline); true = overdamped Gamma dX/dt = -dU/dX (no inertia).
     bool overdamped = false;
     double vertexMassKg = 1e-11;         ///< reference vertex mass (1e-11 kg = 1e-5 pN s^2/um)
     /// Overdamped only: isotropic friction eps, relative to gamma, that regularises the
-    /// edge-friction matrix on rigid and near-isometric motions (G.3). tc at the reference point,
+    /// edge-friction matrix on rigid and near-isometric motions (exact constraints). tc at the reference point,
     /// level 3: 0.1981 s (eps 1e-3), 0.1815 (1e-4), 0.1795 (1e-5), 0.1792 (1e-6).
     double isotropicFriction = 1e-5;
     double relaxDuration = 1.0;          ///< s
@@ -49,10 +49,10 @@ struct ExperimentOptions {
     /// stiffness 0.05 mu I + mu L + kb/l0^2 L^2 on the icosphere hierarchy (solvers/multigrid.hpp);
     /// false: the plain scaled-identity H0 (forward-model revision 2 and earlier).
     bool multigrid = true;
-    /// Equilibrium (E.1): minimise within the centrally symmetric shapes (x -> -x) of the biconcave
-    /// start, i.e. reach the disc that E.1's dynamics from that start reaches, whatever the solver's
+    /// Equilibrium: minimise within the centrally symmetric shapes (x -> -x) of the biconcave
+    /// start, i.e. reach the disc that the equilibrium's dynamics from that start reaches, whatever the solver's
     /// steps; false: unrestricted (a near-spherical SFS then ends in the disc or in an undimpled
-    /// cup depending on the solver's path; campaigns before session 22). docs/FORWARD_MODEL.md
+    /// cup depending on the solver's path). docs/FORWARD_MODEL.md
     /// "Two equilibria near v = 1".
     bool symmetricEquilibrium = true;
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
@@ -97,13 +97,13 @@ CellMeshes cellMeshes(const StressFreeState& sfs, bool symmetricReference = true
 
 struct EquilibriumResult {
     EquilibriumObservables observables;  ///< um
-    Vertices shape;                      ///< aligned (E.0), um
+    Vertices shape;                      ///< aligned (alignment), um
     ThicknessProfile profile;
     SolverDiagnostics diagnostics;
 };
 EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& meshes, const ExperimentOptions& opt);
 
-/// Bead forces of E.2 on an aligned shape (fixed vertex sets and vectors). Throws NumericalError
+/// Bead forces of stretching on an aligned shape (fixed vertex sets and vectors). Throws NumericalError
 /// if a contact set is empty.
 Vertices beadForces(const Vertices& alignedShape, const Faces& faces, double fextPn);
 
@@ -121,7 +121,7 @@ std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshe
 struct RelaxationResult {
     double preStretchForce = 0.0;        ///< pN
     std::vector<double> t, L, W, z;      ///< s, um, um, -; t = 0 (release) first
-    HochmuthFit fit;                     ///< on the samples t >= duration / samples (E.3)
+    HochmuthFit fit;                     ///< on the samples t >= duration / samples (relaxation)
     SolverDiagnostics preStretch, dynamics;
     int rejectedSteps = 0;
     Vertices released, final;            ///< aligned shape at release, shape at the end

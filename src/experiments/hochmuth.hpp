@@ -1,5 +1,5 @@
 #pragma once
-// Fit of the Hochmuth et al. (1979) recovery law to a deformation-index time series (MODEL.md E.3).
+// Fit of the Hochmuth et al. (1979) recovery law to a deformation-index time series (docs/FORWARD_MODEL.md, relaxation).
 #include <string>
 #include <vector>
 

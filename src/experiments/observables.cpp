@@ -15,7 +15,7 @@ namespace trbc {
 
 namespace {
 
-// Ray casting for E.1 step 3 by slicing instead of ray-triangle tests.
+// Ray casting of the equilibrium profile by slicing instead of ray-triangle tests.
 //
 // Every ray {(r_k, 0, z)} lies in the plane y = 0, so the points where it meets a triangle are the
 // points of the slice (triangle ∩ {y = 0}) with x = r_k. For a triangle that is not in the plane
@@ -39,7 +39,7 @@ public:
           lo_(static_cast<std::size_t>(rays), std::numeric_limits<double>::infinity()),
           hi_(static_cast<std::size_t>(rays), -std::numeric_limits<double>::infinity()) {}
 
-    /// r_k = k/(rays-1) * radius (MODEL.md E.1 step 3), the one expression used everywhere.
+    /// r_k = k/(rays-1) * radius (docs/FORWARD_MODEL.md, equilibrium: ray k of the profile), the one expression used everywhere.
     double r(int k) const { return static_cast<double>(k) / (rays_ - 1) * radius_; }
 
     /// Records the slice segment (xa, za)-(xb, zb) of one triangle.

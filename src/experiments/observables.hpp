@@ -1,5 +1,5 @@
 #pragma once
-// Measurement primitives of the three experiments (MODEL.md E.0-E.3): principal-axis alignment,
+// Measurement primitives of the three experiments (docs/FORWARD_MODEL.md, measurements): principal-axis alignment,
 // extents, the thickness profile along a radial half-line, and the observables built on them.
 #include <vector>
 
@@ -12,7 +12,7 @@ struct ThicknessProfile {
     std::vector<double> r, zLow, zHigh;
 };
 
-/// E.1 step 3: on a mesh already in its principal frame (z = thinnest axis), cast `rays` rays
+/// Equilibrium profile: on a mesh already in its principal frame (z = thinnest axis), cast `rays` rays
 /// parallel to z through (r_k, 0), r_k = k/(rays-1) * radius, k = 0..rays-1, exact ray-triangle
 /// intersection; zLow/zHigh = min/max z over all intersection points of the ray; rays that miss
 /// are dropped. Requires rays >= 2, a finite radius > 0, valid face indices (else InputError) and
@@ -22,22 +22,22 @@ ThicknessProfile thicknessProfile(const Vertices& alignedX, const Faces& F, doub
 struct EquilibriumObservables {
     double D = 0, hmin = 0, hmax = 0, rAtHmax = 0;
 };
-/// E.1: align (E.0), D = (E_x + E_y)/2, profile along +x to D/2, hmax = max_k h(r_k), r* = the
+/// equilibrium: align (alignment), D = (E_x + E_y)/2, profile along +x to D/2, hmax = max_k h(r_k), r* = the
 /// first r_k where it occurs, hmin = min{h(r_k): r_k <= r*} (= hmax when there is no dimple).
 /// Optionally returns the profile. Throws NumericalError if no ray hits.
 EquilibriumObservables equilibriumObservables(const Vertices& X, const Faces& F, ThicknessProfile* profile = nullptr);
 
-/// E.0: align, then the three extents sorted in decreasing order (not in the order of the principal
+/// alignment: align, then the three extents sorted in decreasing order (not in the order of the principal
 /// axes: near a round shape the axis of largest variance need not carry the largest extent).
 Eigen::Vector3d sortedExtents(const Vertices& X);
 
 struct StretchObservables {
     double D0 = 0, D1 = 0;
 };
-/// E.2: align, sort the three extents decreasing: D1 (axial) = largest, D0 (transverse) = second.
+/// stretching: align, sort the three extents decreasing: D1 (axial) = largest, D0 (transverse) = second.
 StretchObservables stretchObservables(const Vertices& X);
 
-/// E.3: align, L = largest extent, W = second largest, deformation index z = L/W.
+/// relaxation: align, L = largest extent, W = second largest, deformation index z = L/W.
 double deformationIndex(const Vertices& X);
 
 }  // namespace trbc

@@ -1,8 +1,8 @@
 #pragma once
-// Parameters of one red-cell sample in physical units, the prior box (MODEL.md F.2) and the
-// membrane model that the experiments use (E, fixed constants of F.1).
+// Parameters of one red-cell sample in physical units, the prior box (docs/MEMBRANE_MODEL.md, parameters) and the
+// membrane model that the experiments use (the fixed constants of docs/MEMBRANE_MODEL.md).
 //
-// Internal units of the experiments (MODEL.md A.1): um, pN, s. Moduli then keep their paper
+// Internal units of the experiments (docs/MEMBRANE_MODEL.md, units): um, pN, s. Moduli then keep their paper
 // values (uN/m = pN/um, Pa s um = pN s/um) except kb: 1 J = 1e18 pN um.
 #include <string>
 
@@ -10,19 +10,19 @@
 
 namespace trbc {
 
-/// Constants of the cell and of the experiments (MODEL.md A.2, E, F.1).
+/// Constants of the cell and of the experiments (docs/MEMBRANE_MODEL.md, units and parameters).
 namespace cell {
 inline constexpr double area = 135.0;                      // A0, um^2
 inline constexpr double volume = 94.0;                     // V0, um^3
 inline constexpr double radiusSquared = 10.742958658;      // R_A^2 = A0 / (4 pi), um^2
 inline constexpr double joule = 1e18;                      // pN um per J
 inline constexpr double a3 = -2.0, a4 = 8.0, b1 = 0.7;     // Lim coefficients (reference values)
-inline constexpr double beadContactDiameter = 2.0;         // um (E.2)
-inline constexpr double preStretchForcePerMu = 7.5386;     // pN per (uN/m): 2.3 mu R_A (E.3)
+inline constexpr double beadContactDiameter = 2.0;         // um (stretching)
+inline constexpr double preStretchForcePerMu = 7.5386;     // pN per (uN/m): 2.3 mu R_A (relaxation)
 inline constexpr double sfsArea = 140.0;                   // um^2, area at which the SFS is generated (D)
 }  // namespace cell
 
-/// theta = (v, mu, FvK, b2, eta_m) of MODEL.md F.1, in the units of the canonical names.
+/// theta = (v, mu, FvK, b2, eta_m) of docs/MEMBRANE_MODEL.md, parameters, in the units of the canonical names.
 struct CellParameters {
     double v = 0.95;
     double mu = 4.0;      ///< mu_uN_per_m
@@ -36,7 +36,7 @@ struct CellParameters {
 };
 
 /// The paper's Table 1: means of the theta_new posterior, the default cell of the flow validations
-/// (VALIDATION.md 1) until a calibration of trbc's own is given.
+/// (docs/VALIDATION_RESULTS.md) until a calibration of trbc's own is given.
 namespace table1 {
 inline constexpr double v = 0.94, mu = 4.99, kbJ = 2.10e-19, b2 = 1.84, etam = 0.69;
 }  // namespace table1
@@ -44,7 +44,7 @@ inline CellParameters paperTable1Cell() {
     return {table1::v, table1::mu, CellParameters::fvkFromKb(table1::mu, table1::kbJ), table1::b2, table1::etam};
 }
 
-/// The prior box of MODEL.md F.2 (FvK support [10, 1000], Fext [0, 200] pN).
+/// The prior box of docs/MEMBRANE_MODEL.md, parameters (FvK support [10, 1000], Fext [0, 200] pN).
 struct PriorRange {
     const char* name;
     double lo, hi;
@@ -55,7 +55,7 @@ inline constexpr PriorRange kPriorFvK{"FvK", 10.0, 1000.0};
 inline constexpr PriorRange kPriorB2{"b2", 0.0, 4.0};
 inline constexpr PriorRange kPriorEtam{"etam_Pa_s_um", 0.1, 1.0};
 inline constexpr PriorRange kPriorFext{"Fext_pN", 0.0, 200.0};
-/// kb / R_A^2 in [0.01, 0.1] uN/m (INFERENCE.md prior of kb; rbc_problem.hpp kKbLow, kKbHigh), in J.
+/// kb / R_A^2 in [0.01, 0.1] uN/m (docs/BAYESIAN_INFERENCE.md prior of kb; rbc_problem.hpp kKbLow, kKbHigh), in J.
 inline constexpr PriorRange kPriorKbJ{"kb_J", 1.074295866e-19, 1.074295866e-18};
 
 /// Throws InputError naming the parameter and its valid range when a value is not finite or
@@ -67,7 +67,7 @@ void validateForce(double fextPn, bool allowOutsidePrior);
 void validateBendingModulus(double kbJoule, bool allowOutsidePrior);
 
 /// Membrane moduli of the experiments (E): Kalpha = mu, kb = mu R_A^2 / FvK, Lim coefficients of
-/// F.1, C0 = 0, no ADE. The global area and volume are imposed exactly (solvers), so the penalty
+/// fixed constants, C0 = 0, no ADE. The global area and volume are imposed exactly (solvers), so the penalty
 /// moduli are zero here.
 MembraneParameters experimentMembrane(const CellParameters& p);
 

@@ -31,7 +31,7 @@ namespace {
 
 constexpr double kFourPi = 4.0 * std::numbers::pi;
 
-// Moduli of D.2 in units of length R'_A and energy kappa.
+// Moduli of the SFS in units of length R'_A and energy kappa.
 MembraneParameters sfsMembrane() {
     MembraneParameters p;
     p.bending.kb = 1.0;

@@ -1,5 +1,5 @@
 #pragma once
-// Stress-free state (SFS) of the cytoskeleton for a reduced volume v (MODEL.md D): the
+// Stress-free state (SFS) of the cytoskeleton for a reduced volume v (docs/FORWARD_MODEL.md, stress-free state): the
 // equilibrium of bending + Lim elasticity relative to a sphere, at the cell's area and the
 // volume set by v, found by a converged constrained minimisation instead of the reference's
 // fixed-duration damped run. Cached on disk by (v, level, model version).
@@ -18,7 +18,7 @@ inline constexpr int kSfsModelVersion = 1;
 
 struct SfsOptions {
     /// Stop when the largest tangential vertex force is below this, in units of kappa / R'_A
-    /// (bending modulus over the SFS radius, D.2).
+    /// (bending modulus over the SFS radius).
     double gradientTolerance = 1e-5;
     int maxIterations = 100000;
     bool multigrid = true;  ///< multigrid H0 for the L-BFGS (as ExperimentOptions::multigrid)
@@ -33,7 +33,7 @@ struct StressFreeState {
     double vTarget = 0.0;      ///< volume constraint actually imposed (capped below the mesh's maximum, D)
     int level = 0;
     Mesh mesh;                 ///< icosphere(level) connectivity; unit area 4 pi, material axis z
-    // Diagnostics of the minimisation (dimensionless units of D.2).
+    // Diagnostics of the minimisation (dimensionless units of the SFS).
     double reducedVolume = 0.0, energy = 0.0, gradientNorm = 0.0;
     double tension = 0.0, pressure = 0.0;  ///< multipliers of the area and volume constraints
     int iterations = 0, evaluations = 0;

@@ -10,7 +10,7 @@
 
 namespace trbc {
 
-/// Diagnostics of a stress-free state (dimensionless units of MODEL.md D.2).
+/// Diagnostics of a stress-free state (dimensionless units of docs/FORWARD_MODEL.md, stress-free state).
 nlohmann::json sfsJson(const StressFreeState& s);
 /// Diagnostics of a static state (equilibrium, stretching): pN, pN/um, Pa, J, s.
 nlohmann::json staticSolverJson(const SolverDiagnostics& d);

@@ -1,9 +1,9 @@
 #pragma once
-// One deformable red cell in unbounded Stokes flow (VALIDATION.md 3, simple shear) -- or, through
-// the FlowEnvironment hooks below, in a tube (flow/tube.hpp, VALIDATION.md 4) -- solved with
+// One deformable red cell in unbounded Stokes flow (docs/FLOW.md, simple shear) -- or, through
+// the FlowEnvironment hooks below, in a tube (flow/tube.hpp, docs/FLOW.md, tube) -- solved with
 // the boundary-integral method of flow/stokes_solver.hpp, coupled to the membrane model of
-// MODEL.md C (Juelicher bending, Lim against the SFS, global area and volume held exactly, as
-// the experiments do, instead of the stiff penalties of C.3) and the membrane viscosity of C.4.
+// docs/MEMBRANE_MODEL.md (Juelicher bending, Lim against the SFS, global area and volume held exactly, as
+// the experiments do, instead of the stiff global penalties) and the membrane viscosity (docs/MEMBRANE_MODEL.md).
 //
 // Units. The user-facing quantities are physical (um, s, mPa s, pN); internally everything is
 // nondimensional with
@@ -18,9 +18,9 @@
 // Coupling. Membrane nodal forces F_i = -dU/dx_i (U = Juelicher bending + Lim against the SFS)
 // become the traction jump through the lumped vertex areas, Delta f_i = -(F_i + F^visc_i -
 // tau dA/dx_i) / A_i (Delta f = (sigma_out - sigma_in) . n, n outward), with the membrane-
-// viscosity force F^visc = -Gamma(X) u (edge friction matrix of C.4, depends on the unknown
+// viscosity force F^visc = -Gamma(X) u (edge friction matrix of the membrane viscosity, depends on the unknown
 // membrane velocity u) and the membrane tension tau, the multiplier of the exact global area
-// constraint (MODEL.md G.3: equivalent to the stiff area penalty of C.3 up to O(tau / kA)). The
+// constraint (docs/FORWARD_MODEL.md, exact constraints: equivalent to the stiff area penalty of docs/MEMBRANE_MODEL.md up to O(tau / kA)). The
 // second-kind equation of solveInterfaceVelocity becomes one linear system for (u, tau, q):
 //   u - k D u + c S M^-1 (Gamma u + tau dA/dx) - q n = 2/(1+lambda) u_inf + c S M^-1 F,
 //   dA/dx . u = area rate,   dV/dx . u = volume rate,
@@ -70,7 +70,7 @@ namespace trbc {
 /// Physical flow conditions of one run.
 struct FlowConditions {
     double etaOut = 28.9;      ///< outer (suspending) viscosity, mPa s
-    double etaIn = 10.0;       ///< inner (cytosol) viscosity, mPa s (VALIDATION.md 3.1)
+    double etaIn = 10.0;       ///< inner (cytosol) viscosity, mPa s (docs/FLOW.md, shear)
     double shearRate = 0.0;    ///< 1/s; u = (rate y, 0, 0); 0 = quiescent fluid
     double timeScale = 0.0;    ///< s; 0 = 1 / shearRate (required when shearRate = 0)
     double A0 = cell::area;    ///< um^2
@@ -89,7 +89,7 @@ struct FlowScales {
     double force() const { return viscosity * length * length / time; }  ///< pN
 };
 
-/// Dimensionless groups of VALIDATION.md 2.
+/// Dimensionless groups of docs/FLOW.md.
 struct FlowGroups {
     double capillary = 0.0;          ///< Ca = eta_out rate R_A / mu
     double viscosityRatio = 0.0;     ///< lambda = eta_in / eta_out
@@ -253,8 +253,8 @@ struct VelocityEvaluation {
 VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& options = {},
                                     const FlowEnvironment* environment = nullptr);
 
-/// The cell of VALIDATION.md 3.1 for parameters p: SFS(v) (cached in cacheDir), equilibrium
-/// shape (MODEL.md E.1) as initial condition, rotated so that its symmetry axis lies along the
+/// The cell of docs/FLOW.md, shear for parameters p: SFS(v) (cached in cacheDir), equilibrium
+/// shape (docs/FORWARD_MODEL.md, equilibrium) as initial condition, rotated so that its symmetry axis lies along the
 /// gradient direction y (the disc in the flow-vorticity plane), centred at the origin.
 struct ShearCell {
     StressFreeState sfs;

@@ -1,6 +1,6 @@
 #pragma once
 // Observables of one cell in simple shear flow u = (rate y, 0, 0) (flow x, gradient y, vorticity
-// z), computed from the saved frames exactly as /work/shared/docs/VALIDATION.md 3.3 says:
+// z), computed from the saved frames exactly as docs/FLOW.md, shear says:
 //
 // * inclination angle: per frame, the vertex positions minus their mean, (x, y) components; the
 //   leading right-singular direction e of this Nv x 2 array, sign chosen with e_x > 0, gives
@@ -18,7 +18,7 @@
 //   a vertex on a flattened cell differ); f = 1 / mean period; reported as
 //   4 pi f / rate (1 for a rigid sphere, which turns at rate / 2). Cross-check: the dominant
 //   frequency of the periodogram of each mean-removed x(t) (parabolic peak interpolation), averaged;
-// * regime (VALIDATION.md specifies the rule, the reference has no script): the orientation
+// * regime (docs/FLOW.md specifies the rule, the reference has no script): the orientation
 //   angle of the long axis in the x-y plane (the same singular direction, unwrapped modulo pi)
 //   over the analysed window. Tumbling: it advances by more than pi, in both halves of the window
 //   by more than pi / 2. Tank-treading: it stays bounded (range < pi / 2) and the membrane

@@ -1,8 +1,8 @@
 #pragma once
-// One cell in a straight circular microtube driven by a pressure gradient (VALIDATION.md 4),
+// One cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md, tube),
 // boundary-integral method with a rigid no-slip wall.
 //
-// Formulation (viscosity ratio lambda = 1, as in the paper's production runs, VALIDATION.md 4.1).
+// Formulation (viscosity ratio lambda = 1, as in the paper's production runs, docs/FLOW.md, tube).
 // The total flow is Poiseuille flow in the infinite tube of radius R plus a disturbance,
 //   u = u_P + u',   u_P(x) = U_c (1 - (y^2 + z^2) / R^2) e_x,   U_c = G R^2 / (4 eta),
 // G = -dp/dx the pressure gradient (equivalently a uniform body force density on all the fluid,
@@ -36,7 +36,7 @@
 // assembled. Periodicity along the tube (the reference's 50 um box at fixed body force) is
 // replaced by the infinite tube at the Poiseuille flux of G.
 //
-// Wall repulsion (VALIDATION.md 4.1: the reference adds a short-range repulsive wall force on the
+// Wall repulsion (docs/FLOW.md, tube: the reference adds a short-range repulsive wall force on the
 // membrane vertices). Potential E = sum_i w psi(d_i), d_i = R - sqrt(y_i^2 + z_i^2) the distance of
 // vertex i from the wall, w = A0 / Nv, and for d < delta
 //   psi(d) = p0 [ delta^2 (1/d - 1/delta) - 2 delta ln(delta/d) + delta - d ],
@@ -193,7 +193,7 @@ double wallClearance(const Vertices& X, double radius);
 /// with area A0 and volume V0 (lengths in um). Throws NumericalError when no such shape is found.
 Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double clearance, double A0, double V0);
 
-/// Observables of VALIDATION.md 4.3 from frames at times t (any consistent units).
+/// Observables of docs/FLOW.md, tube from frames at times t (any consistent units).
 struct TubeObservables {
     double length = 0.0;      ///< extent along x, mean over the second half of the frames
     double widthY = 0.0;      ///< extent along y, same window
@@ -208,7 +208,7 @@ struct TubeObservables {
     /// centroid's travel over that window: their ratio bounds the membrane's speed relative to the
     /// cell (a tank-treading membrane: of order 0.1-1). A ratio ~0 means the membrane is at rest in
     /// the co-moving frame: then the membrane-viscosity force, which depends on relative vertex
-    /// velocities only (MODEL.md C.4), vanishes in the steady state, and that state does not
+    /// velocities only (docs/MEMBRANE_MODEL.md, membrane viscosity), vanishes in the steady state, and that state does not
     /// depend on eta_m.
     double cellFrameMotion = 0.0, travel = 0.0;
     std::size_t framesUsed = 0;

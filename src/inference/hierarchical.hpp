@@ -1,5 +1,5 @@
 #pragma once
-// Phases 2 and 3 of the hierarchical red-cell inference (INFERENCE.md 4.3-4.7), built on the
+// Phases 2 and 3 of the hierarchical red-cell inference (docs/BAYESIAN_INFERENCE.md), built on the
 // phase-1 samples without new evaluations of the phase-1 likelihoods (phase 2) and with the
 // phase-2 samples (phase 3):
 //

@@ -1,5 +1,5 @@
 #pragma once
-// Population model of the hierarchical red-cell inference (INFERENCE.md 4.1-4.3): hyper-parameters
+// Population model of the hierarchical red-cell inference (docs/BAYESIAN_INFERENCE.md): hyper-parameters
 // psi, their prior, the population density p(theta | psi) of the pooled parameters
 // theta = (v, mu, kb, b2, r) and the density q(FvK | psi) of FvK = mu R_A^2 / kb under it.
 #include <Eigen/Core>

@@ -1,5 +1,5 @@
 #pragma once
-// Internal building blocks of the population sums (INFERENCE.md 4.3-4.7): the scaled normal tail,
+// Internal building blocks of the population sums (docs/BAYESIAN_INFERENCE.md): the scaled normal tail,
 // the closed form of q(FvK | psi) as a branch-free inline function, and the fused log-sum-exp
 // loops. Everything here vectorises under `#pragma omp simd` (no library calls; exp and log from
 // vector_math.hpp). Only population.cpp and hierarchical.cpp include this.
@@ -89,7 +89,7 @@ constexpr double kFvkYLow = 0.01, kFvkYHigh = 0.1;  // [a_y, b_y] = kb / R_A^2 r
     return L0 + fastLog(std::max(s * inner, 1e-300)) - E - c.logC;
 }
 
-/// The same in mixed precision (INFERENCE.md 4.7 cost): P, s, m, alpha, beta, the exponents and E in
+/// The same in mixed precision (docs/BAYESIAN_INFERENCE.md cost): P, s, m, alpha, beta, the exponents and E in
 /// double (they carry the cancellations), the normal tails (13 Chebyshev terms, truncation 6e-10),
 /// the two exponentials, the bracket and its log in float. |difference| to logFvkDensityCore below
 /// 1e-5 wherever log q is within 40 of its maximum (tests); about twice as fast.

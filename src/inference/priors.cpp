@@ -196,7 +196,7 @@ public:
     double logDensity(double z) const override {
         if (!(z >= lower() && z <= upper())) return -kInf;
         const double hi = std::min(e_, b_ / z), lo = std::max(c_, a_ / z);
-        const double numerator = hi * hi - lo * lo;  // INFERENCE.md 3.0
+        const double numerator = hi * hi - lo * lo;  // docs/BAYESIAN_INFERENCE.md
         return numerator > 0.0 ? std::log(numerator) - logNorm_ : -kInf;
     }
     double sample(Rng& rng) const override {

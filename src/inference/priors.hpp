@@ -1,5 +1,5 @@
 #pragma once
-// Prior distributions of the generic sampler (INFERENCE.md 3.0, 6.1) and the random numbers they
+// Prior distributions of the generic sampler (docs/BAYESIAN_INFERENCE.md) and the random numbers they
 // draw with.
 //
 // A prior is something that can be sampled and whose log-density log pi(theta) can be evaluated
@@ -84,7 +84,7 @@ ScalarPriorPtr normalPrior(double mean, double sd, double lo = -std::numeric_lim
 ScalarPriorPtr logNormalPrior(double meanLog, double sdLog, double lo = 0.0,
                               double hi = std::numeric_limits<double>::infinity());
 
-/// Ratio-uniform (INFERENCE.md 3.0): Z = X/Y, X ~ U[a,b], Y ~ U[c,e], 0 < a < b, 0 < c < e,
+/// Ratio-uniform (docs/BAYESIAN_INFERENCE.md): Z = X/Y, X ~ U[a,b], Y ~ U[c,e], 0 < a < b, 0 < c < e,
 /// p(z) = (min(e, b/z)^2 - max(c, a/z)^2) / (2 (b-a)(e-c)) on [a/e, b/c]; sampled as X/Y.
 ScalarPriorPtr ratioUniformPrior(double a, double b, double c, double e);
 

@@ -283,11 +283,11 @@ std::vector<TableRow> tableLayout(const std::vector<PosteriorStatsRow>& rows, co
 std::string tableMarkdown(const RbcInferenceOptions& o, const std::vector<PosteriorStatsRow>& rows, const std::vector<RbcDataSet>& data,
                           const nlohmann::json& extrapolation, const nlohmann::json& check) {
     std::string s = "# Posterior statistics of the t-RBC parameters\n\n";
-    s += fmt::format("Made by `{}` (trbc {}), seed {}, {} samples per TMCMC/BASIS run (INFERENCE.md).\n",
+    s += fmt::format("Made by `{}` (trbc {}), seed {}, {} samples per TMCMC/BASIS run (docs/BAYESIAN_INFERENCE.md).\n",
                      o.provenance.value("command", std::string("trbc infer")), kVersion, o.seed, o.populationSize);
     if (o.provenance.contains("model")) s += fmt::format("Model: `{}`.\n", o.provenance["model"].value("dir", std::string("?")));
     s += "\n## $\\theta^{\\rm new}$: a new cell given all data (phase 3a) — the layout of the paper's Table 1\n\n";
-    s += "$\\mu$ in µN/m, $\\kappa_b$ in $10^{-19}$ J, $\\eta_m$ in Pa·s·µm. MAP = ML here (uniform box prior, INFERENCE.md 7).\n\n";
+    s += "$\\mu$ in µN/m, $\\kappa_b$ in $10^{-19}$ J, $\\eta_m$ in Pa·s·µm. MAP = ML here (uniform box prior, docs/BAYESIAN_INFERENCE.md).\n\n";
     const std::vector<TableRow> table1 = {{"$v$", "v", 1.0},
                                           {"$\\mu$", "mu_uN_per_m", 1.0},
                                           {"$\\kappa_b$", "kb_J", 1e19},
@@ -306,7 +306,7 @@ std::string tableMarkdown(const RbcInferenceOptions& o, const std::vector<Poster
     s += "\nWith the 90 % central credible intervals and $\\eta_m/\\mu$:\n\n";
     s += markdownTable(rows, "theta_new", tableLayout(rows, "theta_new"), false);
     if (!check.is_null() && check.contains("max_mean_difference_in_sd"))
-        s += fmt::format("\nCross-check (INFERENCE.md 4.5): ancestral sampling of the same mixture gives means within {:.3f} "
+        s += fmt::format("\nCross-check (docs/BAYESIAN_INFERENCE.md): ancestral sampling of the same mixture gives means within {:.3f} "
                          "posterior SD of the TMCMC samples (largest difference over the parameters).\n",
                          check["max_mean_difference_in_sd"].get<double>());
     s += "\n## Each data set given all data (phase 3b)\n";
@@ -316,7 +316,7 @@ std::string tableMarkdown(const RbcInferenceOptions& o, const std::vector<Poster
     }
     if (!extrapolation.empty()) {
         s += "\n## Relaxation network outside its training range\n\nShare of the samples with $r=\\eta_m/\\mu$ outside "
-             "[0.025, 0.25] s, where the network input $\\eta_m=4r$ leaves [0.1, 1] (INFERENCE.md 3.3):\n\n| posterior | share |\n|---|---|\n";
+             "[0.025, 0.25] s, where the network input $\\eta_m=4r$ leaves [0.1, 1] (docs/BAYESIAN_INFERENCE.md):\n\n| posterior | share |\n|---|---|\n";
         for (const auto& [k, v] : extrapolation.items()) s += fmt::format("| {} | {:.3f} |\n", k, v.get<double>());
     }
     return s;

@@ -1,5 +1,5 @@
 #pragma once
-// The three-phase red-cell inference of INFERENCE.md 1 as one driver: runs (or resumes, or loads)
+// The three-phase red-cell inference of docs/BAYESIAN_INFERENCE.md as one driver: runs (or resumes, or loads)
 // the TMCMC/BASIS runs of the selected phases on the given forward model and data, and writes per
 // posterior its samples, stages and log-evidence, the statistics (posterior_stats.csv,
 // posterior_table.md) and the provenance (infer.json). `trbc infer` is a thin front end to it.

@@ -202,7 +202,7 @@ std::vector<RbcDataSet> loadRbcDataSets(const fs::path& dir) {
     for (const fs::path& rel : {fs::path("equilibrium/evans_fung_1972.csv"), fs::path("stretching/mills_2004/mills_2004.csv"),
                                fs::path("stretching/suresh_2005/suresh_2005.csv"), fs::path("relaxation/hochmuth_1979/1.csv")})
         if (!fs::exists(dir / rel))
-            throw InputError(fmt::format("experimental data directory '{}' lacks {} (INFERENCE.md 2, data/README.md)", dir.string(),
+            throw InputError(fmt::format("experimental data directory '{}' lacks {} (docs/BAYESIAN_INFERENCE.md, data/README.md)", dir.string(),
                                          rel.string()));
     std::vector<RbcDataSet> sets;
     sets.push_back(readEquilibriumData(dir / "equilibrium" / "evans_fung_1972.csv", "evans_fung_1972"));
@@ -275,7 +275,7 @@ void RbcPriorBox::set(const std::string& name, double lo, double hi) {
     const auto [dlo, dhi] = RbcPriorBox{}.bounds(name);
     if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi && lo >= dlo * (1 - 1e-12) && hi <= dhi * (1 + 1e-12)))
         throw InputError(fmt::format("prior of {}: [{:g}, {:g}] is out of range: it must satisfy lo < hi inside the surrogates' "
-                                     "training box [{:.10g}, {:.10g}] (SURROGATE.md 1; a prior may be narrowed, not widened)",
+                                     "training box [{:.10g}, {:.10g}] (docs/CAMPAIGN_AND_SURROGATE.md, input box; a prior may be narrowed, not widened)",
                                      name, lo, hi, dlo, dhi));
     double scale = 1.0;
     const auto [plo, phi] = boxBounds(*this, name, scale);

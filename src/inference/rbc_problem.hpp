@@ -1,5 +1,5 @@
 #pragma once
-// The red-cell inference problem of INFERENCE.md 2-3 (phase 1): the seven data sets, the forward
+// The red-cell inference problem of docs/BAYESIAN_INFERENCE.md (phase 1): the seven data sets, the forward
 // models they need (batched callbacks, normally the surrogate networks), the phase-1 parameters and
 // priors and the seven likelihoods. The sampler (tmcmc.hpp) knows nothing of this; this file knows
 // nothing of the sampler beyond the TmcmcProblem it hands over (problem / likelihood / solver are
@@ -24,7 +24,7 @@ namespace trbc {
 struct Surrogate;
 
 // ------------------------------------------------------------------------------------------------
-// Constants (INFERENCE.md preamble)
+// Constants (docs/BAYESIAN_INFERENCE.md)
 
 inline constexpr double kRbcAreaRadius2 = 10.742958658;  ///< R_A^2 = 135 / (4 pi) um^2
 inline constexpr double kKbLow = 0.1074295866;            ///< kappa_lo, 1e-18 J (kb / R_A^2 = 0.01 uN/m)
@@ -35,14 +35,14 @@ inline constexpr double kJoulePerKbUnit = 1e-18;          ///< kb in J = kb (inf
 inline double fvkFromModuli(double mu, double kb) { return mu * kRbcAreaRadius2 / kb; }
 
 // ------------------------------------------------------------------------------------------------
-// Data (INFERENCE.md 2)
+// Data (docs/BAYESIAN_INFERENCE.md, data)
 
 enum class RbcExperiment { Equilibrium, Stretching, Relaxation };
 const char* experimentName(RbcExperiment e);  ///< "equilibrium", "stretching", "relaxation"
 
-/// Phase-1 prior box of the physical parameters (INFERENCE.md 3.1-3.3), in inference units (kb in
+/// Phase-1 prior box of the physical parameters (docs/BAYESIAN_INFERENCE.md), in inference units (kb in
 /// 1e-18 J). The default is the spec's box, which is also the surrogates' training box
-/// (SURROGATE.md 1); a user may narrow it (`trbc infer --prior`, `[inference.prior]` of a calibrate
+/// (docs/CAMPAIGN_AND_SURROGATE.md, input box); a user may narrow it (`trbc infer --prior`, `[inference.prior]` of a calibrate
 /// config) but never widen it, because the networks are not valid outside their training box.
 /// The equilibrium FvK prior stays ratio-uniform with X = mu in [muLo, muHi], Y = kb / R_A^2, and
 /// the relaxation ratio r = etam / mu ratio-uniform with X = etam, Y = mu.
@@ -86,7 +86,7 @@ RbcDataSet readRelaxationData(const std::filesystem::path& file, std::string nam
 inline constexpr const char* kRbcDataManifest = "datasets.json";
 /// The data sets of a directory: when it holds datasets.json (an array of {"name", "experiment":
 /// equilibrium|stretching|relaxation, "file" relative to the directory}) those, in its order (any
-/// number per experiment, names unique); otherwise the seven data sets of INFERENCE.md 2, in its
+/// number per experiment, names unique); otherwise the seven data sets of docs/BAYESIAN_INFERENCE.md, in its
 /// order, from an `experiments` directory
 /// (equilibrium/evans_fung_1972.csv, stretching/{mills_2004,suresh_2005}/..., relaxation/hochmuth_1979/1-4.csv).
 std::vector<RbcDataSet> loadRbcDataSets(const std::filesystem::path& experimentsDirectory);
@@ -168,7 +168,7 @@ inline constexpr double kRelaxationRLow = 0.025, kRelaxationRHigh = 0.25;
 /// The phase-1 TMCMC problem of one data set: phase1Prior and the batched likelihood.
 TmcmcProblem phase1Problem(const RbcModel& model, const RbcDataSet& data);
 
-/// The runs of the pipeline (table of INFERENCE.md 5).
+/// The runs of the pipeline (table of docs/BAYESIAN_INFERENCE.md).
 enum class RbcRun { Phase1, Phase2, Phase3a, Phase3b };
 /// Target CoV and beta^2 of a run (5); the experiment matters for phases 1 and 3b.
 struct RbcSamplerSettings {

@@ -1,5 +1,5 @@
 #pragma once
-// Posterior statistics (INFERENCE.md 7) of a sample set: mean, median, population SD, central
+// Posterior statistics (docs/BAYESIAN_INFERENCE.md) of a sample set: mean, median, population SD, central
 // credible intervals from empirical quantiles, the ML and MAP samples; weighted versions for
 // weighted sample sets; the profile-likelihood diagnostic.
 #include <Eigen/Core>

@@ -97,7 +97,7 @@ void evaluateLogLikelihood(const TmcmcProblem& problem, const Eigen::MatrixXd& t
 }
 
 // ------------------------------------------------------------------------------------------------
-// Stage pieces (INFERENCE.md 6.2 steps 2-5)
+// Stage pieces (TMCMC stage: weights, resampling, MCMC moves)
 
 double maxFinite(const Eigen::VectorXd& v) {
     double m = -kInf;

@@ -1,6 +1,6 @@
 #pragma once
 // Transitional MCMC (Ching & Chen 2007) and BASIS (Wu et al. 2018) as one solver
-// (INFERENCE.md 6). The solver sees a prior and a log-likelihood, nothing else.
+// (docs/BAYESIAN_INFERENCE.md). The solver sees a prior and a log-likelihood, nothing else.
 //
 // Algorithm (6.2): from prior draws (exponent rho_0 = 0), repeat: choose the next exponent by
 // bisection so that the coefficient of variation of the weights w_k = exp(Delta l_k) equals the
@@ -95,7 +95,7 @@ void validateTmcmcOptions(const TmcmcOptions& options);
 /// a NaN log-likelihood (naming the candidate) or a population without any non-zero likelihood.
 TmcmcResult runTmcmc(const TmcmcProblem& problem, const TmcmcOptions& options);
 
-/// The same as a solver object (the problem and the solver are separate, ARCHITECTURE.md).
+/// The same as a solver object (the problem and the solver are separate).
 class Tmcmc {
 public:
     explicit Tmcmc(TmcmcOptions options);

@@ -1,7 +1,7 @@
 #pragma once
 // Branch-free exp and log in double precision for loops that the compiler vectorises
 // (`#pragma omp simd`): glibc's exp/log are opaque calls that keep such loops scalar. Used by the
-// population sums of the hierarchical inference (INFERENCE.md 4.7), which evaluate ~1e11 terms.
+// population sums of the hierarchical inference (docs/BAYESIAN_INFERENCE.md), which evaluate ~1e11 terms.
 //
 // fastExp: x = n ln2 + r, |r| <= ln2/2 (Cody-Waite with a two-part ln2), e^r by its degree-12
 // Taylor polynomial (truncation 2e-16), times 2^n built in the exponent bits. Arguments are clamped

@@ -54,7 +54,7 @@ inline Corner3& operator+=(Corner3& a, const Corner3& b) {
 /// (cyclic, along the face orientation).
 inline Corner3 oppositeEdges(Real3 xi, Real3 xj, Real3 xk) { return {xk - xj, xi - xk, xj - xi}; }
 
-/// cArea dA_t/dx + cVolume dV_t/dx at the three corners (MODEL.md C), with y = x - o and
+/// cArea dA_t/dx + cVolume dV_t/dx at the three corners (docs/MEMBRANE_MODEL.md), with y = x - o and
 /// V_t = 1/6 y_i.(y_j x y_k): dA_t/dx_r = 1/2 n x e_r (r = i, j, k) and, as
 /// y_j = y_i + e_k, y_k = y_i - e_j and e_j x e_k = 2 A_t n,
 /// dV_t/dx_i = 1/6 y_j x y_k = 1/6 (y_i x e_i + 2 A_t n), dV_t/dx_j = 1/6 y_k x y_i = 1/6 y_i x e_j,
@@ -103,7 +103,7 @@ inline double fastAtan2(double y, double x) {
 }
 
 /// Signed dihedral angle of edge (a, b) between the outward normals of faces (a,b,c) and
-/// (b,a,d), positive when convex (MODEL.md C.1): theta = atan2((n1 x n2).e_hat, n1.n2)
+/// (b,a,d), positive when convex (docs/MEMBRANE_MODEL.md, bending): theta = atan2((n1 x n2).e_hat, n1.n2)
 /// = atan2(y, l x) with e = x_b - x_a, l = |e|, y = (n1 x n2).e, x = n1.n2. In two steps, so
 /// that the loops can take the square root l = sqrt(e.e) for a whole block of edges in between.
 struct DihedralArgs {
@@ -114,7 +114,7 @@ inline DihedralArgs dihedralArgs(Real3 n1, Real3 n2, Real3 e) { return {dot(cros
 
 inline double dihedralAngle(DihedralArgs a, double l) { return fastAtan2(a.y, l * a.x); }
 
-/// Face t's share of sum_e coef_e d(l_e theta_e)/dx over its three edges (MODEL.md C.1 split by
+/// Face t's share of sum_e coef_e d(l_e theta_e)/dx over its three edges (docs/MEMBRANE_MODEL.md, bending split by
 /// face, theta dl/dx halved between the two faces of an edge). For the half-edge h = (p -> q) of
 /// t with opposite corner r, e_h = x_q - x_p, s_h = (x_r - x_p).e_h / l_h^2 and h_r = 2 A_t / l_h:
 ///   d/dx_p = (1 - s_h) G_h n - B_h e_h,  d/dx_q = s_h G_h n + B_h e_h,  d/dx_r = -G_h n,
@@ -152,13 +152,13 @@ inline LimReference limReference(const Vec3& Xi, const Vec3& Xj, const Vec3& Xk)
 }
 
 /// N = |b0|^2 |a|^2 + |a0|^2 |b|^2 - 2 (a0.b0)(a.b) with a = x_j - x_i, b = x_k - x_i
-/// (MODEL.md C.2), so that beta = N/(8 A0 A) - 1; from aa = a.a, bb = b.b, ab = a.b.
+/// (docs/MEMBRANE_MODEL.md, Lim energy), so that beta = N/(8 A0 A) - 1; from aa = a.a, bb = b.b, ab = a.b.
 inline double limN(const LimReference& r, double aa, double bb, double ab) {
     return r.b0b0 * aa + r.a0a0 * bb - 2.0 * r.a0b0 * ab;
 }
 
 /// Lim energy of one face and its gradient written as dU_t/dx = cArea dA_t/dx + cN dN/dx
-/// (MODEL.md C.2), from N, A = A_t and 1/A: alpha = A/A0 - 1, beta = N/(8 A0 A) - 1,
+/// (docs/MEMBRANE_MODEL.md, Lim energy), from N, A = A_t and 1/A: alpha = A/A0 - 1, beta = N/(8 A0 A) - 1,
 /// cArea = dU/dalpha / A0 - dU/dbeta (beta + 1)/A, cN = dU/dbeta / (8 A0 A)
 /// (dalpha/dx = dA/dx / A0, dbeta/dx = dN/dx / (8 A0 A) - (beta + 1)/A dA/dx).
 struct LimFace {
@@ -184,7 +184,7 @@ inline LimFace limFace(const LimParameters& p, const LimReference& r, const Vec3
     return limFace(p, r, limN(r, a.squaredNorm(), b.squaredNorm(), a.dot(b)), area, 1.0 / area);
 }
 
-/// dN/dx for the three corners (MODEL.md C.2), scaled by c:
+/// dN/dx for the three corners (docs/MEMBRANE_MODEL.md, Lim energy), scaled by c:
 /// dN/dx_j = 2 (|b0|^2 a - (a0.b0) b), dN/dx_k = 2 (|a0|^2 b - (a0.b0) a), dN/dx_i = -dN/dx_j - dN/dx_k.
 inline Corner3 limShearGradient(double c, const LimReference& r, Real3 a, Real3 b) {
     const double ca = 2.0 * c * r.a0a0, cb = 2.0 * c * r.b0b0, cab = 2.0 * c * r.a0b0;
@@ -193,7 +193,7 @@ inline Corner3 limShearGradient(double c, const LimReference& r, Real3 a, Real3 
 }
 
 /// Pairwise membrane-viscosity force on vertex a of edge (a, b) along the unit edge vector e
-/// (MODEL.md C.4): -gamma [(v_a - v_b).e] e; vertex b gets the opposite.
+/// (docs/MEMBRANE_MODEL.md, membrane viscosity): -gamma [(v_a - v_b).e] e; vertex b gets the opposite.
 inline Vec3 edgeViscousForceAlong(double gamma, const Vec3& e, const Vec3& va, const Vec3& vb) {
     return -gamma * (va - vb).dot(e) * e;
 }

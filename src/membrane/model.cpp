@@ -286,7 +286,7 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
     // Pass 4 on faces [begin, end): the gradient at the corners,
     // cArea dA_t/dx + cVolume dV_t/dx + cN dN_t/dx + the face's share of the l theta terms, with
     // cArea = global.area + Lim cArea - 2 kb/3 sum_{k in t} (H_k^2 - H0^2) and, for each edge
-    // (a, b), coef = global.edge + kb (H_a + H_b - 2 H0) (MODEL.md C.1).
+    // (a, b), coef = global.edge + kb (H_a + H_b - 2 H0) (docs/MEMBRANE_MODEL.md, bending).
     const auto faceGradient = [&](Eigen::Index begin, Eigen::Index end, auto withCurvature, auto withLim) {
         const auto c = global;  // a local copy: not reloaded after each store
         TRBC_IVDEP

@@ -1,5 +1,5 @@
 #pragma once
-// A membrane model: any composition of the energy terms of MODEL.md C, evaluated together in
+// A membrane model: any composition of the energy terms of docs/MEMBRANE_MODEL.md, evaluated together in
 // one threaded sweep over the mesh (face pass, edge pass, vertex gather).
 #include <Eigen/Core>
 #include <optional>
@@ -90,7 +90,7 @@ private:
     mutable Scratch s_;
 };
 
-/// Membrane-viscosity forces (MODEL.md C.4) for velocities V at positions X:
+/// Membrane-viscosity forces (docs/MEMBRANE_MODEL.md, membrane viscosity) for velocities V at positions X:
 /// f_i = -gamma sum_j [(v_i - v_j).e_ij] e_ij. Equals -Gamma(X) V, Gamma the edge-friction matrix.
 Vertices membraneViscousForce(const Vertices& X, const Vertices& V, double gamma, const Topology& topo);
 /// Unit edge vectors e = (x_a - x_b) / |x_a - x_b| of the edges (a, b) of topo.

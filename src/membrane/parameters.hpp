@@ -1,12 +1,12 @@
 #pragma once
-// Moduli of the membrane energy terms (MODEL.md C). The engine is unit-agnostic: lengths and
+// Moduli of the membrane energy terms (docs/MEMBRANE_MODEL.md). The engine is unit-agnostic: lengths and
 // moduli are in whatever consistent units the caller uses (trbc's experiments use um, pN, s).
 // A term whose modulus is zero is switched off.
 #include <string>
 
 namespace trbc {
 
-/// Juelicher bending, U_b = 2 kb sum_i A_i (H_i - C0/2)^2 (C.1), and the area-difference term
+/// Juelicher bending, U_b = 2 kb sum_i A_i (H_i - C0/2)^2 (bending), and the area-difference term
 /// U_AD = pi kad / (2A) (sum_e l_e theta_e - DA0)^2 with DA0 = Delta A_0 / delta.
 struct BendingParameters {
     double kb = 0.0;
@@ -15,14 +15,14 @@ struct BendingParameters {
     double DA0 = 0.0;
 };
 
-/// Lim et al. (2008) in-plane elasticity (C.2): per face
+/// Lim et al. (2008) in-plane elasticity (Lim energy): per face
 /// A0_t [Kalpha/2 (alpha^2 + a3 alpha^3 + a4 alpha^4) + mu (beta + b1 alpha beta + b2 beta^2)].
 struct LimParameters {
     double Kalpha = 0.0, a3 = 0.0, a4 = 0.0;
     double mu = 0.0, b1 = 0.0, b2 = 0.0;
 };
 
-/// Global penalties (C.3, reference form): kA/2 (A - A0)^2 / A0 and kV/2 (V - V0)^2 / V0.
+/// Global penalties (reference form): kA/2 (A - A0)^2 / A0 and kV/2 (V - V0)^2 / V0.
 struct GlobalPenaltyParameters {
     double kA = 0.0, A0 = 0.0;
     double kV = 0.0, V0 = 0.0;

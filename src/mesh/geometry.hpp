@@ -1,5 +1,5 @@
 #pragma once
-// Geometry of a triangle mesh as free functions over plain arrays (MODEL.md B.3, E.0).
+// Geometry of a triangle mesh as free functions over plain arrays (docs/MEMBRANE_MODEL.md, mesh).
 #include <Eigen/Core>
 #include <vector>
 
@@ -44,7 +44,7 @@ void symmetrizeUnderInversion(Vertices& W, const std::vector<Eigen::Index>& part
 /// max_i |(x_i - c) + (x_partner[i] - c)| / max_i |x_i - c|: 0 for a centrally symmetric shape.
 double inversionAsymmetry(const Vertices& X, const std::vector<Eigen::Index>& partner);
 
-/// Principal frame of the vertex cloud (MODEL.md E.0): rotation R whose rows are the
+/// Principal frame of the vertex cloud (docs/FORWARD_MODEL.md, measurements): rotation R whose rows are the
 /// eigenvectors of the vertex covariance, by decreasing variance (x largest, z smallest), with
 /// det R = +1. Aligned positions are R (x - centroid).
 Eigen::Matrix3d principalAxes(const Vertices& X);

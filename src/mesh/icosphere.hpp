@@ -1,5 +1,5 @@
 #pragma once
-// Icosphere discretisation (MODEL.md B.2) and the Evans-Fung biconcave map (B.4).
+// Icosphere discretisation (docs/MEMBRANE_MODEL.md, mesh) and the Evans-Fung biconcave map (docs/MEMBRANE_MODEL.md, Evans-Fung shape).
 #include "mesh/mesh.hpp"
 
 namespace trbc {
@@ -8,7 +8,7 @@ namespace trbc {
 /// first Nv(L-1) vertices are those of level L-1.
 Mesh icosphere(int level);
 
-/// Evans-Fung (1972) resting-cell parameters, MODEL.md B.4.
+/// Evans-Fung (1972) resting-cell parameters, docs/MEMBRANE_MODEL.md, Evans-Fung shape.
 struct EvansFung {
     double R0 = 3.91;  // um
     double c0 = 0.207161, c1 = 2.002558, c2 = -1.122762;

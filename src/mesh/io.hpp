@@ -1,5 +1,5 @@
 #pragma once
-// Mesh files: OFF in and out (MODEL.md B.1); PLY and legacy VTK out with per-vertex fields
+// Mesh files: OFF in and out (docs/MEMBRANE_MODEL.md, mesh); PLY and legacy VTK out with per-vertex fields
 // (force, mean curvature, vertex area, ...) for ParaView, and back in as trbc writes them.
 #include <string>
 #include <vector>

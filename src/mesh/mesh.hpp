@@ -1,6 +1,6 @@
 #pragma once
 // A closed triangle mesh as plain arrays (geometry-central / libigl style): vertex positions X
-// (3 x Nv) and faces F (3 x Nf, 0-based, counter-clockwise seen from outside; MODEL.md B.1).
+// (3 x Nv) and faces F (3 x Nf, 0-based, counter-clockwise seen from outside; docs/MEMBRANE_MODEL.md, mesh).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 

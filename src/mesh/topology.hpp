@@ -2,7 +2,7 @@
 // Edge and adjacency structure of a closed oriented manifold mesh.
 //
 // Edge e = (a, b) is stored with the orientation it has in its first face (a, b, c); the
-// second face is (b, a, d) (MODEL.md C, notation). The dihedral angle of e is defined with
+// second face is (b, a, d) (docs/MEMBRANE_MODEL.md, notation). The dihedral angle of e is defined with
 // these two faces. Vertex -> face-corner and vertex -> edge lists (CSR) let force loops
 // gather per-vertex sums without write conflicts, so threaded results do not depend on the
 // number of threads.

@@ -5,7 +5,7 @@
 namespace trbc {
 
 /// Checks that the mesh is a closed, consistently and outward oriented, genus-0 triangle
-/// surface without degenerate or duplicate faces (MODEL.md B.1). Throws InputError whose
+/// surface without degenerate or duplicate faces (docs/MEMBRANE_MODEL.md, mesh). Throws InputError whose
 /// message names the file and line (when `source` is given), the face or edge, and the problem.
 void validateClosedManifold(const Mesh& mesh, const MeshSource* source = nullptr);
 

@@ -439,7 +439,7 @@ private:
 };
 
 /// Phase-2 (hierarchical) log-posterior of the hyper-parameters psi given the phase-1 samples of
-/// every data set (INFERENCE.md 4.4): log p(psi) + sum_i log b_i(psi); psi in the physical units of
+/// every data set (docs/BAYESIAN_INFERENCE.md): log p(psi) + sum_i log b_i(psi); psi in the physical units of
 /// the samples files (hyperOutputNames), the density that of the inference variables.
 class HierarchicalPosterior {
 public:
@@ -730,7 +730,7 @@ PYBIND11_MODULE(_core, m) {
     m.attr("surrogate_input_names") = py::cast(surrogateInputNames());
     m.attr("surrogate_output_names") = py::cast(surrogateOutputNames());
 
-    py::class_<RbcDataSet>(m, "DataSet", "One experimental data set (INFERENCE.md 2)")
+    py::class_<RbcDataSet>(m, "DataSet", "One experimental data set (docs/BAYESIAN_INFERENCE.md, data)")
         .def_readonly("name", &RbcDataSet::name)
         .def_property_readonly("experiment", [](const RbcDataSet& d) { return experimentName(d.experiment); })
         .def_property_readonly("file", [](const RbcDataSet& d) { return d.file.string(); })

@@ -1,5 +1,5 @@
 #pragma once
-// The training campaign (SURROGATE.md 2, issue 5): a design over the input box, the forward model
+// The training campaign (docs/CAMPAIGN_AND_SURROGATE.md, campaign): a design over the input box, the forward model
 // per cell, one CSV row per sample, continuous checkpointing and resume.
 //
 // Files in the output directory:

@@ -1,5 +1,5 @@
 #pragma once
-// The campaign table: one CSV row per sample (SURROGATE.md 2.3 and issue 5), physical units,
+// The campaign table: one CSV row per sample (docs/CAMPAIGN_AND_SURROGATE.md, campaign), physical units,
 // canonical column names. Doubles are written with 17 significant digits so a table read back
 // reproduces the computed values bit for bit; a missing output is written as "nan".
 #include <filesystem>

@@ -1,5 +1,5 @@
 #pragma once
-// Experimental designs over the input box of SURROGATE.md 1.1: i.i.d. uniform (the reference's
+// Experimental designs over the input box of docs/CAMPAIGN_AND_SURROGATE.md: i.i.d. uniform (the reference's
 // design, 2.1) and Latin hypercube, both seeded; points are rows of [0, 1]^d, then mapped to the box.
 #include <Eigen/Core>
 #include <cstdint>
@@ -25,7 +25,7 @@ double forceFromUnit(double u);
 
 /// One row of a campaign: a cell (five parameters) at one bead force. Rows that share a cell
 /// share its SFS, equilibrium, stretching continuation and relaxation (the physics of
-/// SURROGATE.md 1.2: only the stretching depends on the force).
+/// docs/CAMPAIGN_AND_SURROGATE.md, input box: only the stretching depends on the force).
 struct CampaignPoint {
     long sampleId = 0;
     long cellId = 0;

@@ -78,8 +78,8 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
                              const EqualityConstraints* constraints = nullptr,
                              const Preconditioner* preconditioner = nullptr);
 
-/// Exact global constraints A(X) = area, V(X) = volume (MODEL.md G.3: equivalent to the stiff
-/// penalties of C.3 up to relative area/volume errors of order tension / kA). A zero leaves that
+/// Exact global constraints A(X) = area, V(X) = volume (docs/FORWARD_MODEL.md, exact constraints: equivalent to the stiff
+/// global penalties up to relative area/volume errors of order tension / kA). A zero leaves that
 /// quantity free. Multipliers: membrane tension (area) and pressure (volume), with the sign
 /// convention grad U = lambda_A grad A + lambda_V grad V at a constrained minimum.
 struct AreaVolumeConstraint {

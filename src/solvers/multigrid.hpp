@@ -1,5 +1,5 @@
 #pragma once
-// Geometric multigrid on the icosphere hierarchy (MODEL.md B.2: level l+1 is level l with every
+// Geometric multigrid on the icosphere hierarchy (docs/MEMBRANE_MODEL.md, mesh: level l+1 is level l with every
 // edge split at its midpoint, the coarse vertices keeping their indices), used as the starting
 // inverse Hessian H0 of L-BFGS for the static states (docs/FORWARD_MODEL.md "Multigrid H0").
 //

@@ -11,7 +11,7 @@ namespace trbc {
 namespace {
 
 // Inverses of the 3x3 vertex blocks of kGamma(X) + shift I: vertex i's block is
-// kGamma sum_{j in N(i)} e_ij e_ij^T + shift I (C.4; the edge dashpots resist only the edge-direction
+// kGamma sum_{j in N(i)} e_ij e_ij^T + shift I (membrane viscosity; the edge dashpots resist only the edge-direction
 // component of the relative velocity, so the block is stiff along the edges and soft along the
 // normal, where the shift carries the elastic and inertial stiffness).
 std::vector<Eigen::Matrix3d> frictionBlockInverses(const Vertices& X, const Topology& T, double kGamma, double shift) {

@@ -1,8 +1,8 @@
 #pragma once
-// Overdamped membrane dynamics  Gamma(X) dX/dt = -dU/dX + f_ext  (MODEL.md G.3), Gamma the
-// edge-friction matrix of the membrane viscosity (C.4) plus an optional isotropic friction eps I,
+// Overdamped membrane dynamics  Gamma(X) dX/dt = -dU/dX + f_ext  (docs/FORWARD_MODEL.md, exact constraints), Gamma the
+// edge-friction matrix of the membrane viscosity plus an optional isotropic friction eps I,
 // or, with a vertex mass m, the reference's second-order dynamics m d2X/dt2 + Gamma dX/dt = -dU/dX
-// + f_ext (E.3), started from rest.
+// + f_ext (relaxation), started from rest.
 //
 // Time stepping is variational BDF2 with adaptive steps: each step minimises
 //   Phi(X) = U(X) - f_ext.X + c0/(2 dt) (X - Y)^T [Gamma(X*) + eps I] (X - Y),

@@ -1,5 +1,5 @@
 #pragma once
-// Fully connected network of the surrogates (SURROGATE.md 3.3): arbitrary layer sizes
+// Fully connected network of the surrogates (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training): arbitrary layer sizes
 // n_0 -> n_1 -> ... -> n_L, tanh after every hidden layer, linear output layer, biases everywhere.
 //
 // Data are column-major, one sample per column: a batch X is n_0 x n, the output n_L x n.

@@ -1,5 +1,5 @@
 #pragma once
-// Saving and loading a trained surrogate network as JSON (SURROGATE.md 3.6).
+// Saving and loading a trained surrogate network as JSON (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training).
 //
 // Format (one object, format "trbc-mlp", version 1; version 2 = the same plus "ensemble"):
 //   layer_sizes   [n_0, ..., n_L]

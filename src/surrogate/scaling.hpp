@@ -1,5 +1,5 @@
 #pragma once
-// z-score standardisation of network inputs and outputs (SURROGATE.md 3.2).
+// z-score standardisation of network inputs and outputs (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training).
 //
 // Data are column-major with one sample per column (rows = variables), as in mlp.hpp. For each
 // variable j the mean m_j and the population standard deviation s_j (divisor n, not n - 1) are

@@ -85,7 +85,7 @@ MatrixXd baseSample(Index n, Index d, const SobolOptions& opt) {
 }
 
 // Point estimates of one standardised output. F is N x blocks: column b holds block b of the
-// design (at the base rows chosen by the caller). SURROGATE.md 4.2:
+// design (at the base rows chosen by the caller). docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices:
 //   V    = population variance of the 2N values {f_A, f_B}
 //   S_i  = (1/N) sum_k f_B,k (f_AB,k^(i) - f_A,k) / V                         (Saltelli 2010)
 //   ST_i = (1/2N) sum_k (f_A,k - f_AB,k^(i))^2 / V                             (Jansen 1999)

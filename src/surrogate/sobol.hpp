@@ -1,5 +1,5 @@
 #pragma once
-// Variance-based global sensitivity analysis (Sobol' indices), SURROGATE.md section 4:
+// Variance-based global sensitivity analysis (Sobol' indices), docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices:
 // Saltelli's design with second-order cross matrices, the estimators of 4.2 (first order Saltelli
 // et al. 2010, total Jansen 1999, second order Saltelli 2002) for many outputs at once, and
 // bootstrap confidence intervals over the base rows.

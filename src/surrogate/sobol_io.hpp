@@ -1,5 +1,5 @@
 #pragma once
-// CSV output of Sobol' indices (SURROGATE.md 4.1: first-order and total indices with their
+// CSV output of Sobol' indices (docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices: first-order and total indices with their
 // confidence intervals are stored). Values are written with 17 significant digits (round trip).
 #include <filesystem>
 

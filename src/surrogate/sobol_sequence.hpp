@@ -1,5 +1,5 @@
 #pragma once
-// Sobol' low-discrepancy sequence in base 2 (SURROGATE.md 4.1-4.2: base sample of the Saltelli
+// Sobol' low-discrepancy sequence in base 2 (docs/CAMPAIGN_AND_SURROGATE.md, Sobol' indices: base sample of the Saltelli
 // design). Direction numbers: S. Joe and F. Y. Kuo, "Constructing Sobol sequences with better
 // two-dimensional projections", SIAM J. Sci. Comput. 30 (2008) 2635-2654, table
 // new-joe-kuo-6.21201 (the first 21 dimensions are built in). Points are generated in Gray-code

@@ -331,7 +331,7 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             }
             if (k == 2 && opt.logRelaxation) {
                 // tc mu / eta_m > 0 spans two decades and depends on mu and eta_m through tc's
-                // sampling window and the vertex-mass group Pi ~ mu / eta_m^2 (MODEL.md E.3): products
+                // sampling window and the vertex-mass group Pi ~ mu / eta_m^2 (docs/FORWARD_MODEL.md, relaxation): products
                 // and powers that are sums in log space.
                 using T = VariableTransform;
                 o.inputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log};

@@ -1,5 +1,5 @@
 #pragma once
-// The three surrogate networks of SURROGATE.md 3.1 as one model: trained from a campaign table,
+// The three surrogate networks (docs/CAMPAIGN_AND_SURROGATE.md) as one model: trained from a campaign table,
 // saved as MODEL_DIR/{equilibrium,stretching,relaxation}.json, evaluated in batches in physical
 // units. Batches are column-major, one sample per column.
 #include <Eigen/Core>
@@ -47,7 +47,7 @@ struct Surrogate {
 };
 
 /// For each column of a 6 x n input batch, whether it lies outside the training box of
-/// SURROGATE.md 1.1 (evaluations there are extrapolations: flagged, never clipped).
+/// docs/CAMPAIGN_AND_SURROGATE.md, input box (evaluations there are extrapolations: flagged, never clipped).
 std::vector<bool> outsideTrainingBox(const Eigen::Ref<const Eigen::MatrixXd>& x);
 
 /// Accuracy of one output on held-out rows (SURROGATE 5.2.1).
@@ -67,13 +67,13 @@ struct SurrogateTrainingOptions {
     /// 8 found one with 0.029 %; 16 found nothing better than 8.
     int restarts = 8;
     /// Relaxation network on log(mu), log(FvK), log(eta_m) with output log(tc mu / eta_m) (true), or on
-    /// the raw variables (false, the networks shipped before session 7 (2026-11-23)). Over 10-fold cross-validation
+    /// the raw variables (false). Over 10-fold cross-validation
     /// on the shipped campaign the log variables lowered the tc error from 7.6 % to 6.9 % (bulk of the
     /// box 5.0 % -> 2.9 %; docs/CAMPAIGN_AND_SURROGATE.md).
     bool logRelaxation = true;
     /// Stretching network on sqrt(b2) instead of b2 (true): the Lim hardening b2 beta^2 takes over
     /// from the linear shear term at principal stretches ~ 1/sqrt(b2), so D1 at large forces rises
-    /// steeply as b2 -> 0 (docs/CAMPAIGN_AND_SURROGATE.md). false: the networks before session 22.
+    /// steeply as b2 -> 0 (docs/CAMPAIGN_AND_SURROGATE.md). false: b2 itself.
     bool sqrtB2Stretching = true;
     /// Networks (equilibrium, stretching, relaxation) that keep all their restarts as an ensemble and
     /// predict with the members' mean (geometric mean of tc mu / eta_m) instead of keeping the best one.

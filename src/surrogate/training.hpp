@@ -1,5 +1,5 @@
 #pragma once
-// Training of a surrogate network with the schedule of SURROGATE.md 3.4 (the reference
+// Training of a surrogate network with the schedule of docs/CAMPAIGN_AND_SURROGATE.md, surrogate training (the reference
 // implementation's, marked "used" there):
 //
 //  * loss: MSE on standardised outputs (3.2), averaged over outputs and samples;

@@ -67,7 +67,7 @@ def simulate(v: float = 0.95, mu_uN_per_m: float = 4.0, FvK: Optional[float] = N
              cache: bool = True, cache_dir: Optional[_PathLike] = None, overdamped: bool = False,
              in_plane_axis: str = "farthest-vertex") -> dict:
     """One forward-model sample, as `trbc simulate`: stress-free state, equilibrium shape,
-    two-bead stretching at Fext_pN and relaxation (MODEL.md D-E).
+    two-bead stretching at Fext_pN and relaxation (docs/FORWARD_MODEL.md).
 
     Parameters: v (reduced volume of the SFS, prior [0.65, 1]), mu_uN_per_m (uN/m, [1, 10]),
     FvK (mu R_A^2 / kb, [10, 1000]; default 250) or kb_J (J, replaces FvK), b2 ([0, 4]),
@@ -96,10 +96,10 @@ def simulate(v: float = 0.95, mu_uN_per_m: float = 4.0, FvK: Optional[float] = N
 
 def sfs(v: float, level: int = 4, *, tol: float = 1e-5, preconditioner: str = "multigrid", cache: bool = True,
         cache_dir: Optional[_PathLike] = None) -> dict:
-    """The stress-free state of the cytoskeleton for reduced volume v (MODEL.md D), as `trbc sfs`.
+    """The stress-free state of the cytoskeleton for reduced volume v (docs/FORWARD_MODEL.md, stress-free state), as `trbc sfs`.
 
     Returns {"mesh": Mesh in um at the cell area 135 um^2, "diagnostics": dict (dimensionless
-    units of MODEL.md D.2: energy_kappa, iterations, converged, ...)}. tol: largest tangential force
+    units of docs/FORWARD_MODEL.md, stress-free state: energy_kappa, iterations, converged, ...)}. tol: largest tangential force
     at convergence, kappa / R'_A.
     """
     return _core.sfs(v=float(v), level=int(level), tol=float(tol), preconditioner=preconditioner, cache=bool(cache),
@@ -131,7 +131,7 @@ def _as_inputs(x) -> np.ndarray:
 
 
 class Surrogate(_core.Surrogate):
-    """The three surrogate networks (SURROGATE.md 3) as one model of the six outputs.
+    """The three surrogate networks (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training) as one model of the six outputs.
 
     Surrogate(model_dir=None, precision="double"): model_dir holds equilibrium.json,
     stretching.json and relaxation.json (default: the shipped networks). precision "single"
@@ -174,7 +174,7 @@ class Surrogate(_core.Surrogate):
 # ---- inference -----------------------------------------------------------------------------------
 
 def load_data_sets(data: Optional[_PathLike] = None) -> list:
-    """The experimental data sets (INFERENCE.md 2) of a directory (default: the shipped seven,
+    """The experimental data sets (docs/BAYESIAN_INFERENCE.md, data) of a directory (default: the shipped seven,
     evans_fung_1972, mills_2004, suresh_2005, hochmuth_1979_cell1..4), as trbc.DataSet objects."""
     return _core.load_data_sets(str(data if data is not None else data_dir("experiments")))
 
@@ -190,7 +190,7 @@ def _data_set(data_set, data: Optional[_PathLike] = None) -> DataSet:
 
 
 def phase1_log_posterior(data_set, surrogate: Optional[Surrogate] = None, data: Optional[_PathLike] = None):
-    """The phase-1 log-posterior log pi_i(theta) + log L_i(theta) of one data set (INFERENCE.md 3),
+    """The phase-1 log-posterior log pi_i(theta) + log L_i(theta) of one data set (docs/BAYESIAN_INFERENCE.md),
     on the surrogate, as a callable: f(theta) with theta (d,) -> float or (n, d) -> (n,) array,
     -inf outside the prior's support.
 
@@ -205,7 +205,7 @@ def phase1_log_posterior(data_set, surrogate: Optional[Surrogate] = None, data: 
 
 
 def hierarchical_log_posterior(phase1_samples: Mapping[str, np.ndarray], data: Optional[_PathLike] = None):
-    """The phase-2 log-posterior of the population hyper-parameters psi (INFERENCE.md 4.4),
+    """The phase-2 log-posterior of the population hyper-parameters psi (docs/BAYESIAN_INFERENCE.md),
     log p(psi) + sum_i log b_i(psi), from the phase-1 samples of each data set
     ({data set name: (N, d) array in the units of phase1_log_posterior}, e.g. from trbc.infer).
     Callable on psi (10,) or (n, 10), columns f.names (mean_v, sd_v, ...)."""
@@ -272,7 +272,7 @@ def load_inference(out: _PathLike) -> dict:
 def infer(out: Optional[_PathLike] = None, phase: Union[int, str] = "all", *, samples: int = 50000, seed: int = 0xC0FFEE,
           data_sets: Optional[Iterable[str]] = None, data: Optional[_PathLike] = None, surrogate: Optional[Surrogate] = None,
           resume: bool = False, threads: int = 0, progress=None) -> dict:
-    """The hierarchical Bayesian inference of INFERENCE.md with TMCMC/BASIS on the surrogates, as
+    """The hierarchical Bayesian inference of docs/BAYESIAN_INFERENCE.md with TMCMC/BASIS on the surrogates, as
     `trbc infer --phase PHASE --samples N --seed S --out OUT` (same runs, seeds and files).
 
     phase: 1, 2, 3 or "all" (2 and 3 read the earlier phases from out). data_sets: names of a
@@ -300,7 +300,7 @@ def infer(out: Optional[_PathLike] = None, phase: Union[int, str] = "all", *, sa
 
 def predict(posterior: Union[Posterior, _PathLike], data_set=None, *, surrogate: Optional[Surrogate] = None, grid: int = 100,
             max_samples: int = 0, seed: int = 1, data: Optional[_PathLike] = None) -> dict:
-    """Posterior predictions (INFERENCE.md 8), as `trbc predict`: every sample through the surrogate
+    """Posterior predictions (docs/BAYESIAN_INFERENCE.md, prediction), as `trbc predict`: every sample through the surrogate
     (or Hochmuth's law) with its error model. data_set: a name or DataSet for the coverage check
     (default: the data set named like the posterior, if any).
 
@@ -325,7 +325,7 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
                etam_Pa_s_um: float = 0.69, allow_outside_prior: bool = False, level: int = 3, rotations: float = 10.0,
                step_tol: float = 1e-3, frame_interval: float = 0.1, dt: Optional[float] = None, max_steps: int = 200000,
                threads: int = 0, cache: bool = True, cache_dir: Optional[_PathLike] = None) -> dict:
-    """One cell in unbounded simple shear flow (VALIDATION.md 3), as `trbc flow shear`:
+    """One cell in unbounded simple shear flow (docs/FLOW.md, shear), as `trbc flow shear`:
     boundary-integral Stokes flow, membrane forces with membrane viscosity, adaptive BDF2.
 
     eta_out_mPa_s, eta_in_mPa_s (mPa s), shear_rate_per_s (1/s); the cell (default: the paper's
