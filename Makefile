@@ -27,8 +27,9 @@ python: bootstrap
 	test -x $(VENV)/bin/python || /usr/bin/python3 -m venv --system-site-packages $(VENV)
 	TRBC_BUILD_DIR=$(abspath $(BUILD)) TRBC_JOBS=$(JOBS) $(VENV)/bin/pip install --no-build-isolation --no-index --no-deps -q .
 
-demo: bootstrap
-	$(MAKE) build
+# demo needs only the CLI: the test and benchmark targets are not built here.
+demo: bootstrap $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) --target trbc -j $(JOBS)
 	bash scripts/demo.sh
 
 showcase: bootstrap
