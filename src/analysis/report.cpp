@@ -227,14 +227,18 @@ void parametersSection(ReportDocument& doc, const fs::path& out) {
         for (std::size_t r = 1; r < rows.size(); ++r) {
             if (rows[r][static_cast<std::size_t>(cPost)] != "theta_new" || rows[r][static_cast<std::size_t>(cPar)] != L.parameter) continue;
             std::vector<std::string> line = {L.label};
-            for (const char* col : {"mean", "median", "map", "sd", "q05", "q95"}) {
+            for (const char* col : {"mean", "mcse_mean", "median", "map", "sd", "mcse_sd", "q05", "q95"}) {
                 const int c = columnOf(h, col);
-                line.push_back(c < 0 ? "–" : num(std::stod(rows[r][static_cast<std::size_t>(c)]) * L.factor));
+                // Statistics files of older versions have no MCSE columns; "nan" marks a statistic without one.
+                const std::string cell = c < 0 ? std::string() : rows[r][static_cast<std::size_t>(c)];
+                line.push_back(cell.empty() || cell == "nan" ? "–" : num(std::stod(cell) * L.factor));
             }
             table.push_back(line);
             paper.push_back({L.label, num(L.paperMean), num(L.paperMedian), num(L.paperMap), num(L.paperSd)});
         }
-    doc.table({"parameter", "mean", "median", "MAP", "SD", "5 %", "95 %"}, table);
+    doc.table({"parameter", "mean", "MCSE of the mean", "median", "MAP", "SD", "MCSE of the SD", "5 %", "95 %"}, table);
+    doc.paragraph("MCSE: the Monte Carlo standard error of the estimate, from the chains' effective sample size "
+                  "(docs/BAYESIAN_INFERENCE.md); eight seeds scatter by the same amount.");
     doc.paragraph("The paper's published values (Table 1 of the paper, θ_new) for comparison. trbc's posterior is built on its own "
                   "forward model and surrogates (not the paper's), so agreement within the posterior spread, not digit for digit, "
                   "is what to expect:");
