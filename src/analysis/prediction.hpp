@@ -3,7 +3,7 @@
 // sample is pushed through the surrogate (equilibrium, stretching) or Hochmuth's law (relaxation)
 // and combined with its own error model, giving a predictive mixture of normals per observable
 // and abscissa. Quantiles of the mixture are found by bisection on its CDF (the "better numerics"
-// of section 8), the mean curve is the mean of the noise-free outputs, and every experimental data
+// ), the mean curve is the mean of the noise-free outputs, and every experimental data
 // point is checked against the central 90 % band (coverage).
 //
 // Posterior samples are read from the samples.csv files that `trbc infer` writes
@@ -36,7 +36,7 @@ double normalMixtureDensity(const Eigen::VectorXd& means, const Eigen::VectorXd&
 /// 1e-9 of the bracket width). Throws InputError for q outside (0, 1) or an empty mixture.
 double normalMixtureQuantile(const Eigen::VectorXd& means, const Eigen::VectorXd& sds, double q, double tol = 0.0);
 
-/// Predictive levels of section 8 (50/75/90/99 % central bands and the median), ascending.
+/// Predictive levels (50/75/90/99 % central bands and the median), ascending.
 const std::vector<double>& predictiveLevels();  ///< 0.005 0.05 0.125 0.25 0.5 0.75 0.875 0.95 0.995
 /// Column suffix of a level: q005, q05, q125, q25, q50, q75, q875, q95, q995.
 std::string levelSuffix(double q);
@@ -146,7 +146,7 @@ std::string directComparisonMarkdown(const std::vector<DirectComparison>& rows, 
 /// the given posterior samples and the surrogate at the same inputs:
 ///   equilibrium  D, hmin, hmax at (v, FvK), mu = 4, b2 = 2 (ignored by the network, 3.1);
 ///   stretching   D0, D1 at the data forces (or 0, 50, ..., 200 pN without data);
-///   relaxation   tc at (0.95, 4, 250, 1.6, 4 r) (3.3).
+///   relaxation   tc at (0.95, 4, 250, 1.6, 4 r).
 /// Samples whose direct run fails (NumericalError) are counted in `failures` and left out.
 std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& posterior, const PredictionModel& model,
                                                      const RbcDataSet* data, const std::vector<Eigen::Index>& indices,

@@ -1,7 +1,7 @@
 #pragma once
 // The flow-validation set of docs/FLOW.md: its configuration
 // (configs/validation.toml), the cases it expands to, the tumbling/tank-treading bracket and its
-// refinement (3.3), and the comparison of each prediction with the experimental scatter.
+// refinement, and the comparison of each prediction with the experimental scatter.
 // The cases themselves are `trbc flow shear|tube` runs driven by `trbc validate` (cli/cmd_validate.cpp).
 #include <filesystem>
 #include <optional>

@@ -585,7 +585,7 @@ TmcmcProblem phase3bProblem(const RbcModel& model, const RbcDataSet& data, const
     if (logB.size() != psi.cols())
         throw InputError(fmt::format("phase 3b ({}): {} values of log b_i for {} phase-2 samples", data.name, logB.size(), psi.cols()));
     if (!(o.bFloor > 0.0)) throw InputError(fmt::format("phase 3b: the floor of b_i = {} must be > 0", o.bFloor));
-    // c_m = -log max(b_i(psi_m), floor)   (4.6)
+    // c_m = -log max(b_i(psi_m), floor)
     const double logFloor = std::log(o.bFloor);
     Eigen::VectorXd offset(logB.size());
     for (Eigen::Index m = 0; m < logB.size(); ++m) offset[m] = -std::max(logB[m], logFloor);

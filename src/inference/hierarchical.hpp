@@ -7,7 +7,7 @@
 //   phase 3a: p(theta_new | d) ≈ (1/M) sum_m p(theta_new | psi_m) on the box of 4.5;
 //   phase 3b: p(theta_i, sigma | d_i, d) ∝ pi3_i p(d_i | theta_i, sigma) (1/M) sum_m p_i(theta_i | psi_m) / max(b_i(psi_m), 1e-6).
 //
-// All sums are log-sum-exp with a max shift (4.7), in vectorised loops (population_kernels.hpp),
+// All sums are log-sum-exp with a max shift, in vectorised loops (population_kernels.hpp),
 // threaded over the candidates of a batch (each candidate's sum runs serially in a fixed order, so
 // results do not depend on the thread count). What keeps the ~1e11 terms of a 50 000-sample run
 // affordable:
@@ -41,11 +41,11 @@ struct PopulationTimer {
     long long terms = 0;  ///< density terms evaluated
 };
 
-/// Pooled coordinates that a data set sees (4.3): equilibrium (v, FvK), stretching (v, mu, kb, b2),
+/// Pooled coordinates that a data set sees: equilibrium (v, FvK), stretching (v, mu, kb, b2),
 /// relaxation (r). They are the first 2, 4 or 1 phase-1 variables.
 int pooledCoordinateCount(RbcExperiment e);
 
-/// The final phase-1 samples of one data set as the re-weighting needs them (4.4): distinct pooled
+/// The final phase-1 samples of one data set as the re-weighting needs them: distinct pooled
 /// coordinates x_k (d x K) with log w_k = log(n_k / N) - log pi_i(x_k) (n_k = multiplicity, pi_i the
 /// phase-1 prior density of those coordinates, uniform / ratio-uniform, exact).
 struct ReweightingSamples {
@@ -68,7 +68,7 @@ struct ReweightingSamples {
 /// `phase1Samples` is dim x N (phase-1 variables of `data`, e.g. TmcmcResult::samples).
 ReweightingSamples reweightingSamples(const RbcDataSet& data, const Eigen::MatrixXd& phase1Samples);
 
-/// log b_i(psi) for every column of psi (kHyperDimension x B), threaded over columns (4.4).
+/// log b_i(psi) for every column of psi (kHyperDimension x B), threaded over columns.
 /// -inf where b_i is zero or not finite. One-dimensional sets (relaxation, sum_k w_k N(r_k; mu_r, sd_r^2))
 /// use, for sd_r >= 10 x the bin width, the Hermite expansion of the Gaussian around each bin centre
 /// (the 1-D fast Gauss transform): with a = (c - mu)/sd and d_k = (r_k - c)/sd (|d_k| <= 0.05),
@@ -78,7 +78,7 @@ ReweightingSamples reweightingSamples(const RbcDataSet& data, const Eigen::Matri
 Eigen::VectorXd logReweightingFactors(const ReweightingSamples& samples, const Eigen::MatrixXd& psi,
                                       FvkDensityRule rule = FvkDensityRule::ClosedForm, PopulationTimer* timer = nullptr);
 
-/// Phase 2 (4.4): hyper-prior and log-likelihood sum_i log b_i(psi).
+/// Phase 2: hyper-prior and log-likelihood sum_i log b_i(psi).
 TmcmcProblem phase2Problem(std::vector<ReweightingSamples> sets, FvkDensityRule rule = FvkDensityRule::ClosedForm,
                            std::shared_ptr<PopulationTimer> timer = nullptr);
 
@@ -133,15 +133,15 @@ private:
     double exactLogMean(const double* q, double z, double* L) const;
 };
 
-/// Phase 3a (4.5): the box prior of newCellBoxPrior and the mixture log (1/M) sum_m p(theta | psi_m)
+/// Phase 3a: the box prior of newCellBoxPrior and the mixture log (1/M) sum_m p(theta | psi_m)
 /// as log-likelihood.
 TmcmcProblem phase3aProblem(const Eigen::MatrixXd& psi, std::shared_ptr<PopulationTimer> timer = nullptr);
 
-/// Cross-check of phase 3a (4.5): n ancestral draws (m uniform, theta ~ p(theta | psi_m), rejected
+/// Cross-check of phase 3a: n ancestral draws (m uniform, theta ~ p(theta | psi_m), rejected
 /// outside the box), 5 x n, reproducible for a seed.
 Eigen::MatrixXd sampleNewCellAncestral(const Eigen::MatrixXd& psi, Eigen::Index n, std::uint64_t seed);
 
-/// Options of phase 3b (4.6).
+/// Options of phase 3b.
 struct Phase3bOptions {
     FvkDensityRule rule = FvkDensityRule::ClosedForm;
     /// Reference prior (used): the phase-1 prior multiplies the target (ratio-uniform factors on FvK

@@ -31,11 +31,11 @@ Eigen::VectorXd hyperOutputScale();
 /// Hyper-prior of 4.2 (independent uniforms).
 std::shared_ptr<const ProductPrior> hyperPrior();
 
-/// Box of phase 3a (4.5): v in [0.65, 1], mu in [0, 20], kb in [kappa_lo, kappa_hi], b2 in [0, 10], r in [0, 2].
+/// Box of phase 3a: v in [0.65, 1], mu in [0, 20], kb in [kappa_lo, kappa_hi], b2 in [0, 10], r in [0, 2].
 std::shared_ptr<const ProductPrior> newCellBoxPrior();
 
 // ------------------------------------------------------------------------------------------------
-// Population density (4.2)
+// Population density
 
 /// One factor of p(theta | psi): N(mean, sd^2), truncated to [lo, hi] (infinite bounds = not truncated).
 /// log density = -((x - mean)/sd)^2 / 2 - logNorm on [lo, hi], logNorm = log sd + log(2 pi)/2 + log Z.
@@ -43,15 +43,15 @@ struct NormalFactor {
     double mean = 0.0, sd = 1.0, lo = 0.0, hi = 0.0, logNorm = 0.0;
     double logDensity(double x) const;
 };
-/// The factor of pooled component j (4.2): TN on [0, 1] for v, TN on [kappa_lo, kappa_hi] for kb,
+/// The factor of pooled component j: TN on [0, 1] for v, TN on [kappa_lo, kappa_hi] for kb,
 /// untruncated normals for mu, b2, r. `psi` has kHyperDimension entries.
 NormalFactor populationFactor(int pooled, const Eigen::Ref<const Eigen::VectorXd>& psi);
 
-/// log p(theta | psi) for theta = (v, mu, kb, b2, r) (4.2).
+/// log p(theta | psi) for theta = (v, mu, kb, b2, r).
 double populationLogDensity(const Eigen::Ref<const Eigen::VectorXd>& theta, const Eigen::Ref<const Eigen::VectorXd>& psi);
 
 // ------------------------------------------------------------------------------------------------
-// Density of FvK under the population (4.3)
+// Density of FvK under the population
 
 /// q(z) is the density of X / Y, X ~ N(muX, sdX^2) (= mu), Y ~ TN(muY, sdY, [a, b]) (= kb / R_A^2,
 /// [a, b] = [0.01, 0.1]); logZy = log(Phi((b - muY)/sdY) - Phi((a - muY)/sdY)).

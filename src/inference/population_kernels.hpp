@@ -136,7 +136,7 @@ inline FvkCoefficients fvkCoefficients(double muX, double sdX, double muY, doubl
     return {muX, vx, 1.0 / vx, muY, vy, 1.0 / vy, kHalfLog2Pi + std::log(sdX) + std::log(sdY) + logZy};
 }
 
-/// log sum_k exp(L_k) of a buffer by max shift (4.7); -inf when every term is zero or a value is
+/// log sum_k exp(L_k) of a buffer by max shift; -inf when every term is zero or a value is
 /// not finite. Two vectorised passes in a fixed order (the result does not depend on threads).
 inline double logSumExp(const double* L, Eigen::Index n) {
     double mx = -std::numeric_limits<double>::infinity();

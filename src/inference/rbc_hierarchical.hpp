@@ -6,13 +6,13 @@
 // Groups (one per data set):
 //   equilibrium: (v, mu, kb, sigma), the likelihood at FvK = mu R_A^2 / kb; support v in the
 //     phase-1 box, FvK in the support of its phase-1 prior. Sampling mu and kb themselves, where the
-//     three-phase route integrates them into q(FvK | psi) (4.3), is exact and independent of q;
+//     three-phase route integrates them into q(FvK | psi), is exact and independent of q;
 //   stretching: (v, mu, kb, b2, sigma0, sigma1) on the phase-1 box;
 //   relaxation: (r, sigma_tc, tc, z0, zinf, sigma_z), r on the support of its phase-1 prior.
 // The error-model variables keep their phase-1 priors; the pooled variables have the population
 // density instead of the phase-1 prior (the joint density that phase 2 marginalises).
 //
-// theta_new (4.5): the mixture (1/M) sum_m p(theta | psi_m) restricted to the box B of
+// theta_new: the mixture (1/M) sum_m p(theta | psi_m) restricted to the box B of
 // newCellBoxPrior, sum_m w_m p(theta | psi_m, B) / sum_m w_m with w_m = P(theta in B | psi_m). The
 // components are independent given psi, so for each coordinate
 //   E[theta_j] = sum_m w_m E[theta_j | psi_m, B_j] / sum_m w_m, and the same for E[theta_j^2] and

@@ -39,7 +39,7 @@ struct Posterior {
     std::string label() const { return phase + "/" + name; }
 };
 
-/// Samples in physical units (plus derived quantities, section 7) and their names.
+/// Samples in physical units (plus derived quantities) and their names.
 Eigen::MatrixXd physicalSamples(const Posterior& p, const Eigen::MatrixXd& s, std::vector<std::string>& names) {
     Eigen::MatrixXd out = p.scale.asDiagonal() * s;
     names = p.names;
@@ -67,7 +67,7 @@ struct Context {
         opt.populationSize = o.populationSize;
         opt.targetCoV = st.targetCoV;
         opt.covarianceScaling = st.covarianceScaling;
-        opt.maxChainLength = 1;  // BASIS (5)
+        opt.maxChainLength = 1;  // BASIS
         if (p.phase == "phase1" && o.phase1BurnIn > 0) opt.burnIn = {o.phase1BurnIn};
         opt.seed = rbcRunSeed(o.seed, p.label());
         opt.checkpointDirectory = (runDirectory(p) / "checkpoint").string();
@@ -220,7 +220,7 @@ std::vector<PosteriorStatsRow> statsOf(const Posterior& p, const TmcmcResult& r,
     return posteriorStatsRows(p.name, phys, names, r.logLikelihood, mapLogPrior);
 }
 
-/// Phase-1 prior log density of each sample (the MAP of 3b uses the phase-1 priors, section 7).
+/// Phase-1 prior log density of each sample (the MAP of 3b uses the phase-1 priors).
 Eigen::VectorXd phase1LogPrior(const RbcDataSet& d, const Eigen::MatrixXd& samples) {
     const auto prior = phase1Prior(d);
     Eigen::VectorXd lp(samples.cols());
@@ -339,7 +339,7 @@ nlohmann::json timingJson(const RbcPhaseTiming& t) {
             {"population_terms", t.populationTerms}};
 }
 
-/// Mean and SD of each parameter of theta_new from TMCMC and from ancestral sampling (4.5).
+/// Mean and SD of each parameter of theta_new from TMCMC and from ancestral sampling.
 nlohmann::json ancestralCheck(const Eigen::MatrixXd& tmcmc, const Eigen::MatrixXd& ancestral, const fs::path& file) {
     const auto& names = pooledOutputNames();
     const Eigen::VectorXd scale = pooledOutputScale();
@@ -557,7 +557,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
     res.phase3a.exponent = 1.0;
     res.phase3a.completed = true;
     nlohmann::json info = {{"method", "Rao-Blackwellised over the joint-MCMC hyper-parameter draws"},
-                           {"samples", "one draw of the box-restricted population mixture per hyper-parameter draw (4.5)"},
+                           {"samples", "one draw of the box-restricted population mixture per hyper-parameter draw"},
                            {"log_likelihood_column", fmt::format("log of the mixture density over every {}-th hyper-parameter draw", thin)}};
     const auto drawRows = writeJointPosterior(ctx, pNew, res.ancestral, res.phase3a.logLikelihood, res.phase3a.logPrior, 1, info);
     std::vector<PosteriorStatsRow> rows;
@@ -676,7 +676,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
                             phase, t.wallSeconds, t.surrogateSeconds, t.populationSeconds, t.samplerSeconds()));
     };
 
-    // ---- Phase 1: seven independent posteriors (3)
+    // ---- Phase 1: seven independent posteriors
     std::vector<PosteriorStatsRow> rows1;
     {
         const bool run = o.firstPhase <= 1;
@@ -702,7 +702,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
     if (o.lastPhase >= 2 && o.method == HierarchicalMethod::Joint) {
         runJointPhases(ctx, data, res, rows1, phaseBegin, phaseEnd);
     } else if (o.lastPhase >= 2) {
-        // ---- Phase 2: hyper-parameters by re-weighting the phase-1 samples (4.4)
+        // ---- Phase 2: hyper-parameters by re-weighting the phase-1 samples
         std::vector<ReweightingSamples> sets;
         for (std::size_t i = 0; i < data.size(); ++i) {
             sets.push_back(reweightingSamples(data[i], res.phase1[i].samples));
@@ -720,7 +720,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
             phaseEnd(2, begin);
         }
 
-        // ---- Phase 3: theta_new (4.5) and each data set given all data (4.6)
+        // ---- Phase 3: theta_new and each data set given all data
         if (o.lastPhase >= 3) {
             const auto begin3 = phaseBegin(3);
             const Eigen::MatrixXd& psi = res.phase2.samples;
@@ -751,7 +751,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
                 for (Eigen::Index m = 0; m < psi.cols(); ++m) logB[m] = logBu[distinctPsi.index[static_cast<std::size_t>(m)]];
                 const Posterior p3 = phase1Posterior(d, "phase3");
                 const TmcmcProblem problem = phase3bProblem(ctx.model, d, psi, logB, o.phase3b, ctx.populationTimer);
-                // The MAP uses the phase-1 priors (section 7), whatever the sampler's prior.
+                // The MAP uses the phase-1 priors, whatever the sampler's prior.
                 auto mapPrior = [&d](const TmcmcResult& r) { return phase1LogPrior(d, r.samples); };
                 TmcmcResult r = runPosterior(ctx, p3, problem, rbcSamplerSettings(RbcRun::Phase3b, d.experiment), mapPrior);
                 auto rr = statsOf(p3, r, mapPrior(r));

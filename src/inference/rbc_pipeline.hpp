@@ -42,7 +42,7 @@ enum class HierarchicalMethod {
     /// hyper-parameter draws (rbc_hierarchical.hpp). Default: exact (no importance-sampling
     /// estimator in the likelihood), with R-hat, ESS and MCSE for every statistic.
     Joint,
-    /// The paper's route: phase 2 re-weights the phase-1 samples (4.4), phase 3 samples mixtures
+    /// The paper's route: phase 2 re-weights the phase-1 samples, phase 3 samples mixtures
     /// over the phase-2 samples with TMCMC/BASIS (4.5-4.6).
     Reweighting
 };
@@ -57,18 +57,18 @@ struct RbcInferenceOptions {
     /// joint method only; the theta_new box: both methods).
     PopulationVariant population;
     int firstPhase = 1, lastPhase = 3;  ///< phases to run (1..3); earlier phases are loaded from outputDirectory
-    int populationSize = 50000;         ///< N of every run (5)
+    int populationSize = 50000;         ///< N of every run
     /// Unrecorded Metropolis steps per BASIS stage of the phase-1 runs (0: the paper's BASIS).
     int phase1BurnIn = 0;
     std::uint64_t seed = 0xC0FFEE;      ///< run seed; each run uses splitmix64(seed ^ FNV-1a(run name))
     bool resume = false;                ///< continue from checkpoints / reuse finished runs
-    FvkDensityRule fvkRule = FvkDensityRule::ClosedForm;  ///< q(FvK | psi) in phases 2-3 (4.3)
-    Phase3bOptions phase3b;             ///< derivation (default) or reference behaviours (4.6)
+    FvkDensityRule fvkRule = FvkDensityRule::ClosedForm;  ///< q(FvK | psi) in phases 2-3
+    Phase3bOptions phase3b;             ///< derivation (default) or reference behaviours
     nlohmann::json provenance = nlohmann::json::object();  ///< merged into infer.json (command, model, ...)
     std::function<void(const std::string&)> progress;      ///< one line per stage and run (may be empty)
 };
 
-/// One row of posterior_stats.csv: the statistics of section 7, the Monte Carlo standard error of
+/// One row of posterior_stats.csv: the statistics (mean, median, ML, MAP, SD, 5 % and 95 % quantiles), the Monte Carlo standard error of
 /// each, and the chain diagnostics (NaN where a route has none, e.g. the BASIS populations).
 struct PosteriorStatsRow {
     std::string posterior, parameter;
@@ -103,7 +103,7 @@ struct RbcInferenceResult {
 /// unwritable outputs.
 RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& options);
 
-/// Statistics rows (7) of one posterior: samples (physical units) dim x N, their stored
+/// Statistics rows of one posterior: samples (physical units) dim x N, their stored
 /// log-likelihoods and the log prior density used for the MAP. The samples are `chains` Markov
 /// chains of equal length laid end to end; MCSEs come from their multi-chain ESS
 /// (mcmc_diagnostics.hpp), and R-hat and ESS are filled when chains >= 2. A BASIS population

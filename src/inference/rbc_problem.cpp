@@ -356,7 +356,7 @@ Eigen::VectorXd equilibriumLogLikelihood(const RbcModel& model, const RbcDataSet
     expectOutput(f, 3, n, "equilibrium");
     Eigen::VectorXd ll(n);
     for (Eigen::Index i = 0; i < n; ++i) {
-        const double sigma = theta(2, i);  // relative error, one for the three observables (3.1)
+        const double sigma = theta(2, i);  // relative error, one for the three observables
         double s = 0.0;
         for (int k = 0; k < 3; ++k) s += normalLogPdf(d.shape[k], f(k, i), std::abs(sigma * f(k, i)));
         ll[i] = s;
@@ -367,7 +367,7 @@ Eigen::VectorXd equilibriumLogLikelihood(const RbcModel& model, const RbcDataSet
 Eigen::VectorXd stretchingLogLikelihood(const RbcModel& model, const RbcDataSet& d, const Eigen::MatrixXd& theta) {
     expectRows(theta, 6, d);
     const Eigen::Index n = theta.cols(), J = d.force.size();
-    // One batch: column i J + j = candidate i at force j; FvK = mu R_A^2 / kb (3.2).
+    // One batch: column i J + j = candidate i at force j; FvK = mu R_A^2 / kb.
     Eigen::MatrixXd x(5, n * J);
     for (Eigen::Index i = 0; i < n; ++i) {
         const double fvk = fvkFromModuli(theta(1, i), theta(2, i));
@@ -404,7 +404,7 @@ Eigen::VectorXd relaxationLogLikelihood(const RbcModel& model, const RbcDataSet&
     Eigen::VectorXd ll(n);
     for (Eigen::Index i = 0; i < n; ++i) {
         const double sigmaTc = theta(1, i), tc = theta(2, i), z0 = theta(3, i), zinf = theta(4, i), sigmaZ = theta(5, i);
-        double s = normalLogPdf(tc, tcSim[i], sigmaTc * tc);  // relative error on the latent tc (3.3)
+        double s = normalLogPdf(tc, tcSim[i], sigmaTc * tc);  // relative error on the latent tc
         for (Eigen::Index k = 0; k < d.time.size(); ++k) s += normalLogPdf(d.aspect[k], hochmuthAspect(d.time[k], tc, z0, zinf), sigmaZ);
         ll[i] = s;
     }

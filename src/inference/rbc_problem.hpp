@@ -153,24 +153,24 @@ Eigen::VectorXd relaxationLogLikelihood(const RbcModel& model, const RbcDataSet&
 /// Dispatch on data.experiment.
 Eigen::VectorXd rbcLogLikelihood(const RbcModel& model, const RbcDataSet& data, const Eigen::MatrixXd& theta);
 
-/// Hochmuth's law (3.3): z(t) = zinf (L + e^{-t/tc}) / (L - e^{-t/tc}), L = (z0 + zinf) / (z0 - zinf);
+/// Hochmuth's law: z(t) = zinf (L + e^{-t/tc}) / (L - e^{-t/tc}), L = (z0 + zinf) / (z0 - zinf);
 /// z(t) = zinf when z0 = zinf.
 double hochmuthAspect(double t, double tc, double z0, double zinf);
 
 /// Inert parameters of the relaxation likelihood (3.3, used): v, mu, FvK, b2; etam = 4 r.
 inline constexpr double kRelaxationV = 0.95, kRelaxationMu = 4.0, kRelaxationFvK = 250.0, kRelaxationB2 = 1.6;
-/// Range of r in which the network input etam = 4 r lies in its training range [0.1, 1] (3.3).
+/// Range of r in which the network input etam = 4 r lies in its training range [0.1, 1].
 inline constexpr double kRelaxationRLow = 0.025, kRelaxationRHigh = 0.25;
 
 // ------------------------------------------------------------------------------------------------
-// Phase-1 problems and sampler settings (5)
+// Phase-1 problems and sampler settings
 
 /// The phase-1 TMCMC problem of one data set: phase1Prior and the batched likelihood.
 TmcmcProblem phase1Problem(const RbcModel& model, const RbcDataSet& data);
 
 /// The runs of the pipeline (table of docs/BAYESIAN_INFERENCE.md).
 enum class RbcRun { Phase1, Phase2, Phase3a, Phase3b };
-/// Target CoV and beta^2 of a run (5); the experiment matters for phases 1 and 3b.
+/// Target CoV and beta^2 of a run; the experiment matters for phases 1 and 3b.
 struct RbcSamplerSettings {
     double targetCoV = 0.4;
     double covarianceScaling = 0.06;

@@ -40,7 +40,7 @@ struct PosteriorSummary {
 };
 
 /// Statistics of samples (n x N, one column per sample) with their stored log-likelihoods and
-/// log-priors (7). `weights` (size N, >= 0, any normalisation) switches to the weighted
+/// log-priors. `weights` (size N, >= 0, any normalisation) switches to the weighted
 /// formulas; empty = equally weighted. `names` default to theta0, theta1, ...
 PosteriorSummary posteriorStatistics(const Eigen::MatrixXd& samples, const Eigen::VectorXd& logLikelihood,
                                      const Eigen::VectorXd& logPrior, const std::vector<std::string>& names = {},
@@ -75,7 +75,7 @@ double effectiveSampleSize(const Eigen::VectorXd& weights);
 /// Index of the largest value (first one on ties; NaN ignored; 0 if every value is -inf/NaN).
 Eigen::Index argmax(const Eigen::VectorXd& values);
 
-/// Profile-likelihood diagnostic (7): `bins` equal bins over [min, max] of the values, the
+/// Profile-likelihood diagnostic: `bins` equal bins over [min, max] of the values, the
 /// sample count and the maximum log-likelihood per bin (-inf for an empty bin).
 struct ProfileLikelihood {
     Eigen::VectorXd edges;          ///< bins + 1

@@ -105,7 +105,7 @@ double maxFinite(const Eigen::VectorXd& v) {
     return m;
 }
 
-/// Proposal covariance, 6.2 step 3 (Weighted) or 6.3 (SelectionCounts). Serial, fixed order.
+/// Proposal covariance, step 3 of a stage (Weighted) or the selection-count weighting (SelectionCounts). Serial, fixed order.
 Eigen::MatrixXd proposalCovariance(const Eigen::MatrixXd& theta, const Eigen::VectorXd& wbar, const std::vector<int>& counts,
                                    const TmcmcOptions& opt) {
     const Eigen::Index n = theta.rows(), N = theta.cols();
@@ -165,7 +165,7 @@ struct Chain {
     int length;     // recorded steps
 };
 
-/// 6.2 step 5: the n_k copies of sample k form chains of length <= L (L = 0: one chain of n_k).
+/// step 5 of a stage: the n_k copies of sample k form chains of length <= L (L = 0: one chain of n_k).
 std::vector<Chain> buildChains(const std::vector<int>& counts, int maxChainLength) {
     std::vector<Chain> chains;
     int slot = 0;
@@ -233,7 +233,7 @@ ChainStats runChainsPerSample(const TmcmcProblem& problem, const TmcmcOptions& o
             propose(rng, L, theta, candidate, logU);
             const double lpNew = problem.prior->logDensity(candidate);
             double llNew = -kInf;
-            if (lpNew > -kInf) {  // l is not evaluated outside the prior support (6.2 step 5)
+            if (lpNew > -kInf) {  // l is not evaluated outside the prior support (step 5 of a stage)
                 llNew = problem.logLikelihood(candidate);
                 ++t.evaluations;
                 if (badLogLikelihood(llNew)) {
@@ -346,7 +346,7 @@ int burnInForStage(const TmcmcOptions& opt, int stage) {
     return opt.burnIn[i];
 }
 
-/// One annealing stage (6.2 steps 1-5): updates rho, log Z and the population.
+/// One annealing stage (exponent, weights, covariance, resampling, chains): updates rho, log Z and the population.
 TmcmcStageInfo annealingStage(const TmcmcProblem& problem, const TmcmcOptions& opt, RunState& st) {
     const int N = opt.populationSize;
     const int stage = st.stage + 1;

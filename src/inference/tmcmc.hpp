@@ -2,13 +2,13 @@
 // Transitional MCMC (Ching & Chen 2007) and BASIS (Wu et al. 2018) as one solver
 // (docs/BAYESIAN_INFERENCE.md). The solver sees a prior and a log-likelihood, nothing else.
 //
-// Algorithm (6.2): from prior draws (exponent rho_0 = 0), repeat: choose the next exponent by
+// Algorithm: from prior draws (exponent rho_0 = 0), repeat: choose the next exponent by
 // bisection so that the coefficient of variation of the weights w_k = exp(Delta l_k) equals the
 // target; accumulate log Z += log(mean w); resample N copies by multinomial counts; move the copies
 // by random-walk Metropolis chains targeting pi(theta) L(theta)^rho with the proposal covariance
 // beta^2 * (weighted sample covariance). Stop after the stage with rho = 1.
 //   * maxChainLength = 1: BASIS, every resampled copy makes one recorded step (the default, and
-//     what the paper's "TMCMC" runs, 6.3);
+//     what the paper's "TMCMC" runs);
 //   * maxChainLength = 0: classical TMCMC, one chain of length n_k per selected sample;
 //   * other L: the n_k copies of a sample are split into chains of length <= L.
 //
@@ -27,7 +27,7 @@
 
 namespace trbc {
 
-/// What the sampler needs (6.1). Exactly one of the two likelihood callbacks is required; the
+/// What the sampler needs. Exactly one of the two likelihood callbacks is required; the
 /// batched one takes precedence. Both may return -inf (zero likelihood); NaN is an error.
 struct TmcmcProblem {
     PriorPtr prior;
@@ -39,11 +39,11 @@ struct TmcmcProblem {
 };
 
 enum class ProposalCovariance {
-    Weighted,        ///< 6.2: beta^2 sum_k wbar_k (theta_k - mean)(theta_k - mean)^T  (Ching & Chen)
-    SelectionCounts  ///< 6.3 (reference library): weights wbar_k n_k renormalised, divided by 1 - sum w'^2
+    Weighted,        ///<: beta^2 sum_k wbar_k (theta_k - mean)(theta_k - mean)^T  (Ching & Chen)
+    SelectionCounts  ///< the reference library's: weights wbar_k n_k renormalised, divided by 1 - sum w'^2
 };
 
-/// Everything a stage reports (6.2 output, per stage j+1 >= 1).
+/// Everything a stage reports (per stage j+1 >= 1).
 struct TmcmcStageInfo {
     int stage = 0;                      ///< 1, 2, ...: the stage that moved to `exponent`
     double exponent = 0.0;              ///< rho_{j+1}
@@ -60,13 +60,13 @@ struct TmcmcStageInfo {
 
 struct TmcmcOptions {
     int populationSize = 1000;          ///< N >= 2
-    double targetCoV = 1.0;             ///< c* > 0 (6.3 default 1.0; the paper's runs use 0.3-0.8)
+    double targetCoV = 1.0;             ///< c* > 0 (the reference library's default 1.0; the paper's runs use 0.3-0.8)
     double covarianceScaling = 0.04;    ///< beta^2 > 0
     int maxChainLength = 1;             ///< L: 1 = BASIS, 0 = unlimited (classical TMCMC)
     /// Burn-in B per stage: entry j-1 applies to stage j, the last entry repeats; empty = 0.
     std::vector<int> burnIn;
     double minIncrement = 1e-5;         ///< Delta_min in (0, 1]
-    double bisectionTolerance = 1e-10;  ///< relative tolerance on Delta (6.2 step 1)
+    double bisectionTolerance = 1e-10;  ///< relative tolerance on Delta (step 1 of a stage)
     ProposalCovariance proposalCovariance = ProposalCovariance::Weighted;
     std::uint64_t seed = 0;
 
@@ -109,7 +109,7 @@ private:
 // Building blocks (exposed for tests and for re-weighting elsewhere).
 
 /// CoV(Delta) = sd(w) / mean(w), w_k = exp(Delta (l_k - max l)), sample sd (divisor N-1);
-/// samples with l_k = -inf get weight 0 (6.2 step 1).
+/// samples with l_k = -inf get weight 0 (step 1 of a stage).
 double weightCoefficientOfVariation(const Eigen::VectorXd& logLikelihood, double delta);
 
 /// Next increment Delta in (0, 1 - rho] (before Delta_min): 1 - rho when CoV(1 - rho) <= target,

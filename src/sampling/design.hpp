@@ -35,7 +35,7 @@ struct CampaignPoint {
 
 /// `nSamples` rows in cells of `forcesPerCell` rows (the last cell may be smaller). The cells
 /// follow a 5-D design of kind `kind`; the forces a 1-D design of the same kind over all rows, so
-/// every marginal is uniform on its range. forcesPerCell = 1 is the reference design (2.1).
+/// every marginal is uniform on its range. forcesPerCell = 1 is the reference design.
 std::vector<CampaignPoint> campaignDesign(DesignKind kind, long nSamples, int forcesPerCell, std::uint64_t seed);
 
 }  // namespace trbc

@@ -20,7 +20,7 @@ namespace trbc {
 /// same number of columns on every call.
 using SobolModel = std::function<Eigen::MatrixXd(const Eigen::MatrixXd& X)>;
 
-/// Base sample of the design (4.1): Sobol' low-discrepancy points (used by the reference) or
+/// Base sample of the design: Sobol' low-discrepancy points (used by the reference) or
 /// seeded pseudo-random uniforms (for tests).
 enum class SobolBase { Sobol, PseudoRandom };
 

@@ -60,7 +60,7 @@ OutputAccuracy outputAccuracy(const std::string& name, const Eigen::VectorXd& tr
 
 struct SurrogateTrainingOptions {
     TrainingOptions network;          ///< schedule of 3.4; batch size 256 is used for the equilibrium net
-    double testFraction = 0.1;        ///< share of the cells held out as the test set (5.2.1)
+    double testFraction = 0.1;        ///< share of the cells held out as the test set
     std::uint64_t testSeed = 20240101;
     /// Trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept.
     /// 8: on the shipped campaign 4 left an equilibrium network with held-out D error 0.29 %,

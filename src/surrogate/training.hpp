@@ -2,10 +2,10 @@
 // Training of a surrogate network with the schedule of docs/CAMPAIGN_AND_SURROGATE.md, surrogate training (the reference
 // implementation's, marked "used" there):
 //
-//  * loss: MSE on standardised outputs (3.2), averaged over outputs and samples;
+//  * loss: MSE on standardised outputs, averaged over outputs and samples;
 //  * split: a seeded permutation of all rows; the first n_train = ceil(0.8 n / B) B rows train,
 //    the rest validate (B = mini-batch size), so every training mini-batch is full;
-//    optionally (5.2.1) a test set drawn first with its own seed, used neither for training nor
+//    optionally a test set drawn first with its own seed, used neither for training nor
 //    for early stopping (the 3.4 split is then applied to the remaining rows);
 //  * Adam (beta1 0.9, beta2 0.999, eps 1e-8, no weight decay), learning rate 0.1, mini-batches
 //    reshuffled every epoch;
@@ -60,10 +60,10 @@ struct TrainingOptions {
     /// Per input / output row; empty means Identity for every row.
     std::vector<VariableTransform> inputTransforms, outputTransforms;
     int batchSize = 128;                        ///< B (3.1: 256 equilibrium, 128 otherwise)
-    std::uint64_t splitSeed = 12345;            ///< permutation of the rows (3.4)
+    std::uint64_t splitSeed = 12345;            ///< permutation of the rows
     std::uint64_t seed = 1;                     ///< initial weights and mini-batch order
     double trainFraction = 0.8;                 ///< n_train = ceil(trainFraction n / B) B
-    double testFraction = 0.0;                  ///< held-out test rows (5.2.1), 0: none
+    double testFraction = 0.0;                  ///< held-out test rows, 0: none
     std::uint64_t testSeed = 2718281828;        ///< permutation choosing the test rows
     double learningRate = 0.1;
     double beta1 = 0.9, beta2 = 0.999, epsilon = 1e-8;  ///< Adam
@@ -176,7 +176,7 @@ Eigen::MatrixXd applyTransforms(const Eigen::Ref<const Eigen::MatrixXd>& x, cons
 void invertTransformsInPlace(Eigen::Ref<Eigen::MatrixXd> y, const std::vector<VariableTransform>& transforms);
 
 /// Whole procedure on physical data X (inputs x n), Y (outputs x n): options' transforms, then standardisation over all n
-/// columns (3.2), split, Glorot initialisation with options.seed, trainMlp, test loss. Names are
+/// columns, split, Glorot initialisation with options.seed, trainMlp, test loss. Names are
 /// stored with the network (and used in error messages; default x0.., y0..); dataHash/command are left empty for the
 /// caller. Throws InputError on inconsistent sizes, non-finite values or constant columns.
 TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& Y,
