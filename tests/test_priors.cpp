@@ -231,7 +231,7 @@ TEST(PriorRatioUniform, SamplerMatchesDensityByHistogram) {
 }
 
 TEST(PriorRatioUniform, DensityFormula) {
-    // FvK prior (3.0): support [10, 1000]; p is continuous with p(10) = p(1000) = 0 and on
+    // FvK prior: support [10, 1000]; p is continuous with p(10) = p(1000) = 0 and on
     // [a/c, ...] reduces to (b/z)^2 - c^2 etc. Check one point by hand: z = 50:
     // min(0.1, 10/50)^2 - max(0.01, 1/50)^2 = 0.01 - 0.0004 = 0.0096; / (2 * 9 * 0.09) = 0.0059259...
     const auto p = fvkPrior();

@@ -188,7 +188,7 @@ TEST(RbcInference, EquilibriumLikelihoodIsRelativeError) {
     for (int i = 0; i < 2; ++i) {
         const double v = theta(0, i), fvk = theta(1, i), s = theta(2, i);
         const double f[3] = {eqD(v, fvk), eqHmin(v, fvk), eqHmax(v, fvk)};
-        double expected = 0.0;  // sum_k log N(y_k; f_k, (sigma f_k)^2)   (3.1)
+        double expected = 0.0;  // sum_k log N(y_k; f_k, (sigma f_k)^2)  
         for (int k = 0; k < 3; ++k) expected += gauss(d.shape[k], f[k], s * f[k]);
         EXPECT_NEAR(ll[i], expected, 1e-12 * std::abs(expected));
     }
@@ -215,7 +215,7 @@ TEST(RbcInference, StretchingLikelihoodIsAbsoluteErrorWithFvKFromModuli) {
     Eigen::MatrixXd theta(6, 1);
     theta << 0.95, 5.0, 0.4, 1.2, 0.1, 0.3;  // v, mu, kb (1e-18 J), b2, sigma0, sigma1
     const double ll = stretchingLogLikelihood(model, d, theta)[0];
-    const double fvk = 5.0 * 10.742958658 / 0.4;  // FvK = mu R_A^2 / kb   (3.2)
+    const double fvk = 5.0 * 10.742958658 / 0.4;  // FvK = mu R_A^2 / kb  
     ASSERT_EQ(seen.cols(), 3);
     for (int j = 0; j < 3; ++j) {
         EXPECT_NEAR(seen(2, j), fvk, 1e-9);
@@ -248,7 +248,7 @@ TEST(RbcInference, RelaxationLikelihoodUsesLatentTcAndInertParameters) {
     EXPECT_EQ(seen(1, 0), 4.0);
     EXPECT_EQ(seen(2, 0), 250.0);
     EXPECT_EQ(seen(3, 0), 1.6);
-    EXPECT_DOUBLE_EQ(seen(4, 0), 4.0 * r);  // etam = 4 r   (3.3)
+    EXPECT_DOUBLE_EQ(seen(4, 0), 4.0 * r);  // etam = 4 r  
     const double tcSim = relaxTc(0.95, 4.0, 4.0 * r);  // = r g
     const double lambda = (z0 + zinf) / (z0 - zinf);
     double expected = gauss(tc, tcSim, sTc * tc);  // relative error with the latent tc
@@ -270,7 +270,7 @@ TEST(RbcInference, PhaseOnePriorsUseRatioUniformDensities) {
     const auto pe = phase1Prior(eq);
     ASSERT_EQ(pe->dimension(), 3);
     const ScalarPrior& fvk = pe->component(1);
-    EXPECT_NEAR(fvk.lower(), 10.0, 1e-12);  // X = mu in [1, 10], Y = kb/R_A^2 in [0.01, 0.1]   (3.0)
+    EXPECT_NEAR(fvk.lower(), 10.0, 1e-12);  // X = mu in [1, 10], Y = kb/R_A^2 in [0.01, 0.1]  
     EXPECT_NEAR(fvk.upper(), 1000.0, 1e-9);
     for (double z : {12.0, 100.0, 250.0, 900.0}) {
         const double hi = std::min(0.1, 10.0 / z), lo = std::max(0.01, 1.0 / z);
@@ -547,7 +547,7 @@ TEST(RbcInference, PhaseTwoReweightingMatchesTheAnalyticHyperPosterior) {
 }
 
 TEST(RbcInference, HermiteSumsAndTabulatedMixturesMatchDirectSums) {
-    // Phase 2, relaxation: the binned Hermite expansion against the direct sum (4.4).
+    // Phase 2, relaxation: the binned Hermite expansion against the direct sum.
     RbcDataSet d;
     d.experiment = RbcExperiment::Relaxation;
     d.aspect = vec({2.0, 1.5});
@@ -563,7 +563,7 @@ TEST(RbcInference, HermiteSumsAndTabulatedMixturesMatchDirectSums) {
             sum += std::exp(static_cast<long double>(s.logWeight[k] + gauss(s.x(0, k), mr[c], sr[c])));
         EXPECT_NEAR(fast[c], static_cast<double>(std::log(sum)), 1e-11) << "psi " << c;
     }
-    // Phase 3b, relaxation: the tabulated 1-D mixture against the exact sum (4.6).
+    // Phase 3b, relaxation: the tabulated 1-D mixture against the exact sum.
     Rng rng(8);
     const auto prior = hyperPrior();
     Eigen::MatrixXd cloud(10, 400);

@@ -164,7 +164,7 @@ TEST(SobolSequence, RejectsBadArguments) {
 // Sobol' indices
 // ---------------------------------------------------------------------------------------------
 
-// Ishigami function (5.3.1), a = 7, b = 0.1, X_i ~ U[-pi, pi].
+// Ishigami function, a = 7, b = 0.1, X_i ~ U[-pi, pi].
 MatrixXd ishigami(const MatrixXd& X) {
     MatrixXd Y(X.rows(), 1);
     for (Index k = 0; k < X.rows(); ++k) {

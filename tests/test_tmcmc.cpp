@@ -442,7 +442,7 @@ TEST(TmcmcOptionsVariants, IntermediateChainLengthAndSelectionCountCovariance) {
 // T1 with the library defaults, burn-in {0, 3, 1}, 16 seeds: log Z err +0.008 +- 0.065.
 TEST(TmcmcOptionsVariants, PerStageBurnInAndLibraryDefaults) {
     const Verification v = gaussian1D();
-    TmcmcOptions o;  // library defaults (6.3): CoV 1, beta^2 0.04, L = 1, B = 0
+    TmcmcOptions o;  // library defaults: CoV 1, beta^2 0.04, L = 1, B = 0
     o.populationSize = 2000;
     o.seed = 5;
     o.burnIn = {0, 3, 1};  // stage 1: 0, stage 2: 3, stages >= 3: 1

@@ -221,11 +221,19 @@ struct TokenStream {
         return v;
     }
     long index(const char* what) {
-        const Token& t = tokens.at(pos);
-        const double v = number(what);
+        const double v = number(what);  // an InputError at the end of the file
+        const Token& t = tokens[pos - 1];
         if (v != std::floor(v) || v < 0 || v > 2e9)
             throw InputError(fmt::format("{}:{}: expected {} (a non-negative integer), got '{}'", path, t.line, what, t.text));
         return static_cast<long>(v);
+    }
+    /// A count of items of `perItem` tokens each that must all follow: bounded by what is left, so
+    /// that a corrupted count is an error instead of a huge allocation.
+    long count(const char* what, long perItem) {
+        const long n = index(what);
+        if (static_cast<double>(n) * static_cast<double>(perItem) > static_cast<double>(tokens.size() - pos))
+            throw InputError(fmt::format("{}:{}: {} = {} is more than the file holds", path, tokens[pos - 1].line, what, n));
+        return n;
     }
 };
 
@@ -292,6 +300,9 @@ Mesh readPly(const std::string& path) {
     if (nv < 0 || nf < 0 || !faceList || xyz[0] < 0 || xyz[1] < 0 || xyz[2] < 0)
         throw InputError(fmt::format("{}: the PLY header needs a vertex element with x, y, z and a face element with vertex_indices", path));
     TokenStream ts = tokenize(path, in, lineNo);
+    if (static_cast<double>(nv) * vertexProperties + static_cast<double>(nf) * (4 + faceScalarsBefore + faceScalarsAfter) >
+        static_cast<double>(ts.tokens.size()))
+        throw InputError(fmt::format("{}: the header announces {} vertices and {} faces, more than the file holds", path, nv, nf));
     Mesh m;
     m.X.resize(3, nv);
     for (long i = 0; i < nv; ++i)
@@ -338,15 +349,15 @@ Mesh readVtk(const std::string& path) {
             if (kind.text != "POLYDATA" && kind.text != "UNSTRUCTURED_GRID")
                 throw InputError(fmt::format("{}:{}: dataset {} is not read (POLYDATA or UNSTRUCTURED_GRID)", path, kind.line, kind.text));
         } else if (key.text == "POINTS") {
-            const long n = ts.index("the number of points");
+            const long n = ts.count("the number of points", 3);
             ts.next("the point data type");
             m.X.resize(3, n);
             for (long i = 0; i < n; ++i)
                 for (int c = 0; c < 3; ++c) m.X(c, i) = ts.number("a point coordinate");
             havePoints = true;
         } else if (key.text == "POLYGONS" || key.text == "CELLS") {
-            const long a = ts.index("the number of cells");
-            const long b = ts.index("the size of the cell list");
+            const long a = ts.count("the number of cells", 1);
+            const long b = ts.count("the size of the cell list", 1);
             std::vector<long> offsets, connectivity;
             if (!ts.done() && ts.tokens[ts.pos].text == "OFFSETS") {  // VTK 5.1: offsets and connectivity arrays
                 ts.pos += 2;
@@ -366,11 +377,13 @@ Mesh readVtk(const std::string& path) {
             m.F.resize(3, std::max(0L, nf));
             for (long f = 0; f < nf; ++f) {
                 if (offsets[f + 1] - offsets[f] != 3) throw InputError(fmt::format("{}: cell {} is not a triangle", path, f));
+                if (offsets[f] < 0 || offsets[f] + 3 > static_cast<long>(connectivity.size()))
+                    throw InputError(fmt::format("{}: the offsets of cell {} lie outside the connectivity list", path, f));
                 for (int c = 0; c < 3; ++c) m.F(c, f) = static_cast<int>(connectivity[offsets[f] + c]);
             }
             haveFaces = true;
         } else if (key.text == "CELL_TYPES") {
-            const long n = ts.index("the number of cell types");
+            const long n = ts.count("the number of cell types", 1);
             for (long i = 0; i < n; ++i) cellTypes.push_back(ts.index("a cell type"));
         } else if (key.text == "POINT_DATA" || key.text == "CELL_DATA" || key.text == "METADATA" || key.text == "FIELD") {
             break;  // per-vertex fields are not part of the mesh
@@ -394,14 +407,13 @@ bool hasExtension(const std::string& path, const char* ext) {
 }  // namespace
 
 Mesh readMesh(const std::string& path) {
-    if (hasExtension(path, ".off")) return readOff(path);
-    Mesh m;
-    if (hasExtension(path, ".ply"))
-        m = readPly(path);
-    else if (hasExtension(path, ".vtk"))
-        m = readVtk(path);
-    else
-        throw InputError(fmt::format("{}: unknown mesh format (the extension must be .off, .ply or .vtk)", path));
+    // Anything but .ply and .vtk is read as OFF, whose reader names a directory, a missing file or
+    // the first line that is not OFF.
+    if (!hasExtension(path, ".ply") && !hasExtension(path, ".vtk")) return readOff(path);
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+        throw InputError(fmt::format("mesh file '{}' is a directory, not a mesh file", path));
+    const Mesh m = hasExtension(path, ".ply") ? readPly(path) : readVtk(path);
     MeshSource source;
     source.path = path;
     validateClosedManifold(m, &source);

@@ -72,11 +72,12 @@ def test_sfs_bad_input():
 
 
 def test_ctrl_c_interrupts_a_long_call():
-    # a level-4 SFS without cache takes seconds; SIGINT after 0.3 s must end it with KeyboardInterrupt
+    # a level-5 SFS without cache takes minutes (a level-4 one can finish in 0.2 s on an idle
+    # machine, before the signal); SIGINT after 0.3 s must end it with KeyboardInterrupt
     timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
     t0 = time.monotonic()
     timer.start()
     with pytest.raises(KeyboardInterrupt):
-        trbc.sfs(0.7, level=4, cache=False)
+        trbc.sfs(0.7, level=5, cache=False)
     timer.join()
     assert time.monotonic() - t0 < 3.0
