@@ -488,7 +488,7 @@ private:
 
 py::dict runInference(const std::string& out, int firstPhase, int lastPhase, int samples, std::uint64_t seed,
                       std::shared_ptr<Surrogate> surrogate, const std::vector<RbcDataSet>& data, bool resume, int threads,
-                      py::object progress) {
+                      py::object progress, const std::string& method, int chains, int warmup, int draws, int thin) {
     if (samples < 2) throw InputError(fmt::format("samples = {} is out of range [2, 100000000]", samples));
     if (firstPhase < 1 || lastPhase > 3 || firstPhase > lastPhase)
         throw InputError(fmt::format("phase: {}..{} is not a range of the phases 1, 2, 3", firstPhase, lastPhase));
@@ -499,6 +499,13 @@ py::dict runInference(const std::string& out, int firstPhase, int lastPhase, int
     opt.populationSize = samples;
     opt.seed = seed;
     opt.resume = resume;
+    if (method != "joint" && method != "reweighting")
+        throw InputError(fmt::format("method = '{}' is invalid: joint or reweighting", method));
+    opt.method = method == "joint" ? HierarchicalMethod::Joint : HierarchicalMethod::Reweighting;
+    if (chains < 2 || warmup < 50 || draws < 8 || thin < 1)
+        throw InputError(fmt::format("chains = {}, warmup = {}, draws = {}, thin = {}: need chains >= 2, warmup >= 50, draws >= 8, thin >= 1",
+                                     chains, warmup, draws, thin));
+    opt.chains = chains, opt.warmup = warmup, opt.draws = draws, opt.thin = thin;
     opt.provenance = {{"command", "trbc.infer (Python)"}, {"model", {{"precision", surrogate->precision == Precision::Single ? "single" : "double"}}}};
     auto poll = interruptHook();
     opt.progress = [poll, progress](const std::string& line) {
@@ -760,7 +767,8 @@ PYBIND11_MODULE(_core, m) {
         .def("log_likelihood", &HierarchicalPosterior::logLikelihood, "psi"_a)
         .def("__call__", &HierarchicalPosterior::logPosterior, "psi"_a);
     m.def("run_inference", &runInference, "out"_a, "first_phase"_a, "last_phase"_a, "samples"_a, "seed"_a, "surrogate"_a, "data_sets"_a,
-          "resume"_a, "threads"_a, "progress"_a);
+          "resume"_a, "threads"_a, "progress"_a, "method"_a = "joint", "chains"_a = 16, "warmup"_a = 1000, "draws"_a = 2500,
+          "thin"_a = 4);
     m.def("read_samples", &readSamples, "file"_a);
     m.def("predict", &predict, "posterior"_a, "surrogate"_a, "data_set"_a, "grid"_a, "max_samples"_a, "seed"_a);
     m.def("flow_shear", &flowShear, py::kw_only(), "eta_out_mPa_s"_a, "shear_rate_per_s"_a, "eta_in_mPa_s"_a, "v"_a, "mu_uN_per_m"_a,

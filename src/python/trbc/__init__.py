@@ -271,9 +271,14 @@ def load_inference(out: _PathLike) -> dict:
 
 def infer(out: Optional[_PathLike] = None, phase: Union[int, str] = "all", *, samples: int = 50000, seed: int = 0xC0FFEE,
           data_sets: Optional[Iterable[str]] = None, data: Optional[_PathLike] = None, surrogate: Optional[Surrogate] = None,
-          resume: bool = False, threads: int = 0, progress=None) -> dict:
-    """The hierarchical Bayesian inference of docs/BAYESIAN_INFERENCE.md with TMCMC/BASIS on the surrogates, as
-    `trbc infer --phase PHASE --samples N --seed S --out OUT` (same runs, seeds and files).
+          resume: bool = False, threads: int = 0, progress=None, method: str = "joint", chains: int = 16,
+          warmup: int = 1000, draws: int = 2500, thin: int = 4) -> dict:
+    """The hierarchical Bayesian inference of docs/BAYESIAN_INFERENCE.md on the surrogates, as
+    `trbc infer --phase PHASE --samples N --seed S --method METHOD --out OUT` (same runs, seeds and files).
+
+    samples: population of every phase-1 TMCMC/BASIS run. method: "joint" (phases 2-3 by one
+    multi-chain MCMC of chains x draws, one draw every thin sweeps after warmup sweeps; theta_new
+    Rao-Blackwellised, with MCSE, R-hat and ESS) or "reweighting" (the paper's route).
 
     phase: 1, 2, 3 or "all" (2 and 3 read the earlier phases from out). data_sets: names of a
     subset of the data sets (phase 1 only). out: output directory (default: a new temporary one).
@@ -291,7 +296,8 @@ def infer(out: Optional[_PathLike] = None, phase: Union[int, str] = "all", *, sa
         sets = [_data_set(n, data) for n in wanted]
     Path(out).mkdir(parents=True, exist_ok=True)
     info = _core.run_inference(str(out), first, last, int(samples), int(seed), surrogate if surrogate is not None else Surrogate(),
-                               sets, bool(resume), int(threads), progress)
+                               sets, bool(resume), int(threads), progress, str(method), int(chains), int(warmup), int(draws),
+                               int(thin))
     result = load_inference(out)
     result.update(info)
     result["out"] = Path(out)
