@@ -407,12 +407,13 @@ bool hasExtension(const std::string& path, const char* ext) {
 }  // namespace
 
 Mesh readMesh(const std::string& path) {
-    // Anything but .ply and .vtk is read as OFF, whose reader names a directory, a missing file or
-    // the first line that is not OFF.
-    if (!hasExtension(path, ".ply") && !hasExtension(path, ".vtk")) return readOff(path);
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec))
         throw InputError(fmt::format("mesh file '{}' is a directory, not a mesh file", path));
+    // A path without an extension is read as OFF (trbc's own format).
+    if (hasExtension(path, ".off") || std::filesystem::path(path).extension().empty()) return readOff(path);
+    if (!hasExtension(path, ".ply") && !hasExtension(path, ".vtk"))
+        throw InputError(fmt::format("{}: unknown mesh format (the extension must be .off, .ply or .vtk)", path));
     const Mesh m = hasExtension(path, ".ply") ? readPly(path) : readVtk(path);
     MeshSource source;
     source.path = path;
