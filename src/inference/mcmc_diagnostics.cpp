@@ -33,18 +33,6 @@ Chains splitChains(const Chains& chains) {
     return out;
 }
 
-Eigen::VectorXd pooled(const Chains& chains) {
-    Eigen::Index total = 0;
-    for (const auto& c : chains) total += c.size();
-    Eigen::VectorXd x(total);
-    Eigen::Index k = 0;
-    for (const auto& c : chains) {
-        x.segment(k, c.size()) = c;
-        k += c.size();
-    }
-    return x;
-}
-
 /// Within-chain variance W (divisor n - 1, averaged) and var+ = (n-1)/n W + B/n.
 void varianceComponents(const Chains& c, double& W, double& varPlus) {
     const double n = static_cast<double>(c[0].size()), m = static_cast<double>(c.size());
@@ -102,8 +90,20 @@ Chains mapChains(const Chains& c, const auto& f) {
 
 }  // namespace
 
+Eigen::VectorXd pooledDraws(const Chains& chains) {
+    Eigen::Index total = 0;
+    for (const auto& c : chains) total += c.size();
+    Eigen::VectorXd x(total);
+    Eigen::Index k = 0;
+    for (const auto& c : chains) {
+        x.segment(k, c.size()) = c;
+        k += c.size();
+    }
+    return x;
+}
+
 Chains rankNormalise(const Chains& chains) {
-    const Eigen::VectorXd x = pooled(chains);
+    const Eigen::VectorXd x = pooledDraws(chains);
     const Eigen::Index S = x.size();
     std::vector<Eigen::Index> order(static_cast<std::size_t>(S));
     std::iota(order.begin(), order.end(), 0);
@@ -140,12 +140,12 @@ ChainDiagnostics chainDiagnostics(const Chains& chains) {
     checkChains(chains);
     const Chains split = splitChains(chains);
     const Chains z = rankNormalise(split);
-    const double med = quantile(pooled(chains), 0.5);
+    const double med = quantile(pooledDraws(chains), 0.5);
     const Chains folded = rankNormalise(mapChains(split, [med](double v) { return std::abs(v - med); }));
     ChainDiagnostics d;
     d.rhat = std::max(rhatOfSplit(z), rhatOfSplit(folded));
     d.essBulk = essOfSplit(z);
-    const Eigen::VectorXd all = pooled(chains);
+    const Eigen::VectorXd all = pooledDraws(chains);
     const double q05 = quantile(all, 0.05), q95 = quantile(all, 0.95);
     d.essTail = std::min(essOfSplit(mapChains(split, [q05](double v) { return v <= q05 ? 1.0 : 0.0; })),
                          essOfSplit(mapChains(split, [q95](double v) { return v <= q95 ? 1.0 : 0.0; })));
@@ -158,7 +158,7 @@ McEstimate selfNormalisedMean(const Chains& weights, const Chains& values) {
     checkChains(values);
     if (weights.size() != values.size() || weights[0].size() != values[0].size())
         throw InputError("MCMC diagnostics: weights and values differ in shape");
-    const Eigen::VectorXd w = pooled(weights), a = pooled(values);
+    const Eigen::VectorXd w = pooledDraws(weights), a = pooledDraws(values);
     const double W = w.sum();
     if (!(W > 0.0) || !std::isfinite(W)) throw NumericalError("self-normalised mean: the weights sum to zero or are not finite");
     McEstimate e;
@@ -166,7 +166,7 @@ McEstimate selfNormalisedMean(const Chains& weights, const Chains& values) {
     const double wbar = W / static_cast<double>(w.size());
     Chains u;
     for (std::size_t j = 0; j < values.size(); ++j) u.push_back(weights[j].cwiseProduct(values[j].array().matrix() - Eigen::VectorXd::Constant(values[j].size(), e.value)) / wbar);
-    const Eigen::VectorXd all = pooled(u);
+    const Eigen::VectorXd all = pooledDraws(u);
     const double var = all.squaredNorm() / static_cast<double>(all.size());  // mean of u is 0 by construction
     e.mcse = var > 0.0 ? std::sqrt(var / essOfSplit(splitChains(u))) : 0.0;
     return e;
@@ -180,7 +180,7 @@ McEstimate chainMean(const Chains& chains) {
 
 McEstimate chainSd(const Chains& chains) {
     checkChains(chains);
-    const Eigen::VectorXd all = pooled(chains);
+    const Eigen::VectorXd all = pooledDraws(chains);
     const double m = all.mean();
     // s^2 = mean((x - m)^2): its MCSE from the ESS of the squared deviations; s = sqrt(s^2).
     const McEstimate v = chainMean(mapChains(chains, [m](double x) { return (x - m) * (x - m); }));
@@ -193,7 +193,7 @@ McEstimate chainSd(const Chains& chains) {
 McEstimate chainQuantile(const Chains& chains, double p) {
     checkChains(chains);
     if (!(p > 0.0 && p < 1.0)) throw InputError(fmt::format("MCMC diagnostics: quantile level {} is not in (0, 1)", p));
-    const Eigen::VectorXd all = pooled(chains);
+    const Eigen::VectorXd all = pooledDraws(chains);
     McEstimate e;
     e.value = quantile(all, p);
     const double q = e.value;

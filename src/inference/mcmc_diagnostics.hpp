@@ -31,6 +31,9 @@ struct ChainDiagnostics {
 /// All four diagnostics of one parameter (any number of chains of equal length >= 4).
 ChainDiagnostics chainDiagnostics(const Chains& chains);
 
+/// The chains laid end to end (one vector of every draw).
+Eigen::VectorXd pooledDraws(const Chains& chains);
+
 /// Effective sample size of the draws as they are (split chains, Geyer's initial monotone sequence).
 double effectiveSampleSize(const Chains& chains);
 /// Split R-hat of the draws as they are (no rank normalisation).

@@ -443,18 +443,6 @@ Eigen::MatrixXd concatenate(const std::vector<Eigen::MatrixXd>& blocks) {
     return x;
 }
 
-Eigen::VectorXd concatenate(const std::vector<Eigen::VectorXd>& blocks) {
-    Eigen::Index n = 0;
-    for (const auto& b : blocks) n += b.size();
-    Eigen::VectorXd x(n);
-    Eigen::Index k = 0;
-    for (const auto& b : blocks) {
-        x.segment(k, b.size()) = b;
-        k += b.size();
-    }
-    return x;
-}
-
 /// Writes a posterior given by draws (inference units) and returns its statistics rows.
 std::vector<PosteriorStatsRow> writeJointPosterior(Context& ctx, const Posterior& p, const Eigen::MatrixXd& samples,
                                                    const Eigen::VectorXd& ll, const Eigen::VectorXd& lp, int chains,
@@ -509,7 +497,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
         const HierarchicalMcmcResult& J = res.joint;
         const int C = static_cast<int>(J.hyper.size());
         Eigen::VectorXd llSum = Eigen::VectorXd::Zero(C * o.draws);
-        for (const auto& g : J.logLikelihood) llSum += concatenate(g);
+        for (const auto& g : J.logLikelihood) llSum += pooledDraws(g);
         const Posterior p{"phase2", "hyper", hyperOutputNames(), hyperOutputScale(), false};
         const Eigen::MatrixXd psi = concatenate(J.hyper);
         const auto hp = hyperPrior();
@@ -579,7 +567,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
         for (const auto& g : J.group[i]) blocks.push_back(rbcGroupToPhase1(d.experiment, g));
         TmcmcResult r;
         r.samples = concatenate(blocks);
-        r.logLikelihood = concatenate(J.logLikelihood[i]);
+        r.logLikelihood = pooledDraws(J.logLikelihood[i]);
         r.logPrior = phase1LogPrior(d, r.samples);
         r.exponent = 1.0;
         r.completed = true;
