@@ -706,8 +706,12 @@ TEST(RbcInference, JointMethodEndToEndOnAnalyticModelWithDiagnostics) {
             ++theta;
             EXPECT_LT(s.mcseMean, 0.5 * s.sd) << s.parameter;
         }
-        if (s.posterior == "mills_2004" && s.parameter == "mu_uN_per_m") EXPECT_NEAR(s.mean, 5.0, 1.5);
-        if (s.posterior == "hochmuth_1979_cell1" && s.parameter == "tc_s") EXPECT_NEAR(s.mean, 0.08, 0.01);
+        if (s.posterior == "mills_2004" && s.parameter == "mu_uN_per_m") {
+            EXPECT_NEAR(s.mean, 5.0, 1.5);
+        }
+        if (s.posterior == "hochmuth_1979_cell1" && s.parameter == "tc_s") {
+            EXPECT_NEAR(s.mean, 0.08, 0.01);
+        }
     }
     EXPECT_EQ(theta, 6);  // v, mu, kb, b2, r and eta_m
     // The equilibrium draws are stored as (v, FvK, sigma) with FvK = mu R_A^2 / kb inside the prior support.
