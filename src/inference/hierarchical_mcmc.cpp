@@ -527,13 +527,21 @@ private:
     }
 };
 
-void validate(const HierarchicalModel& m, const HierarchicalMcmcOptions& o) {
+}  // namespace
+
+void validateHierarchicalMcmcOptions(const HierarchicalMcmcOptions& o) {
     if (o.chains < 2) throw InputError(fmt::format("hierarchical MCMC: chains = {} is invalid: must be >= 2 (R-hat compares chains)", o.chains));
     if (o.warmup < 50) throw InputError(fmt::format("hierarchical MCMC: warmup = {} is invalid: must be >= 50 sweeps", o.warmup));
     if (o.draws < 8) throw InputError(fmt::format("hierarchical MCMC: draws = {} is invalid: must be >= 8 per chain", o.draws));
     if (o.groupSteps < 1) throw InputError(fmt::format("hierarchical MCMC: groupSteps = {} is invalid: must be >= 1", o.groupSteps));
     if (o.thin < 1) throw InputError(fmt::format("hierarchical MCMC: thin = {} is invalid: must be >= 1", o.thin));
     if (o.hyperSteps < 1) throw InputError(fmt::format("hierarchical MCMC: hyperSteps = {} is invalid: must be >= 1", o.hyperSteps));
+}
+
+namespace {
+
+void validate(const HierarchicalModel& m, const HierarchicalMcmcOptions& o) {
+    validateHierarchicalMcmcOptions(o);
     if (m.population.empty() || m.groups.empty()) throw InputError("hierarchical MCMC: the model has no population or no groups");
     for (const PopulationComponent& p : m.population)
         if (!(p.meanLo < p.meanHi && p.sdLo > 0.0 && p.sdLo < p.sdHi && p.lo < p.hi))

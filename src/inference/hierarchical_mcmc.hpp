@@ -104,6 +104,9 @@ struct HierarchicalMcmcResult {
     double wallSeconds = 0.0;
 };
 
+/// InputError naming the first option out of its range.
+void validateHierarchicalMcmcOptions(const HierarchicalMcmcOptions& options);
+
 /// Throws InputError for an inconsistent model or options, NumericalError for a NaN likelihood.
 HierarchicalMcmcResult runHierarchicalMcmc(const HierarchicalModel& model, const HierarchicalMcmcOptions& options);
 

@@ -466,8 +466,17 @@ std::vector<PosteriorStatsRow> writeJointPosterior(Context& ctx, const Posterior
     return posteriorStatsRows(p.name, phys, names, ll, lp, chains);
 }
 
+HierarchicalMcmcOptions jointOptions(const RbcInferenceOptions& o) {
+    HierarchicalMcmcOptions mo;
+    mo.chains = o.chains;
+    mo.warmup = o.warmup;
+    mo.draws = o.draws;
+    mo.thin = o.thin;
+    return mo;
+}
+
 template <class Begin, class End>
-void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInferenceResult& res, const std::vector<PosteriorStatsRow>&,
+void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInferenceResult& res,
                     const Begin& phaseBegin, const End& phaseEnd) {
     const RbcInferenceOptions& o = ctx.o;
     const fs::path jointDir = o.outputDirectory / "phase2" / "joint";
@@ -481,11 +490,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
         if (run && !(o.resume && loadJointDraws(jointDir, settings, res.joint))) {
             std::vector<Eigen::MatrixXd> starts;
             for (const TmcmcResult& r : res.phase1) starts.push_back(r.samples);
-            HierarchicalMcmcOptions mo;
-            mo.chains = o.chains;
-            mo.warmup = o.warmup;
-            mo.draws = o.draws;
-            mo.thin = o.thin;
+            HierarchicalMcmcOptions mo = jointOptions(o);
             mo.seed = seed;
             mo.progress = [&ctx](const std::string& line) { ctx.say("infer phase2/joint: " + line); };
             res.joint = runHierarchicalMcmc(rbcHierarchicalModel(ctx.model, data, starts, rbcRunSeed(o.seed, "phase2/joint_start"), o.population), mo);
@@ -583,7 +588,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
     writeText(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, nlohmann::json()));
     res.stats = rows;
     double worstRhat = 0.0, leastBulk = kInf, leastTail = kInf;
-    for (const auto* set : {&rows}) for (const PosteriorStatsRow& r : *set) {
+    for (const PosteriorStatsRow& r : rows) {
         if (std::isnan(r.rhat)) continue;
         worstRhat = std::max(worstRhat, r.rhat), leastBulk = std::min(leastBulk, r.essBulk), leastTail = std::min(leastTail, r.essTail);
     }
@@ -640,6 +645,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
         throw InputError(fmt::format("infer: phases {}..{} are invalid: the phases are 1, 2, 3", o.firstPhase, o.lastPhase));
     if (o.method == HierarchicalMethod::Reweighting && (o.population.sdUpperScale != 1.0 || !o.population.truncate))
         throw InputError("infer: --hyper-sd-scale and --population-truncation off need --method joint (the re-weighting route's population is fixed)");
+    if (o.method == HierarchicalMethod::Joint) validateHierarchicalMcmcOptions(jointOptions(o));  // before phase 1 runs
     if (o.populationSize < 2) throw InputError(fmt::format("infer: --samples = {} is invalid: must be >= 2", o.populationSize));
     if (data.empty()) throw InputError("infer: no data sets");
     if (o.outputDirectory.empty()) throw InputError("infer: no output directory");
@@ -688,7 +694,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
         }
     }
     if (o.lastPhase >= 2 && o.method == HierarchicalMethod::Joint) {
-        runJointPhases(ctx, data, res, rows1, phaseBegin, phaseEnd);
+        runJointPhases(ctx, data, res, phaseBegin, phaseEnd);
     } else if (o.lastPhase >= 2) {
         // ---- Phase 2: hyper-parameters by re-weighting the phase-1 samples
         std::vector<ReweightingSamples> sets;

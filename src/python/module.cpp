@@ -502,10 +502,7 @@ py::dict runInference(const std::string& out, int firstPhase, int lastPhase, int
     if (method != "joint" && method != "reweighting")
         throw InputError(fmt::format("method = '{}' is invalid: joint or reweighting", method));
     opt.method = method == "joint" ? HierarchicalMethod::Joint : HierarchicalMethod::Reweighting;
-    if (chains < 2 || warmup < 50 || draws < 8 || thin < 1)
-        throw InputError(fmt::format("chains = {}, warmup = {}, draws = {}, thin = {}: need chains >= 2, warmup >= 50, draws >= 8, thin >= 1",
-                                     chains, warmup, draws, thin));
-    opt.chains = chains, opt.warmup = warmup, opt.draws = draws, opt.thin = thin;
+    opt.chains = chains, opt.warmup = warmup, opt.draws = draws, opt.thin = thin;  // checked by the sampler, naming each
     opt.provenance = {{"command", "trbc.infer (Python)"}, {"model", {{"precision", surrogate->precision == Precision::Single ? "single" : "double"}}}};
     auto poll = interruptHook();
     opt.progress = [poll, progress](const std::string& line) {
