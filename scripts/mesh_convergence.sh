@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Mesh convergence of the six observables: levels 3, 4, 5 at the reference point and at
-# two corners of the prior box. Writes docs/mesh_convergence.md (and the raw JSON beside it).
+# two corners of the prior box. Writes OUT/table.md and the raw JSON beside it.
 # Usage: scripts/mesh_convergence.sh [build/trbc] [out-dir]
 set -euo pipefail
 TRBC=${1:-build/trbc}
-OUT=${2:-docs/mesh_convergence}
+OUT=${2:-results/mesh_convergence}
 mkdir -p "$OUT"
 export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
 declare -A POINTS=(
