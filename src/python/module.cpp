@@ -19,7 +19,6 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
-#include <numbers>
 #include <optional>
 #include <string>
 #include <thread>
@@ -33,8 +32,8 @@
 #include "experiments/parameters.hpp"
 #include "experiments/sfs.hpp"
 #include "experiments/simulation_report.hpp"
-#include "flow/cell_flow.hpp"
-#include "flow/shear_observables.hpp"
+#include "flow/shear_case.hpp"
+#include "flow/tube_case.hpp"
 #include "inference/hierarchical.hpp"
 #include "inference/population.hpp"
 #include "inference/rbc_pipeline.hpp"
@@ -575,87 +574,144 @@ py::dict predict(const std::string& posterior, std::shared_ptr<Surrogate> surrog
 
 // ---- flows -------------------------------------------------------------------------------------
 
+/// The library's stepping options of a Python call (times in the case's unit); Ctrl-C is polled
+/// at every frame.
+FlowCaseStepping pythonStepping(FlowCaseStepping s, double frameInterval, std::optional<double> stepTol,
+                                std::optional<double> dt, int maxSteps) {
+    s.frameInterval = frameInterval;
+    if (stepTol) s.stepTolerance = *stepTol;
+    s.dt = dt.value_or(0.0);
+    s.maxSteps = maxSteps;
+    s.progress = [poll = interruptHook()](const FlowCaseProgress&) { poll(); };
+    return s;
+}
+
+py::object noneUnless(bool ok, double v) { return ok ? py::object(py::float_(v)) : py::object(py::none()); }
+
+py::dict cellDict(const CellParameters& p) {
+    return py::dict("v"_a = p.v, "mu_uN_per_m"_a = p.mu, "FvK"_a = p.FvK, "kb_J"_a = p.kbJoule(), "b2"_a = p.b2,
+                    "etam_Pa_s_um"_a = p.etam);
+}
+
+py::dict stepDict(const CellFlowResult& r) {
+    return py::dict("steps"_a = r.steps, "rejected_steps"_a = r.rejectedSteps, "gmres_iterations_total"_a = r.gmresIterations,
+                    "area_drift_max"_a = r.maxAreaDrift, "volume_drift_max"_a = r.maxVolumeDrift, "flow_wall_s"_a = r.wallSeconds);
+}
+
 py::dict flowShear(double etaOut, double rate, double etaIn, double v, double mu, std::optional<double> FvK, std::optional<double> kbJ,
                    double b2, double etam, bool allowOutside, int level, double rotations, double stepTol, double frameInterval,
                    std::optional<double> dt, int maxSteps, int threads, bool cache, const std::optional<std::string>& cacheDir) {
-    auto positive = [](const char* name, double value, const char* unit) {
-        if (!(value > 0.0) || !std::isfinite(value))
-            throw InputError(fmt::format("parameter {} = {} {}: must be finite and > 0 (valid range (0, inf))", name, value, unit));
-    };
-    positive("shear_rate_per_s", rate, "1/s");
-    positive("eta_out_mPa_s", etaOut, "mPa s");
-    positive("eta_in_mPa_s", etaIn, "mPa s");
-    positive("rotations", rotations, "");
-    positive("step_tol", stepTol, "R_A");
-    positive("frame_interval", frameInterval, "1/rate");
-    if (dt) positive("dt", *dt, "1/rate");
-    if (level < 1 || level > 5) throw InputError(fmt::format("level = {} is out of range [1, 5]", level));
-    if (maxSteps < 1) throw InputError(fmt::format("max_steps = {} is out of range [1, 100000000]", maxSteps));
-    FlowConditions fc;
-    fc.etaOut = etaOut;
-    fc.etaIn = etaIn;
-    fc.shearRate = rate;
-    validateFlowConditions(fc);
-    const CellParameters p = cellFromArguments(v, mu, FvK, kbJ, b2, etam, table1::kbJ, 0.0);
-    validateCellParameters(p, allowOutside);
-    CellFlowOptions opt;
-    opt.tEnd = rotations * 4.0 * std::numbers::pi;
-    opt.frameInterval = frameInterval;
-    opt.errorTolerance = stepTol;
-    opt.maxSteps = maxSteps;
-    if (dt) {
-        opt.adaptive = false;
-        opt.dtInitial = *dt;
-        opt.dtMax = *dt;
-    }
-    auto poll = interruptHook();
-    struct Run {
-        ShearCell cell;
-        std::unique_ptr<CellFlowModel> model;
-        CellFlowResult r;
-    } run;
-    withoutGil([&] {
+    ShearCaseOptions o;
+    o.etaOut = etaOut;
+    o.shearRate = rate;
+    o.etaIn = etaIn;
+    o.cell = cellFromArguments(v, mu, FvK, kbJ, b2, etam, table1::kbJ, 0.0);
+    o.allowOutsidePrior = allowOutside;
+    o.level = level;
+    o.rotations = rotations;
+    o.cacheDir = cachePath(cache, cacheDir);
+    o.step = pythonStepping(o.step, frameInterval, stepTol, dt, maxSteps);
+    const ShearCaseResult r = withoutGil([&] {
         const ThreadScope ts(threads);
-        run.cell = prepareShearCell(p, level, cachePath(cache, cacheDir));
-        run.model = std::make_unique<CellFlowModel>(p, fc, run.cell.faces, run.cell.reference);
-        run.r = integrateCellFlow(*run.model, run.model->toInternal(run.cell.initial), opt, [poll](double, const Vertices&) { poll(); });
-        return 0;
+        return runShearCase(o);
     });
-    const CellFlowModel& model = *run.model;
-    const CellFlowResult& r = run.r;
     if (!r.completed) throw NumericalError("flow shear: " + r.message);
-    const double L = model.scales().length, T = model.scales().time;
-    const ShearObservables obs = analyzeShearFrames(r.times, r.frames, 1.0);
+    const ShearObservables& obs = *r.observables;
     const bool tt = obs.regime == ShearRegime::TankTreading;
-    const std::vector<double> phi = unwrappedOrientation(r.frames);
-    const std::size_t n = r.frames.size();
-    std::vector<double> t(n), strain(n), incl(n), orient(n);
-    Eigen::Matrix3Xd centroids(3, Eigen::Index(n));
-    py::list frames;
-    for (std::size_t k = 0; k < n; ++k) {
-        t[k] = r.times[k] * T;
-        strain[k] = r.times[k] * T * rate;
-        incl[k] = inclinationAngle(r.frames[k]) * 180.0 / std::numbers::pi;
-        orient[k] = phi[k] * 180.0 / std::numbers::pi;
-        centroids.col(Eigen::Index(k)) = centroid(r.frames[k]) * L;
-    }
-    py::object none = py::none();
-    const FlowGroups g = model.groups();
+    const ShearFrameSeries& s = r.series;
+    const FlowGroups& g = r.groups;
     return py::dict(
-        "observables"_a = py::dict("regime"_a = regimeName(obs.regime), "inclination_deg"_a = tt ? py::object(py::float_(obs.inclinationDeg)) : none,
-                                   "swing_amplitude_deg"_a = tt ? py::object(py::float_(obs.swingAmplitudeDeg)) : none,
-                                   "ttf_4pi_f_over_shear_rate"_a = tt && obs.ttf.defined ? py::object(py::float_(obs.ttf4piFOverRate)) : none),
+        "observables"_a = py::dict("regime"_a = regimeName(obs.regime), "inclination_deg"_a = noneUnless(tt, obs.inclinationDeg),
+                                   "swing_amplitude_deg"_a = noneUnless(tt, obs.swingAmplitudeDeg),
+                                   "ttf_4pi_f_over_shear_rate"_a = noneUnless(tt && obs.ttf.defined, obs.ttf4piFOverRate)),
         "parameters"_a = py::dict("eta_out_mPa_s"_a = etaOut, "eta_in_mPa_s"_a = etaIn, "shear_rate_per_s"_a = rate,
-                                  "cell"_a = py::dict("v"_a = p.v, "mu_uN_per_m"_a = p.mu, "FvK"_a = p.FvK, "kb_J"_a = p.kbJoule(),
-                                                      "b2"_a = p.b2, "etam_Pa_s_um"_a = p.etam),
-                                  "capillary_number"_a = g.capillary, "viscosity_ratio"_a = g.viscosityRatio,
-                                  "membrane_viscosity_ratio_E"_a = g.membraneViscosity, "t_end_s"_a = opt.tEnd * T, "level"_a = level),
-        "time_series"_a = py::dict("t_s"_a = vectorArray(t), "shear_strain"_a = vectorArray(strain), "inclination_deg"_a = vectorArray(incl),
-                                   "orientation_unwrapped_deg"_a = vectorArray(orient), "area_drift"_a = vectorArray(r.areaDrift),
-                                   "volume_drift"_a = vectorArray(r.volumeDrift), "centroid_um"_a = ownedRows(Eigen::Matrix3Xd(centroids))),
-        "diagnostics"_a = py::dict("steps"_a = r.steps, "rejected_steps"_a = r.rejectedSteps, "gmres_iterations_total"_a = r.gmresIterations,
-                                   "area_drift_max"_a = r.maxAreaDrift, "volume_drift_max"_a = r.maxVolumeDrift, "flow_wall_s"_a = r.wallSeconds),
-        "final_shape"_a = meshOf(model.toMicrons(r.final), run.cell.faces));
+                                  "cell"_a = cellDict(r.cell), "capillary_number"_a = g.capillary,
+                                  "viscosity_ratio"_a = g.viscosityRatio, "membrane_viscosity_ratio_E"_a = g.membraneViscosity,
+                                  "t_end_s"_a = r.tEndSeconds, "level"_a = level),
+        "time_series"_a = py::dict("t_s"_a = vectorArray(s.time), "shear_strain"_a = vectorArray(s.shearStrain),
+                                   "inclination_deg"_a = vectorArray(s.inclinationDeg),
+                                   "orientation_unwrapped_deg"_a = vectorArray(s.orientationDeg),
+                                   "area_drift"_a = vectorArray(s.areaDrift), "volume_drift"_a = vectorArray(s.volumeDrift),
+                                   "centroid_um"_a = ownedRows(Eigen::Matrix3Xd(s.centroidUm))),
+        "diagnostics"_a = stepDict(r.flow),
+        "final_shape"_a = meshOf(r.flow.final * r.scales.length, r.prepared.faces));
+}
+
+py::dict tubeSeriesDict(const TubeFrameSeries& s) {
+    return py::dict("t_s"_a = vectorArray(s.time), "t_R_over_V"_a = vectorArray(s.timeROverV),
+                    "centroid_um"_a = ownedRows(Eigen::Matrix3Xd(s.centroidUm)), "length_um"_a = vectorArray(s.lengthUm),
+                    "width_y_um"_a = vectorArray(s.widthYUm), "width_z_um"_a = vectorArray(s.widthZUm),
+                    "clearance_um"_a = vectorArray(s.clearanceUm), "area_drift"_a = vectorArray(s.areaDrift),
+                    "volume_drift"_a = vectorArray(s.volumeDrift));
+}
+
+/// The observables of `trbc flow tube` (None for fewer than 16 frames).
+py::dict tubeObservablesDict(const TubeCaseResult& r) {
+    const std::optional<TubeObservables>& ob = r.main.observables;
+    const double Uc = r.units.centreLineVelocity;
+    return py::dict("velocity_cm_per_s"_a = noneUnless(ob.has_value(), ob ? ob->velocity * 1e-4 : 0.0),
+                    "length_um"_a = noneUnless(ob.has_value(), ob ? ob->length : 0.0),
+                    "width_um"_a = noneUnless(ob.has_value(), ob ? ob->widthY : 0.0),
+                    "width_z_um"_a = noneUnless(ob.has_value(), ob ? ob->widthZ : 0.0),
+                    "velocity_over_centre_line"_a = noneUnless(ob.has_value(), ob ? ob->velocity / Uc : 0.0),
+                    "velocity_over_mean_poiseuille"_a = noneUnless(ob.has_value(), ob ? ob->velocity / (0.5 * Uc) : 0.0));
+}
+
+py::dict tubeParametersDict(const TubeCaseResult& r, const TubeCaseOptions& o) {
+    const TubeUnits& u = r.units;
+    const TubeGroups& g = r.groups;
+    return py::dict("radius_um"_a = o.radius, "pressure_gradient_mmHg_per_mm"_a = o.pressureGradient,
+                    "pressure_gradient_Pa_per_m"_a = u.pressureGradientPaPerM, "eta_out_mPa_s"_a = r.conditions.etaOut,
+                    "eta_in_mPa_s"_a = r.conditions.etaIn, "velocity_scale_V_cm_per_s"_a = u.velocityScale * 1e-4,
+                    "centre_line_velocity_cm_per_s"_a = u.centreLineVelocity * 1e-4, "time_unit_R_over_V_s"_a = u.timeUnit,
+                    "duration_R_over_V"_a = o.duration, "minimum_radius_um"_a = u.minimumRadius, "cell"_a = cellDict(r.cell),
+                    "level"_a = o.level, "capillary_number"_a = g.capillary, "viscosity_ratio"_a = g.viscosityRatio,
+                    "membrane_viscosity_ratio_E"_a = g.membraneViscosity, "confinement_R_over_R_A"_a = g.confinement,
+                    "wall_points_per_ring"_a = r.setup.pointsPerRing, "wall_vertices"_a = r.wallVertices,
+                    "settling_etam_Pa_s_um"_a = noneUnless(r.settling.ran, r.settlingViscosity.etam));
+}
+
+py::object tubeSettlingDict(const TubeCaseResult& r) {
+    if (!r.settling.ran) return py::none();
+    const CellFlowResult& f = r.settling.flow;
+    const Eigen::Vector3d e = extents(r.main.startUm);
+    return py::dict("settled"_a = f.stoppedEarly, "t_reached_R_over_V"_a = f.tReached, "final_length_um"_a = e.x(),
+                    "final_width_um"_a = e.y(), "time_series"_a = tubeSeriesDict(r.settling.series), "diagnostics"_a = stepDict(f));
+}
+
+py::dict flowTube(double radius, double pg, double etaOut, double lambda, double v, double mu, std::optional<double> FvK,
+                  std::optional<double> kbJ, double b2, double etam, bool allowOutside, int level, double duration, double settle,
+                  std::optional<double> settleRelax, std::optional<double> settleEtam, double settleTol, int wallPoints,
+                  double tubeLength, double repulsionRange, double repulsionPressure, double frameInterval,
+                  std::optional<double> stepTol, std::optional<double> dt, int maxSteps, int threads, bool cache,
+                  const std::optional<std::string>& cacheDir) {
+    if (settleRelax && settleEtam) throw InputError("give settle_relax_R_over_V or settle_etam_Pa_s_um, not both");
+    TubeCaseOptions o;
+    o.radius = radius, o.pressureGradient = pg, o.etaOut = etaOut, o.viscosityRatio = lambda;
+    o.cell = cellFromArguments(v, mu, FvK, kbJ, b2, etam, table1::kbJ, 0.0);
+    o.allowOutsidePrior = allowOutside;
+    o.level = level, o.duration = duration, o.settle = settle;
+    if (settleRelax) o.settleRelax = *settleRelax;
+    o.settleEtam = settleEtam;
+    o.settleTolerance = settleTol, o.wallPoints = wallPoints, o.tubeLength = tubeLength;
+    o.repulsionRange = repulsionRange, o.repulsionPressure = repulsionPressure;
+    o.cacheDir = cachePath(cache, cacheDir);
+    o.step = pythonStepping(o.step, frameInterval, stepTol, dt, maxSteps);
+    const TubeCaseResult r = withoutGil([&] {
+        const ThreadScope ts(threads);
+        return runTubeCase(o);
+    });
+    if (!r.completed) throw NumericalError((r.stage == TubeCaseStage::Fit ? "flow tube: " : "flow tube, ") + r.message);
+    const TubeStageResult& m = r.main;
+    py::dict diagnostics = stepDict(m.flow);
+    diagnostics["wall_clearance_min_um"] = m.minClearanceUm;
+    diagnostics["centroid_off_axis_max_um"] = m.maxOffAxisUm;
+    diagnostics["t_reached_R_over_V"] = m.flow.tReached;
+    diagnostics["plateau_reached"] = m.observables && m.observables->lengthChange < 0.01 && m.observables->velocityChange < 0.01;
+    diagnostics["wall_s"] = r.wallSeconds;
+    return py::dict("observables"_a = tubeObservablesDict(r), "parameters"_a = tubeParametersDict(r, o),
+                    "time_series"_a = tubeSeriesDict(m.series), "settling"_a = tubeSettlingDict(r),
+                    "diagnostics"_a = diagnostics, "final_shape"_a = meshOf(m.flow.final * r.scales.length, r.prepared.faces));
 }
 
 }  // namespace
@@ -770,6 +826,11 @@ PYBIND11_MODULE(_core, m) {
     m.def("predict", &predict, "posterior"_a, "surrogate"_a, "data_set"_a, "grid"_a, "max_samples"_a, "seed"_a);
     m.def("flow_shear", &flowShear, py::kw_only(), "eta_out_mPa_s"_a, "shear_rate_per_s"_a, "eta_in_mPa_s"_a, "v"_a, "mu_uN_per_m"_a,
           "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a, "rotations"_a, "step_tol"_a, "frame_interval"_a,
+          "dt"_a, "max_steps"_a, "threads"_a, "cache"_a, "cache_dir"_a);
+    m.def("flow_tube", &flowTube, py::kw_only(), "radius_um"_a, "pressure_gradient_mmHg_per_mm"_a, "eta_out_mPa_s"_a,
+          "viscosity_ratio"_a, "v"_a, "mu_uN_per_m"_a, "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a,
+          "duration_R_over_V"_a, "settle_R_over_V"_a, "settle_relax_R_over_V"_a, "settle_etam_Pa_s_um"_a, "settle_tol"_a,
+          "wall_points"_a, "tube_length_um"_a, "repulsion_range_um"_a, "repulsion_pressure"_a, "frame_interval"_a, "step_tol"_a,
           "dt"_a, "max_steps"_a, "threads"_a, "cache"_a, "cache_dir"_a);
     m.def("default_cache_dir", [] { return defaultCacheDirectory().string(); });
 }

@@ -1,4 +1,4 @@
-"""trbc.flow_shear against `trbc flow shear`; bad input."""
+"""trbc.flow_shear and trbc.flow_tube against `trbc flow shear` and `trbc flow tube`; bad input."""
 import numpy as np
 import pytest
 
@@ -25,8 +25,58 @@ def test_flow_shear_gives_the_cli_numbers(run_cli, cache):
 @pytest.mark.parametrize("kwargs, name", [
     (dict(shear_rate_per_s=-1.0), "shear_rate_per_s"), (dict(eta_out_mPa_s=0.0), "eta_out_mPa_s"),
     (dict(level=9), "level"), (dict(v=0.5), "v"), (dict(FvK=100.0, kb_J=2e-19), "kb_J"),
+    (dict(rotations=0.0), "rotations"), (dict(frame_interval=-1.0), "frame_interval"), (dict(dt=500.0), "dt"),
 ])
 def test_flow_shear_bad_input(kwargs, name):
     args = {**dict(eta_out_mPa_s=28.9, shear_rate_per_s=20.0, level=1, rotations=1.0), **kwargs}
     with pytest.raises(ValueError, match=name):
         trbc.flow_shear(**args)
+
+
+TUBE = dict(radius_um=3.3, pressure_gradient_mmHg_per_mm=30.0, level=1, wall_points=12, settle_R_over_V=10.0,
+            duration_R_over_V=8.0, frame_interval=0.5)
+
+
+def test_flow_tube_gives_the_cli_numbers(run_cli, cache):
+    py = trbc.flow_tube(**TUBE, cache_dir=cache, threads=1)
+    cli = run_cli("flow", "tube", "--radius", 3.3, "--pressure-gradient", 30.0, "--level", 1, "--wall-points", 12,
+                  "--settle", 10.0, "--duration", 8.0, "--frame-interval", 0.5, "--cache", cache, "--threads", 1)
+    assert py["observables"] == cli["observables"]
+    assert py["observables"]["velocity_cm_per_s"] > 0.0
+    assert py["observables"]["velocity_over_centre_line"] < 1.0
+    for key in ("steps", "rejected_steps", "wall_clearance_min_um", "t_reached_R_over_V"):
+        assert py["diagnostics"][key] == cli["diagnostics"][key], key
+    settling = cli["diagnostics"]["settling"]
+    for key in ("settled", "t_reached_R_over_V", "final_length_um", "final_width_um"):
+        assert py["settling"][key] == settling[key], key
+    assert py["settling"]["diagnostics"]["steps"] == settling["steps"]
+    for key in ("centre_line_velocity_cm_per_s", "time_unit_R_over_V_s", "minimum_radius_um"):
+        assert py["parameters"][key] == cli["parameters"][key], key
+    assert py["parameters"]["capillary_number"] == cli["parameters"]["dimensionless"]["capillary_number"]
+    assert py["parameters"]["settling_etam_Pa_s_um"] == cli["parameters"]["settling"]["etam_Pa_s_um"]
+    ts = py["time_series"]
+    n = len(ts["t_s"])
+    assert n == cli["diagnostics"]["frames"] == 17
+    assert ts["centroid_um"].shape == (n, 3)
+    np.testing.assert_allclose(np.diff(ts["t_R_over_V"]), 0.5, rtol=1e-9)
+    np.testing.assert_allclose(ts["t_s"], ts["t_R_over_V"] * py["parameters"]["time_unit_R_over_V_s"], rtol=1e-12)
+    assert np.all(np.diff(ts["centroid_um"][:, 0]) > 0.0)  # downstream
+    assert np.all(ts["clearance_um"] > 0.0)
+    assert py["final_shape"].area == pytest.approx(135.0, rel=0.01)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(radius_um=1.0), "radius_um"), (dict(pressure_gradient_mmHg_per_mm=0.0), "pressure_gradient_mmHg_per_mm"),
+    (dict(eta_out_mPa_s=-1.0), "eta_out_mPa_s"), (dict(viscosity_ratio=2.0), "viscosity_ratio"),
+    (dict(settle_R_over_V=5.0), "settle_R_over_V"), (dict(settle_relax_R_over_V=1.0, settle_etam_Pa_s_um=0.05), "settle_etam_Pa_s_um"),
+    (dict(settle_etam_Pa_s_um=0.0), "settle_etam_Pa_s_um"), (dict(level=5), "level"), (dict(mu_uN_per_m=20.0), "mu_uN_per_m"),
+    (dict(duration_R_over_V=0.0), "duration_R_over_V"), (dict(tube_length_um=5.0), "tube_length_um"),
+])
+def test_flow_tube_bad_input(kwargs, name, cache):
+    with pytest.raises(ValueError, match=name):
+        trbc.flow_tube(**{**TUBE, **kwargs}, cache_dir=cache)
+
+
+def test_flow_tube_failure_raises_numerical_error(cache):
+    with pytest.raises(trbc.NumericalError, match="settling stage"):
+        trbc.flow_tube(**{**TUBE, "max_steps": 2}, cache_dir=cache)

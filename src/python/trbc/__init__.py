@@ -26,7 +26,7 @@ __version__ = _core.__version__
 __all__ = [
     "Mesh", "NumericalError", "DataSet", "Surrogate", "Posterior", "membrane_energy", "simulate", "sfs",
     "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
-    "load_inference", "predict", "flow_shear", "INPUT_NAMES", "OUTPUT_NAMES",
+    "load_inference", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
 ]
 
 INPUT_NAMES = tuple(_core.surrogate_input_names)    #: v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN
@@ -339,7 +339,8 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
     frame_interval, dt in 1/rate; step_tol in R_A. Returns {"observables": regime, inclination_deg,
     swing_amplitude_deg, ttf_4pi_f_over_shear_rate (None unless tank-treading), "time_series":
     t_s, shear_strain, inclination_deg, orientation_unwrapped_deg, area_drift, volume_drift,
-    centroid_um (k, 3), "parameters", "diagnostics", "final_shape": Mesh (um)}.
+    centroid_um (k, 3), "parameters", "diagnostics", "final_shape": Mesh (um)}. A run that fails
+    (step limit, solver divergence) raises trbc.NumericalError with the reason.
     """
     return _core.flow_shear(eta_out_mPa_s=float(eta_out_mPa_s), shear_rate_per_s=float(shear_rate_per_s),
                             eta_in_mPa_s=float(eta_in_mPa_s), v=float(v), mu_uN_per_m=float(mu_uN_per_m),
@@ -348,3 +349,44 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
                             rotations=float(rotations), step_tol=float(step_tol), frame_interval=float(frame_interval),
                             dt=None if dt is None else float(dt), max_steps=int(max_steps), threads=int(threads),
                             cache=bool(cache), cache_dir=None if cache_dir is None else str(cache_dir))
+
+
+def flow_tube(radius_um: float, pressure_gradient_mmHg_per_mm: float, eta_out_mPa_s: float = 1.003, *,
+              viscosity_ratio: float = 1.0, v: float = 0.94, mu_uN_per_m: float = 4.99, FvK: Optional[float] = None,
+              kb_J: Optional[float] = None, b2: float = 1.84, etam_Pa_s_um: float = 0.69, allow_outside_prior: bool = False,
+              level: int = 3, duration_R_over_V: float = 30.0, settle_R_over_V: float = 60.0,
+              settle_relax_R_over_V: Optional[float] = None, settle_etam_Pa_s_um: Optional[float] = None,
+              settle_tol: float = 2e-3, wall_points: int = 0, tube_length_um: float = 0.0, repulsion_range_um: float = 0.1,
+              repulsion_pressure: float = 10.0, frame_interval: float = 1.0, step_tol: Optional[float] = None,
+              dt: Optional[float] = None, max_steps: int = 200000, threads: int = 0, cache: bool = True,
+              cache_dir: Optional[_PathLike] = None) -> dict:
+    """One cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md, tube),
+    as `trbc flow tube`: the cell fitted into the tube, a settling stage with a small membrane
+    viscosity, then the main stage with the cell's own, which gives the observables.
+
+    radius_um (um, at least the 1.4967 um that holds the cell's area and volume),
+    pressure_gradient_mmHg_per_mm, eta_out_mPa_s; the cell as in flow_shear; times in R/V with
+    V = (pressure gradient / 45) cm/s: duration_R_over_V (main stage), settle_R_over_V (longest
+    settling stage; 0: none, else >= 10), settle_relax_R_over_V (eta_m / mu of the settling stage,
+    default 1.5) or settle_etam_Pa_s_um, frame_interval, dt; step_tol in R_A (default 6.25e-5);
+    wall_points per ring (0: from the cell's mesh), tube_length_um (0: from the fitted cell),
+    repulsion_range_um, repulsion_pressure (eta_out V / R). Returns {"observables":
+    velocity_cm_per_s, length_um, width_um, width_z_um, velocity_over_centre_line,
+    velocity_over_mean_poiseuille (None for fewer than 16 frames), "time_series" of the main stage:
+    t_s, t_R_over_V, centroid_um (k, 3), length_um, width_y_um, width_z_um, clearance_um,
+    area_drift, volume_drift, "settling": None or {settled, t_reached_R_over_V, final_length_um,
+    final_width_um, time_series, diagnostics}, "parameters", "diagnostics", "final_shape": Mesh
+    (um)}. A cell that cannot be fitted or a failed stage raises trbc.NumericalError with the reason.
+    """
+    return _core.flow_tube(
+        radius_um=float(radius_um), pressure_gradient_mmHg_per_mm=float(pressure_gradient_mmHg_per_mm),
+        eta_out_mPa_s=float(eta_out_mPa_s), viscosity_ratio=float(viscosity_ratio), v=float(v), mu_uN_per_m=float(mu_uN_per_m),
+        FvK=None if FvK is None else float(FvK), kb_J=None if kb_J is None else float(kb_J), b2=float(b2),
+        etam_Pa_s_um=float(etam_Pa_s_um), allow_outside_prior=bool(allow_outside_prior), level=int(level),
+        duration_R_over_V=float(duration_R_over_V), settle_R_over_V=float(settle_R_over_V),
+        settle_relax_R_over_V=None if settle_relax_R_over_V is None else float(settle_relax_R_over_V),
+        settle_etam_Pa_s_um=None if settle_etam_Pa_s_um is None else float(settle_etam_Pa_s_um), settle_tol=float(settle_tol),
+        wall_points=int(wall_points), tube_length_um=float(tube_length_um), repulsion_range_um=float(repulsion_range_um),
+        repulsion_pressure=float(repulsion_pressure), frame_interval=float(frame_interval),
+        step_tol=None if step_tol is None else float(step_tol), dt=None if dt is None else float(dt), max_steps=int(max_steps),
+        threads=int(threads), cache=bool(cache), cache_dir=None if cache_dir is None else str(cache_dir))

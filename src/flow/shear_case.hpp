@@ -1,0 +1,69 @@
+#pragma once
+// One red cell in unbounded simple shear flow u = (rate y, 0, 0) (docs/FLOW.md, shear) as one
+// call: the cell of the parameters (SFS, equilibrium shape with its disc in the flow-vorticity
+// plane), the run over `rotations` rigid-sphere turns 4 pi / rate with snapshots, the observables
+// of flow/shear_observables.hpp and the per-frame series in physical units. `trbc flow shear`
+// writes its outputs from the result; trbc.flow_shear returns it.
+#include <Eigen/Core>
+#include <filesystem>
+#include <limits>
+#include <optional>
+#include <vector>
+
+#include "experiments/parameters.hpp"
+#include "flow/cell_flow.hpp"
+#include "flow/flow_case.hpp"
+#include "flow/shear_observables.hpp"
+
+namespace trbc {
+
+struct ShearCaseOptions {
+    double etaOut = std::numeric_limits<double>::quiet_NaN();     ///< outer viscosity, mPa s (required)
+    double shearRate = std::numeric_limits<double>::quiet_NaN();  ///< 1/s (required)
+    double etaIn = 10.0;                                          ///< cytosol viscosity, mPa s
+    CellParameters cell = paperTable1Cell();
+    bool allowOutsidePrior = false;
+    int level = 3;            ///< icosphere level of the cell mesh, 1..5
+    double rotations = 10.0;  ///< duration t_end = rotations 4 pi / rate
+    std::filesystem::path cacheDir;  ///< SFS cache; empty: none
+    FlowCaseStepping step;    ///< times in 1/rate
+};
+
+/// Throws InputError naming the option and its valid range: eta_out_mPa_s, shear_rate_per_s,
+/// eta_in_mPa_s in (0, 1e6], the cell inside the prior box (unless allowOutsidePrior), level in
+/// [1, 5], rotations in (0, 1000], the stepping options (validateStepping).
+void validateShearCaseOptions(const ShearCaseOptions& o);
+
+/// Per frame, in physical units.
+struct ShearFrameSeries {
+    std::vector<double> time;            ///< s
+    std::vector<double> shearStrain;     ///< rate t
+    std::vector<double> inclinationDeg;  ///< inclinationAngle
+    std::vector<double> orientationDeg;  ///< long axis in the x-y plane, unwrapped
+    std::vector<double> areaDrift, volumeDrift;  ///< A/A0 - 1, V/V0 - 1
+    Eigen::Matrix3Xd centroidUm;
+};
+
+struct ShearCaseResult {
+    bool completed = false;  ///< false: the run failed (message); the frames so far are kept
+    std::string message;
+    CellParameters cell;
+    FlowConditions conditions;
+    FlowScales scales;       ///< internal units: length R_A (um), time 1/rate (s)
+    FlowGroups groups;
+    double tEndSeconds = 0.0;
+    ShearCell prepared;      ///< SFS, mesh, Lim reference and initial shape (um), equilibrium diagnostics
+    CellFlowOptions integrator;  ///< the time stepping as run
+    CellFlowResult flow;     ///< internal units
+    ShearFrameSeries series;
+    std::optional<ShearObservables> observables;  ///< when completed (times in 1/rate)
+    double setupWallSeconds = 0.0;  ///< SFS and equilibrium
+    double wallSeconds = 0.0;       ///< the whole case
+};
+
+/// Runs the case. Bad options: InputError (validateShearCaseOptions; too few frames for the
+/// analysis, naming rotations and frame_interval). A failed run is no exception: completed =
+/// false with the integrator's reason.
+ShearCaseResult runShearCase(const ShearCaseOptions& o);
+
+}  // namespace trbc

@@ -1,0 +1,286 @@
+// The flow protocols as library calls (flow/shear_case.hpp, flow/tube_case.hpp) at level 1 and
+// short durations: a tank-treading and a tumbling cell in shear, a cell moving along a tube, the
+// stages, failures and the checks of the options. `trbc flow` writes its outputs from these
+// results (tests/test_cell_flow.cpp and tests/test_tube.cpp run the commands).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "flow/shear_case.hpp"
+#include "flow/tube_case.hpp"
+#include "mesh/geometry.hpp"
+
+namespace trbc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+ShearCaseOptions cheapShear(double etaOut, double rate) {
+    ShearCaseOptions o;
+    o.etaOut = etaOut;
+    o.shearRate = rate;
+    o.level = 1;
+    o.rotations = 3.0;
+    return o;
+}
+
+TubeCaseOptions cheapTube() {
+    TubeCaseOptions o;
+    o.radius = 3.3;
+    o.pressureGradient = 30.0;
+    o.level = 1;
+    o.wallPoints = 12;
+    o.settle = 0.0;
+    o.duration = 8.0;
+    o.step.frameInterval = 0.5;  // 17 frames: enough for the observables
+    return o;
+}
+
+/// The InputError of f(), empty when none is thrown.
+template <class F>
+std::string inputError(F&& f) {
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return {};
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+TEST(ShearCase, TankTreadingCellHasAFiniteInclinationAndMembraneFrequency) {
+    ShearCaseOptions o = cheapShear(28.9, 50.0);  // Ca ~ 1: tank-treading (docs/FLOW.md, shear)
+    std::vector<double> reported;
+    o.step.progress = [&](const FlowCaseProgress& p) {
+        EXPECT_EQ(p.stage, "main");
+        EXPECT_EQ(p.shapeUm.cols(), 42);
+        reported.push_back(p.t);
+    };
+    const ShearCaseResult r = runShearCase(o);
+    ASSERT_TRUE(r.completed) << r.message;
+    ASSERT_TRUE(r.observables.has_value());
+    const ShearObservables& obs = *r.observables;
+    EXPECT_EQ(obs.regime, ShearRegime::TankTreading);
+    // Inclined into the extensional quadrant of the flow, by less than 45 degrees.
+    EXPECT_TRUE(std::isfinite(obs.inclinationDeg));
+    EXPECT_GT(obs.inclinationDeg, 0.0);
+    EXPECT_LT(obs.inclinationDeg, 45.0);
+    EXPECT_TRUE(std::isfinite(obs.swingAmplitudeDeg));
+    EXPECT_GE(obs.swingAmplitudeDeg, 0.0);
+    // The membrane turns, slower than a rigid sphere (4 pi f / rate = 1).
+    ASSERT_TRUE(obs.ttf.defined);
+    EXPECT_GT(obs.ttf4piFOverRate, 0.0);
+    EXPECT_LT(obs.ttf4piFOverRate, 1.0);
+
+    // Units: time 1/rate, frames every 0.1 / rate up to 3 x 4 pi / rate; the series in s and um.
+    EXPECT_DOUBLE_EQ(r.scales.time, 1.0 / 50.0);
+    EXPECT_DOUBLE_EQ(r.tEndSeconds, 3.0 * 4.0 * kPi / 50.0);
+    const ShearFrameSeries& s = r.series;
+    ASSERT_EQ(s.time.size(), r.flow.frames.size());
+    EXPECT_EQ(s.centroidUm.cols(), static_cast<Eigen::Index>(s.time.size()));
+    EXPECT_NEAR(s.time.back(), r.tEndSeconds, 0.1 / 50.0);
+    for (std::size_t k = 0; k < s.time.size(); ++k) {
+        EXPECT_NEAR(s.shearStrain[k], 50.0 * s.time[k], 1e-9);
+        EXPECT_LT(std::abs(s.areaDrift[k]), 1e-3);
+        EXPECT_LT(s.centroidUm.col(static_cast<Eigen::Index>(k)).norm(), 0.05);  // stays at the origin (um)
+    }
+    EXPECT_NEAR(totalArea(r.flow.final * r.scales.length, r.prepared.faces), 135.0, 0.135);
+    // Progress at t = 0 and at every frame.
+    ASSERT_EQ(reported.size(), s.time.size());
+    EXPECT_EQ(reported.front(), 0.0);
+    EXPECT_NEAR(reported.back(), 3.0 * 4.0 * kPi, 0.1);
+}
+
+TEST(ShearCase, TumblingCellHasNoInclinationButAnAdvancingOrientation) {
+    // Viscosity ratio 10 at a low shear stress: the cell flips as a whole.
+    const ShearCaseResult r = runShearCase(cheapShear(1.0, 10.0));
+    ASSERT_TRUE(r.completed) << r.message;
+    const ShearObservables& obs = *r.observables;
+    EXPECT_EQ(obs.regime, ShearRegime::Tumbling);
+    // Clockwise (the vorticity is -rate/2 e_z): more than half a turn over the analysed window.
+    EXPECT_TRUE(std::isfinite(obs.orientationAdvance));
+    EXPECT_LT(obs.orientationAdvance, -kPi);
+    EXPECT_LT(r.series.orientationDeg.back(), r.series.orientationDeg.front() - 180.0);
+}
+
+TEST(ShearCase, AFailedRunIsAResultNotAnException) {
+    ShearCaseOptions o = cheapShear(28.9, 50.0);
+    o.step.maxSteps = 3;
+    const ShearCaseResult r = runShearCase(o);
+    EXPECT_FALSE(r.completed);
+    EXPECT_TRUE(contains(r.message, "step limit")) << r.message;
+    EXPECT_FALSE(r.observables.has_value());
+    EXPECT_EQ(r.series.time.size(), r.flow.frames.size());
+}
+
+TEST(ShearCase, BadOptionsThrowInputErrorNamingTheOption) {
+    struct Case {
+        std::function<void(ShearCaseOptions&)> change;
+        std::string name;
+    };
+    const std::vector<Case> cases = {
+        {[](ShearCaseOptions& o) { o.etaOut = std::nan(""); }, "parameter eta_out_mPa_s = nan mPa s"},
+        {[](ShearCaseOptions& o) { o.shearRate = -1.0; }, "shear_rate_per_s = -1 1/s: out of range (valid: (0, 1e+06] 1/s)"},
+        {[](ShearCaseOptions& o) { o.etaIn = 0.0; }, "eta_in_mPa_s"},
+        {[](ShearCaseOptions& o) { o.cell.v = 0.5; }, "parameter v = 0.5"},
+        {[](ShearCaseOptions& o) { o.level = 6; }, "level = 6: out of range (valid: [1, 5])"},
+        {[](ShearCaseOptions& o) { o.rotations = 0.0; }, "rotations"},
+        {[](ShearCaseOptions& o) { o.step.frameInterval = -0.1; }, "frame_interval = -0.1 1/rate"},
+        {[](ShearCaseOptions& o) { o.step.stepTolerance = 2.0; }, "step_tol = 2 R_A"},
+        {[](ShearCaseOptions& o) { o.step.dt = 200.0; }, "dt = 200 1/rate: out of range (valid: (0, 100] 1/rate)"},
+        {[](ShearCaseOptions& o) { o.step.maxSteps = 0; }, "max_steps"},
+        {[](ShearCaseOptions& o) { o.step.resume = true; }, "resume"},
+    };
+    for (const Case& c : cases) {
+        ShearCaseOptions o = cheapShear(28.9, 50.0);
+        c.change(o);
+        const std::string what = inputError([&] { runShearCase(o); });
+        EXPECT_TRUE(contains(what, c.name)) << c.name << ": " << what;
+    }
+    // A caller's names for the options (the CLI's).
+    ShearCaseOptions o = cheapShear(28.9, 0.0);
+    o.step.optionName = [](const std::string& name) { return name == "shear_rate_per_s" ? "--shear-rate" : name; };
+    EXPECT_TRUE(contains(inputError([&] { validateShearCaseOptions(o); }), "parameter --shear-rate = 0 1/s"));
+    // Too few frames for the analysis: the options that give more.
+    o = cheapShear(28.9, 50.0);
+    o.rotations = 0.1;
+    o.step.frameInterval = 0.5;
+    const std::string few = inputError([&] { runShearCase(o); });
+    EXPECT_TRUE(contains(few, "give more rotations (now 0.1) or a smaller frame_interval (now 0.5)")) << few;
+}
+
+TEST(TubeCase, CellMovesDownstreamSlowerThanTheCentreLine) {
+    TubeCaseOptions o = cheapTube();
+    int progressCalls = 0;
+    o.step.progress = [&](const FlowCaseProgress& p) {
+        EXPECT_EQ(p.stage, "main");
+        ++progressCalls;
+    };
+    const TubeCaseResult r = runTubeCase(o);
+    ASSERT_TRUE(r.completed) << r.message;
+    EXPECT_EQ(r.stage, TubeCaseStage::Main);
+    EXPECT_FALSE(r.settling.ran);
+    ASSERT_TRUE(r.main.observables.has_value());
+    // Units: V = 30 / 45 cm/s, R / V, U_c = G R^2 / (4 eta) with G = 30 x 1.33322e5 Pa/m.
+    const TubeUnits& u = r.units;
+    EXPECT_NEAR(u.velocityScale, 30.0 / 45.0 * 1e4, 1e-9);
+    EXPECT_NEAR(u.timeUnit, 3.3 / u.velocityScale, 1e-15);
+    EXPECT_NEAR(u.centreLineVelocity, 30.0 * 1.33322e5 * 3.3e-6 * 3.3e-6 / (4.0 * 1.003e-3) * 1e6, 1e-6);
+    EXPECT_NEAR(r.scales.time, u.timeUnit, 1e-15);
+    // The equilibrium disc (7.8 um) is squeezed into the tube, keeping at least 0.1 R from the wall.
+    EXPECT_GT(r.fit.equilibriumExtentsUm.z(), 2.0 * 3.3);
+    EXPECT_GE(r.fit.clearanceUm, 0.1 * 3.3 - 1e-9);
+    EXPECT_LE(r.fit.fittedExtentsUm.z(), 2.0 * (3.3 - 0.1 * 3.3) + 1e-9);
+    const TubeObservables& ob = *r.main.observables;
+    EXPECT_TRUE(std::isfinite(ob.velocity));
+    EXPECT_GT(ob.velocity, 0.0);                       // downstream (+x)
+    EXPECT_LT(ob.velocity, u.centreLineVelocity);      // slower than the centre line
+    EXPECT_GT(ob.velocity, 0.3 * u.centreLineVelocity);
+    EXPECT_GT(ob.length, ob.widthY);                   // stretched along the axis
+    EXPECT_LT(ob.widthY, 2.0 * 3.3);
+    EXPECT_LT(ob.widthZ, 2.0 * 3.3);
+    // Series: 17 frames, the centroid moving along the axis, the cell clear of the wall.
+    const TubeFrameSeries& s = r.main.series;
+    ASSERT_EQ(s.time.size(), 17u);
+    EXPECT_EQ(progressCalls, 17);
+    for (std::size_t k = 1; k < s.time.size(); ++k) {
+        EXPECT_GT(s.centroidUm(0, Eigen::Index(k)), s.centroidUm(0, Eigen::Index(k - 1)));
+        EXPECT_NEAR(s.time[k], s.timeROverV[k] * u.timeUnit, 1e-15);
+        EXPECT_GT(s.clearanceUm[k], 0.0);
+    }
+    EXPECT_GT(r.main.minClearanceUm, 0.0);
+    EXPECT_LT(r.main.maxOffAxisUm, 1e-3);
+}
+
+TEST(TubeCase, SettlingStageStartsTheMainStageFromItsShape) {
+    TubeCaseOptions o = cheapTube();
+    o.settle = 10.0;
+    o.duration = 2.0;  // 5 frames: no observables
+    std::vector<std::string> stages;
+    o.step.progress = [&](const FlowCaseProgress& p) {
+        if (stages.empty() || stages.back() != p.stage) stages.emplace_back(p.stage);
+    };
+    const TubeCaseResult r = runTubeCase(o);
+    ASSERT_TRUE(r.completed) << r.message;
+    EXPECT_EQ(stages, (std::vector<std::string>{"settling", "main"}));
+    ASSERT_TRUE(r.settling.ran);
+    ASSERT_TRUE(r.main.ran);
+    // The settling stage's membrane viscosity: 1.5 mu R / V (below the cell's own).
+    EXPECT_TRUE(r.settlingViscosity.fromRelax);
+    EXPECT_NEAR(r.settling.cell.etam, 1.5 * o.cell.mu * 3.3 / (30.0 / 45.0 * 1e4), 1e-12);
+    EXPECT_EQ(r.main.cell.etam, o.cell.etam);
+    EXPECT_GT(r.settling.flow.tReached, 0.0);
+    EXPECT_LE(r.settling.flow.tReached, 10.0 + 1e-9);
+    EXPECT_TRUE(r.settling.series.time.size() >= 2u);
+    EXPECT_TRUE(r.settling.startUm.isApprox(r.fit.initialUm));
+    EXPECT_TRUE(r.main.startUm.isApprox(r.settling.flow.final * r.scales.length));
+    EXPECT_FALSE(r.main.observables.has_value());
+}
+
+TEST(TubeCase, FailuresAreResultsNamingTheStage) {
+    TubeCaseOptions o = cheapTube();
+    o.settle = 10.0;
+    o.step.maxSteps = 2;
+    TubeCaseResult r = runTubeCase(o);
+    EXPECT_FALSE(r.completed);
+    EXPECT_EQ(r.stage, TubeCaseStage::Settling);
+    EXPECT_TRUE(contains(r.message, "settling stage: ")) << r.message;
+    EXPECT_FALSE(r.main.ran);
+    o.settle = 0.0;
+    r = runTubeCase(o);
+    EXPECT_EQ(r.stage, TubeCaseStage::Main);
+    EXPECT_TRUE(contains(r.message, "main stage: ")) << r.message;
+    // The tube of the smallest radius holds the cell's area and volume only as a capsule, which the
+    // affine fit of the disc does not reach.
+    o = cheapTube();
+    o.radius = 1.5;
+    r = runTubeCase(o);
+    EXPECT_FALSE(r.completed);
+    EXPECT_EQ(r.stage, TubeCaseStage::Fit);
+    EXPECT_TRUE(contains(r.message, "cannot be fitted into a tube of radius_um 1.5 um")) << r.message;
+}
+
+TEST(TubeCase, BadOptionsThrowInputErrorNamingTheOption) {
+    struct Case {
+        std::function<void(TubeCaseOptions&)> change;
+        std::string name;
+    };
+    const std::vector<Case> cases = {
+        {[](TubeCaseOptions& o) { o.radius = 1.2; }, "radius_um = 1.2 um: out of range (valid: [1.4967, 100] um)"},
+        {[](TubeCaseOptions& o) { o.pressureGradient = std::nan(""); }, "pressure_gradient_mmHg_per_mm"},
+        {[](TubeCaseOptions& o) { o.etaOut = -1.0; }, "eta_out_mPa_s"},
+        {[](TubeCaseOptions& o) { o.viscosityRatio = 2.0; }, "viscosity_ratio = 2: out of range (valid: [1, 1])"},
+        {[](TubeCaseOptions& o) { o.cell.mu = 20.0; }, "mu_uN_per_m = 20"},
+        {[](TubeCaseOptions& o) { o.level = 5; }, "level"},
+        {[](TubeCaseOptions& o) { o.duration = 0.0; }, "duration_R_over_V"},
+        {[](TubeCaseOptions& o) { o.settle = 5.0; }, "settle_R_over_V = 5 R/V: the settling criterion spans 10 R/V"},
+        {[](TubeCaseOptions& o) { o.settleRelax = 0.0; }, "settle_relax_R_over_V"},
+        {[](TubeCaseOptions& o) { o.settleEtam = 0.0; }, "settle_etam_Pa_s_um"},
+        {[](TubeCaseOptions& o) { o.settleTolerance = 0.0; }, "settle_tol"},
+        {[](TubeCaseOptions& o) { o.wallPoints = 500; }, "wall_points"},
+        {[](TubeCaseOptions& o) { o.repulsionRange = 0.0; }, "repulsion_range_um"},
+        {[](TubeCaseOptions& o) { o.repulsionPressure = -1.0; }, "repulsion_pressure"},
+        {[](TubeCaseOptions& o) { o.step.frameInterval = 0.0; }, "frame_interval = 0 R/V"},
+        // Checked once the cell is fitted: the wall must hold it.
+        {[](TubeCaseOptions& o) { o.tubeLength = 5.0; }, "tube_length_um = 5 um: must exceed the fitted cell's length"},
+        {[](TubeCaseOptions& o) { o.radius = 60.0; o.wallPoints = 400; }, "fewer wall_points or a shorter tube_length_um"},
+    };
+    for (const Case& c : cases) {
+        TubeCaseOptions o = cheapTube();
+        c.change(o);
+        const std::string what = inputError([&] { runTubeCase(o); });
+        EXPECT_TRUE(contains(what, c.name)) << c.name << ": " << what;
+    }
+    TubeCaseOptions o = cheapTube();
+    o.settle = 5.0;
+    o.step.optionName = [](const std::string& name) { return name == "settle_R_over_V" ? "--settle" : name; };
+    EXPECT_TRUE(contains(inputError([&] { validateTubeCaseOptions(o); }), "parameter --settle = 5 R/V"));
+}
+
+}  // namespace
+}  // namespace trbc
