@@ -19,6 +19,7 @@
 #include "flow/cell_flow_checkpoint.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/validate.hpp"
+#include "solvers/bdf2.hpp"
 
 namespace trbc {
 namespace {
@@ -364,7 +365,17 @@ void checkOptions(const CellFlowOptions& o) {
     requirePositive("maxDrift", o.maxDrift, "");
 }
 
-double maxNorm(const Vertices& D) { return D.colwise().norm().maxCoeff(); }
+/// The step control of the options (docs/FLOW.md, step control).
+bdf2::StepControl stepControl(const CellFlowOptions& o) {
+    bdf2::StepControl c;
+    c.tolerance = o.errorTolerance;
+    c.adaptive = o.adaptive;
+    c.dtInitial = o.dtInitial;
+    c.dtMin = o.dtMin;
+    c.dtMax = o.dtMax;
+    c.firstStepGrowth = bdf2::kMaxGrowth;
+    return c;
+}
 
 /// Gauss-Newton projection onto A = A0, V = V0 (moves along dA/dx and dV/dx; a few iterations).
 void projectAreaVolume(Vertices& X, const Faces& F, double A0, double V0) {
@@ -410,13 +421,13 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
 /// restore against a colliding or hand-made file all the same.
 bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* env) {
     const CellFlowState& st = s.state;
-    for (const Vertices* M : {&st.X, &st.Xprev, &st.Xprev2, &st.U})
+    for (const Vertices* M : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2, &st.U})
         if (M->cols() != nv) return false;
     if (s.result.final.cols() != 0 && s.result.final.cols() != nv) return false;  // set only when finished
     for (const Vertices& f : s.result.frames)
         if (f.cols() != nv) return false;
     const std::size_t frames = s.result.times.size();
-    return st.history >= 0 && st.nextFrame >= 1 && st.nextFrame <= frames + 1 && st.framesChecked <= frames &&
+    return st.steps.accepted >= 0 && st.nextFrame >= 1 && st.nextFrame <= frames + 1 && st.framesChecked <= frames &&
            s.result.areaDrift.size() == frames && s.result.volumeDrift.size() == frames &&
            s.environmentRecords.size() == (env ? env->records().size() : 0);
 }
@@ -497,9 +508,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         if (opt.keepFrames) res.frames.push_back(X);
         if (observer) observer(t, X);
     };
-    CellFlowState state{.X = initial, .Xprev = initial, .Xprev2 = initial, .U = Vertices::Zero(3, nv),
+    CellFlowState state{.steps = bdf2::History(initial), .U = Vertices::Zero(3, nv),
                         .dt = std::min(opt.dtInitial, opt.dtMax), .nextFrame = 1, .framesChecked = 1};
-    auto& [X, Xprev, Xprev2, U, tension, dtPrev, dtPrev2, t, dt, history, nextFrame, framesChecked] = state;
+    auto& [history, U, tension, t, dt, nextFrame, framesChecked] = state;
+    const bdf2::StepControl control = stepControl(opt);
     Vertices Xnew(3, nv);
     const auto frameTime = [&](std::size_t k) { return static_cast<double>(k) * opt.frameInterval; };
     double wallBefore = 0.0;  // of the parts before the snapshot resumed
@@ -545,13 +557,13 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         ++res.resumes;
         res.resumedAt = t;
     } else {
-        recordFrame(0.0, X);
+        recordFrame(0.0, history.X);
     }
 
     auto finish = [&](bool ok, std::string msg) {
         res.completed = ok;
         res.message = std::move(msg);
-        res.final = X;
+        res.final = history.X;
         res.tReached = t;
         res.wallSeconds = wallSoFar();
         if (res.steps == 0) res.dtSmallest = res.dtLargest = 0.0;
@@ -559,29 +571,14 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         return res;
     };
 
-    while (t < opt.tEnd * (1.0 - 1e-12)) {
+    while (!bdf2::reaches(t, opt.tEnd)) {
         if (res.steps + res.rejectedSteps + res.failedSolves >= opt.maxSteps)
             return finish(false, fmt::format("step limit {} reached at t = {:.6g}", opt.maxSteps, t));
-        double h = std::min(dt, opt.dtMax);
-        if (history >= 1) h = std::min(h, 2.4 * dtPrev);  // zero-stability of variable-step BDF2
-        if (t + h >= opt.tEnd * (1.0 - 1e-12)) h = opt.tEnd - t;
-        // BDF2 coefficients (implicit Euler for the first step) and the predictor X*.
-        double c0 = 1.0;
-        Vertices Y = X, Xpred = X;
-        if (history >= 1) {
-            const double w = h / dtPrev;
-            c0 = (1.0 + 2.0 * w) / (1.0 + w);
-            Y = ((1.0 + w) * X - (w * w / (1.0 + w)) * Xprev) / c0;
-            Xpred = X + w * (X - Xprev);
-            if (history >= 2) {
-                const double ta = -dtPrev - dtPrev2, tb = -dtPrev, tc = 0.0, tp = h;
-                const double la = (tp - tb) * (tp - tc) / ((ta - tb) * (ta - tc));
-                const double lb = (tp - ta) * (tp - tc) / ((tb - ta) * (tb - tc));
-                const double lc = (tp - ta) * (tp - tb) / ((tc - ta) * (tc - tb));
-                Xpred = la * Xprev2 + lb * Xprev + lc * X;
-            }
-        }
-        const double alpha = h / c0;
+        const bdf2::Step step = control.propose(dt, history, t, opt.tEnd);
+        const double h = step.h;
+        const bdf2::Coefficients coef = bdf2::coefficients(history, h);
+        const Vertices Y = coef.historyTerm(history.X, history.Xprev), Xpred = bdf2::predictor(history, h);
+        const double alpha = h / coef.c0;
         double stepTension = tension, stepFlux = 0.0;
         bool solved = false;
         std::string failure;
@@ -597,7 +594,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
                 (A0 - sys.area() - (sys.areaGradient().array() * (Y - Xpred).array()).sum()) / alpha;
             const double volumeRate =
                 (V0 - sys.volume() - (sys.volumeGradient().array() * (Y - Xpred).array()).sum()) / alpha;
-            const Vertices guess = history >= 1 ? Vertices((Xpred - Y) / alpha) : U;
+            const Vertices guess = history.accepted >= 1 ? Vertices((Xpred - Y) / alpha) : U;
             const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate, guess, tension);
             iterations = s.gmres.iterations;
             if (s.gmres.converged && s.u.allFinite() && std::isfinite(s.tension)) {
@@ -620,39 +617,31 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         res.maxGmresIterations = std::max(res.maxGmresIterations, iterations);
         if (!solved) {
             ++res.failedSolves;
-            dt = 0.25 * h;
-            if (dt < opt.dtMin)
-                return finish(false, fmt::format("solver diverged at t = {:.6g} (step {:.3g} < dtMin {:.3g}): {}", t, dt,
+            const bdf2::Verdict v = control.afterFailedSolve(step);
+            if (v.outcome == bdf2::Outcome::Fail)
+                return finish(false, fmt::format("solver diverged at t = {:.6g} (step {:.3g} < dtMin {:.3g}): {}", t, v.dt,
                                                  opt.dtMin, failure));
+            dt = v.dt;
             continue;
         }
-        double err = 0.0, factor = 2.0;
-        if (history >= 2) err = (2.0 / 11.0) * maxNorm(Xnew - Xpred);  // also logged with fixed steps
-        if (opt.adaptive && history >= 2) {
-            if (!(err <= opt.errorTolerance)) {
-                ++res.rejectedSteps;
-                dt = h * std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 0.9);
-                if (dt < opt.dtMin)
-                    return finish(false, fmt::format("step size fell below dtMin = {:.3g} at t = {:.6g} (error {:.3g})",
-                                                     opt.dtMin, t, err));
-                continue;
-            }
-            factor = std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 2.0);
+        const double err = history.accepted >= 2 ? bdf2::localError(Xnew, Xpred) : 0.0;  // also logged with fixed steps
+        const bdf2::Verdict verdict = control.judge(step, err, history);
+        if (verdict.outcome != bdf2::Outcome::Accept) {
+            ++res.rejectedSteps;
+            if (verdict.outcome == bdf2::Outcome::Fail)
+                return finish(false, fmt::format("step size fell below dtMin = {:.3g} at t = {:.6g} (error {:.3g})",
+                                                 opt.dtMin, t, err));
+            dt = verdict.dt;
+            continue;
         }
         // Accept; remove the second-order area and volume drift of the linearised step.
         const double areaCorrection = totalArea(Xnew, F) / A0 - 1.0, volumeCorrection = enclosedVolume(Xnew, F) / V0 - 1.0;
         projectAreaVolume(Xnew, F, A0, V0);
         tension = stepTension;
-        Xprev2.swap(Xprev);
-        Xprev.swap(X);
-        X.swap(Xnew);
-        dtPrev2 = dtPrev;
-        dtPrev = h;
-        ++history;
+        history.accept(Xnew, h);
         ++res.steps;
         const double tOld = t;
-        t += h;
-        if (opt.tEnd - t < 1e-12 * opt.tEnd) t = opt.tEnd;
+        t = step.end;
         res.dtSmallest = std::min(res.dtSmallest, h);
         res.dtLargest = std::max(res.dtLargest, h);
         CellFlowStepRecord rec;
@@ -663,8 +652,8 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         rec.tension = tension;
         rec.fluxCorrection = stepFlux;
         res.maxFluxCorrection = std::max(res.maxFluxCorrection, std::abs(stepFlux));
-        rec.areaDrift = totalArea(X, F) / A0 - 1.0;
-        rec.volumeDrift = enclosedVolume(X, F) / V0 - 1.0;
+        rec.areaDrift = totalArea(history.X, F) / A0 - 1.0;
+        rec.volumeDrift = enclosedVolume(history.X, F) / V0 - 1.0;
         rec.areaCorrection = areaCorrection;
         rec.volumeCorrection = volumeCorrection;
         res.stepLog.push_back(rec);
@@ -674,28 +663,16 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         res.maxVolumeCorrection = std::max(res.maxVolumeCorrection, std::abs(volumeCorrection));
         res.sumAreaCorrection += std::abs(areaCorrection);
         res.sumVolumeCorrection += std::abs(volumeCorrection);
-        // Frames in (tOld, t]: quadratic through the last three states (linear after one step).
-        while (frameTime(nextFrame) <= t * (1.0 + 1e-12) + 1e-14) {
-            const double ts = std::min(frameTime(nextFrame), t);
-            if (history < 2) {
-                const double a = (ts - tOld) / h;
-                recordFrame(frameTime(nextFrame), Vertices((1.0 - a) * Xprev + a * X));
-            } else {
-                const double ta = tOld - dtPrev2, tb = tOld, tc = t;
-                const double la = (ts - tb) * (ts - tc) / ((ta - tb) * (ta - tc));
-                const double lb = (ts - ta) * (ts - tc) / ((tb - ta) * (tb - tc));
-                const double lc = (ts - ta) * (ts - tb) / ((tc - ta) * (tc - tb));
-                recordFrame(frameTime(nextFrame), Vertices(la * Xprev2 + lb * Xprev + lc * X));
-            }
-            ++nextFrame;
-        }
+        // Frames in (tOld, t]: BDF2's dense output.
+        for (; bdf2::covers(t, frameTime(nextFrame)); ++nextFrame)
+            recordFrame(frameTime(nextFrame), bdf2::interpolate(history, tOld, t, frameTime(nextFrame)));
         if (!(std::abs(areaCorrection) <= opt.maxDrift) || !(std::abs(volumeCorrection) <= opt.maxDrift) ||
             !(std::abs(rec.areaDrift) <= opt.maxDrift) || !(std::abs(rec.volumeDrift) <= opt.maxDrift))
             return finish(false, fmt::format("diverged at t = {:.6g}: area change {:.3g}, volume change {:.3g} in one "
                                              "step (limit {:.3g})",
                                              t, areaCorrection, volumeCorrection, opt.maxDrift));
         if (env) {
-            const std::string why = env->inadmissible(X);
+            const std::string why = env->inadmissible(history.X);
             if (!why.empty()) return finish(false, fmt::format("stopped at t = {:.6g}: {}", t, why));
         }
         if (opt.stopWhen && res.times.size() > framesChecked) {
@@ -705,7 +682,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
                 return finish(true, fmt::format("stop criterion met at t = {:.6g}", t));
             }
         }
-        dt = opt.adaptive ? std::min(opt.dtMax, h * factor) : opt.dtInitial;
+        dt = verdict.dt;
         if (snapshots && std::chrono::duration<double>(Clock::now() - lastSnapshot).count() >= cp.intervalSeconds) {
             snapshot();
             lastSnapshot = Clock::now();

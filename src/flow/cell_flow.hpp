@@ -44,14 +44,11 @@
 // operators, M, Gamma and the constraint gradients frozen at X*. This is A-stable for the stiff
 // modes (bending and Lim at the grid scale; the area constraint is exact), so the step is set by
 // accuracy, not by stiffness: an explicit step would be limited to ~ eta h^3 / kb for bending
-// at mesh size h, and a stiff area penalty kA to ~ eta R_A / kA. The local error is estimated
-// against the explicit quadratic predictor (Milne's device, err = 2/11 max_i |X_i^{n+1} - X*_i|)
-// and the step adapted to errorTolerance (R_A units): h_new = h min(2, max(0.2, 0.9
-// (tol / err)^(1/3))), steps with err > tol rejected and retried with h (0.2..0.9) (tol/err)^(1/3),
-// step ratio capped at 2.4 (zero-stability of variable-step BDF2), a GMRES failure retried
-// with h / 4. The tank-treading motion itself (vertices turning at rate ~ shear rate) sets the
-// step: ~0.3-0.5 / rate at tol = 1e-3. Frames are interpolated at fixed times from the last
-// three states (BDF2 dense output).
+// at mesh size h, and a stiff area penalty kA to ~ eta R_A / kA. The BDF2 coefficients, the
+// predictor, the error estimate (Milne's device), the step control (errorTolerance in R_A units,
+// a GMRES failure retried with h / 4) and the dense output of the frames are those of the one
+// BDF2 stepper, solvers/bdf2.hpp. The tank-treading motion itself (vertices turning at rate ~
+// shear rate) sets the step: ~0.3-0.5 / rate at tol = 1e-3.
 #include <Eigen/Core>
 #include <filesystem>
 #include <functional>

@@ -12,16 +12,18 @@
 #include <vector>
 
 #include "flow/cell_flow.hpp"
+#include "solvers/bdf2.hpp"
 
 namespace trbc {
 
 /// What the next BDF2 step of integrateCellFlow reads: the integrator works on this struct, so a
 /// snapshot holds it whole.
 struct CellFlowState {
-    Vertices X, Xprev, Xprev2, U;  ///< states at t, t - dtPrev, t - dtPrev - dtPrev2; last velocity
-    double tension = 0.0;          ///< area multiplier of the last accepted step
-    double dtPrev = 0.0, dtPrev2 = 0.0, t = 0.0, dt = 0.0;
-    int history = 0;                ///< accepted steps (BDF2 needs two)
+    bdf2::History steps;            ///< the last three states and the steps between them
+    Vertices U;                     ///< last velocity
+    double tension = 0.0;           ///< area multiplier of the last accepted step
+    double t = 0.0;                 ///< time of steps.X
+    double dt = 0.0;                ///< the step to ask for next
     std::uint64_t nextFrame = 0;    ///< index of the next frame time
     std::uint64_t framesChecked = 0;  ///< frames the stop criterion has seen
 };

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "solvers/bdf2.hpp"
 
 namespace trbc {
 namespace {
@@ -96,7 +97,18 @@ MinimizeResult bdfStep(const MembraneModel& model, const Vertices& Xf, const Ver
     return r;
 }
 
-double maxNorm(const Vertices& D) { return D.colwise().norm().maxCoeff(); }
+// The step control of the options. The first step keeps its size for the first BDF2 step
+// (bdf2::StepControl::firstStepGrowth): a relaxation starts in its fastest transient.
+bdf2::StepControl stepControl(const ViscousDynamicsOptions& opt) {
+    bdf2::StepControl c;
+    c.tolerance = opt.errorTolerance;
+    c.adaptive = opt.adaptive;
+    c.dtInitial = opt.dtInitial;
+    c.dtMin = opt.dtMin;
+    c.dtMax = opt.dtMax > 0 ? opt.dtMax : opt.tEnd;
+    c.firstStepGrowth = 1.0;
+    return c;
+}
 
 }  // namespace
 
@@ -123,122 +135,68 @@ ViscousDynamicsResult integrateViscous(const MembraneModel& model, Vertices& X, 
 
     ViscousDynamicsResult res;
     res.dtSmallest = std::numeric_limits<double>::infinity();
-    const double dtMax = opt.dtMax > 0 ? opt.dtMax : opt.tEnd;
-    // History: X_n (current), X_{n-1}, X_{n-2} with step sizes.
-    Vertices Xprev = X, Xprev2 = X;
-    Vertices V = Vertices::Zero(3, X.cols()), Vprev = V;  // velocities (inertial case), start at rest
-    double dtPrev = 0.0, dtPrev2 = 0.0;
-    int history = 0;  // number of completed steps
-    double t = 0.0, dt = std::min(opt.dtInitial, dtMax);
-    Vertices Xnew(3, X.cols());
+    const bdf2::StepControl control = stepControl(opt);
+    bdf2::History history(X);
+    // Velocities (inertial case), started at rest, stepped with the same BDF2 formula.
+    Vertices V = Vertices::Zero(3, X.cols()), Vprev = V;
+    double t = 0.0, dt = std::min(opt.dtInitial, control.dtMax);
+    // The integrator works on the history; X follows it on every return.
+    const auto stop = [&](std::string message) {
+        X = history.X;
+        res.message = std::move(message);
+        return res;
+    };
 
-    while (t < opt.tEnd * (1 - 1e-14)) {
+    while (!bdf2::reaches(t, opt.tEnd)) {
         if (opt.inner.interruptCheck) opt.inner.interruptCheck();
-        if (deadlinePassed(opt.inner.deadline)) {
-            res.message = fmt::format("time limit reached at t = {:.6g}", t);
-            return res;
-        }
-        const double target = samples[nextSample];
-        bool hitsSample = false;
-        double h = dt;
-        if (history >= 1) h = std::min(h, 2.4 * dtPrev);  // variable-step BDF2 is zero-stable for w < 1 + sqrt 2
-        if (!opt.interpolateSamples && t + h >= target * (1 - 1e-12)) {
-            h = target - t;
-            hitsSample = true;
-        }
-        if (t + h >= opt.tEnd * (1 - 1e-12)) {
-            h = opt.tEnd - t;
-            hitsSample = !opt.interpolateSamples;
-        }
-        double c0 = 1.0;
-        Vertices Y = X, Yv = V;
-        Vertices Xpred = X;
-        if (history >= 1) {
-            const double w = h / dtPrev;
-            c0 = (1 + 2 * w) / (1 + w);
-            Y = ((1 + w) * X - (w * w / (1 + w)) * Xprev) / c0;
-            if (opt.vertexMass > 0) Yv = ((1 + w) * V - (w * w / (1 + w)) * Vprev) / c0;
-            Xpred = X + w * (X - Xprev);
-            if (history >= 2) {
-                // Quadratic extrapolation through (t-dtPrev-dtPrev2, t-dtPrev, t).
-                const double t0 = -dtPrev - dtPrev2, t1 = -dtPrev, t2 = 0.0, tp = h;
-                const double l0 = (tp - t1) * (tp - t2) / ((t0 - t1) * (t0 - t2));
-                const double l1 = (tp - t0) * (tp - t2) / ((t1 - t0) * (t1 - t2));
-                const double l2 = (tp - t0) * (tp - t1) / ((t2 - t0) * (t2 - t1));
-                Xpred = l0 * Xprev2 + l1 * Xprev + l2 * X;
-            }
-        }
-        Xnew = Xpred;
-        const MinimizeResult inner = bdfStep(model, Xpred, Y, Yv, c0, h, opt, fext, Xnew);
+        if (deadlinePassed(opt.inner.deadline)) return stop(fmt::format("time limit reached at t = {:.6g}", t));
+        // Steps land on every sample, or only on tEnd when the samples are interpolated.
+        const double target = opt.interpolateSamples ? opt.tEnd : samples[nextSample];
+        const bdf2::Step step = control.propose(dt, history, t, target);
+        const bdf2::Coefficients coef = bdf2::coefficients(history, step.h);
+        const Vertices Y = coef.historyTerm(history.X, history.Xprev);
+        const Vertices Yv = opt.vertexMass > 0 ? coef.historyTerm(V, Vprev) : V;
+        const Vertices Xpred = bdf2::predictor(history, step.h);
+        Vertices Xnew = Xpred;
+        const MinimizeResult inner = bdfStep(model, Xpred, Y, Yv, coef.c0, step.h, opt, fext, Xnew);
         res.evaluations += inner.evaluations;
         if (!inner.converged) {
             ++res.rejectedSteps;
-            dt = 0.25 * h;
-            if (dt < opt.dtMin) {
-                res.message = fmt::format("step size fell below {:.3g} at t = {:.6g}: {}", opt.dtMin, t,
-                                          inner.message);
-                return res;
-            }
+            const bdf2::Verdict v = control.afterFailedSolve(step);
+            if (v.outcome == bdf2::Outcome::Fail)
+                return stop(fmt::format("step size fell below {:.3g} at t = {:.6g}: {}", opt.dtMin, t, inner.message));
+            dt = v.dt;
             continue;
         }
-        double factor = 2.0;
-        if (opt.adaptive && history >= 2) {
-            const double err = (2.0 / 11.0) * maxNorm(Xnew - Xpred);  // BDF2 vs quadratic predictor
-            if (err > opt.errorTolerance) {
-                ++res.rejectedSteps;
-                dt = std::max(opt.dtMin, h * std::max(0.2, 0.9 * std::cbrt(opt.errorTolerance / err)));
-                if (h <= opt.dtMin) {
-                    res.message = fmt::format("step size fell below {:.3g} at t = {:.6g}", opt.dtMin, t);
-                    return res;
-                }
-                continue;
-            }
-            factor = std::clamp(0.9 * std::cbrt(opt.errorTolerance / std::max(err, 1e-300)), 0.2, 2.0);
+        const double err = history.accepted >= 2 ? bdf2::localError(Xnew, Xpred) : 0.0;
+        const bdf2::Verdict v = control.judge(step, err, history);
+        if (v.outcome != bdf2::Outcome::Accept) {
+            ++res.rejectedSteps;
+            if (v.outcome == bdf2::Outcome::Fail)
+                return stop(fmt::format("step size fell below {:.3g} at t = {:.6g}", opt.dtMin, t));
+            dt = v.dt;
+            continue;
         }
-        // Accept.
         if (opt.vertexMass > 0) {
             Vprev.swap(V);
-            V = (c0 / h) * (Xnew - Y);
+            V = (coef.c0 / step.h) * (Xnew - Y);
         }
-        Xprev2.swap(Xprev);
-        Xprev.swap(X);
-        X.swap(Xnew);
-        dtPrev2 = dtPrev;
-        dtPrev = h;
-        ++history;
+        history.accept(Xnew, step.h);
         ++res.steps;
-        t += h;
-        res.dtSmallest = std::min(res.dtSmallest, h);
-        res.dtLargest = std::max(res.dtLargest, h);
-        if (hitsSample) {
-            t = target;
-            if (observer) observer(t, X);
+        const double tStart = t;
+        t = step.end;
+        res.dtSmallest = std::min(res.dtSmallest, step.h);
+        res.dtLargest = std::max(res.dtLargest, step.h);
+        if (opt.interpolateSamples) {
+            for (; nextSample < samples.size() && bdf2::covers(t, samples[nextSample]); ++nextSample)
+                if (observer) observer(samples[nextSample], bdf2::interpolate(history, tStart, t, samples[nextSample]));
+        } else if (step.landed) {
+            if (observer) observer(t, history.X);
             ++nextSample;
-        } else if (opt.interpolateSamples) {
-            // Dense output: quadratic through (t - h - dtPrev2, t - h, t), the BDF2 interpolant.
-            const double tNew = t;
-            while (nextSample < samples.size() && samples[nextSample] <= tNew * (1 + 1e-12)) {
-                const double ts = samples[nextSample++];
-                if (history < 2) {
-                    const double a = (ts - (tNew - h)) / h;
-                    if (observer) observer(ts, Vertices((1 - a) * Xprev + a * X));
-                    continue;
-                }
-                const double t0 = tNew - h - dtPrev2, t1 = tNew - h, t2 = tNew;
-                const double l0 = (ts - t1) * (ts - t2) / ((t0 - t1) * (t0 - t2));
-                const double l1 = (ts - t0) * (ts - t2) / ((t1 - t0) * (t1 - t2));
-                const double l2 = (ts - t0) * (ts - t1) / ((t2 - t0) * (t2 - t1));
-                if (observer) observer(ts, Vertices(l0 * Xprev2 + l1 * Xprev + l2 * X));
-            }
-            if (tNew >= opt.tEnd * (1 - 1e-12)) t = opt.tEnd;
         }
-        if (opt.adaptive) {
-            // After a step shortened to hit a sample, keep the step that the error control wanted.
-            dt = std::min(dtMax, std::max(hitsSample ? dt : h, h) * (history >= 2 ? factor : 1.0));
-        } else {
-            dt = opt.dtInitial;
-        }
+        dt = v.dt;
     }
+    X = history.X;
     res.completed = true;
     res.message = "completed";
     return res;

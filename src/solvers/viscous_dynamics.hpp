@@ -10,8 +10,9 @@
 // Y = ((1+w) X_n - w^2/(1+w) X_{n-1}) / c0, w = dt_n / dt_{n-1}; the first step is implicit
 // Euler, c0 = 1, Y = X_n; X* is the extrapolated state, so that the scheme stays second order
 // although Gamma depends on X). Unconditionally stable for the stiff area/volume penalties, so the
-// step follows the physics (the relaxation time) rather than the stiffest mode. The local error is
-// estimated against a quadratic predictor (Milne's device) and the step adapted to a tolerance.
+// step follows the physics (the relaxation time) rather than the stiffest mode. Coefficients,
+// predictor, error estimate (Milne's device), step control and dense output are those of the one
+// BDF2 stepper, solvers/bdf2.hpp.
 #include <functional>
 #include <string>
 #include <vector>
@@ -29,9 +30,9 @@ struct ViscousDynamicsOptions {
     double tEnd = 1.0;
     double dtInitial = 1e-4;
     double dtMax = 0.0;               ///< 0: no cap beyond tEnd
-    double dtMin = 1e-14;
+    double dtMin = 1e-14;             ///< a retry step below this ends the run (not completed)
     double errorTolerance = 1e-4;     ///< local error per step, max vertex displacement (length)
-    bool adaptive = true;             ///< false: fixed step dtInitial
+    bool adaptive = true;             ///< false: fixed step dtInitial (at most dtMax)
     /// false: steps are shortened to land on every sample time; true: steps follow the error
     /// control alone and samples are interpolated (BDF2 quadratic through the last three states)
     bool interpolateSamples = false;
@@ -66,7 +67,8 @@ struct ViscousDynamicsResult {
     std::string message;
 };
 
-/// Called at t = 0 and at every requested sample time (exactly hit by the stepper).
+/// Called at t = 0 and at every requested sample time (landed on by the steps, or interpolated with
+/// interpolateSamples).
 using DynamicsObserver = std::function<void(double t, const Vertices& X)>;
 
 /// Integrates from X (updated in place) to options.tEnd.
