@@ -195,7 +195,7 @@ void registerCalibrate(CLI::App& app) {
         forwardSignalsToChildren();
         Pipeline P(cfg, out);
         P.exe = fs::read_symlink("/proc/self/exe");
-        P.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
+        P.scripts = scriptDirectory();
         P.python = pythonInterpreter();
         P.threads = o->threads > 0 ? o->threads : cfg.threads;
         P.quiet = o->quiet;
@@ -326,7 +326,7 @@ void registerCalibrate(CLI::App& app) {
         // Transferability: the flow validations with the theta_new means; optional (hours).
         std::string validationFp = "disabled";
         if (cfg.validationEnabled) {
-            const fs::path vcfg = cfg.validationConfig.empty() ? fs::path(TRBC_SOURCE_DIR) / "configs" / "validation.toml" : cfg.validationConfig;
+            const fs::path vcfg = cfg.validationConfig.empty() ? resourceRoot() / "configs" / "validation.toml" : cfg.validationConfig;
             std::string only;
             for (const std::string& k : cfg.validationOnly) only += (only.empty() ? " --only " : ",") + k;
             validationFp = fingerprintOf({"validation", kVersion, phase23Fp, fileFingerprint(vcfg), only});
@@ -342,7 +342,7 @@ void registerCalibrate(CLI::App& app) {
         ri.outputDirectory = out;
         ri.configFile = cfg.file;
         ri.surrogateDirectory = modelDir;
-        ri.meshConvergenceDirectory = fs::path(TRBC_SOURCE_DIR) / "docs" / "mesh_convergence";
+        ri.meshConvergenceDirectory = resourceRoot() / "results" / "mesh_convergence";
         ri.version = kVersion;
         for (const CalibrateDataSet& d : cfg.data) ri.dataSets.push_back(fmt::format("{} ({}): {}", d.name, d.experiment, d.file.string()));
         const std::string reportFp = fingerprintOf({"report", kVersion, fileFingerprint(cfg.file), allDataFp, modelFp, phase23Fp, predictFp,

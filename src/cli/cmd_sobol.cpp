@@ -126,7 +126,7 @@ void registerSobol(CLI::App& app) {
             std::cout << '\n';
         }
         if (!o->noPlot) {
-            const std::string cmdline = fmt::format("/usr/bin/python3 {}/scripts/plot_sobol.py {} >/dev/null 2>&1", TRBC_SOURCE_DIR, dir.string());
+            const std::string cmdline = fmt::format("/usr/bin/python3 {} {} >/dev/null 2>&1", shellQuote(scriptDirectory() / "plot_sobol.py"), shellQuote(dir));
             if (std::system(cmdline.c_str()) != 0)
                 std::cerr << "sobol: the figures were not drawn (needs python3-matplotlib): " << cmdline << '\n';
             else

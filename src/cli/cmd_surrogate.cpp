@@ -389,16 +389,6 @@ void addSurrogateModelOption(CLI::App* cmd, std::string& model) {
     cmd->add_option("--model", model, "surrogate model directory (default: the shipped surrogates)");
 }
 
-std::filesystem::path defaultSurrogateDirectory() {
-    if (const char* env = std::getenv("TRBC_SURROGATE_DIR")) return env;
-    return std::filesystem::path(TRBC_DATA_DIR) / "surrogates";
-}
-
-std::filesystem::path defaultExperimentDirectory() {
-    if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
-    return std::filesystem::path(TRBC_DATA_DIR) / "experiments";
-}
-
 void registerSurrogate(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training)");
     cmd->require_subcommand(1);

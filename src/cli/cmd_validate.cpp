@@ -431,7 +431,7 @@ void registerValidate(CLI::App& app) {
             R.imports.push_back(dir);
         }
         R.exe = fs::read_symlink("/proc/self/exe");
-        R.scripts = fs::path(TRBC_SOURCE_DIR) / "scripts";
+        R.scripts = scriptDirectory();
         R.python = pythonInterpreter();
         std::vector<ValidationCase> initial = initialValidationCases(R.cfg);
         const std::size_t configured = initial.size();

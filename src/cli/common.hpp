@@ -135,12 +135,19 @@ void registerSobol(CLI::App& app);
 void registerInfer(CLI::App& app);
 void registerPredict(CLI::App& app);
 
-/// Shipped surrogates: $TRBC_SURROGATE_DIR, else <source>/data/surrogates.
+/// The folder of data/, configs/, scripts/ and results/mesh_convergence/: <prefix>/share/trbc beside an
+/// installed trbc (found from the executable's path), else the source tree it was built from.
+std::filesystem::path resourceRoot();
+/// The shipped data: $TRBC_DATA_DIR, else resourceRoot()/data.
+std::filesystem::path dataDirectory();
+/// Shipped surrogates: $TRBC_SURROGATE_DIR, else dataDirectory()/surrogates.
 std::filesystem::path defaultSurrogateDirectory();
 /// `--model DIR`, the surrogate model directory (empty: defaultSurrogateDirectory()).
 void addSurrogateModelOption(CLI::App* cmd, std::string& model);
-/// Experimental data: $TRBC_EXPERIMENT_DATA, else the copy shipped in <source>/data/experiments.
+/// Experimental data: $TRBC_EXPERIMENT_DATA, else dataDirectory()/experiments.
 std::filesystem::path defaultExperimentDirectory();
+/// The figure scripts run by calibrate, validate and sobol: resourceRoot()/scripts.
+std::filesystem::path scriptDirectory();
 /// A path quoted for /bin/sh.
 std::string shellQuote(const std::filesystem::path& p);
 /// The Python of the figure scripts: $TRBC_PYTHON, else Debian's /usr/bin/python3 (with

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
-#include <iostream>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <optional>
@@ -15,6 +14,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/log.hpp"
 #include "core/version.hpp"
 #include "experiments/parameters.hpp"
 #include "membrane/model.hpp"
@@ -242,13 +242,13 @@ StressFreeState stressFreeState(double v, int level, const std::filesystem::path
     std::string reason;
     if (loadCached(off, v, level, opt, s, reason)) return s;
     if (reason != "missing")
-        std::cerr << fmt::format("trbc: SFS cache entry {} rejected ({}); regenerating\n", off.string(), reason);
+        logMessage(LogLevel::Warning, fmt::format("SFS cache entry {} rejected ({}); regenerating", off.string(), reason));
     s = generateStressFreeState(v, level, opt);
     try {
         storeCached(off, s, opt);
     } catch (const std::exception& e) {
-        std::cerr << fmt::format("trbc: could not store the SFS in the cache {} ({}); continuing without it\n",
-                                 cacheDir.string(), e.what());
+        logMessage(LogLevel::Warning, fmt::format("could not store the SFS in the cache {} ({}); continuing without it",
+                                                  cacheDir.string(), e.what()));
     }
     return s;
 }

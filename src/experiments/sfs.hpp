@@ -61,8 +61,8 @@ std::filesystem::path defaultCacheDirectory();
 
 /// Loads the SFS from `cacheDir` when a valid entry exists (checksum, metadata, connectivity and
 /// reduced volume verified), otherwise generates and stores it (atomic rename, so concurrent
-/// users never see a partial entry). A corrupt entry is reported on stderr and rebuilt. An empty
-/// cacheDir disables the cache.
+/// users never see a partial entry). A corrupt entry is reported to the log sink (core/log.hpp) and
+/// rebuilt. An empty cacheDir disables the cache.
 StressFreeState stressFreeState(double v, int level, const std::filesystem::path& cacheDir,
                                 const SfsOptions& options = {});
 
