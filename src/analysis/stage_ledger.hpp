@@ -4,10 +4,13 @@
 // input files). A stage whose recorded fingerprint matches, and whose outputs exist, is skipped.
 // The ledger lives in OUT/stages.json, rewritten atomically after every finished stage, so that a
 // run killed during a stage redoes that stage (and only that one) next time.
-#include <filesystem>
 #include <nlohmann/json.hpp>
+
+#include <filesystem>
 #include <string>
 #include <vector>
+
+#include "core/hash.hpp"
 
 namespace trbc {
 
@@ -39,9 +42,5 @@ private:
     std::vector<std::string> ran_, skipped_;
 };
 
-/// FNV-1a fingerprint of a list of strings (each length-prefixed, so that ("ab","c") != ("a","bc")).
-std::string fingerprintOf(const std::vector<std::string>& parts);
-/// FNV-1a of a file's bytes ("missing" when it does not exist).
-std::string fileFingerprint(const std::filesystem::path& file);
 
 }  // namespace trbc

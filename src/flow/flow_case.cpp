@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "analysis/stage_ledger.hpp"
+#include "core/hash.hpp"
 #include "core/error.hpp"
 
 namespace trbc {
