@@ -34,14 +34,9 @@ std::string fileFingerprint(const fs::path& file) {
 
 StageLedger::StageLedger(fs::path directory) : file_(directory / "stages.json") {
     j_ = {{"stages", nlohmann::json::object()}};
-    if (!fs::exists(file_)) return;
-    try {
-        std::ifstream f(file_);
-        nlohmann::json j = nlohmann::json::parse(f);
-        if (j.contains("stages") && j["stages"].is_object()) j_["stages"] = j["stages"];
-    } catch (const std::exception&) {
-        // a damaged ledger only costs re-running the stages
-    }
+    // A damaged ledger only costs re-running the stages.
+    const std::optional<nlohmann::json> j = tryReadJson(file_);
+    if (j && j->contains("stages") && (*j)["stages"].is_object()) j_["stages"] = (*j)["stages"];
 }
 
 bool StageLedger::upToDate(const std::string& stage, const std::string& fingerprint, const std::vector<fs::path>& outputs) const {

@@ -16,6 +16,7 @@
 #endif
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "sampling/campaign.hpp"
 
@@ -130,9 +131,8 @@ void registerCampaign(CLI::App& app) {
                     "stretching continuation and relaxation, and differ in Fext. 1 = the paper's one force per sample",
               NumberRange::closed(1, 1000))
         ->capture_default_str();
-    cmd->add_option("--out", o->out, "output directory")->required();
-    addNumber(cmd, "--threads", o->c.threads, "cells run concurrently (one thread each)", NumberRange::closed(1, 1024))
-        ->capture_default_str();
+    addOutOption(cmd, o->out);
+    addThreadsOption(cmd, o->c.threads, "cells run concurrently (one thread each)");
     addNumber(cmd, "--cell-time-limit", o->c.cellTimeLimit,
                     "wall-time budget of one cell (0: none); over it the cell's rows are recorded as failed with "
                     "the reason 'time limit reached' (equilibrium outputs computed before it are kept; which cells hit "
@@ -166,7 +166,7 @@ void registerCampaign(CLI::App& app) {
         c.ranks = ranks;
         ProgressReporter reporter(ranks);
         if (rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
-        const auto t0 = std::chrono::steady_clock::now();
+        const auto t0 = SteadyClock::now();
         CampaignSummary share, s;
         std::string error;
         const auto attempt = [&error](auto&& step) {
@@ -183,7 +183,7 @@ void registerCampaign(CLI::App& app) {
         agreeOnFailure(mpi, error);
         if (error.empty() && rank == 0)
             attempt([&] {
-                s = finalizeCampaign(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+                s = finalizeCampaign(c, secondsSince(t0));
             });
 #ifdef TRBC_WITH_MPI
         if (mpi) MPI_Finalize();

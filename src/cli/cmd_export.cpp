@@ -12,6 +12,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -55,8 +56,8 @@ void registerExport(CLI::App& app) {
         ->capture_default_str();
     addNumber(cmd, "--level", o->level, "icosphere level of the meshes (Nv = 10 4^L + 2)", NumberRange::closed(1, 6))
         ->capture_default_str();
-    cmd->add_option("--out", o->out, "output directory")->required();
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addOutOption(cmd, o->out);
+    addThreadsOption(cmd, o->threads);
     addSolverOptions(cmd, o->exp);
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() {
@@ -88,14 +89,14 @@ void registerExport(CLI::App& app) {
         ExperimentOptions eo = o->exp;
         eo.level = o->level;
         eo.cacheDir = cacheDirectory(o->cache);
-        const auto t0 = std::chrono::steady_clock::now();
+        const auto t0 = SteadyClock::now();
         ProgressLine progress("export");
         progress.stage(fmt::format("stress-free state (v = {:g}, level {})", p.v, o->level));
         const StressFreeState sfs = stressFreeState(p.v, o->level, eo.cacheDir);
         const CellMeshes meshes = cellMeshes(sfs);
         progress.stage("equilibrium shape");
         const EquilibriumResult eq = runEquilibrium(p, meshes, eo);
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double wall = secondsSince(t0);
 
         const fs::path dir(o->out);
         for (const char* ext : {"off", "ply"}) {

@@ -100,13 +100,10 @@ void registerInfer(CLI::App& app) {
         ->capture_default_str();
     addNumber(cmd, "--seed", o->seed, "run seed (each run derives its own from it and its name)", NumberRange::nonNegative())
         ->capture_default_str();
-    cmd->add_option("--out", o->out, "output directory DIR")->required();
+    addOutOption(cmd, o->out, "output directory DIR");
     addSurrogateModelOption(cmd, o->model);
-    cmd->add_option("--data-dir", o->dataDir,
-                    "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
-                    "else the shipped copy data/experiments)");
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads (results do not depend on it)", NumberRange::closed(1, 1024))
-        ->capture_default_str();
+    addDataDirOption(cmd, o->dataDir);
+    addThreadsOption(cmd, o->threads, "OpenMP threads (results do not depend on it)");
     cmd->add_flag("--resume", o->resume, "continue unfinished runs from their per-stage checkpoints and reuse finished ones");
     cmd->add_flag("--single-precision", o->single, "evaluate the surrogate in float (about 3x faster)");
     cmd->add_option("--fvk-density", o->fvk, "density of FvK under the population (docs/BAYESIAN_INFERENCE.md): closed (closed form, "
@@ -155,10 +152,10 @@ void registerInfer(CLI::App& app) {
         opt.phase3b.referenceEquilibriumDefect = o->fvk3b == "last";
         const RbcPriorBox box = parsePriorBox(o->priors);
         // Every input is read and checked before anything is written to --out.
-        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        const std::filesystem::path modelDir = surrogateModelDirectory(o->model);
         auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
         surrogate->precision = o->single ? Precision::Single : Precision::Double;
-        const std::filesystem::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(o->dataDir);
+        const std::filesystem::path dataDir = experimentDirectory(o->dataDir);
         std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
         for (RbcDataSet& d : data) d.prior = box;
         ensureWritableDirectory(o->out);

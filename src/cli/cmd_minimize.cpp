@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
 #include "membrane/model.hpp"
@@ -32,7 +33,7 @@ void registerMinimize(CLI::App& app) {
                     "and write it with per-vertex force, mean curvature and area fields");
     cmd->add_option("--mesh", o->mesh, "initial mesh (OFF)")->required();
     cmd->add_option("--reference", o->reference, "stress-free mesh for the Lim term (OFF)");
-    cmd->add_option("--out", o->out, "relaxed mesh (.off, .ply or .vtk)")->required();
+    addOutOption(cmd, o->out, "relaxed mesh (.off, .ply or .vtk)");
     addModulusOptions(cmd, o->moduli);
     auto* reduced = addNumber(cmd, "--reduced-volume", o->reducedVolume,
                               "set V0 from a reduced volume v: V0 = v A0^{3/2} / (6 sqrt(pi)), A0 = --A0 or the mesh area",
@@ -73,11 +74,11 @@ void registerMinimize(CLI::App& app) {
         opt.gradientTolerance = o->tolerance;
         opt.maxIterations = o->maxIterations;
         opt.maxVertexStep = o->maxStep;
-        const auto t0 = std::chrono::steady_clock::now();
+        const auto t0 = SteadyClock::now();
         ProgressLine progress("minimize");
         progress.stage(fmt::format("L-BFGS on {} vertices", mesh.numVertices()));
         const MinimizeResult r = minimizeEnergy(model, mesh.X, opt);
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         Vertices grad;
         EnergyTerms terms;
         model.evaluate(mesh.X, &grad, &terms);

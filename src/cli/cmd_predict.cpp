@@ -22,8 +22,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-void writeFile(const fs::path& p, const std::string& text) { writeFileAtomically(p, text); }
-
 }  // namespace
 
 void registerPredict(CLI::App& app) {
@@ -47,11 +45,9 @@ void registerPredict(CLI::App& app) {
     cmd->add_option("--inference", o->inference,
                     "output directory of `trbc infer`: predict every phase-3b posterior DIR/phase3/<data set> (hierarchical)");
     cmd->add_flag("--single", o->single, "with --inference: also the phase-1 posteriors DIR/phase1/<data set> (single)");
-    cmd->add_option("--out", o->out, "output directory")->required();
+    addOutOption(cmd, o->out);
     addSurrogateModelOption(cmd, o->model);
-    cmd->add_option("--data-dir", o->dataDir,
-                    "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
-                    "else the shipped copy data/experiments)");
+    addDataDirOption(cmd, o->dataDir);
     addNumber(cmd, "--max-samples", o->maxSamples, "use at most this many posterior samples (seeded choice; 0 = all)",
               NumberRange::closed(0, 1e8))
         ->capture_default_str();
@@ -65,7 +61,7 @@ void registerPredict(CLI::App& app) {
         ->capture_default_str();
     addNumber(cmd, "--seed", o->seed, "seed of the sample choices (--direct, --max-samples)", NumberRange::nonNegative())
         ->capture_default_str();
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addThreadsOption(cmd, o->threads);
     cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
     addSolverOptions(cmd, o->experiment);
     addCacheOptions(cmd, o->cache);
@@ -99,9 +95,9 @@ void registerPredict(CLI::App& app) {
         // Read everything first so that bad input fails before any work.
         std::vector<PosteriorSamples> posts;
         for (const fs::path& d : dirs) posts.push_back(readPosteriorSamples(d));
-        const fs::path dataDir = o->dataDir.empty() ? defaultExperimentDirectory() : fs::path(o->dataDir);
+        const fs::path dataDir = experimentDirectory(o->dataDir);
         const std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
-        const fs::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : fs::path(o->model);
+        const fs::path modelDir = surrogateModelDirectory(o->model);
         auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
         const RbcModel model = surrogateRbcModel(surrogate);
 
@@ -150,7 +146,7 @@ void registerPredict(CLI::App& app) {
                           fs::absolute(modelDir).lexically_normal().string(), o->seed);
         md += coverageMarkdown(predictions);
         if (!direct.empty()) md += "\n" + directComparisonMarkdown(direct, eopt.level);
-        writeFile(outDir / "coverage.md", md);
+        writeFileAtomically(outDir / "coverage.md", md);
 
         nlohmann::json networks = nlohmann::json::object();
         const std::pair<const char*, const TrainedNetwork*> nets[3] = {
@@ -174,7 +170,7 @@ void registerPredict(CLI::App& app) {
                                      {"posteriors", postJson},
                                      {"direct", {{"samples", o->direct}, {"level", eopt.level}, {"comparison", directJson}}},
                                      {"files", fileNames}};
-        writeFile(outDir / "predict.json", prov.dump(2) + "\n");
+        writeFileAtomically(outDir / "predict.json", prov.dump(2) + "\n");
 
         int total = 0, inside = 0;
         for (const PosteriorPrediction& p : predictions)

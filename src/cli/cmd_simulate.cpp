@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -132,8 +133,7 @@ void registerSimulate(CLI::App& app) {
                     "extra force levels in pN, comma-separated, for a whole stretching curve (continuation)");
     cmd->add_flag("--allow-outside-prior", o->allowOutside, "accept parameters outside the prior box (studies)");
     addSolverOptions(cmd, o->exp);
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads for the force evaluation", NumberRange::closed(1, 1024))
-        ->capture_default_str();
+    addThreadsOption(cmd, o->threads, "OpenMP threads for the force evaluation");
     addNumber(cmd, "--time-limit", o->timeLimit,
               "wall-time budget (0: none); past it the run stops with \"status\": \"failed\", the reason \"time limit "
               "reached\" and exit 3",
@@ -160,7 +160,7 @@ void registerSimulate(CLI::App& app) {
         eo.level = o->level;
         eo.cacheDir = cacheDirectory(o->cache);
         if (o->timeLimit > 0)
-            eo.deadline = eo.sfs.deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            eo.deadline = eo.sfs.deadline = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(
                                                                                    std::chrono::duration<double>(o->timeLimit));
         ProgressLine progress("simulate");
         eo.progress = [&progress](const std::string& stage) { progress.stage(stage); };
@@ -172,7 +172,7 @@ void registerSimulate(CLI::App& app) {
                            {"threads", o->threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
                            {"preconditioner", eo.multigrid ? "multigrid" : "none"},
                            {"equilibrium_symmetry", eo.symmetricEquilibrium ? "inversion" : "none"}};
-        const auto t0 = std::chrono::steady_clock::now();
+        const auto t0 = SteadyClock::now();
         SampleResult s;
         try {
             s = runSample(p, o->fext, which, eo, curve, !o->saveShapes.empty());
@@ -187,7 +187,7 @@ void registerSimulate(CLI::App& app) {
             if (late) throw NumericalError(reason);
             throw;
         }
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         const nlohmann::json provenance = j["provenance"];
         j = simulationJson(p, o->fext, o->level, which, s, wall);
         j["provenance"] = provenance;

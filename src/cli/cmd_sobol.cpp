@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -67,11 +68,11 @@ void registerSobol(CLI::App& app) {
     addNumber(cmd, "--forces", o->forces, "number of forces F_j = 200 j / (n - 1) pN for D0 and D1", NumberRange::closed(2, 1000))
         ->capture_default_str();
     addNumber(cmd, "--resamples", o->resamples, "bootstrap resamples", NumberRange::closed(2, 100000))->capture_default_str();
-    cmd->add_option("--out", o->out, "output directory")->required();
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addOutOption(cmd, o->out);
+    addThreadsOption(cmd, o->threads);
     cmd->add_flag("--no-plot", o->noPlot, "skip the figures (scripts/plot_sobol.py)");
     cmd->callback([o]() {
-        const std::filesystem::path modelDir = o->model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(o->model);
+        const std::filesystem::path modelDir = surrogateModelDirectory(o->model);
         const Surrogate s = Surrogate::load(modelDir);
         ensureWritableDirectory(o->out);
         omp_set_num_threads(o->threads);
@@ -83,14 +84,14 @@ void registerSobol(CLI::App& app) {
         Eigen::VectorXd lo(5), hi(5);
         for (int k = 0; k < 5; ++k) lo(k) = kCellBox[k].lo, hi(k) = kCellBox[k].hi;
         SobolOptions so;
-        so.n_base = o->samples;
+        so.nBase = o->samples;
         so.base = o->base == "sobol" ? SobolBase::Sobol : SobolBase::PseudoRandom;
         so.seed = o->seed;
         so.resamples = o->resamples;
-        const auto t0 = std::chrono::steady_clock::now();
+        const auto t0 = SteadyClock::now();
         const SobolResult r = sobolAnalysis([&](const Eigen::MatrixXd& X) { return sobolOutputs(s, X, forces); }, lo, hi, so,
                                             inputs, outputs);
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         const std::filesystem::path dir = o->out;
         writeSobolCsv(dir / "sobol_indices.csv", r);
         writeSobolSecondOrderCsv(dir / "sobol_second_order.csv", r);
@@ -107,9 +108,9 @@ void registerSobol(CLI::App& app) {
             resolved ? std::string()
                      : fmt::format("N = {} base rows do not resolve the indices (95 % CI half-widths up to {:.3g}{}): they are "
                                    "sampling noise; use --samples 1024 or more",
-                                   r.n_base, widest, outside > 0.1 ? ", indices outside [0, 1]" : "");
+                                   r.nBase, widest, outside > 0.1 ? ", indices outside [0, 1]" : "");
         nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"model", modelDir.string()},
-                            {"seed", o->seed}, {"base", o->base}, {"n_base", r.n_base},
+                            {"seed", o->seed}, {"base", o->base}, {"n_base", r.nBase},
                             {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall},
                             {"resolved", resolved}};
         if (!resolved) j["warning"] = warning;

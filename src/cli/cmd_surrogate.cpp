@@ -12,6 +12,7 @@
 #include <set>
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -38,8 +39,6 @@ std::string accuracyMarkdown(const std::vector<OutputAccuracy>& acc) {
     return s;
 }
 
-void writeText(const std::filesystem::path& p, const std::string& text) { writeFileAtomically(p, text); }
-
 /// Held-out rows with truth and prediction: inputs, outputs, outputs_pred.
 void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
                          const Eigen::MatrixXd& predicted) {
@@ -52,7 +51,7 @@ void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& 
             for (Eigen::Index r = 0; r < 6; ++r) line += fmt::format("{}{:.10g}", line.empty() ? "" : ",", (*m)(r, c));
         text += line + '\n';
     }
-    writeText(p, text);
+    writeFileAtomically(p, text);
 }
 
 /// cv.md: pooled out-of-fold accuracy and the relative RMSE of every output per fold.
@@ -70,11 +69,6 @@ std::string crossValidationMarkdown(const CrossValidationReport& cv, const std::
         md += "\n";
     }
     return md;
-}
-
-// The --model option of eval and test: a directory, or the shipped surrogates when empty.
-std::filesystem::path modelDirectory(const std::string& option) {
-    return option.empty() ? defaultSurrogateDirectory() : std::filesystem::path(option);
 }
 
 bool listed(const std::vector<std::string>& list, const std::string& name) {
@@ -106,7 +100,7 @@ void registerTrain(CLI::App* parent) {
                  "the held-out accuracy (accuracy.md, accuracy.json, test_predictions.csv)");
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
-    cmd->add_option("--out", o->out, "model directory")->required();
+    addOutOption(cmd, o->out, "model directory");
     addNumber(cmd, "--seed", o->t.network.seed, "seed of the initial weights and mini-batch order", NumberRange::nonNegative())
         ->capture_default_str();
     addNumber(cmd, "--split-seed", o->t.network.splitSeed, "seed of the training/validation split", NumberRange::nonNegative())
@@ -121,8 +115,7 @@ void registerTrain(CLI::App* parent) {
         ->capture_default_str();
     addNumber(cmd, "--max-epochs", o->t.network.maxEpochs, "epoch cap of each network", NumberRange::closed(1, 1e7))
         ->capture_default_str();
-    addNumber(cmd, "--threads", o->threads, "networks trained concurrently (results do not depend on it)", NumberRange::closed(1, 3))
-        ->capture_default_str();
+    addThreadsOption(cmd, o->threads, "networks trained concurrently (results do not depend on it)", 1, 3);
     cmd->add_option("--relaxation-variables", o->relaxationVariables,
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
                     "variables")
@@ -188,9 +181,9 @@ void registerTrain(CLI::App* parent) {
                                          e.last ? "  (done)" : e.reduced ? "  (restored best, rate / 10)" : "");
         };
         omp_set_num_threads(o->threads);
-        const auto t0 = std::chrono::steady_clock::now();
+        const auto t0 = SteadyClock::now();
         const SurrogateTrainingReport rep = trainSurrogate(rows, t);
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         rep.model.save(o->out);
 
         const std::filesystem::path dir = o->out;
@@ -228,7 +221,7 @@ void registerTrain(CLI::App* parent) {
                                        {"best_epoch", nets[k]->history.bestEpoch},
                                        {"best_validation_loss", nets[k]->history.bestValidationLoss},
                                        {"hit_epoch_cap", nets[k]->history.hitEpochCap}};
-        writeText(dir / "accuracy.json", j.dump(2) + "\n");
+        writeFileAtomically(dir / "accuracy.json", j.dump(2) + "\n");
         std::string md = fmt::format("# Surrogate accuracy\n\nMade by `{}` (trbc {}), data hash {}: {} rows in {} cells{}; "
                                      "{} cells held out as the test set.\n\n## Test set (cells never seen in training or early stopping)\n\n",
                                      commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
@@ -239,7 +232,7 @@ void registerTrain(CLI::App* parent) {
             md += fmt::format("| {} | {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
                               1 + nets[k]->ensemble.size(), rep.wallSeconds[k]);
         if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
-        writeText(dir / "accuracy.md", md);
+        writeFileAtomically(dir / "accuracy.md", md);
         writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);
         std::cout << md;
         if (o->cvFolds >= 2) {
@@ -251,9 +244,9 @@ void registerTrain(CLI::App* parent) {
                                  {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
                                  {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
             for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
-            writeText(dir / "cv.json", cj.dump(2) + "\n");
+            writeFileAtomically(dir / "cv.json", cj.dump(2) + "\n");
             const std::string cvMd = crossValidationMarkdown(cv, rep.dataHash, t.testSeed);
-            writeText(dir / "cv.md", cvMd);
+            writeFileAtomically(dir / "cv.md", cvMd);
             writePredictionsCsv(dir / "cv_predictions.csv", cv.inputs, cv.truth, cv.predicted);
             std::cout << "\n" << cvMd;
         }
@@ -274,11 +267,11 @@ void registerEval(CLI::App* parent) {
                 "outside_training_box (1 = extrapolation)");
     addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--in", o->in, "input CSV")->required();
-    cmd->add_option("--out", o->out, "output CSV")->required();
+    addOutOption(cmd, o->out, "output CSV");
     cmd->add_flag("--single-precision", o->single, "evaluate in float (about 3x faster, ~1e-6 relative difference)");
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addThreadsOption(cmd, o->threads);
     cmd->callback([o]() {
-        const std::filesystem::path modelDir = modelDirectory(o->model);
+        const std::filesystem::path modelDir = surrogateModelDirectory(o->model);
         Surrogate s = Surrogate::load(modelDir);
         s.precision = o->single ? Precision::Single : Precision::Double;
         ensureWritableFile(o->out);
@@ -340,10 +333,10 @@ void registerTest(CLI::App* parent) {
     addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
-    cmd->add_option("--out", o->out, "directory for test.md, test.json and test_predictions.csv");
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addOutOption(cmd, o->out, "directory for test.md, test.json and test_predictions.csv", false);
+    addThreadsOption(cmd, o->threads);
     cmd->callback([o]() {
-        const std::filesystem::path modelDir = modelDirectory(o->model);
+        const std::filesystem::path modelDir = surrogateModelDirectory(o->model);
         const Surrogate s = Surrogate::load(modelDir);
         if (!o->out.empty()) ensureWritableDirectory(o->out);
         bool complete = true;
@@ -375,8 +368,8 @@ void registerTest(CLI::App* parent) {
                                       {"model_data_hash", s.relaxation.dataHash}, {"trained_on_these_data", trainedOnIt},
                                       {"rows", rows.size()},     {"outside_training_box", outside},
                                       {"test", accuracyJson(t.accuracy)}};
-            writeText(dir / "test.json", j.dump(2) + "\n");
-            writeText(dir / "test.md", md);
+            writeFileAtomically(dir / "test.json", j.dump(2) + "\n");
+            writeFileAtomically(dir / "test.md", md);
             writePredictionsCsv(dir / "test_predictions.csv", t.inputs, t.truth, t.predicted);
         }
         std::cout << md;
@@ -384,20 +377,6 @@ void registerTest(CLI::App* parent) {
 }
 
 }  // namespace
-
-void addSurrogateModelOption(CLI::App* cmd, std::string& model) {
-    cmd->add_option("--model", model, "surrogate model directory (default: the shipped surrogates)");
-}
-
-std::filesystem::path defaultSurrogateDirectory() {
-    if (const char* env = std::getenv("TRBC_SURROGATE_DIR")) return env;
-    return std::filesystem::path(TRBC_DATA_DIR) / "surrogates";
-}
-
-std::filesystem::path defaultExperimentDirectory() {
-    if (const char* env = std::getenv("TRBC_EXPERIMENT_DATA")) return env;
-    return std::filesystem::path(TRBC_DATA_DIR) / "experiments";
-}
 
 void registerSurrogate(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training)");

@@ -22,6 +22,7 @@
 #include "analysis/validation.hpp"
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -32,7 +33,6 @@ namespace trbc::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
 std::string readFile(const fs::path& p) {
@@ -41,6 +41,12 @@ std::string readFile(const fs::path& p) {
 }
 
 std::string num(const json& j) { return j.is_number() ? fmt::format("{:.6g}", j.get<double>()) : ""; }
+
+/// A string field of an object, "" when absent or not a string.
+std::string stringOr(const json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get<std::string>() : "";
+}
 
 /// A numeric field of an object, NaN when absent or null (a failed or undefined observable).
 double numberOr(const json& o, const char* key) {
@@ -60,7 +66,7 @@ struct Runner {
     int done = 0, total = 0;
     double caseSeconds = 0.0;
     int ranHere = 0;
-    Clock::time_point start = Clock::now();
+    SteadyClock::time_point start = SteadyClock::now();
 
     std::string cellArgs() const {
         if (cfg.cellSource == "posterior") return "--posterior " + shellQuote(cfg.posterior);
@@ -99,15 +105,10 @@ struct Runner {
 
     /// The record in `file` if it is a finished case with c's key (a failed one only without --retry-failed).
     std::optional<json> matchingRecord(const fs::path& file, const ValidationCase& c) const {
-        if (!fs::exists(file)) return std::nullopt;
-        try {
-            json j = json::parse(readFile(file));
-            if (j.value("key", "") != caseKey(c) || !j.contains("result")) return std::nullopt;
-            if (retryFailed && j["result"].value("status", "") != "ok") return std::nullopt;
-            return j;
-        } catch (const std::exception&) {
-            return std::nullopt;  // a damaged record is run again
-        }
+        std::optional<json> j = tryReadJson(file);  // a damaged record is run again
+        if (!j || stringOr(*j, "key") != caseKey(c) || !j->contains("result")) return std::nullopt;
+        if (retryFailed && stringOr((*j)["result"], "status") != "ok") return std::nullopt;
+        return j;
     }
 
     /// A finished case of an earlier run with the same key, if any: in OUT, else in an --import
@@ -145,27 +146,25 @@ struct Runner {
         const std::string command =
             fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume --checkpoint-interval {}", shellQuote(exe),
                         caseArgs(c), cfg.threads, shellQuote(dir), cfg.checkpointInterval);
-        const auto t0 = Clock::now();
+        const auto t0 = SteadyClock::now();
         const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + (resuming ? " 2>> " : " 2> ") +
                                                      shellQuote(log) + " < /dev/null"));
-        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         // SIGINT/SIGTERM/SIGHUP of validate are forwarded to the cases and end validate itself
         // (child_process.hpp): those cases run again on resume. A case interrupted on its own is not
         // recorded either; one killed alone otherwise (out of memory, a kill of the child) is recorded
         // as failed with the signal.
         if (rc == 130 || rc == 128 + SIGINT || forwardedSignal() != 0)
             throw NumericalError(fmt::format("validate: case {} interrupted (exit {}); run the same command again to resume", c.id, rc));
-        json result;
-        try {
-            result = json::parse(readFile(stdoutFile));
-        } catch (const std::exception&) {
+        json result = tryReadJson(stdoutFile).value_or(json());
+        if (!result.is_object()) {
             std::string tail = readFile(log);
             if (tail.size() > 600) tail = "..." + tail.substr(tail.size() - 600);
             result = {{"status", "failed"},
                       {"reason", rc > 128 ? fmt::format("killed by signal {} without a result: {}", rc - 128, tail)
                                           : fmt::format("exit {} without a result: {}", rc, tail)}};
         }
-        if (rc != 0 && result.value("status", "") == "ok") result["status"] = "failed";
+        if (rc != 0 && stringOr(result, "status") == "ok") result["status"] = "failed";
         json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                        {"exit", rc},         {"wall_s", wall}, {"result", result}};
         writeFileAtomically(caseFile(c), record.dump(1) + "\n");
@@ -185,7 +184,7 @@ struct Runner {
                 what = fmt::format("v {} cm/s, length {} um", num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())));
             else
                 what = "FAILED: " + result.value("reason", std::string("?")).substr(0, 160);
-            const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+            const double elapsed = secondsSince(start);
             const double eta = (total - done) * (caseSeconds / ranHere) / cfg.jobs;
             std::cerr << fmt::format("validate: [{}/{}] {} ({:.0f} s): {}; elapsed {:.0f} min, ETA {:.0f} min\n", done, total, c.id, wall, what,
                                      elapsed / 60.0, eta / 60.0);
@@ -386,14 +385,14 @@ void registerValidate(CLI::App& app) {
                     "command again after an interruption and only unfinished cases run. Writes OUT/shear.csv, "
                     "threshold.csv, tube.csv, comparison.csv, validation.md, validation.json, figures/ and cases/");
     cmd->add_option("--config", o->config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
-    cmd->add_option("--out", o->out, "output directory")->required();
+    addOutOption(cmd, o->out);
     cmd->add_option("--posterior", o->posterior,
                     "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
     addNumber(cmd, "--level", o->level,
               "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level unless that is 0)",
               NumberRange::closed(1, 4));
     addNumber(cmd, "--jobs", o->jobs, "cases run at the same time (overrides run.jobs)", NumberRange::closed(1, 256));
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads per case (overrides run.threads)", NumberRange::closed(1, 1024));
+    addThreadsOption(cmd, o->threads, "OpenMP threads per case (overrides run.threads)");
     cmd->add_option("--only", o->only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
                                        "the tables cover what has been run")
         ->delimiter(',')
@@ -463,7 +462,7 @@ void registerValidate(CLI::App& app) {
         fs::create_directories(R.out / "cases");
         const DirectoryLock lock(R.out, ".validate.lock", "validate");
         forwardSignalsToChildren();
-        const auto t0 = Clock::now();
+        const auto t0 = SteadyClock::now();
         R.runAll(initial);
         const bool thresholds = o->only.empty() || std::find(o->only.begin(), o->only.end(), "threshold") != o->only.end();
         for (int round = 0; thresholds && round < R.cfg.thresholdRefinements; ++round) {
@@ -478,7 +477,7 @@ void registerValidate(CLI::App& app) {
             R.runAll(more);
         }
         const json summary = writeTables(R);
-        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         json cell = R.cfg.cellSource == "table1"
                         ? json{{"source", "the paper's Table 1 means"}, {"v", table1::v}, {"mu_uN_per_m", table1::mu}, {"kb_J", table1::kbJ},
                                {"b2", table1::b2}, {"etam_Pa_s_um", table1::etam}}

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <sstream>
 
 #include "core/error.hpp"
 
@@ -40,6 +41,16 @@ void writeFileAtomically(const std::filesystem::path& path, std::string_view tex
         std::filesystem::remove(tmp, ec);
         throw InputError(fmt::format("cannot replace {}: {}", path.string(), why));
     }
+}
+
+std::optional<nlohmann::json> tryReadJson(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return std::nullopt;
+    std::ostringstream text;
+    text << in.rdbuf();
+    nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
+    if (j.is_discarded()) return std::nullopt;
+    return j;
 }
 
 }  // namespace trbc
