@@ -183,14 +183,13 @@ int columnOf(const std::vector<std::string>& header, const std::string& name) {
     return it == header.end() ? -1 : static_cast<int>(it - header.begin());
 }
 
-nlohmann::json readJson(const fs::path& p) {
-    try {
-        std::ifstream f(p);
-        if (!f) return nullptr;
-        return nlohmann::json::parse(f);
-    } catch (const std::exception&) {
-        return nullptr;
-    }
+nlohmann::json readJson(const fs::path& p) { return tryReadJson(p).value_or(nullptr); }
+
+std::string readText(const fs::path& p) {
+    std::ifstream f(p);
+    std::ostringstream s;
+    s << f.rdbuf();
+    return s.str();
 }
 
 std::string num(double x, int digits = 3) {
@@ -461,10 +460,11 @@ void provenanceSection(ReportDocument& doc, const CalibrationReportInputs& in) {
     for (const std::string& s : in.dataSets) d.push_back({s});
     doc.table({"name (experiment): file"}, d);
     doc.heading(3, "Configuration");
-    std::ifstream f(in.configFile);
-    std::ostringstream s;
-    s << f.rdbuf();
-    doc.code(s.str());
+    doc.code(readText(in.configFile));
+    for (const fs::path& base : in.configBases) {
+        doc.paragraph(fmt::format("Over its base `{}`:", base.string()));
+        doc.code(readText(base));
+    }
 }
 
 }  // namespace
