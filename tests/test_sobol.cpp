@@ -21,6 +21,7 @@
 #include "surrogate/sobol.hpp"
 #include "surrogate/sobol_io.hpp"
 #include "surrogate/sobol_sequence.hpp"
+#include "surrogate/surrogate_sobol.hpp"
 
 namespace {
 
@@ -562,6 +563,31 @@ TEST(SobolIndices, CsvOutput) {
     bad.S2.clear();
     EXPECT_THROW(trbc::writeSobolSecondOrderCsv(dir / "s2.csv", bad), trbc::InputError);
     std::filesystem::remove_all(dir);
+}
+
+TEST(SurrogateSobol, ForcesNamesAndResolution) {
+    const std::vector<double> forces = trbc::sobolForces(3);
+    EXPECT_EQ(forces, (std::vector<double>{0.0, 100.0, 200.0}));
+    const std::vector<std::string> names = trbc::surrogateSobolOutputs(forces);
+    ASSERT_EQ(names.size(), 10u);
+    EXPECT_EQ(names[3], "tc_s");
+    EXPECT_EQ(names[4], "D0_um@0");
+    EXPECT_EQ(names[9], "D1_um@200");
+    trbc::SobolResult r;
+    r.S1 = r.ST = MatrixXd::Constant(10, 5, 0.2);
+    r.S1_ci = r.ST_ci = MatrixXd::Constant(10, 5, 0.05);
+    EXPECT_TRUE(trbc::sobolResolution(r).resolved);
+    r.ST_ci(9, 4) = 0.5;  // a force output: not one of the scalar outputs judged
+    EXPECT_TRUE(trbc::sobolResolution(r).resolved);
+    r.S1_ci(2, 1) = 0.2;
+    trbc::SobolResolution res = trbc::sobolResolution(r);
+    EXPECT_FALSE(res.resolved);
+    EXPECT_DOUBLE_EQ(res.widestHalfWidth, 0.2);
+    r.S1_ci(2, 1) = 0.05;
+    r.ST(0, 0) = 1.15;  // an index outside [0, 1] by more than the tolerance
+    res = trbc::sobolResolution(r);
+    EXPECT_FALSE(res.resolved);
+    EXPECT_NEAR(res.outside, 0.15, 1e-12);
 }
 
 }  // namespace

@@ -178,6 +178,25 @@ PredictiveSummary summarizeMixture(const Eigen::VectorXd& m, const Eigen::Vector
 // ------------------------------------------------------------------------------------------------
 // Samples
 
+std::vector<fs::path> inferencePosteriorDirectories(const fs::path& base, bool withPhase1, const std::string& option) {
+    if (!fs::is_directory(base)) throw InputError(fmt::format("{} {}: not a directory", option, base.string()));
+    std::vector<std::string> phases = {"phase3"};
+    if (withPhase1) phases.insert(phases.begin(), "phase1");
+    std::vector<fs::path> dirs;
+    for (const std::string& ph : phases) {
+        const fs::path d = base / ph;
+        if (!fs::is_directory(d))
+            throw InputError(fmt::format("{} {}: no {} directory (run `trbc infer --phase all` first)", option, base.string(), ph));
+        std::vector<fs::path> found;
+        for (const auto& e : fs::directory_iterator(d))
+            if (e.is_directory() && e.path().filename() != "theta_new" && fs::exists(e.path() / "samples.csv")) found.push_back(e.path());
+        std::sort(found.begin(), found.end());
+        if (found.empty()) throw InputError(fmt::format("{} {}: no posterior samples in {}", option, base.string(), d.string()));
+        dirs.insert(dirs.end(), found.begin(), found.end());
+    }
+    return dirs;
+}
+
 PosteriorSamples readPosteriorSamples(const fs::path& dirOrFile) {
     PosteriorSamples p;
     const bool isDir = fs::is_directory(dirOrFile) || (!fs::exists(dirOrFile) && dirOrFile.extension() != ".csv");

@@ -25,11 +25,8 @@ std::string fingerprintOf(const std::vector<std::string>& parts) {
 }
 
 std::string fileFingerprint(const fs::path& file) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) return "missing";
-    std::ostringstream s;
-    s << in.rdbuf();
-    return fmt::format("{:016x}", fnv1a(s.str()));
+    if (!std::ifstream(file, std::ios::binary)) return "missing";
+    return fmt::format("{:016x}", fnv1a(readFileBytes(file)));
 }
 
 StageLedger::StageLedger(fs::path directory) : file_(directory / "stages.json") {

@@ -43,12 +43,16 @@ void writeFileAtomically(const std::filesystem::path& path, std::string_view tex
     }
 }
 
-std::optional<nlohmann::json> tryReadJson(const std::filesystem::path& path) {
+std::string readFileBytes(const std::filesystem::path& path) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) return std::nullopt;
-    std::ostringstream text;
-    text << in.rdbuf();
-    nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    return bytes.str();
+}
+
+std::optional<nlohmann::json> tryReadJson(const std::filesystem::path& path) {
+    if (!std::filesystem::exists(path)) return std::nullopt;
+    nlohmann::json j = nlohmann::json::parse(readFileBytes(path), nullptr, false);
     if (j.is_discarded()) return std::nullopt;
     return j;
 }

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <string>
 #include <string_view>
 
 namespace trbc {
@@ -14,6 +15,9 @@ namespace trbc {
 /// temporary is removed, so no partial file is left). A path that is a device or a pipe is written
 /// in place and checked after the flush.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view text);
+
+/// The bytes of a file ("" when it cannot be read).
+std::string readFileBytes(const std::filesystem::path& path);
 
 /// The JSON document in `path`, or nothing when the file is missing, unreadable or not valid JSON
 /// (a record that is only reused when intact; records that must exist are read with their own errors).

@@ -591,6 +591,15 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
 
 // ------------------------------------------------------------------------------------------------
 
+nlohmann::json priorBoxJson(const RbcPriorBox& box) {
+    nlohmann::json j = nlohmann::json::object();
+    for (const std::string& name : RbcPriorBox::parameterNames()) {
+        const auto [lo, hi] = box.bounds(name);
+        j[name] = {lo, hi};
+    }
+    return j;
+}
+
 std::uint64_t rbcRunSeed(std::uint64_t seed, const std::string& runName) { return splitmix64(seed ^ fnv1a(runName)); }
 
 std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, const Eigen::MatrixXd& samples,
