@@ -61,6 +61,57 @@ TEST(CalibrateConfig, ShippedPaperConfigIsValid) {
     EXPECT_EQ(v.validationConfig.filename(), "validation.toml");
     EXPECT_EQ(v.validationOnly.size(), 3u);
     EXPECT_EQ(v.inferenceSamples, c.inferenceSamples);
+    ASSERT_EQ(v.bases.size(), 1u);  // an override of paper.toml
+    EXPECT_EQ(v.bases[0].filename(), "paper.toml");
+    EXPECT_TRUE(c.bases.empty());
+}
+
+TEST(CalibrateConfig, BaseIsOverriddenKeyByKey) {
+    TempDir dir;
+    writeText(dir.path() / "base" / "mine.csv", test::slurp(kExperiments / "stretching" / "mills_2004" / "mills_2004.csv"));
+    writeText(dir.path() / "base" / "b.toml",
+              "[run]\nseed = 3\nthreads = 4\n[[data]]\nname = \"mine\"\nexperiment = \"stretching\"\nfile = \"mine.csv\"\n"
+              "[inference]\nsamples = 1000\nfvk_density = \"nodes50\"\n");
+    const fs::path file = writeText(dir.path() / "o.toml", "base = \"base/b.toml\"\n[inference]\nsamples = 2000\n[cell]\nenabled = false\n");
+    const CalibrateConfig c = readCalibrateConfig(file, kExperiments);
+    EXPECT_EQ(c.seed, 3u);
+    EXPECT_EQ(c.threads, 4);
+    EXPECT_EQ(c.inferenceSamples, 2000);   // overridden
+    EXPECT_EQ(c.fvkDensity, "nodes50");    // the rest of the base's section kept
+    EXPECT_FALSE(c.cellEnabled);
+    ASSERT_EQ(c.data.size(), 1u);
+    EXPECT_EQ(c.data[0].file, (dir.path() / "base" / "mine.csv").lexically_normal());  // relative to the base
+    ASSERT_EQ(c.bases.size(), 1u);
+    EXPECT_EQ(c.bases[0], (dir.path() / "base" / "b.toml").lexically_normal());
+    // The merged copy stands alone and reads as the same configuration.
+    const fs::path merged = writeText(dir.path() / "base" / "merged.toml", mergedCalibrateConfig(file));
+    const CalibrateConfig m = readCalibrateConfig(merged, kExperiments);
+    EXPECT_TRUE(m.bases.empty());
+    EXPECT_EQ(m.inferenceSamples, 2000);
+    EXPECT_EQ(m.fvkDensity, "nodes50");
+    EXPECT_FALSE(m.cellEnabled);
+    EXPECT_EQ(m.data[0].file, c.data[0].file);
+}
+
+TEST(CalibrateConfig, MissingBaseCycleAndErrorsInTheBaseNameTheirFile) {
+    TempDir dir;
+    std::string e = configError(dir, "# an override\nbase = \"nope.toml\"\n[run]\nseed = 1\n");
+    EXPECT_NE(e.find("c.toml:2: base = \"nope.toml\""), std::string::npos) << e;
+    EXPECT_NE(e.find("nope.toml does not exist"), std::string::npos) << e;
+    e = configError(dir, "base = 3\n");
+    EXPECT_NE(e.find("c.toml:1: 'base' must be the path of the configuration"), std::string::npos) << e;
+    writeText(dir.path() / "a.toml", "base = \"b.toml\"\n");
+    writeText(dir.path() / "b.toml", "# b\n\nbase = \"a.toml\"\n[run]\nseed = 1\n");
+    e = configError(dir, "base = \"a.toml\"\n");
+    EXPECT_NE(e.find("b.toml:3: base = \"a.toml\" makes a cycle"), std::string::npos) << e;
+    EXPECT_NE(e.find("a.toml -> "), std::string::npos) << e;
+    e = configError(dir, "base = \"c.toml\"\n");  // itself
+    EXPECT_NE(e.find("makes a cycle"), std::string::npos) << e;
+    writeText(dir.path() / "bad.toml", "[run]\nseed = 1\n[inference]\nsamples = 5\n");
+    e = configError(dir, "base = \"bad.toml\"\n[run]\nseed = 2\n");
+    EXPECT_NE(e.find("bad.toml:4: 'inference.samples' = 5 is out of range"), std::string::npos) << e;
+    e = configError(dir, "base = \"bad.toml\"\n[inference]\nsamples = 7\n");  // the override's own line
+    EXPECT_NE(e.find("c.toml:3: 'inference.samples' = 7 is out of range"), std::string::npos) << e;
 }
 
 TEST(CalibrateConfig, SyntaxErrorNamesFileAndLine) {

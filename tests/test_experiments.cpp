@@ -15,6 +15,7 @@
 #include "core/error.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/reference_protocol.hpp"
+#include "experiments/simulation_report.hpp"
 #include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
 #include "solvers/minimize.hpp"
@@ -496,6 +497,21 @@ TEST(SimulateCli, WritesJsonWithCanonicalNamesAndTheShapes) {
                           "stretch_50pN.vtk", "sfs.vtk"})
         EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
     std::filesystem::remove_all(dir);
+}
+
+TEST(CellExport, PhysicalAndDimensionlessUnitsAgree) {
+    CellParameters p;
+    p.v = 0.9, p.mu = 5.0, p.FvK = 300.0, p.b2 = 1.0, p.etam = 0.6;
+    const nlohmann::json phys = cellPhysicalJson(p, 2.5e-19), dim = cellDimensionlessJson(p);
+    EXPECT_EQ(phys["kb_J"].get<double>(), 2.5e-19);  // as given, not recomputed from FvK
+    EXPECT_EQ(phys["Kalpha_uN_per_m"].get<double>(), p.mu);
+    const double RA = dim["length_unit_um"].get<double>();
+    EXPECT_NEAR(4.0 * M_PI * RA * RA, phys["A0_um2"].get<double>(), 1e-7);  // R_A of the rounded cell constants
+    EXPECT_NEAR(dim["kb"].get<double>() * p.FvK, 1.0, 1e-15);
+    EXPECT_NEAR(dim["time_unit_s"].get<double>(), p.etam / p.mu, 1e-15);
+    EXPECT_NEAR(dim["volume"].get<double>() * RA * RA * RA, phys["V0_um3"].get<double>(), 1e-9);
+    // energy unit mu R_A^2: uN/m um^2 = 1e-18 J
+    EXPECT_NEAR(dim["energy_unit_J"].get<double>(), p.mu * RA * RA * 1e-18, 1e-30);
 }
 
 }  // namespace

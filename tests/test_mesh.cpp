@@ -70,6 +70,9 @@ TEST(EvansFung, MapOfProvidedIcospheresGivesTheSpecCheckValues) {
 TEST(Geometry, ReducedVolumeVertexAreasAndPrincipalAxes) {
     const Mesh s = icosphere(4);
     EXPECT_NEAR(reducedVolume(s.X, s.F), 0.9996, 1e-4);  // docs/FORWARD_MODEL.md, stress-free state: polyhedra stay below 1
+    const double A = totalArea(s.X, s.F), V = enclosedVolume(s.X, s.F);
+    EXPECT_NEAR(volumeOfReducedVolume(reducedVolume(A, V), A), V, 1e-12 * V);  // the inverse at fixed area
+    EXPECT_NEAR(volumeOfReducedVolume(1.0, 4.0 * M_PI), 4.0 * M_PI / 3.0, 1e-12);  // the unit sphere
     EXPECT_NEAR(vertexAreas(s.X, s.F).sum(), totalArea(s.X, s.F), 1e-12);
     Vertices ell = s.X;
     ell.row(0) *= 1.0;

@@ -224,4 +224,27 @@ TEST(PredictionInput, ReadsSamplesAndRejectsBadInput) {
     fs::remove_all(root);
 }
 
+TEST(PosteriorSamples, InferenceDirectoriesArePhase3ThenPhase1SortedWithoutThetaNew) {
+    const fs::path root = scratch("dirs");
+    for (const char* d : {"phase3/suresh_2005", "phase3/mills_2004", "phase3/theta_new", "phase1/mills_2004"})
+        writeFile(root / d / "samples.csv", "v\n");
+    fs::create_directories(root / "phase3" / "empty");  // no samples: not a posterior
+    std::vector<fs::path> dirs = inferencePosteriorDirectories(root, false);
+    ASSERT_EQ(dirs.size(), 2u);
+    EXPECT_EQ(dirs[0], root / "phase3" / "mills_2004");
+    EXPECT_EQ(dirs[1], root / "phase3" / "suresh_2005");
+    dirs = inferencePosteriorDirectories(root, true);
+    ASSERT_EQ(dirs.size(), 3u);
+    EXPECT_EQ(dirs[0], root / "phase1" / "mills_2004");
+    try {
+        inferencePosteriorDirectories(root / "phase2", false);
+        FAIL() << "no error for a missing directory";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("--inference"), std::string::npos) << e.what();
+    }
+    fs::remove_all(root / "phase1");
+    EXPECT_THROW(inferencePosteriorDirectories(root, true), InputError);  // no phase1 directory
+    fs::remove_all(root);
+}
+
 }  // namespace

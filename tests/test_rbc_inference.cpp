@@ -752,5 +752,15 @@ TEST(RbcInference, ResultsDoNotDependOnThreadsOrOnPhaseByPhaseRuns) {
     expectInputError([&] { runRbcInference(analyticModel(), data, missing); }, {"phase1/evans_fung_1972", "--phase 1"});
 }
 
+TEST(RbcPriorBox, JsonNamesEveryParameterWithItsBounds) {
+    RbcPriorBox box;
+    box.set("v", 0.8, 0.95);
+    const nlohmann::json j = priorBoxJson(box);
+    ASSERT_EQ(j.size(), RbcPriorBox::parameterNames().size());
+    EXPECT_EQ(j["v"], nlohmann::json({0.8, 0.95}));
+    const auto [lo, hi] = RbcPriorBox{}.bounds("b2");
+    EXPECT_EQ(j["b2"], nlohmann::json({lo, hi}));
+}
+
 }  // namespace
 }  // namespace trbc

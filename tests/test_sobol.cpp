@@ -21,6 +21,7 @@
 #include "surrogate/sobol.hpp"
 #include "surrogate/sobol_io.hpp"
 #include "surrogate/sobol_sequence.hpp"
+#include "surrogate/surrogate_sobol.hpp"
 
 namespace {
 
@@ -217,7 +218,7 @@ IshigamiErrors ishigamiErrors(const SobolResult& r) {
 
 SobolResult ishigamiAnalysis(Index n, SobolBase base, std::uint64_t seed, int resamples) {
     SobolOptions opt;
-    opt.n_base = n;
+    opt.nBase = n;
     opt.base = base;
     opt.seed = seed;
     opt.resamples = resamples;
@@ -278,7 +279,7 @@ TEST(SobolIndices, LinearModel) {
     const std::array<double, 4> exact = {1 / 14.0, 4 / 14.0, 9 / 14.0, 0.0};
     for (SobolBase base : {SobolBase::PseudoRandom, SobolBase::Sobol}) {
         SobolOptions opt;
-        opt.n_base = 1 << 14;
+        opt.nBase = 1 << 14;
         opt.base = base;
         opt.resamples = 0;
         const SobolResult r = trbc::sobolAnalysis(linearModel, lo, hi, opt);
@@ -308,7 +309,7 @@ TEST(SobolIndices, InvariantUnderAffineChangeOfOutput) {
         return Y;
     };
     SobolOptions opt;
-    opt.n_base = 2048;
+    opt.nBase = 2048;
     opt.resamples = 20;
     const SobolResult r = trbc::sobolAnalysis(model, kIshigamiLo, kIshigamiHi, opt, {"x1", "x2", "x3"}, {"y", "affine", "scaled"});
     ASSERT_EQ(r.S1.rows(), 3);
@@ -342,7 +343,7 @@ TEST(SobolIndices, InvariantUnderRescalingOfInputBoxes) {
     };
     for (SobolBase base : {SobolBase::Sobol, SobolBase::PseudoRandom}) {
         SobolOptions opt;
-        opt.n_base = 1024;
+        opt.nBase = 1024;
         opt.base = base;
         opt.resamples = 10;
         const SobolResult a = trbc::sobolAnalysis(unitModel, lo1, hi1, opt);
@@ -364,7 +365,7 @@ TEST(SobolIndices, IgnoredInputHasZeroIndices) {
         return ishigami(Xi);
     };
     SobolOptions opt;
-    opt.n_base = 4096;
+    opt.nBase = 4096;
     const SobolResult r = trbc::sobolAnalysis(model, VectorXd::Constant(4, -kPi), VectorXd::Constant(4, kPi), opt);
     EXPECT_EQ(r.S1(0, 2), 0.0);
     EXPECT_EQ(r.ST(0, 2), 0.0);
@@ -411,7 +412,7 @@ TEST(SobolIndices, DeterministicWithSeedAndThreadCount) {
 TEST(SobolIndices, DesignLayoutAndBatching) {
     const VectorXd lo = (VectorXd(3) << 0.65, 1, 10).finished(), hi = (VectorXd(3) << 1.0, 10, 1000).finished();
     SobolOptions opt;
-    opt.n_base = 256;
+    opt.nBase = 256;
     const trbc::SaltelliDesign dsg = trbc::saltelliDesign(lo, hi, opt);
     const MatrixXd X = dsg.points();
     ASSERT_EQ(X.rows(), 256 * 8);
@@ -433,7 +434,7 @@ TEST(SobolIndices, DesignLayoutAndBatching) {
     EXPECT_EQ(X.bottomRows(256), dsg.B);
 
     // Without second order: N (D + 2) rows. Batched evaluation gives identical results.
-    opt.second_order = false;
+    opt.secondOrder = false;
     opt.resamples = 20;
     Index largest = 0, calls = 0;
     auto model = [&](const MatrixXd& P) {
@@ -445,7 +446,7 @@ TEST(SobolIndices, DesignLayoutAndBatching) {
     EXPECT_EQ(whole.evaluations, 256 * 5);
     EXPECT_TRUE(whole.S2.empty());
     EXPECT_EQ(calls, 1);
-    opt.batch_size = 300;
+    opt.batchSize = 300;
     largest = calls = 0;
     const SobolResult batched = trbc::sobolAnalysis(model, lo, hi, opt);
     EXPECT_EQ(largest, 300);
@@ -462,7 +463,7 @@ TEST(SobolIndices, ConstantOutputGivesNaN) {
         return Y;
     };
     SobolOptions opt;
-    opt.n_base = 64;
+    opt.nBase = 64;
     const SobolResult r = trbc::sobolAnalysis(model, VectorXd::Zero(2), VectorXd::Ones(2), opt);
     EXPECT_NEAR(r.S1(0, 0), 1.0, 0.01);
     EXPECT_TRUE(std::isnan(r.S1(1, 0)));
@@ -483,18 +484,18 @@ TEST(SobolIndices, RejectsBadOptions) {
     const VectorXd lo = VectorXd::Zero(2), hi = VectorXd::Ones(2);
     auto with = [&](auto change) {
         SobolOptions opt;
-        opt.n_base = 16;
+        opt.nBase = 16;
         change(opt);
         return [=] { trbc::sobolAnalysis(linearModel, VectorXd::Zero(4), VectorXd::Ones(4), opt); };
     };
-    expectInputError(with([](SobolOptions& o) { o.n_base = 1; }), "n_base = 1");
+    expectInputError(with([](SobolOptions& o) { o.nBase = 1; }), "nBase = 1");
     expectInputError(with([](SobolOptions& o) { o.resamples = 1; }), "resamples = 1");
     expectInputError(with([](SobolOptions& o) { o.resamples = -3; }), "resamples");
     expectInputError(with([](SobolOptions& o) { o.z = 0; }), "option z");
-    expectInputError(with([](SobolOptions& o) { o.batch_size = -1; }), "batch_size");
-    expectInputError(with([](SobolOptions& o) { o.sobol_skip = -2; }), "sobol_skip");
+    expectInputError(with([](SobolOptions& o) { o.batchSize = -1; }), "batchSize");
+    expectInputError(with([](SobolOptions& o) { o.sobolSkip = -2; }), "sobolSkip");
     SobolOptions opt;
-    opt.n_base = 16;
+    opt.nBase = 16;
     expectInputError([&] { trbc::saltelliDesign((VectorXd(2) << 0, 1).finished(), (VectorXd(2) << 1, 1).finished(), opt); },
                      "input 2 is [1.000000, 1.000000]; valid: finite lo < hi");
     expectInputError([&] { trbc::saltelliDesign(lo, VectorXd::Ones(3), opt); }, "equal length");
@@ -521,7 +522,7 @@ TEST(SobolIndices, CsvOutput) {
         return Y;
     };
     SobolOptions opt;
-    opt.n_base = 128;
+    opt.nBase = 128;
     const SobolResult r = trbc::sobolAnalysis(model, VectorXd::Zero(2), VectorXd::Ones(2), opt, {"v", "mu"}, {"D_um", "D0_um@100.0"});
     const auto dir = std::filesystem::temp_directory_path() / ("trbc_sobol_csv_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
@@ -562,6 +563,31 @@ TEST(SobolIndices, CsvOutput) {
     bad.S2.clear();
     EXPECT_THROW(trbc::writeSobolSecondOrderCsv(dir / "s2.csv", bad), trbc::InputError);
     std::filesystem::remove_all(dir);
+}
+
+TEST(SurrogateSobol, ForcesNamesAndResolution) {
+    const std::vector<double> forces = trbc::sobolForces(3);
+    EXPECT_EQ(forces, (std::vector<double>{0.0, 100.0, 200.0}));
+    const std::vector<std::string> names = trbc::surrogateSobolOutputs(forces);
+    ASSERT_EQ(names.size(), 10u);
+    EXPECT_EQ(names[3], "tc_s");
+    EXPECT_EQ(names[4], "D0_um@0");
+    EXPECT_EQ(names[9], "D1_um@200");
+    trbc::SobolResult r;
+    r.S1 = r.ST = MatrixXd::Constant(10, 5, 0.2);
+    r.S1_ci = r.ST_ci = MatrixXd::Constant(10, 5, 0.05);
+    EXPECT_TRUE(trbc::sobolResolution(r).resolved);
+    r.ST_ci(9, 4) = 0.5;  // a force output: not one of the scalar outputs judged
+    EXPECT_TRUE(trbc::sobolResolution(r).resolved);
+    r.S1_ci(2, 1) = 0.2;
+    trbc::SobolResolution res = trbc::sobolResolution(r);
+    EXPECT_FALSE(res.resolved);
+    EXPECT_DOUBLE_EQ(res.widestHalfWidth, 0.2);
+    r.S1_ci(2, 1) = 0.05;
+    r.ST(0, 0) = 1.15;  // an index outside [0, 1] by more than the tolerance
+    res = trbc::sobolResolution(r);
+    EXPECT_FALSE(res.resolved);
+    EXPECT_NEAR(res.outside, 0.15, 1e-12);
 }
 
 }  // namespace

@@ -164,6 +164,44 @@ TEST(ValidationComparison, ScatterWindowsAndBands) {
     EXPECT_EQ(compareWithBand(2.0, 9.0, l).verdict, "no data");
 }
 
+TEST(ValidationComparison, EvidenceWindowsAndVerdictsOfEachObservable) {
+    TempDir dir;
+    const fs::path shear = dir.path() / "shear_flow", tube = dir.path() / "microtube";
+    writeText(shear / "tt_tb_critical_stress" / "Fischer2013.csv", "eta,tau\n23.9,0.06\n");
+    writeText(shear / "tt_tb_critical_stress" / "Abkarian2007.csv", "eta,tau\n24.5,0.09\n100,0.5\n");
+    writeText(shear / "inclination_angle" / "Fisher2015_eta_23.9_mPa_s.csv", "shear_rate,angle1,angle2,angle3,angle4,angle5,angle6,angle7\n10,20,24,,,,,\n100,10,,,,,,\n");
+    writeText(shear / "ttf" / "data_donors12.csv", "shear_rate,TTF\n10,0.02\n11,0.03\n");
+    writeText(tube / "Tomaiuolo2009_pg_v_6.6um.csv", "pg,v\n10,0.1\n12,0.2\n");
+    writeText(tube / "Tomaiuolo2009_v_l_6.6um.csv", "v,l,l_high,l_low\n0.1,8,9,7\n1,10,11,9\n");
+    ValidationEvidence e(dir.path());
+    EXPECT_FALSE(e.inclination(50.0, 10.0, 22.0, "tank-treading"));  // no data at that viscosity
+    std::optional<ScatterComparison> a = e.inclination(23.9, 11.0, 22.0, "tank-treading");
+    ASSERT_TRUE(a);
+    EXPECT_EQ(a->verdict, "inside");
+    EXPECT_EQ(a->points, 2);  // rates within a factor 1.5: only 10
+    EXPECT_EQ(e.inclination(23.9, 11.0, NAN, "tank-treading")->verdict, "no prediction");
+    EXPECT_EQ(e.inclination(23.9, 11.0, NAN, "tumbling")->verdict, "outside");
+    const ScatterComparison f = e.tankTreadingFrequency(10.5, 0.3, "tank-treading");  // scatter 4 pi [0.02, 0.03]
+    EXPECT_EQ(f.verdict, "inside");
+    EXPECT_NEAR(f.hi, 4.0 * M_PI * 0.03, 1e-12);
+    EXPECT_EQ(e.tankTreadingFrequency(10.5, NAN, "tank-treading").verdict, "no prediction");
+    EXPECT_EQ(e.tubeVelocity(11.0, 0.15).verdict, "inside");
+    EXPECT_EQ(e.tubeVelocity(11.0, 0.3).verdict, "outside");
+    EXPECT_EQ(e.tubeLength(std::sqrt(0.1), 9.0).verdict, "inside");  // band [8, 10] at the geometric mean
+    ThresholdBracket b;
+    b.gammaLo = 2.0;
+    b.gammaHi = 4.0;
+    const auto [lo, hi] = criticalStressInterval(b, 23.9);
+    ASSERT_TRUE(lo && hi);
+    EXPECT_NEAR(*lo, 2.0 * 23.9e-3, 1e-15);
+    EXPECT_NEAR(*hi, 4.0 * 23.9e-3, 1e-15);
+    const ScatterComparison c = e.criticalStress(23.9, lo, hi);  // both data sets within 10 %: [0.06, 0.09]
+    EXPECT_EQ(c.verdict, "inside");
+    EXPECT_EQ(c.points, 2);
+    b.gammaHi.reset();
+    EXPECT_EQ(e.criticalStress(23.9, criticalStressInterval(b, 23.9).first, std::nullopt).verdict, "not bracketed");
+}
+
 TEST(ValidationData, ShippedFilesReadWithBlanksAndBadCellsAreNamed) {
     const ExperimentalPoints a = readExperimentalPoints(kExperiments / "validation" / "shear_flow" / "inclination_angle" /
                                                             "Fisher2015_eta_23.9_mPa_s.csv",

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <limits>
 #include <optional>
+#include <sstream>
 #include <toml++/toml.h>
 
 #include "analysis/toml_reader.hpp"
@@ -18,11 +19,14 @@ namespace fs = std::filesystem;
 namespace {
 
 
+/// A path value of the configuration: relative to the directory of the file that sets it.
+fs::path configPath(const std::string& value, const toml::node& n, const fs::path& file, const fs::path& experiments) {
+    return resolveConfigPath(value, TableReader::sourceFile(n, file).parent_path(), experiments);
+}
+
 void readData(const fs::path& file, const toml::node& node, const fs::path& experiments, CalibrateConfig& c) {
     const toml::array* arr = node.as_array();
-    auto fail = [&](const toml::node& n, const std::string& what) {
-        throw InputError(fmt::format("{}:{}: {}", file.string(), n.source().begin.line, what));
-    };
+    auto fail = [&](const toml::node& n, const std::string& what) { TableReader::failAt(n, file, what); };
     if (!arr || arr->empty())
         fail(node, "'data' must be a non-empty array of tables [[data]] with name, experiment and file");
     c.data.clear();
@@ -41,7 +45,7 @@ void readData(const fs::path& file, const toml::node& node, const fs::path& expe
             fail(e, fmt::format("data name '{}' is not allowed (no spaces or slashes; 'theta_new' and 'hyper' are reserved)", d.name));
         for (const CalibrateDataSet& o : c.data)
             if (o.name == d.name) fail(e, fmt::format("data name '{}' appears twice", d.name));
-        d.file = resolveConfigPath(path, file.parent_path(), experiments);
+        d.file = configPath(path, *t->get("file"), file, experiments);
         if (!fs::is_regular_file(d.file)) fail(e, fmt::format("data '{}': file {} does not exist", d.name, d.file.string()));
         c.data.push_back(std::move(d));
     }
@@ -49,9 +53,7 @@ void readData(const fs::path& file, const toml::node& node, const fs::path& expe
 
 /// [inference.prior]: NAME = [lo, hi] in physical units, each inside the surrogates' training box.
 void readPriorBox(const fs::path& file, const toml::table& t, CalibrateConfig& c) {
-    auto fail = [&](const toml::node& n, const std::string& what) {
-        throw InputError(fmt::format("{}:{}: {}", file.string(), n.source().begin.line, what));
-    };
+    auto fail = [&](const toml::node& n, const std::string& what) { TableReader::failAt(n, file, what); };
     RbcPriorBox box;
     for (const auto& [key, node] : t) {
         const std::string name(key.str());
@@ -72,7 +74,56 @@ void readPriorBox(const fs::path& file, const toml::table& t, CalibrateConfig& c
     }
 }
 
+/// Moves every key of `over` into `base`: a table into the table of the same name, key by key;
+/// any other value (arrays such as [[data]] included) replaces the base's.
+void mergeInto(toml::table& base, toml::table&& over) {
+    for (auto&& [key, node] : over) {
+        toml::node* b = base.get(key.str());
+        if (node.is_table() && b && b->is_table())
+            mergeInto(*b->as_table(), std::move(*node.as_table()));
+        else
+            base.insert_or_assign(key, std::move(node));
+    }
+}
+
+/// The configuration in `file` over the one its `base` key names, recursively. `chain` holds the
+/// files read so far (the including ones); the bases are appended to `bases`, nearest first.
+toml::table parseWithBases(const fs::path& file, std::vector<fs::path>& chain, std::vector<fs::path>& bases) {
+    toml::table t = parseTomlFile(file);
+    const toml::node* key = t.get("base");
+    if (!key) return t;
+    const std::optional<std::string> name = key->value_exact<std::string>();
+    if (!name || name->empty())
+        TableReader::failAt(*key, file, "'base' must be the path of the configuration that this one overrides, e.g. base = \"paper.toml\"");
+    const fs::path base = resolveConfigPath(*name, file.parent_path(), {});
+    if (!fs::is_regular_file(base))
+        TableReader::failAt(*key, file, fmt::format("base = \"{}\": the configuration {} does not exist", *name, base.string()));
+    chain.push_back(file);
+    for (const fs::path& f : chain)
+        if (std::error_code ec; fs::equivalent(f, base, ec)) {
+            std::string cycle;
+            for (const fs::path& g : chain) cycle += g.string() + " -> ";
+            TableReader::failAt(*key, file, fmt::format("base = \"{}\" makes a cycle: {}{}", *name, cycle, base.string()));
+        }
+    bases.push_back(fs::absolute(base).lexically_normal());
+    toml::table merged = parseWithBases(base, chain, bases);
+    chain.pop_back();
+    t.erase("base");
+    mergeInto(merged, std::move(t));
+    return merged;
+}
+
 }  // namespace
+
+std::string mergedCalibrateConfig(const fs::path& file) {
+    std::vector<fs::path> chain, bases;
+    const toml::table t = parseWithBases(file, chain, bases);
+    std::ostringstream s;
+    s << "# The configuration " << file.string() << " with its base";
+    for (const fs::path& b : bases) s << " " << b.string();
+    s << " merged into it; relative paths are relative to the file that set them.\n\n" << t << "\n";
+    return s.str();
+}
 
 std::vector<CalibrateDataSet> defaultCalibrateData(const fs::path& dir) {
     std::vector<CalibrateDataSet> d = {
@@ -85,17 +136,18 @@ std::vector<CalibrateDataSet> defaultCalibrateData(const fs::path& dir) {
 }
 
 CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experiments) {
-    const toml::table root = parseTomlFile(file);
+    CalibrateConfig c;
+    std::vector<fs::path> chain;
+    const toml::table root = parseWithBases(file, chain, c.bases);
     // Every key has a default (the paper's setup), so an empty file would silently run the whole
     // pipeline at full size: more likely a wrong or truncated file than a choice.
     if (root.empty())
         throw InputError(fmt::format("{}: the configuration is empty; give at least one section (configs/paper.toml lists every "
                                      "key with the paper's values)",
                                      file.string()));
-    CalibrateConfig c;
     c.file = fs::absolute(file).lexically_normal();
     TableReader top(file, root, "");
-    top.allowOnly({"run", "data", "campaign", "surrogate", "sobol", "inference", "prediction", "cell", "validation"});
+    top.allowOnly({"base", "run", "data", "campaign", "surrogate", "sobol", "inference", "prediction", "cell", "validation"});
     auto section = [&](const char* name) -> const toml::table* {
         const toml::node* n = root.get(name);
         if (!n) return nullptr;
@@ -137,7 +189,7 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
         r.string("mode", c.surrogateMode, {"shipped", "train", "path"});
         std::string dir;
         r.string("dir", dir);
-        if (!dir.empty()) c.surrogateDir = resolveConfigPath(dir, file.parent_path(), experiments);
+        if (!dir.empty()) c.surrogateDir = configPath(dir, *t->get("dir"), file, experiments);
         if (c.surrogateMode == "path" && c.surrogateDir.empty())
             r.fail(*t, "surrogate.mode = \"path\" needs surrogate.dir (a directory made by `trbc surrogate train`)");
     }
@@ -181,7 +233,7 @@ CalibrateConfig readCalibrateConfig(const fs::path& file, const fs::path& experi
         r.boolean("enabled", c.validationEnabled);
         std::string cfg;
         r.string("config", cfg);
-        if (!cfg.empty()) c.validationConfig = resolveConfigPath(cfg, file.parent_path(), experiments);
+        if (!cfg.empty()) c.validationConfig = configPath(cfg, *t->get("config"), file, experiments);
         if (!c.validationConfig.empty() && !fs::is_regular_file(c.validationConfig))
             r.fail(*t->get("config"), fmt::format("validation.config {} does not exist", c.validationConfig.string()));
         if (const toml::node* n = t->get("only")) {

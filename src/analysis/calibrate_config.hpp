@@ -21,6 +21,8 @@ struct CalibrateDataSet {
 
 struct CalibrateConfig {
     std::filesystem::path file;  ///< the configuration file itself
+    /// The configurations it overrides (key `base`, relative to the file that names it), nearest first.
+    std::vector<std::filesystem::path> bases;
 
     std::uint64_t seed = 20261123;  ///< [run] every stochastic stage derives its seed from it
     int threads = 2;
@@ -64,9 +66,16 @@ struct CalibrateConfig {
 /// The seven data sets of docs/BAYESIAN_INFERENCE.md under an experiments directory.
 std::vector<CalibrateDataSet> defaultCalibrateData(const std::filesystem::path& experimentsDirectory);
 
-/// Parses and checks a configuration. Data file paths: relative to the configuration file's
-/// directory; a leading "@experiments/" stands for `experimentsDirectory`. Throws InputError
-/// "<file>:<line>: ..." naming the key.
+/// Parses and checks a configuration. `base = "FILE"` makes it an override of FILE: its tables
+/// merge into FILE's key by key, its other values (arrays such as [[data]] included) replace
+/// FILE's; FILE may have a base of its own. Paths (data files, surrogate.dir, validation.config):
+/// relative to the directory of the file that sets them; a leading "@experiments/" stands for
+/// `experimentsDirectory`. Throws InputError "<file>:<line>: ..." naming the key (a missing base
+/// or a cycle of bases: the `base` line).
 CalibrateConfig readCalibrateConfig(const std::filesystem::path& file, const std::filesystem::path& experimentsDirectory);
+
+/// The configuration with its bases merged, as TOML (a copy that stands alone), with a comment
+/// naming the files.
+std::string mergedCalibrateConfig(const std::filesystem::path& file);
 
 }  // namespace trbc

@@ -13,6 +13,7 @@
 
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "experiments/experiments.hpp"
 
 namespace trbc {
@@ -21,12 +22,6 @@ namespace fs = std::filesystem;
 namespace {
 
 double mixtureStdNormalCdf(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
-
-void writeText(const fs::path& p, const std::string& text) {
-    std::ofstream out(p, std::ios::trunc);
-    out << text;
-    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
-}
 
 std::vector<std::string> splitHeader(const std::string& line) {
     std::vector<std::string> out;
@@ -182,6 +177,25 @@ PredictiveSummary summarizeMixture(const Eigen::VectorXd& m, const Eigen::Vector
 
 // ------------------------------------------------------------------------------------------------
 // Samples
+
+std::vector<fs::path> inferencePosteriorDirectories(const fs::path& base, bool withPhase1, const std::string& option) {
+    if (!fs::is_directory(base)) throw InputError(fmt::format("{} {}: not a directory", option, base.string()));
+    std::vector<std::string> phases = {"phase3"};
+    if (withPhase1) phases.insert(phases.begin(), "phase1");
+    std::vector<fs::path> dirs;
+    for (const std::string& ph : phases) {
+        const fs::path d = base / ph;
+        if (!fs::is_directory(d))
+            throw InputError(fmt::format("{} {}: no {} directory (run `trbc infer --phase all` first)", option, base.string(), ph));
+        std::vector<fs::path> found;
+        for (const auto& e : fs::directory_iterator(d))
+            if (e.is_directory() && e.path().filename() != "theta_new" && fs::exists(e.path() / "samples.csv")) found.push_back(e.path());
+        std::sort(found.begin(), found.end());
+        if (found.empty()) throw InputError(fmt::format("{} {}: no posterior samples in {}", option, base.string(), d.string()));
+        dirs.insert(dirs.end(), found.begin(), found.end());
+    }
+    return dirs;
+}
 
 PosteriorSamples readPosteriorSamples(const fs::path& dirOrFile) {
     PosteriorSamples p;
@@ -373,7 +387,7 @@ std::vector<fs::path> writePredictionCsv(const fs::path& dir, const PosteriorPre
             for (Eigen::Index i = 0; i < b.summary[0].quantiles.size(); ++i) s += fmt::format(",{:.8g}", b.summary[0].quantiles[i]);
             s += fmt::format(",{:.8g}\n", b.summary[0].mean);
         }
-        writeText(file, s);
+        writeFileAtomically(file, s);
         files.push_back(file);
         const fs::path dfile = dir / fmt::format("predict_{}_{}_density.csv", p.label, experimentName(p.experiment));
         std::string d;
@@ -386,7 +400,7 @@ std::vector<fs::path> writePredictionCsv(const fs::path& dir, const PosteriorPre
                 d += fmt::format("{}{},{}", j ? "," : "", fmtNum(p.densityX[j][i]), fmtNum(p.density[j][i]));
             d += "\n";
         }
-        writeText(dfile, d);
+        writeFileAtomically(dfile, d);
         files.push_back(dfile);
         return files;
     }
@@ -405,7 +419,7 @@ std::vector<fs::path> writePredictionCsv(const fs::path& dir, const PosteriorPre
         }
         s += "\n";
     }
-    writeText(file, s);
+    writeFileAtomically(file, s);
     files.push_back(file);
     return files;
 }
@@ -416,7 +430,7 @@ void writeCoverageCsv(const fs::path& file, const std::vector<PosteriorPredictio
         for (const CoveragePoint& c : p.coverage)
             s += fmt::format("{},{},{},{},{},{},{},{},{}\n", p.label, experimentName(p.experiment), c.observable, fmtNum(c.x), fmtNum(c.y),
                              fmtNum(c.q05), fmtNum(c.q50), fmtNum(c.q95), c.inside() ? 1 : 0);
-    writeText(file, s);
+    writeFileAtomically(file, s);
 }
 
 std::string coverageMarkdown(const std::vector<PosteriorPrediction>& predictions) {
@@ -497,33 +511,46 @@ std::string directComparisonMarkdown(const std::vector<DirectComparison>& rows, 
     return s;
 }
 
-std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& posterior, const PredictionModel& model, const RbcDataSet* data,
-                                                     const std::vector<Eigen::Index>& indices, const ExperimentOptions& opt,
-                                                     const std::function<void(const std::string&)>& progress) {
-    const PosteriorSamples s = selectSamples(posterior, indices);
+namespace {
+
+/// Runs `simulate(k)` for every sample k of `s`: a sample whose direct model fails is counted as a
+/// failure of every row and reported; each sample ends with a progress line.
+void forEachDirectSample(const PosteriorSamples& s, const std::vector<Eigen::Index>& indices, std::vector<DirectComparison>& rows,
+                         const std::function<void(const std::string&)>& progress, const std::function<void(Eigen::Index)>& simulate) {
     const Eigen::Index n = s.values.cols();
     auto say = [&](const std::string& m) {
         if (progress) progress(m);
     };
+    for (Eigen::Index k = 0; k < n; ++k) {
+        try {
+            simulate(k);
+        } catch (const NumericalError& e) {
+            for (DirectComparison& r : rows) ++r.failures;
+            say(fmt::format("predict --direct {}: sample {} failed: {}", s.label, indices[static_cast<std::size_t>(k)], e.what()));
+        }
+        say(fmt::format("predict --direct {}: {}/{}", s.label, k + 1, n));
+    }
+}
+
+}  // namespace
+
+std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& posterior, const PredictionModel& model, const RbcDataSet* data,
+                                                     const std::vector<Eigen::Index>& indices, const ExperimentOptions& opt,
+                                                     const std::function<void(const std::string&)>& progress) {
+    const PosteriorSamples s = selectSamples(posterior, indices);
     std::vector<DirectComparison> rows;
     switch (s.experiment) {
         case RbcExperiment::Equilibrium: {
             static const char* obs[3] = {"D_um", "hmin_um", "hmax_um"};
             for (const char* o : obs) rows.push_back({s.label, o, {}, {}, 0});
             const Eigen::MatrixXd f = model.equilibrium(equilibriumInputs(s));
-            for (Eigen::Index k = 0; k < n; ++k) {
+            forEachDirectSample(s, indices, rows, progress, [&](Eigen::Index k) {
                 CellParameters p;
                 p.v = s.values(0, k), p.FvK = s.values(1, k), p.mu = 4.0, p.b2 = 2.0;
-                try {
-                    const SampleResult r = runSample(p, 0.0, {true, false, false}, opt);
-                    const double d[3] = {r.equilibrium.observables.D, r.equilibrium.observables.hmin, r.equilibrium.observables.hmax};
-                    for (int j = 0; j < 3; ++j) rows[static_cast<std::size_t>(j)].surrogate.push_back(f(j, k)), rows[static_cast<std::size_t>(j)].direct.push_back(d[j]);
-                } catch (const NumericalError& e) {
-                    for (auto& r : rows) ++r.failures;
-                    say(fmt::format("predict --direct {}: sample {} failed: {}", s.label, indices[static_cast<std::size_t>(k)], e.what()));
-                }
-                say(fmt::format("predict --direct {}: {}/{}", s.label, k + 1, n));
-            }
+                const SampleResult r = runSample(p, 0.0, {true, false, false}, opt);
+                const double d[3] = {r.equilibrium.observables.D, r.equilibrium.observables.hmin, r.equilibrium.observables.hmax};
+                for (int j = 0; j < 3; ++j) rows[static_cast<std::size_t>(j)].surrogate.push_back(f(j, k)), rows[static_cast<std::size_t>(j)].direct.push_back(d[j]);
+            });
             break;
         }
         case RbcExperiment::Stretching: {
@@ -538,42 +565,30 @@ std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& pos
             rows.push_back({s.label, "D1_um", {}, {}, 0});
             std::vector<Eigen::MatrixXd> f;
             for (double F : forces) f.push_back(model.stretching(stretchingInputs(s, F)));
-            for (Eigen::Index k = 0; k < n; ++k) {
+            forEachDirectSample(s, indices, rows, progress, [&](Eigen::Index k) {
                 CellParameters p;
                 p.v = s.values(0, k), p.mu = s.values(1, k), p.FvK = fvkFromModuli(p.mu, s.values(2, k) / kJoulePerKbUnit), p.b2 = s.values(3, k);
-                try {
-                    const SampleResult r = runSample(p, 0.0, {true, false, false}, opt);
-                    const CellMeshes meshes = cellMeshes(r.sfs, opt.symmetricEquilibrium);
-                    const std::vector<StretchPoint> pts = runStretching(p, meshes, r.equilibrium.shape, forces, opt);
-                    for (std::size_t i = 0; i < pts.size() && i < forces.size(); ++i) {
-                        rows[0].surrogate.push_back(f[i](0, k)), rows[0].direct.push_back(pts[i].observables.D0);
-                        rows[1].surrogate.push_back(f[i](1, k)), rows[1].direct.push_back(pts[i].observables.D1);
-                    }
-                } catch (const NumericalError& e) {
-                    for (auto& r : rows) ++r.failures;
-                    say(fmt::format("predict --direct {}: sample {} failed: {}", s.label, indices[static_cast<std::size_t>(k)], e.what()));
+                const SampleResult r = runSample(p, 0.0, {true, false, false}, opt);
+                const CellMeshes meshes = cellMeshes(r.sfs, opt.symmetricEquilibrium);
+                const std::vector<StretchPoint> pts = runStretching(p, meshes, r.equilibrium.shape, forces, opt);
+                for (std::size_t i = 0; i < pts.size() && i < forces.size(); ++i) {
+                    rows[0].surrogate.push_back(f[i](0, k)), rows[0].direct.push_back(pts[i].observables.D0);
+                    rows[1].surrogate.push_back(f[i](1, k)), rows[1].direct.push_back(pts[i].observables.D1);
                 }
-                say(fmt::format("predict --direct {}: {}/{}", s.label, k + 1, n));
-            }
+            });
             break;
         }
         case RbcExperiment::Relaxation: {
             rows.push_back({s.label, "tc_s", {}, {}, 0});
             if (!model.relaxationTime) break;
             const Eigen::VectorXd f = model.relaxationTime(relaxationInputs(s));
-            for (Eigen::Index k = 0; k < n; ++k) {
+            forEachDirectSample(s, indices, rows, progress, [&](Eigen::Index k) {
                 CellParameters p;
                 p.v = kRelaxationV, p.mu = kRelaxationMu, p.FvK = kRelaxationFvK, p.b2 = kRelaxationB2, p.etam = kRelaxationMu * s.values(0, k);
-                try {
-                    const SampleResult r = runSample(p, 0.0, {true, false, true}, opt);
-                    rows[0].surrogate.push_back(f[k]);
-                    rows[0].direct.push_back(r.relaxation.fit.tc);
-                } catch (const NumericalError& e) {
-                    ++rows[0].failures;
-                    say(fmt::format("predict --direct {}: sample {} failed: {}", s.label, indices[static_cast<std::size_t>(k)], e.what()));
-                }
-                say(fmt::format("predict --direct {}: {}/{}", s.label, k + 1, n));
-            }
+                const SampleResult r = runSample(p, 0.0, {true, false, true}, opt);
+                rows[0].surrogate.push_back(f[k]);
+                rows[0].direct.push_back(r.relaxation.fit.tc);
+            });
             break;
         }
     }

@@ -67,6 +67,12 @@ struct PosteriorSamples {
 /// its experiment (or matches none).
 PosteriorSamples readPosteriorSamples(const std::filesystem::path& dirOrFile);
 
+/// The posteriors of a `trbc infer` output directory: DIR/phase3/<data set> (the hierarchical ones)
+/// and, with `withPhase1`, DIR/phase1/<data set> before them; each phase sorted by name, theta_new
+/// left out. InputError naming `option` and DIR when DIR, a phase or its samples are missing.
+std::vector<std::filesystem::path> inferencePosteriorDirectories(const std::filesystem::path& inferenceDirectory, bool withPhase1,
+                                                                 const std::string& option = "--inference");
+
 /// `n` distinct sample indices out of `total` (all, in order, when n <= 0 or n >= total), seeded.
 std::vector<Eigen::Index> subsampleIndices(Eigen::Index total, Eigen::Index n, std::uint64_t seed);
 

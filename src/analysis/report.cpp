@@ -51,13 +51,6 @@ std::string inlineHtml(const std::string& s) {
     return e;
 }
 
-std::string readFile(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
 std::string mdCell(const std::string& s) {
     std::string r;
     for (char c : s) r += c == '|' ? std::string("\\|") : std::string(1, c);
@@ -134,7 +127,7 @@ std::string ReportDocument::html(const std::string& title) const {
             case Kind::Image:
                 if (fs::exists(b.file))
                     s += fmt::format("<figure><img alt=\"{0}\" src=\"data:image/png;base64,{1}\"><figcaption>{0}</figcaption></figure>\n",
-                                     escapeHtml(b.text), base64Encode(readFile(b.file)));
+                                     escapeHtml(b.text), base64Encode(readFileBytes(b.file)));
                 else
                     s += fmt::format("<p class=\"missing\">(figure not available: {} — {})</p>\n", escapeHtml(b.file.filename().string()),
                                      escapeHtml(b.text));
@@ -183,15 +176,7 @@ int columnOf(const std::vector<std::string>& header, const std::string& name) {
     return it == header.end() ? -1 : static_cast<int>(it - header.begin());
 }
 
-nlohmann::json readJson(const fs::path& p) {
-    try {
-        std::ifstream f(p);
-        if (!f) return nullptr;
-        return nlohmann::json::parse(f);
-    } catch (const std::exception&) {
-        return nullptr;
-    }
-}
+nlohmann::json readJson(const fs::path& p) { return tryReadJson(p).value_or(nullptr); }
 
 std::string num(double x, int digits = 3) {
     if (!std::isfinite(x)) return "–";
@@ -461,10 +446,11 @@ void provenanceSection(ReportDocument& doc, const CalibrationReportInputs& in) {
     for (const std::string& s : in.dataSets) d.push_back({s});
     doc.table({"name (experiment): file"}, d);
     doc.heading(3, "Configuration");
-    std::ifstream f(in.configFile);
-    std::ostringstream s;
-    s << f.rdbuf();
-    doc.code(s.str());
+    doc.code(readFileBytes(in.configFile));
+    for (const fs::path& base : in.configBases) {
+        doc.paragraph(fmt::format("Over its base `{}`:", base.string()));
+        doc.code(readFileBytes(base));
+    }
 }
 
 }  // namespace

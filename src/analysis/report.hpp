@@ -42,6 +42,7 @@ std::string base64Encode(const std::string& bytes);
 struct CalibrationReportInputs {
     std::filesystem::path outputDirectory;     ///< OUT of trbc calibrate
     std::filesystem::path configFile;
+    std::vector<std::filesystem::path> configBases;  ///< the configurations it overrides (base = ...), nearest first
     std::filesystem::path surrogateDirectory;  ///< holds accuracy.json
     std::filesystem::path meshConvergenceDirectory;  ///< trbc simulate JSONs <point>_L<level>.json (optional)
     std::vector<std::string> dataSets;         ///< "name (experiment): file"

@@ -83,8 +83,16 @@ public:
         out = *v;
     }
 
-    [[noreturn]] void fail(const toml::node& n, const std::string& what) const {
-        throw InputError(fmt::format("{}:{}: {}", file_.string(), n.source().begin.line, what));
+    [[noreturn]] void fail(const toml::node& n, const std::string& what) const { failAt(n, file_, what); }
+
+    /// InputError "file:line: what" for a node read from `file` (or from the file it was merged from).
+    [[noreturn]] static void failAt(const toml::node& n, const std::filesystem::path& file, const std::string& what) {
+        throw InputError(fmt::format("{}:{}: {}", sourceFile(n, file).string(), n.source().begin.line, what));
+    }
+
+    /// The file a node was parsed from: `file`, unless a configuration merged over its base holds it.
+    static std::filesystem::path sourceFile(const toml::node& n, const std::filesystem::path& file) {
+        return n.source().path ? std::filesystem::path(*n.source().path) : file;
     }
 
 private:

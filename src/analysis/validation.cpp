@@ -382,4 +382,49 @@ ScatterComparison compareWithBand(double x, double predicted, const Experimental
     return c;
 }
 
+std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(const ThresholdBracket& b, double etaOut) {
+    std::optional<double> lo, hi;
+    if (b.gammaLo) lo = *b.gammaLo * etaOut * 1e-3;
+    if (b.gammaHi) hi = *b.gammaHi * etaOut * 1e-3;
+    return {lo, hi};
+}
+
+ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : shear_(dataDir / "shear_flow"), tube_(dataDir / "microtube") {
+    critical_ = readExperimentalPoints(shear_ / "tt_tb_critical_stress" / "Fischer2013.csv", "eta", {"tau"});
+    const ExperimentalPoints ab = readExperimentalPoints(shear_ / "tt_tb_critical_stress" / "Abkarian2007.csv", "eta", {"tau"});
+    critical_.x.insert(critical_.x.end(), ab.x.begin(), ab.x.end());
+    critical_.y.insert(critical_.y.end(), ab.y.begin(), ab.y.end());
+}
+
+std::optional<ScatterComparison> ValidationEvidence::inclination(double etaOut, double rate, double angle, const std::string& regime) {
+    const fs::path f = shear_ / "inclination_angle" / fmt::format("Fisher2015_eta_{:g}_mPa_s.csv", etaOut);
+    if (!fs::exists(f)) return std::nullopt;
+    if (!angle_.count(etaOut))
+        angle_[etaOut] = readExperimentalPoints(f, "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
+    ScatterComparison s = compareWithScatter(rate, angle, angle_[etaOut], 1.5);
+    if (regime == "tank-treading" && !std::isfinite(angle) && s.points > 0) s.verdict = "no prediction";
+    return s;
+}
+
+ScatterComparison ValidationEvidence::tankTreadingFrequency(double rate, double ttf, const std::string& regime) {
+    if (!ttf_) ttf_ = readExperimentalPoints(shear_ / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
+    ScatterComparison s = compareWithScatter(rate, ttf, *ttf_, 1.25, 4.0 * M_PI);
+    if (regime == "tank-treading" && !std::isfinite(ttf) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
+    return s;
+}
+
+ScatterComparison ValidationEvidence::tubeVelocity(double pressureGradient, double velocity) {
+    if (!velocity_) velocity_ = readExperimentalPoints(tube_ / "Tomaiuolo2009_pg_v_6.6um.csv", "pg", {"v"});
+    return compareWithScatter(pressureGradient, velocity, *velocity_, 1.25);
+}
+
+ScatterComparison ValidationEvidence::tubeLength(double velocity, double length) {
+    if (!length_) length_ = readExperimentalPoints(tube_ / "Tomaiuolo2009_v_l_6.6um.csv", "v", {"l", "l_high", "l_low"});
+    return compareWithBand(velocity, length, *length_);
+}
+
+ScatterComparison ValidationEvidence::criticalStress(double etaOut, std::optional<double> tauLo, std::optional<double> tauHi) const {
+    return compareInterval(etaOut, tauLo, tauHi, critical_, 0.1);
+}
+
 }  // namespace trbc

@@ -4,6 +4,7 @@
 // refinement, and the comparison of each prediction with the experimental scatter.
 // The cases themselves are `trbc flow shear|tube` runs driven by `trbc validate` (cli/cmd_validate.cpp).
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -122,5 +123,36 @@ ScatterComparison compareInterval(double x, std::optional<double> lo, std::optio
 /// Band comparison (tube length): the band [y_low(x), y_high(x)] linearly interpolated in log x
 /// between the data rows (y columns: value, high, low); "no data" outside their x range.
 ScatterComparison compareWithBand(double x, double predicted, const ExperimentalPoints& data);
+
+/// The critical shear stress interval [eta gamma_lo, eta gamma_hi] in Pa of a bracket at outer
+/// viscosity eta in mPa s (a bound is missing where the bracket's is).
+std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(const ThresholdBracket& b, double etaOut);
+
+/// The experimental scatter of the flow validations (DATA/shear_flow, DATA/microtube of the
+/// validation data directory; docs/FLOW.md) and the comparison of each predicted observable with
+/// it. A table is read when a case first needs it; the critical stresses at once.
+class ValidationEvidence {
+public:
+    explicit ValidationEvidence(const std::filesystem::path& dataDir);
+    /// Inclination [deg] against Fischer 2015 at the same outer viscosity, rates within a factor
+    /// 1.5; none where there are no data for that viscosity. A tank-treading cell without an
+    /// angle is "no prediction".
+    std::optional<ScatterComparison> inclination(double etaOut, double rate, double angleDeg, const std::string& regime);
+    /// 4 pi f / rate against the donors' TTF, rates within a factor 1.25; a tank-treading cell
+    /// without a TTF is "no prediction".
+    ScatterComparison tankTreadingFrequency(double rate, double ttf, const std::string& regime);
+    /// Velocity [cm/s] against Tomaiuolo 2009, pressure gradients within a factor 1.25.
+    ScatterComparison tubeVelocity(double pressureGradient, double velocity);
+    /// Length [um] against the Tomaiuolo band at the predicted velocity.
+    ScatterComparison tubeLength(double velocity, double length);
+    /// Critical stress interval [Pa] against Fischer 2013 and Abkarian 2007, outer viscosities within 10 %.
+    ScatterComparison criticalStress(double etaOut, std::optional<double> tauLo, std::optional<double> tauHi) const;
+
+private:
+    std::filesystem::path shear_, tube_;
+    std::map<double, ExperimentalPoints> angle_;
+    std::optional<ExperimentalPoints> velocity_, length_, ttf_;
+    ExperimentalPoints critical_;
+};
 
 }  // namespace trbc

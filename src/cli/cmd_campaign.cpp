@@ -16,6 +16,7 @@
 #endif
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "sampling/campaign.hpp"
 
@@ -102,105 +103,119 @@ bool launchedByMpi() {
 }
 #endif
 
+struct CampaignCommandOptions {
+    CampaignOptions c;
+    std::string design = "uniform", out, inject;
+    int level = 4;
+    CacheOptions cache;
+};
+
+void addCampaignOptions(CLI::App* cmd, CampaignCommandOptions& o) {
+    addNumber(cmd, "--samples", o.c.samples, "number of samples (rows)", NumberRange::closed(1, 1e8))->capture_default_str();
+    cmd->add_option("--design", o.design, "uniform (i.i.d., as the reference) or lhs (Latin hypercube)")
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o.c.seed, "seed of the design", NumberRange::nonNegative())->capture_default_str();
+    addNumber(cmd, "--level", o.level, "icosphere level of the meshes (4: Nv = 2562, the training level)",
+              NumberRange::closed(2, 6))
+        ->capture_default_str();
+    addNumber(cmd, "--forces-per-cell", o.c.forcesPerCell,
+                    "rows per cell: the rows of a cell share (v, mu, FvK, b2, etam) and one SFS, equilibrium, "
+                    "stretching continuation and relaxation, and differ in Fext. 1 = the paper's one force per sample",
+              NumberRange::closed(1, 1000))
+        ->capture_default_str();
+    addOutOption(cmd, o.out);
+    addThreadsOption(cmd, o.c.threads, "cells run concurrently (one thread each)");
+    addNumber(cmd, "--cell-time-limit", o.c.cellTimeLimit,
+                    "wall-time budget of one cell (0: none); over it the cell's rows are recorded as failed with "
+                    "the reason 'time limit reached' (equilibrium outputs computed before it are kept; which cells hit "
+                    "it depends on the machine). Part of the settings: a resume must give the same value",
+              NumberRange::closed(0.0, 1e6, "s"))
+        ->capture_default_str();
+    cmd->add_flag("--resume", o.c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
+    cmd->add_option("--inject-failures", o.inject,
+                    "comma-separated sample ids whose cell fails on purpose (to test failure records)");
+    addSolverOptions(cmd, o.c.experiment);
+    addCacheOptions(cmd, o.cache);
+}
+
+/// This process's rank and the number of ranks: under an MPI launcher MPI is initialised here
+/// (and finalised by runCampaign), otherwise one rank without MPI.
+struct Ranks {
+    int rank = 0, size = 1;
+    bool mpi = false;
+};
+
+Ranks startRanks() {
+    Ranks r;
+#ifdef TRBC_WITH_MPI
+    r.mpi = launchedByMpi();
+    if (r.mpi) {
+        int provided = 0;
+        MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+        MPI_Comm_rank(MPI_COMM_WORLD, &r.rank);
+        MPI_Comm_size(MPI_COMM_WORLD, &r.size);
+    }
+#endif
+    return r;
+}
+
+void runCampaign(const CampaignCommandOptions& o) {
+    CampaignOptions c = o.c;
+    c.design = parseDesignKind(o.design);
+    c.outDir = o.out;
+    c.command = commandLine();
+    c.experiment.level = o.level;
+    c.experiment.cacheDir = cacheDirectory(o.cache);
+    if (!o.inject.empty()) c.injectFailures = parseIdList(o.inject);
+    const Ranks ranks = startRanks();
+    c.ranks = ranks.size;
+    ProgressReporter reporter(ranks.size);
+    if (ranks.rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
+    const auto t0 = SteadyClock::now();
+    CampaignSummary share, s;
+    std::string error;
+    const auto attempt = [&error](auto&& step) {
+        try {
+            step();
+        } catch (const std::exception& e) {
+            error = e.what();
+        }
+    };
+    // Rank 0 prepares (or refuses) the campaign before any rank touches its part file.
+    if (ranks.rank == 0) attempt([&] { prepareCampaign(c); });
+    agreeOnFailure(ranks.mpi, error);
+    if (error.empty()) attempt([&] { share = runCampaignShare(c, ranks.rank, ranks.size); });
+    agreeOnFailure(ranks.mpi, error);
+    if (error.empty() && ranks.rank == 0) attempt([&] { s = finalizeCampaign(c, secondsSince(t0)); });
+#ifdef TRBC_WITH_MPI
+    if (ranks.mpi) MPI_Finalize();
+#endif
+    // A rank that failed reports its own reason. Other ranks than 0 exit quietly when only
+    // another rank failed: an early non-zero exit would make the launcher kill rank 0 before it
+    // prints the reason, and rank 0 (or the failed rank) already gives the job its status.
+    if (!error.empty() && !(ranks.rank != 0 && error == kAnotherRankFailed)) throw InputError(error);
+    if (ranks.rank != 0) return;
+    std::cout << fmt::format("campaign: {} of {} samples done ({} ok, {} failed); {} cells computed now, {} resumed; "
+                             "{:.1f} s\n",
+                             s.samples, c.samples, s.ok, s.failed, share.cellsComputed, share.cellsResumed,
+                             s.wallSeconds);
+    std::cout << (s.complete ? fmt::format("table: {}\n", (c.outDir / "samples.csv").string())
+                             : std::string("incomplete: rerun with --resume\n"));
+    if (!s.complete) throw NumericalError("campaign incomplete");
+}
+
 }  // namespace
 
 void registerCampaign(CLI::App& app) {
-    struct Opts {
-        CampaignOptions c;
-        std::string design = "uniform", out, inject;
-        int level = 4;
-        CacheOptions cache;
-    };
-    auto o = std::make_shared<Opts>();
+    auto o = std::make_shared<CampaignCommandOptions>();
     CLI::App* cmd = app.add_subcommand(
         "campaign",
         "Training campaign over the input box of docs/CAMPAIGN_AND_SURROGATE.md: one CSV row per sample (v, mu_uN_per_m, FvK, b2, "
         "etam_Pa_s_um, Fext_pN -> D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s, status, reason, wall_s) in "
         "OUT/samples.csv, provenance in OUT/campaign.json. Checkpoints every cell; --resume continues a killed run. "
         "Under MPI (mpirun -n P trbc campaign ...) the cells are shared between ranks");
-    addNumber(cmd, "--samples", o->c.samples, "number of samples (rows)", NumberRange::closed(1, 1e8))->capture_default_str();
-    cmd->add_option("--design", o->design, "uniform (i.i.d., as the reference) or lhs (Latin hypercube)")
-        ->capture_default_str();
-    addNumber(cmd, "--seed", o->c.seed, "seed of the design", NumberRange::nonNegative())->capture_default_str();
-    addNumber(cmd, "--level", o->level, "icosphere level of the meshes (4: Nv = 2562, the training level)",
-              NumberRange::closed(2, 6))
-        ->capture_default_str();
-    addNumber(cmd, "--forces-per-cell", o->c.forcesPerCell,
-                    "rows per cell: the rows of a cell share (v, mu, FvK, b2, etam) and one SFS, equilibrium, "
-                    "stretching continuation and relaxation, and differ in Fext. 1 = the paper's one force per sample",
-              NumberRange::closed(1, 1000))
-        ->capture_default_str();
-    cmd->add_option("--out", o->out, "output directory")->required();
-    addNumber(cmd, "--threads", o->c.threads, "cells run concurrently (one thread each)", NumberRange::closed(1, 1024))
-        ->capture_default_str();
-    addNumber(cmd, "--cell-time-limit", o->c.cellTimeLimit,
-                    "wall-time budget of one cell (0: none); over it the cell's rows are recorded as failed with "
-                    "the reason 'time limit reached' (equilibrium outputs computed before it are kept; which cells hit "
-                    "it depends on the machine). Part of the settings: a resume must give the same value",
-              NumberRange::closed(0.0, 1e6, "s"))
-        ->capture_default_str();
-    cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
-    cmd->add_option("--inject-failures", o->inject,
-                    "comma-separated sample ids whose cell fails on purpose (to test failure records)");
-    addSolverOptions(cmd, o->c.experiment);
-    addCacheOptions(cmd, o->cache);
-    cmd->callback([o]() {
-        CampaignOptions c = o->c;
-        c.design = parseDesignKind(o->design);
-        c.outDir = o->out;
-        c.command = commandLine();
-        c.experiment.level = o->level;
-        c.experiment.cacheDir = cacheDirectory(o->cache);
-        if (!o->inject.empty()) c.injectFailures = parseIdList(o->inject);
-        int rank = 0, ranks = 1;
-        bool mpi = false;
-#ifdef TRBC_WITH_MPI
-        mpi = launchedByMpi();
-        if (mpi) {
-            int provided = 0;
-            MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
-            MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-            MPI_Comm_size(MPI_COMM_WORLD, &ranks);
-        }
-#endif
-        c.ranks = ranks;
-        ProgressReporter reporter(ranks);
-        if (rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
-        const auto t0 = std::chrono::steady_clock::now();
-        CampaignSummary share, s;
-        std::string error;
-        const auto attempt = [&error](auto&& step) {
-            try {
-                step();
-            } catch (const std::exception& e) {
-                error = e.what();
-            }
-        };
-        // Rank 0 prepares (or refuses) the campaign before any rank touches its part file.
-        if (rank == 0) attempt([&] { prepareCampaign(c); });
-        agreeOnFailure(mpi, error);
-        if (error.empty()) attempt([&] { share = runCampaignShare(c, rank, ranks); });
-        agreeOnFailure(mpi, error);
-        if (error.empty() && rank == 0)
-            attempt([&] {
-                s = finalizeCampaign(c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-            });
-#ifdef TRBC_WITH_MPI
-        if (mpi) MPI_Finalize();
-#endif
-        // A rank that failed reports its own reason. Other ranks than 0 exit quietly when only
-        // another rank failed: an early non-zero exit would make the launcher kill rank 0 before it
-        // prints the reason, and rank 0 (or the failed rank) already gives the job its status.
-        if (!error.empty() && !(rank != 0 && error == kAnotherRankFailed)) throw InputError(error);
-        if (rank != 0) return;
-        std::cout << fmt::format("campaign: {} of {} samples done ({} ok, {} failed); {} cells computed now, {} resumed; "
-                                 "{:.1f} s\n",
-                                 s.samples, c.samples, s.ok, s.failed, share.cellsComputed, share.cellsResumed,
-                                 s.wallSeconds);
-        std::cout << (s.complete ? fmt::format("table: {}\n", (c.outDir / "samples.csv").string())
-                                 : std::string("incomplete: rerun with --resume\n"));
-        if (!s.complete) throw NumericalError("campaign incomplete");
-    });
+    addCampaignOptions(cmd, *o);
+    cmd->callback([o]() { runCampaign(*o); });
 }
 
 }  // namespace trbc::cli

@@ -130,9 +130,9 @@ void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& un
     addNumber(cmd, "--dt", s.step.dt, "fixed time step (disables the adaptive step control)", NumberRange::leftOpen(0.0, 100.0, unit));
     addNumber(cmd, "--max-steps", s.step.maxSteps, "limit on time-step attempts (the run fails beyond it)", NumberRange::closed(1, 1e8))
         ->capture_default_str();
-    cmd->add_option("--out", s.out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json");
+    addOutOption(cmd, s.out, "directory for the shapes (VTK + shapes.pvd), frames.csv, steps.csv, flow.json", false);
     addNumber(cmd, "--vtk-every", s.vtkEvery, "write every k-th frame as VTK", NumberRange::closed(1, 1e6))->capture_default_str();
-    addNumber(cmd, "--threads", s.threads, "OpenMP threads (0: OpenMP default)", NumberRange::closed(0, 1024));
+    addThreadsOption(cmd, s.threads, "OpenMP threads (0: OpenMP default)", 0);
     cmd->add_flag("--resume", s.step.resume,
                   "continue a killed run from its snapshots in OUT/checkpoint/ (same command; a snapshot of another "
                   "run or a damaged one is ignored and the run starts afresh); needs --out");

@@ -37,7 +37,7 @@ void registerForces(CLI::App& app) {
         "Lengths and moduli in the mesh's own units; every modulus defaults to 0 (term off).");
     cmd->add_option("--mesh", o->mesh, "closed triangle mesh (OFF)")->required();
     cmd->add_option("--reference", o->reference, "stress-free mesh for the Lim term (OFF, same connectivity)");
-    cmd->add_option("--out", o->out, "output CSV with header fx,fy,fz, one row per vertex")->required();
+    addOutOption(cmd, o->out, "output CSV with header fx,fy,fz, one row per vertex");
     addModulusOptions(cmd, o->moduli);
     cmd->callback([o]() {
         const MembraneParameters p = checkedParameters(o->moduli);

@@ -58,7 +58,7 @@ void registerMesh(CLI::App& app) {
     ico->add_flag("--biconcave", o->biconcave, "map onto the Evans-Fung (1972) resting cell");
     // Bounded so that area, volume and every coordinate stay finite doubles (volume ~ area^1.5).
     addNumber(ico, "--area", o->area, "scale uniformly to this area (0 = keep)", NumberRange::closed(0.0, 1e100, "(length^2, um^2 with --biconcave)"));
-    ico->add_option("--out", o->out, "output mesh (.off, .ply or .vtk)")->required();
+    addOutOption(ico, o->out, "output mesh (.off, .ply or .vtk)");
     ico->callback([o]() {
         Mesh m = icosphere(o->level);
         if (o->biconcave) m.X = evansFungMap(m.X);

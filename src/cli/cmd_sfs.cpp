@@ -39,7 +39,7 @@ void registerSfs(CLI::App& app) {
                "cell area A0 = 135 um^2 (um), cached on disk by (v, level, model version)");
     addNumber(cmd, "--v", o->v, "reduced volume v (prior [0.65, 1])", NumberRange::leftOpen(0.0, 1.0))->required();
     addNumber(cmd, "--level", o->level, "icosphere level (Nv = 10 4^L + 2)", NumberRange::closed(1, 6))->capture_default_str();
-    cmd->add_option("--out", o->out, "output mesh (.off, .ply or .vtk), in um at area 135 um^2")->required();
+    addOutOption(cmd, o->out, "output mesh (.off, .ply or .vtk), in um at area 135 um^2");
     cmd->add_option("--preconditioner", o->preconditioner,
                     "H0 of the L-BFGS: multigrid on the icosphere hierarchy, or none (docs/FORWARD_MODEL.md)")
         ->check(CLI::IsMember({"multigrid", "none"}))->capture_default_str();

@@ -12,6 +12,7 @@
 #include <set>
 
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -38,8 +39,6 @@ std::string accuracyMarkdown(const std::vector<OutputAccuracy>& acc) {
     return s;
 }
 
-void writeText(const std::filesystem::path& p, const std::string& text) { writeFileAtomically(p, text); }
-
 /// Held-out rows with truth and prediction: inputs, outputs, outputs_pred.
 void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
                          const Eigen::MatrixXd& predicted) {
@@ -52,7 +51,7 @@ void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& 
             for (Eigen::Index r = 0; r < 6; ++r) line += fmt::format("{}{:.10g}", line.empty() ? "" : ",", (*m)(r, c));
         text += line + '\n';
     }
-    writeText(p, text);
+    writeFileAtomically(p, text);
 }
 
 /// cv.md: pooled out-of-fold accuracy and the relative RMSE of every output per fold.
@@ -72,11 +71,6 @@ std::string crossValidationMarkdown(const CrossValidationReport& cv, const std::
     return md;
 }
 
-// The --model option of eval and test: a directory, or the shipped surrogates when empty.
-std::filesystem::path modelDirectory(const std::string& option) {
-    return option.empty() ? defaultSurrogateDirectory() : std::filesystem::path(option);
-}
-
 bool listed(const std::vector<std::string>& list, const std::string& name) {
     return std::find(list.begin(), list.end(), name) != list.end();
 }
@@ -88,177 +82,211 @@ std::vector<std::string> networkNamesOrNone() {
     return allowed;
 }
 
-void registerTrain(CLI::App* parent) {
-    struct Opts {
-        std::string data, out;
-        SurrogateTrainingOptions t;
-        int threads = 2;
-        int cvFolds = 0;
-        std::string relaxationVariables = "log";
-        std::string stretchingVariables = "sqrt-b2";
-        std::vector<std::string> ensemble{"relaxation"};
-        std::vector<std::string> distill{"relaxation"};
-    };
-    auto o = std::make_shared<Opts>();
-    CLI::App* cmd = parent->add_subcommand(
-        "train", "Train the equilibrium, stretching and relaxation networks (3 x 32 tanh, Adam, early stopping; "
-                 "docs/CAMPAIGN_AND_SURROGATE.md, surrogate training) on a campaign table; writes MODEL_DIR/{equilibrium,stretching,relaxation}.json and "
-                 "the held-out accuracy (accuracy.md, accuracy.json, test_predictions.csv)");
-    cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
+struct TrainCommandOptions {
+    std::string data, out;
+    SurrogateTrainingOptions t;
+    int threads = 2;
+    int cvFolds = 0;
+    std::string relaxationVariables = "log";
+    std::string stretchingVariables = "sqrt-b2";
+    std::vector<std::string> ensemble{"relaxation"};
+    std::vector<std::string> distill{"relaxation"};
+};
+
+void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
+    cmd->add_option("--data", o.data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
-    cmd->add_option("--out", o->out, "model directory")->required();
-    addNumber(cmd, "--seed", o->t.network.seed, "seed of the initial weights and mini-batch order", NumberRange::nonNegative())
+    addOutOption(cmd, o.out, "model directory");
+    addNumber(cmd, "--seed", o.t.network.seed, "seed of the initial weights and mini-batch order", NumberRange::nonNegative())
         ->capture_default_str();
-    addNumber(cmd, "--split-seed", o->t.network.splitSeed, "seed of the training/validation split", NumberRange::nonNegative())
+    addNumber(cmd, "--split-seed", o.t.network.splitSeed, "seed of the training/validation split", NumberRange::nonNegative())
         ->capture_default_str();
-    addNumber(cmd, "--test-fraction", o->t.testFraction, "share of the cells held out as the test set", NumberRange::rightOpen(0.0, 0.5))
+    addNumber(cmd, "--test-fraction", o.t.testFraction, "share of the cells held out as the test set", NumberRange::rightOpen(0.0, 0.5))
         ->capture_default_str();
-    addNumber(cmd, "--test-seed", o->t.testSeed, "seed of the choice of test cells", NumberRange::nonNegative())->capture_default_str();
-    addNumber(cmd, "--restarts", o->t.restarts,
+    addNumber(cmd, "--test-seed", o.t.testSeed, "seed of the choice of test cells", NumberRange::nonNegative())->capture_default_str();
+    addNumber(cmd, "--restarts", o.t.restarts,
                     "trainings per network from seeds seed, seed+1, ...; the lowest validation loss is kept, or all of "
                     "them for the networks of --ensemble",
               NumberRange::closed(1, 100))
         ->capture_default_str();
-    addNumber(cmd, "--max-epochs", o->t.network.maxEpochs, "epoch cap of each network", NumberRange::closed(1, 1e7))
+    addNumber(cmd, "--max-epochs", o.t.network.maxEpochs, "epoch cap of each network", NumberRange::closed(1, 1e7))
         ->capture_default_str();
-    addNumber(cmd, "--threads", o->threads, "networks trained concurrently (results do not depend on it)", NumberRange::closed(1, 3))
-        ->capture_default_str();
-    cmd->add_option("--relaxation-variables", o->relaxationVariables,
+    addThreadsOption(cmd, o.threads, "networks trained concurrently (results do not depend on it)", 1, 3);
+    cmd->add_option("--relaxation-variables", o.relaxationVariables,
                     "log: the relaxation network maps (v, log mu, log FvK, b2, log etam) to log(tc mu/etam); linear: the raw "
                     "variables")
         ->check(CLI::IsMember({"log", "linear"}))->capture_default_str();
-    cmd->add_option("--stretching-variables", o->stretchingVariables,
+    cmd->add_option("--stretching-variables", o.stretchingVariables,
                     "sqrt-b2: the stretching network sees sqrt(b2) (the hardening sets in at stretches ~ 1/sqrt(b2)); "
                     "linear: b2")
         ->check(CLI::IsMember({"sqrt-b2", "linear"}))->capture_default_str();
-    cmd->add_option("--ensemble", o->ensemble,
+    cmd->add_option("--ensemble", o.ensemble,
                     "networks that keep all their restarts and predict with the members' mean (geometric mean for log "
                     "outputs): any of equilibrium, stretching, relaxation, or none")
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
-    cmd->add_option("--distill", o->distill,
+    cmd->add_option("--distill", o.distill,
                     "ensemble networks replaced by one network trained on the ensemble's predictions at "
                     "--distill-samples uniform points of the prior box (one network pass per evaluation instead of one "
                     "per member; the default): any of the --ensemble networks, or none; "
                     "when not given, the default's networks that are not in --ensemble are left out")
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
-    addNumber(cmd, "--distill-samples", o->t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
+    addNumber(cmd, "--distill-samples", o.t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
         ->capture_default_str();
-    addNumber(cmd, "--cv-folds", o->cvFolds,
+    addNumber(cmd, "--cv-folds", o.cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
                     "writes cv.md, cv.json, cv_predictions.csv); 0: off",
               NumberRange::closed(0, 100))
         ->capture_default_str();
-    cmd->callback([o, cmd]() {
-        if (o->cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
-        if (cmd->count("--distill") == 0) {
-            std::erase_if(o->distill, [&](const std::string& name) { return !listed(o->ensemble, name); });
-            if (o->distill.empty()) o->distill = {"none"};
-        }
-        if (listed(o->ensemble, "none") && o->ensemble.size() > 1)
-            throw InputError("surrogate train: --ensemble none cannot be combined with network names");
-        if (listed(o->distill, "none") && o->distill.size() > 1)
-            throw InputError("surrogate train: --distill none cannot be combined with network names");
-        for (const std::string& name : surrogateNetworkNames())
-            if (listed(o->distill, name) && !listed(o->ensemble, name))
-                throw InputError(fmt::format("surrogate train: --distill {} needs {} in --ensemble (the network it is "
-                                             "distilled from)", name, name));
-        ensureWritableDirectory(o->out);
-        bool complete = true;
-        const auto rows = readCampaignRows(o->data, &complete);
-        if (!complete)
-            std::cerr << fmt::format("surrogate train: {} is an unfinished campaign; training on its {} finished rows\n",
-                                     o->data, rows.size());
-        SurrogateTrainingOptions t = o->t;
-        t.command = commandLine();
-        t.logRelaxation = o->relaxationVariables == "log";
-        t.sqrtB2Stretching = o->stretchingVariables == "sqrt-b2";
-        const auto& names = surrogateNetworkNames();
-        for (int k = 0; k < 3; ++k) {
-            t.ensemble[k] = listed(o->ensemble, names[std::size_t(k)]);
-            t.distill[k] = listed(o->distill, names[std::size_t(k)]);
-        }
-        if (t.restarts < 2 && (t.ensemble[0] || t.ensemble[1] || t.ensemble[2]))
-            std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
-        t.progress = [](const std::string& net, const EpochRecord& e) {
-            if (e.reduced || e.last || e.epoch % 100 == 0)
-                std::cerr << fmt::format("  {:<11} epoch {:>4}  train {}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
-                                         net, e.epoch,
-                                         std::isnan(e.trainLoss) ? std::string("(none)") : fmt::format("{:.3e}", e.trainLoss),
-                                         e.validationLoss, e.bestValidationLoss, e.learningRate,
-                                         e.last ? "  (done)" : e.reduced ? "  (restored best, rate / 10)" : "");
-        };
-        omp_set_num_threads(o->threads);
-        const auto t0 = std::chrono::steady_clock::now();
-        const SurrogateTrainingReport rep = trainSurrogate(rows, t);
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        rep.model.save(o->out);
+}
 
-        const std::filesystem::path dir = o->out;
-        nlohmann::json j = {{"command", commandLine()},
-                            {"version", kVersion},
-                            {"data", o->data},
-                            {"data_complete", complete},
-                            {"data_hash", rep.dataHash},
-                            {"rows", rep.rows},
-                            {"cells", rep.cells},
-                            {"test_cells", rep.testCells},
-                            {"test_seed", t.testSeed},
-                            {"seed", t.network.seed},
-                            {"restarts", t.restarts},
-                            {"relaxation_variables", o->relaxationVariables},
-                            {"stretching_variables", o->stretchingVariables},
-                            {"ensemble", o->ensemble},
-                            {"distill", o->distill},
-                            {"distill_samples", t.distillSamples},
-                            {"split_seed", t.network.splitSeed},
-                            {"wall_s", wall},
-                            {"networks", nlohmann::json::object()},
-                            {"dropped_where", rep.droppedWhere},
-                            {"test", accuracyJson(rep.test)},
-                            {"validation", accuracyJson(rep.validation)}};
-        const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
-        for (int k = 0; k < 3; ++k)
-            j["networks"][names[k]] = {{"samples_used", rep.used[k]},
-                                       {"samples_dropped", rep.dropped[k]},
-                                       {"wall_s", rep.wallSeconds[k]},
-                                       {"epochs", nets[k]->history.passes()},
-                                       {"seed", nets[k]->options.seed},
-                                       {"ensemble_members", 1 + nets[k]->ensemble.size()},
-                                       {"distilled_from_members", nets[k]->distillation.members},
-                                       {"best_epoch", nets[k]->history.bestEpoch},
-                                       {"best_validation_loss", nets[k]->history.bestValidationLoss},
-                                       {"hit_epoch_cap", nets[k]->history.hitEpochCap}};
-        writeText(dir / "accuracy.json", j.dump(2) + "\n");
-        std::string md = fmt::format("# Surrogate accuracy\n\nMade by `{}` (trbc {}), data hash {}: {} rows in {} cells{}; "
-                                     "{} cells held out as the test set.\n\n## Test set (cells never seen in training or early stopping)\n\n",
-                                     commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
-                                     complete ? "" : " (finished part of an unfinished campaign)", rep.testCells);
-        md += accuracyMarkdown(rep.test) + "\n## Validation split (used for early stopping)\n\n" + accuracyMarkdown(rep.validation);
-        md += "\n## Training\n\n| network | samples | dropped | epochs | members | wall s |\n|---|---|---|---|---|---|\n";
-        for (int k = 0; k < 3; ++k)
-            md += fmt::format("| {} | {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
-                              1 + nets[k]->ensemble.size(), rep.wallSeconds[k]);
-        if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
-        writeText(dir / "accuracy.md", md);
-        writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);
-        std::cout << md;
-        if (o->cvFolds >= 2) {
-            std::cerr << fmt::format("surrogate train: {}-fold cross-validation ({} more trainings)\n", o->cvFolds, o->cvFolds);
-            SurrogateTrainingOptions c = t;
-            c.progress = nullptr;
-            const CrossValidationReport cv = crossValidateSurrogate(rows, c, o->cvFolds);
-            nlohmann::json cj = {{"command", commandLine()}, {"version", kVersion},     {"data_hash", rep.dataHash},
-                                 {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
-                                 {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
-            for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
-            writeText(dir / "cv.json", cj.dump(2) + "\n");
-            const std::string cvMd = crossValidationMarkdown(cv, rep.dataHash, t.testSeed);
-            writeText(dir / "cv.md", cvMd);
-            writePredictionsCsv(dir / "cv_predictions.csv", cv.inputs, cv.truth, cv.predicted);
-            std::cout << "\n" << cvMd;
-        }
-        std::cout << fmt::format("\nmodel: {}\n", dir.string());
-    });
+/// --cv-folds, --ensemble and --distill checked against each other; a --distill that was not given
+/// keeps only the default's networks that are in --ensemble.
+void reconcileNetworkLists(TrainCommandOptions& o, bool distillGiven) {
+    if (o.cvFolds == 1) throw InputError("surrogate train: --cv-folds must be 0 (off) or at least 2, got 1");
+    if (!distillGiven) {
+        std::erase_if(o.distill, [&](const std::string& name) { return !listed(o.ensemble, name); });
+        if (o.distill.empty()) o.distill = {"none"};
+    }
+    if (listed(o.ensemble, "none") && o.ensemble.size() > 1)
+        throw InputError("surrogate train: --ensemble none cannot be combined with network names");
+    if (listed(o.distill, "none") && o.distill.size() > 1)
+        throw InputError("surrogate train: --distill none cannot be combined with network names");
+    for (const std::string& name : surrogateNetworkNames())
+        if (listed(o.distill, name) && !listed(o.ensemble, name))
+            throw InputError(fmt::format("surrogate train: --distill {} needs {} in --ensemble (the network it is "
+                                         "distilled from)", name, name));
+}
+
+SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
+    SurrogateTrainingOptions t = o.t;
+    t.command = commandLine();
+    t.logRelaxation = o.relaxationVariables == "log";
+    t.sqrtB2Stretching = o.stretchingVariables == "sqrt-b2";
+    const auto& names = surrogateNetworkNames();
+    for (int k = 0; k < 3; ++k) {
+        t.ensemble[k] = listed(o.ensemble, names[std::size_t(k)]);
+        t.distill[k] = listed(o.distill, names[std::size_t(k)]);
+    }
+    if (t.restarts < 2 && (t.ensemble[0] || t.ensemble[1] || t.ensemble[2]))
+        std::cerr << "surrogate train: --restarts 1 leaves one network per ensemble (nothing to average)\n";
+    t.progress = [](const std::string& net, const EpochRecord& e) {
+        if (e.reduced || e.last || e.epoch % 100 == 0)
+            std::cerr << fmt::format("  {:<11} epoch {:>4}  train {}  validation {:.3e}  best {:.3e}  rate {:.0e}{}\n",
+                                     net, e.epoch,
+                                     std::isnan(e.trainLoss) ? std::string("(none)") : fmt::format("{:.3e}", e.trainLoss),
+                                     e.validationLoss, e.bestValidationLoss, e.learningRate,
+                                     e.last ? "  (done)" : e.reduced ? "  (restored best, rate / 10)" : "");
+    };
+    return t;
+}
+
+/// MODEL_DIR/accuracy.json: settings, data, per-network training records, held-out accuracy.
+nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainingOptions& t, const SurrogateTrainingReport& rep,
+                            bool complete, double wall) {
+    nlohmann::json j = {{"command", commandLine()},
+                        {"version", kVersion},
+                        {"data", o.data},
+                        {"data_complete", complete},
+                        {"data_hash", rep.dataHash},
+                        {"rows", rep.rows},
+                        {"cells", rep.cells},
+                        {"test_cells", rep.testCells},
+                        {"test_seed", t.testSeed},
+                        {"seed", t.network.seed},
+                        {"restarts", t.restarts},
+                        {"relaxation_variables", o.relaxationVariables},
+                        {"stretching_variables", o.stretchingVariables},
+                        {"ensemble", o.ensemble},
+                        {"distill", o.distill},
+                        {"distill_samples", t.distillSamples},
+                        {"split_seed", t.network.splitSeed},
+                        {"wall_s", wall},
+                        {"networks", nlohmann::json::object()},
+                        {"dropped_where", rep.droppedWhere},
+                        {"test", accuracyJson(rep.test)},
+                        {"validation", accuracyJson(rep.validation)}};
+    const auto& names = surrogateNetworkNames();
+    const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
+    for (int k = 0; k < 3; ++k)
+        j["networks"][names[k]] = {{"samples_used", rep.used[k]},
+                                   {"samples_dropped", rep.dropped[k]},
+                                   {"wall_s", rep.wallSeconds[k]},
+                                   {"epochs", nets[k]->history.passes()},
+                                   {"seed", nets[k]->options.seed},
+                                   {"ensemble_members", 1 + nets[k]->ensemble.size()},
+                                   {"distilled_from_members", nets[k]->distillation.members},
+                                   {"best_epoch", nets[k]->history.bestEpoch},
+                                   {"best_validation_loss", nets[k]->history.bestValidationLoss},
+                                   {"hit_epoch_cap", nets[k]->history.hitEpochCap}};
+    return j;
+}
+
+/// MODEL_DIR/accuracy.md: test and validation accuracy, the training of each network.
+std::string trainingMarkdown(const SurrogateTrainingReport& rep, bool complete) {
+    std::string md = fmt::format("# Surrogate accuracy\n\nMade by `{}` (trbc {}), data hash {}: {} rows in {} cells{}; "
+                                 "{} cells held out as the test set.\n\n## Test set (cells never seen in training or early stopping)\n\n",
+                                 commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
+                                 complete ? "" : " (finished part of an unfinished campaign)", rep.testCells);
+    md += accuracyMarkdown(rep.test) + "\n## Validation split (used for early stopping)\n\n" + accuracyMarkdown(rep.validation);
+    md += "\n## Training\n\n| network | samples | dropped | epochs | members | wall s |\n|---|---|---|---|---|---|\n";
+    const auto& names = surrogateNetworkNames();
+    const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
+    for (int k = 0; k < 3; ++k)
+        md += fmt::format("| {} | {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
+                          1 + nets[k]->ensemble.size(), rep.wallSeconds[k]);
+    if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
+    return md;
+}
+
+/// K-fold cross-validation over whole cells: cv.json, cv.md and cv_predictions.csv in `dir`.
+void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& t, int folds, const std::string& dataHash,
+                   const std::filesystem::path& dir) {
+    std::cerr << fmt::format("surrogate train: {}-fold cross-validation ({} more trainings)\n", folds, folds);
+    SurrogateTrainingOptions c = t;
+    c.progress = nullptr;
+    const CrossValidationReport cv = crossValidateSurrogate(rows, c, folds);
+    nlohmann::json cj = {{"command", commandLine()}, {"version", kVersion},     {"data_hash", dataHash},
+                         {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
+                         {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
+    for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
+    writeFileAtomically(dir / "cv.json", cj.dump(2) + "\n");
+    const std::string cvMd = crossValidationMarkdown(cv, dataHash, t.testSeed);
+    writeFileAtomically(dir / "cv.md", cvMd);
+    writePredictionsCsv(dir / "cv_predictions.csv", cv.inputs, cv.truth, cv.predicted);
+    std::cout << "\n" << cvMd;
+}
+
+void runTrain(TrainCommandOptions& o, bool distillGiven) {
+    reconcileNetworkLists(o, distillGiven);
+    ensureWritableDirectory(o.out);
+    bool complete = true;
+    const auto rows = readCampaignRows(o.data, &complete);
+    if (!complete)
+        std::cerr << fmt::format("surrogate train: {} is an unfinished campaign; training on its {} finished rows\n", o.data, rows.size());
+    const SurrogateTrainingOptions t = trainingOptions(o);
+    omp_set_num_threads(o.threads);
+    const auto t0 = SteadyClock::now();
+    const SurrogateTrainingReport rep = trainSurrogate(rows, t);
+    const double wall = secondsSince(t0);
+    rep.model.save(o.out);
+    const std::filesystem::path dir = o.out;
+    writeFileAtomically(dir / "accuracy.json", trainingJson(o, t, rep, complete, wall).dump(2) + "\n");
+    const std::string md = trainingMarkdown(rep, complete);
+    writeFileAtomically(dir / "accuracy.md", md);
+    writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);
+    std::cout << md;
+    if (o.cvFolds >= 2) crossValidate(rows, t, o.cvFolds, rep.dataHash, dir);
+    std::cout << fmt::format("\nmodel: {}\n", dir.string());
+}
+
+void registerTrain(CLI::App* parent) {
+    auto o = std::make_shared<TrainCommandOptions>();
+    CLI::App* cmd = parent->add_subcommand(
+        "train", "Train the equilibrium, stretching and relaxation networks (3 x 32 tanh, Adam, early stopping; "
+                 "docs/CAMPAIGN_AND_SURROGATE.md, surrogate training) on a campaign table; writes MODEL_DIR/{equilibrium,stretching,relaxation}.json and "
+                 "the held-out accuracy (accuracy.md, accuracy.json, test_predictions.csv)");
+    addTrainOptions(cmd, *o);
+    cmd->callback([o, cmd]() { runTrain(*o, cmd->count("--distill") > 0); });
 }
 
 void registerEval(CLI::App* parent) {
@@ -274,11 +302,11 @@ void registerEval(CLI::App* parent) {
                 "outside_training_box (1 = extrapolation)");
     addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--in", o->in, "input CSV")->required();
-    cmd->add_option("--out", o->out, "output CSV")->required();
+    addOutOption(cmd, o->out, "output CSV");
     cmd->add_flag("--single-precision", o->single, "evaluate in float (about 3x faster, ~1e-6 relative difference)");
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addThreadsOption(cmd, o->threads);
     cmd->callback([o]() {
-        const std::filesystem::path modelDir = modelDirectory(o->model);
+        const std::filesystem::path modelDir = surrogateModelDirectory(o->model);
         Surrogate s = Surrogate::load(modelDir);
         s.precision = o->single ? Precision::Single : Precision::Double;
         ensureWritableFile(o->out);
@@ -340,10 +368,10 @@ void registerTest(CLI::App* parent) {
     addSurrogateModelOption(cmd, o->model);
     cmd->add_option("--data", o->data, "campaign directory (samples.csv, or the finished cells of a running one) or a table CSV")
         ->required();
-    cmd->add_option("--out", o->out, "directory for test.md, test.json and test_predictions.csv");
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads", NumberRange::closed(1, 1024))->capture_default_str();
+    addOutOption(cmd, o->out, "directory for test.md, test.json and test_predictions.csv", false);
+    addThreadsOption(cmd, o->threads);
     cmd->callback([o]() {
-        const std::filesystem::path modelDir = modelDirectory(o->model);
+        const std::filesystem::path modelDir = surrogateModelDirectory(o->model);
         const Surrogate s = Surrogate::load(modelDir);
         if (!o->out.empty()) ensureWritableDirectory(o->out);
         bool complete = true;
@@ -375,8 +403,8 @@ void registerTest(CLI::App* parent) {
                                       {"model_data_hash", s.relaxation.dataHash}, {"trained_on_these_data", trainedOnIt},
                                       {"rows", rows.size()},     {"outside_training_box", outside},
                                       {"test", accuracyJson(t.accuracy)}};
-            writeText(dir / "test.json", j.dump(2) + "\n");
-            writeText(dir / "test.md", md);
+            writeFileAtomically(dir / "test.json", j.dump(2) + "\n");
+            writeFileAtomically(dir / "test.md", md);
             writePredictionsCsv(dir / "test_predictions.csv", t.inputs, t.truth, t.predicted);
         }
         std::cout << md;
@@ -384,10 +412,6 @@ void registerTest(CLI::App* parent) {
 }
 
 }  // namespace
-
-void addSurrogateModelOption(CLI::App* cmd, std::string& model) {
-    cmd->add_option("--model", model, "surrogate model directory (default: the shipped surrogates)");
-}
 
 void registerSurrogate(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("surrogate", "Neural-network surrogates of the three experiments (docs/CAMPAIGN_AND_SURROGATE.md, surrogate training)");

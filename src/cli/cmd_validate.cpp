@@ -22,6 +22,7 @@
 #include "analysis/validation.hpp"
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -32,15 +33,15 @@ namespace trbc::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-std::string readFile(const fs::path& p) {
-    std::ifstream in(p);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 std::string num(const json& j) { return j.is_number() ? fmt::format("{:.6g}", j.get<double>()) : ""; }
+
+/// A string field of an object, "" when absent or not a string.
+std::string stringOr(const json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get<std::string>() : "";
+}
 
 /// A numeric field of an object, NaN when absent or null (a failed or undefined observable).
 double numberOr(const json& o, const char* key) {
@@ -60,7 +61,7 @@ struct Runner {
     int done = 0, total = 0;
     double caseSeconds = 0.0;
     int ranHere = 0;
-    Clock::time_point start = Clock::now();
+    SteadyClock::time_point start = SteadyClock::now();
 
     std::string cellArgs() const {
         if (cfg.cellSource == "posterior") return "--posterior " + shellQuote(cfg.posterior);
@@ -99,15 +100,10 @@ struct Runner {
 
     /// The record in `file` if it is a finished case with c's key (a failed one only without --retry-failed).
     std::optional<json> matchingRecord(const fs::path& file, const ValidationCase& c) const {
-        if (!fs::exists(file)) return std::nullopt;
-        try {
-            json j = json::parse(readFile(file));
-            if (j.value("key", "") != caseKey(c) || !j.contains("result")) return std::nullopt;
-            if (retryFailed && j["result"].value("status", "") != "ok") return std::nullopt;
-            return j;
-        } catch (const std::exception&) {
-            return std::nullopt;  // a damaged record is run again
-        }
+        std::optional<json> j = tryReadJson(file);  // a damaged record is run again
+        if (!j || stringOr(*j, "key") != caseKey(c) || !j->contains("result")) return std::nullopt;
+        if (retryFailed && stringOr((*j)["result"], "status") != "ok") return std::nullopt;
+        return j;
     }
 
     /// A finished case of an earlier run with the same key, if any: in OUT, else in an --import
@@ -137,7 +133,7 @@ struct Runner {
         // "checkpoint.key" tells whether the snapshots are of this case as configured now.
         const fs::path dir = out / "cases" / c.id, keyFile = dir / "checkpoint.key";
         const std::string key = caseKey(c);
-        const bool resuming = fs::is_directory(dir / "checkpoint") && fs::exists(keyFile) && readFile(keyFile) == key;
+        const bool resuming = fs::is_directory(dir / "checkpoint") && fs::exists(keyFile) && readFileBytes(keyFile) == key;
         if (!resuming) fs::remove_all(dir);
         fs::create_directories(dir);
         writeFileAtomically(keyFile, key);
@@ -145,27 +141,25 @@ struct Runner {
         const std::string command =
             fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume --checkpoint-interval {}", shellQuote(exe),
                         caseArgs(c), cfg.threads, shellQuote(dir), cfg.checkpointInterval);
-        const auto t0 = Clock::now();
+        const auto t0 = SteadyClock::now();
         const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + (resuming ? " 2>> " : " 2> ") +
                                                      shellQuote(log) + " < /dev/null"));
-        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        const double wall = secondsSince(t0);
         // SIGINT/SIGTERM/SIGHUP of validate are forwarded to the cases and end validate itself
         // (child_process.hpp): those cases run again on resume. A case interrupted on its own is not
         // recorded either; one killed alone otherwise (out of memory, a kill of the child) is recorded
         // as failed with the signal.
         if (rc == 130 || rc == 128 + SIGINT || forwardedSignal() != 0)
             throw NumericalError(fmt::format("validate: case {} interrupted (exit {}); run the same command again to resume", c.id, rc));
-        json result;
-        try {
-            result = json::parse(readFile(stdoutFile));
-        } catch (const std::exception&) {
-            std::string tail = readFile(log);
+        json result = tryReadJson(stdoutFile).value_or(json());
+        if (!result.is_object()) {
+            std::string tail = readFileBytes(log);
             if (tail.size() > 600) tail = "..." + tail.substr(tail.size() - 600);
             result = {{"status", "failed"},
                       {"reason", rc > 128 ? fmt::format("killed by signal {} without a result: {}", rc - 128, tail)
                                           : fmt::format("exit {} without a result: {}", rc, tail)}};
         }
-        if (rc != 0 && result.value("status", "") == "ok") result["status"] = "failed";
+        if (rc != 0 && stringOr(result, "status") == "ok") result["status"] = "failed";
         json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                        {"exit", rc},         {"wall_s", wall}, {"result", result}};
         writeFileAtomically(caseFile(c), record.dump(1) + "\n");
@@ -185,7 +179,7 @@ struct Runner {
                 what = fmt::format("v {} cm/s, length {} um", num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())));
             else
                 what = "FAILED: " + result.value("reason", std::string("?")).substr(0, 160);
-            const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+            const double elapsed = secondsSince(start);
             const double eta = (total - done) * (caseSeconds / ranHere) / cfg.jobs;
             std::cerr << fmt::format("validate: [{}/{}] {} ({:.0f} s): {}; elapsed {:.0f} min, ETA {:.0f} min\n", done, total, c.id, wall, what,
                                      elapsed / 60.0, eta / 60.0);
@@ -248,286 +242,346 @@ std::vector<double> thresholdViscosities(const ValidationConfig& c) {
     return etas;
 }
 
-/// Tables, comparison with the experimental scatter, summary; returns the summary JSON.
-json writeTables(Runner& R) {
-    const ValidationConfig& cfg = R.cfg;
-    const fs::path& out = R.out;
-    const fs::path shearData = cfg.dataDir / "shear_flow", tubeData = cfg.dataDir / "microtube";
-    json comparisons = json::array();
-    int inside = 0, outside = 0, noData = 0, other = 0, failed = 0;
+/// The predictions against the experimental scatter: records, counts by verdict and the rows of
+/// the markdown table.
+struct ComparisonTable {
+    json rows = json::array();
+    int inside = 0, outside = 0, noData = 0, other = 0;
     std::string md = "| case | observable | prediction | experimental scatter | verdict |\n|---|---|---|---|---|\n";
-    auto record = [&](const std::string& id, const std::string& observable, double predicted, const ScatterComparison& s,
-                      const std::string& shown) {
+
+    void record(const std::string& id, const std::string& observable, double predicted, const ScatterComparison& s,
+                const std::string& shown) {
         (s.verdict == "inside" ? inside : s.verdict == "outside" ? outside : s.verdict == "no data" ? noData : other)++;
-        comparisons.push_back({{"case", id}, {"observable", observable}, {"predicted", predicted}, {"scatter_lo", s.lo},
-                               {"scatter_hi", s.hi}, {"points", s.points}, {"window", s.window}, {"verdict", s.verdict}});
+        rows.push_back({{"case", id}, {"observable", observable}, {"predicted", predicted}, {"scatter_lo", s.lo},
+                        {"scatter_hi", s.hi}, {"points", s.points}, {"window", s.window}, {"verdict", s.verdict}});
         md += fmt::format("| {} | {} | {} | {} | {} |\n", id, observable, shown,
                           s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g} ({} values)", s.lo, s.hi, s.points),
                           s.verdict == "outside" ? "**outside**" : s.verdict);
-    };
-
-    std::string shear =
-        "case_id,sweep,eta_out_mPa_s,shear_rate_per_s,shear_stress_Pa,regime,inclination_deg,swing_amplitude_deg,"
-        "ttf_4pi_f_over_shear_rate,status,area_drift_max,volume_drift_max,wall_s,level\n";
-    std::string tube = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,length_um,width_um,plateau,settled,"
-                       "length_change_main_vs_settled,cell_frame_motion_ratio,status,area_drift_max,volume_drift_max,wall_s,"
-                       "level\n";
-    std::map<double, ExperimentalPoints> angleData;
-    std::optional<ExperimentalPoints> pgv, vl, ttf;  // read when the first case needs them
-    for (const ValidationCase& c : R.cases) {
-        const json& rec = R.results.at(c.id);
-        const json& r = rec.at("result");
-        const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
-        const std::string status = r.value("status", "failed");
-        if (status != "ok") ++failed;
-        const double wall = rec.value("wall_s", 0.0);
-        if (c.kind == "tube") {
-            const json plateau = d.value("plateau", json::object()), settling = d.value("settling", json::object()),
-                       motion = d.value("cell_frame_motion", json::object());
-            const std::string settled = settling.empty() ? "none" : settling.value("settled", false) ? "true" : "false";
-            tube += fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.pressureGradient,
-                                cfg.tubeRadius, num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
-                                num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false",
-                                settled, num(settling.value("length_change_main_vs_settled", json())),
-                                num(motion.value("ratio", json())), status,
-                                num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())), wall,
-                                cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
-            if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) continue;
-            const double v = numberOr(o, "velocity_cm_per_s"), l = numberOr(o, "length_um");
-            if (!pgv) pgv = readExperimentalPoints(tubeData / "Tomaiuolo2009_pg_v_6.6um.csv", "pg", {"v"});
-            if (!vl) vl = readExperimentalPoints(tubeData / "Tomaiuolo2009_v_l_6.6um.csv", "v", {"l", "l_high", "l_low"});
-            record(c.id, "velocity [cm/s]", v, compareWithScatter(c.pressureGradient, v, *pgv, 1.25), fmt::format("{:.3g}", v));
-            record(c.id, "length [um]", l, compareWithBand(v, l, *vl), fmt::format("{:.3g} (at {:.3g} cm/s)", l, v));
-            continue;
-        }
-        const std::string regime = o.value("regime", json()).is_string() ? o.at("regime").get<std::string>() : "";
-        shear += fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.kind, c.etaOut, c.rate,
-                             c.etaOut * 1e-3 * c.rate, regime, num(o.value("inclination_deg", json())),
-                             num(o.value("swing_amplitude_deg", json())), num(o.value("ttf_4pi_f_over_shear_rate", json())), status,
-                             num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())), wall, cfg.level);
-        if (status != "ok") continue;
-        if (c.kind == "angle") {
-            const fs::path f = shearData / "inclination_angle" / fmt::format("Fisher2015_eta_{:g}_mPa_s.csv", c.etaOut);
-            if (!fs::exists(f)) continue;
-            if (!angleData.count(c.etaOut))
-                angleData[c.etaOut] = readExperimentalPoints(f, "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
-            const double a = numberOr(o, "inclination_deg");
-            ScatterComparison s = compareWithScatter(c.rate, a, angleData[c.etaOut], 1.5);
-            if (regime == "tank-treading" && !std::isfinite(a) && s.points > 0) s.verdict = "no prediction";
-            record(c.id, "inclination [deg]", a, s, std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
-        } else if (c.kind == "ttf") {
-            if (!ttf) ttf = readExperimentalPoints(shearData / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
-            const double f = numberOr(o, "ttf_4pi_f_over_shear_rate");
-            ScatterComparison s = compareWithScatter(c.rate, f, *ttf, 1.25, 4.0 * M_PI);
-            if (regime == "tank-treading" && !std::isfinite(f) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
-            record(c.id, "4 pi f / rate", f, s, std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
-        }
     }
-    // Threshold: the bracket per outer viscosity against Fischer 2013 and Abkarian 2007.
-    ExperimentalPoints crit = readExperimentalPoints(shearData / "tt_tb_critical_stress" / "Fischer2013.csv", "eta", {"tau"});
-    const ExperimentalPoints ab = readExperimentalPoints(shearData / "tt_tb_critical_stress" / "Abkarian2007.csv", "eta", {"tau"});
-    crit.x.insert(crit.x.end(), ab.x.begin(), ab.x.end());
-    crit.y.insert(crit.y.end(), ab.y.begin(), ab.y.end());
+
+    std::string csv() const {
+        std::string cmp = "case,observable,predicted,scatter_lo,scatter_hi,points,verdict,window\n";
+        for (const json& c : rows)
+            cmp += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{},{},\"{}\"\n", c["case"].get<std::string>(), c["observable"].get<std::string>(),
+                               c["predicted"].get<double>(), c["scatter_lo"].get<double>(), c["scatter_hi"].get<double>(),
+                               c["points"].get<int>(), c["verdict"].get<std::string>(), c["window"].get<std::string>());
+        return cmp;
+    }
+};
+
+const char* kShearHeader =
+    "case_id,sweep,eta_out_mPa_s,shear_rate_per_s,shear_stress_Pa,regime,inclination_deg,swing_amplitude_deg,"
+    "ttf_4pi_f_over_shear_rate,status,area_drift_max,volume_drift_max,wall_s,level\n";
+const char* kTubeHeader = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,length_um,width_um,plateau,settled,"
+                          "length_change_main_vs_settled,cell_frame_motion_ratio,status,area_drift_max,volume_drift_max,wall_s,"
+                          "level\n";
+
+std::string regimeOf(const json& observables) {
+    return observables.value("regime", json()).is_string() ? observables.at("regime").get<std::string>() : "";
+}
+
+/// A row of tube.csv; a finished case's velocity and length against the data.
+std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
+                     ComparisonTable& table) {
+    const json& r = rec.at("result");
+    const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
+    const std::string status = r.value("status", "failed");
+    const json plateau = d.value("plateau", json::object()), settling = d.value("settling", json::object()),
+               motion = d.value("cell_frame_motion", json::object());
+    const std::string settled = settling.empty() ? "none" : settling.value("settled", false) ? "true" : "false";
+    const std::string row = fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.pressureGradient,
+                                        cfg.tubeRadius, num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
+                                        num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false",
+                                        settled, num(settling.value("length_change_main_vs_settled", json())),
+                                        num(motion.value("ratio", json())), status,
+                                        num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())),
+                                        rec.value("wall_s", 0.0), cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
+    if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) return row;
+    const double v = numberOr(o, "velocity_cm_per_s"), l = numberOr(o, "length_um");
+    table.record(c.id, "velocity [cm/s]", v, evidence.tubeVelocity(c.pressureGradient, v), fmt::format("{:.3g}", v));
+    table.record(c.id, "length [um]", l, evidence.tubeLength(v, l), fmt::format("{:.3g} (at {:.3g} cm/s)", l, v));
+    return row;
+}
+
+/// A row of shear.csv; a finished angle or TTF case against the data.
+std::string shearCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
+                      ComparisonTable& table) {
+    const json& r = rec.at("result");
+    const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
+    const std::string status = r.value("status", "failed"), regime = regimeOf(o);
+    const std::string row = fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.kind, c.etaOut, c.rate,
+                                        c.etaOut * 1e-3 * c.rate, regime, num(o.value("inclination_deg", json())),
+                                        num(o.value("swing_amplitude_deg", json())), num(o.value("ttf_4pi_f_over_shear_rate", json())),
+                                        status, num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())),
+                                        rec.value("wall_s", 0.0), cfg.level);
+    if (status != "ok") return row;
+    if (c.kind == "angle") {
+        const double a = numberOr(o, "inclination_deg");
+        if (const std::optional<ScatterComparison> s = evidence.inclination(c.etaOut, c.rate, a, regime))
+            table.record(c.id, "inclination [deg]", a, *s, std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
+    } else if (c.kind == "ttf") {
+        const double f = numberOr(o, "ttf_4pi_f_over_shear_rate");
+        table.record(c.id, "4 pi f / rate", f, evidence.tankTreadingFrequency(c.rate, f, regime),
+                     std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
+    }
+    return row;
+}
+
+/// threshold.csv: the bracket per outer viscosity, compared with Fischer 2013 and Abkarian 2007.
+std::string thresholdTable(const Runner& R, const ValidationEvidence& evidence, ComparisonTable& table) {
     std::string thr = "eta_out_mPa_s,gamma_lo_per_s,gamma_hi_per_s,tau_lo_Pa,tau_hi_Pa,monotone,intermittent_rates_per_s\n";
-    for (double eta : thresholdViscosities(cfg)) {
+    for (double eta : thresholdViscosities(R.cfg)) {
         if (R.thresholdPoints(eta).empty()) continue;  // not run (--only)
         const ThresholdBracket b = thresholdBracket(R.thresholdPoints(eta));
         std::string inter;
-        for (double r : b.intermittentRates) inter += (inter.empty() ? "" : ";") + fmt::format("{:.4g}", r);
+        for (double r : b.intermittentRates) inter += fmt::format("{}{:.4g}", inter.empty() ? "" : ";", r);
         auto opt = [](std::optional<double> v, double s) { return v ? fmt::format("{:.6g}", *v * s) : std::string(); };
         thr += fmt::format("{:g},{},{},{},{},{},{}\n", eta, opt(b.gammaLo, 1.0), opt(b.gammaHi, 1.0), opt(b.gammaLo, eta * 1e-3),
                            opt(b.gammaHi, eta * 1e-3), b.monotone ? "true" : "false", inter);
-        std::optional<double> tlo, thi;
-        if (b.gammaLo) tlo = *b.gammaLo * eta * 1e-3;
-        if (b.gammaHi) thi = *b.gammaHi * eta * 1e-3;
-        const ScatterComparison s = compareInterval(eta, tlo, thi, crit, 0.1);
-        record(fmt::format("threshold_eta{:g}", eta), "critical stress [Pa]", thi.value_or(NAN), s,
-               fmt::format("[{}, {}]", tlo ? fmt::format("{:.3g}", *tlo) : "–", thi ? fmt::format("{:.3g}", *thi) : "–"));
+        const auto [tlo, thi] = criticalStressInterval(b, eta);
+        table.record(fmt::format("threshold_eta{:g}", eta), "critical stress [Pa]", thi.value_or(NAN), evidence.criticalStress(eta, tlo, thi),
+                     fmt::format("[{}, {}]", tlo ? fmt::format("{:.3g}", *tlo) : "–", thi ? fmt::format("{:.3g}", *thi) : "–"));
     }
-    writeFileAtomically(out / "shear.csv", shear);
-    writeFileAtomically(out / "tube.csv", tube);
-    writeFileAtomically(out / "threshold.csv", thr);
-    std::string cmp = "case,observable,predicted,scatter_lo,scatter_hi,points,verdict,window\n";
-    for (const json& c : comparisons)
-        cmp += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{},{},\"{}\"\n", c["case"].get<std::string>(), c["observable"].get<std::string>(),
-                           c["predicted"].get<double>(), c["scatter_lo"].get<double>(), c["scatter_hi"].get<double>(),
-                           c["points"].get<int>(), c["verdict"].get<std::string>(), c["window"].get<std::string>());
-    writeFileAtomically(out / "comparison.csv", cmp);
-    const json summary = {{"cases", R.cases.size()}, {"failed", failed}, {"inside", inside},       {"outside", outside},
-                          {"no_data", noData},      {"other", other},   {"comparisons", comparisons.size()}};
-    md = fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
-                     "scatter, {} outside, {} without data nearby, {} neither (threshold not bracketed or not monotone, "
-                     "tank-treading without a TTF). A tumbling or intermittent cell where the donors tank-tread counts as "
-                     "outside. Windows: inclination and TTF use the data at shear rates "
-                     "within a factor 1.5 (angle) or 1.25 (TTF) of the case, the velocity the data at pressure gradients within "
-                     "a factor 1.25, the length the Tomaiuolo band interpolated at the predicted velocity, the critical stress "
-                     "the data within 10 % of the outer viscosity (inside = the interval [eta gamma_lo, eta gamma_hi] overlaps "
-                     "them).\n\n",
-                     R.cases.size(), failed, inside, outside, noData, other) +
-         md;
-    writeFileAtomically(out / "validation.md", md);
-    return summary;
+    return thr;
+}
+
+std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t) {
+    return fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
+                       "scatter, {} outside, {} without data nearby, {} neither (threshold not bracketed or not monotone, "
+                       "tank-treading without a TTF). A tumbling or intermittent cell where the donors tank-tread counts as "
+                       "outside. Windows: inclination and TTF use the data at shear rates "
+                       "within a factor 1.5 (angle) or 1.25 (TTF) of the case, the velocity the data at pressure gradients within "
+                       "a factor 1.25, the length the Tomaiuolo band interpolated at the predicted velocity, the critical stress "
+                       "the data within 10 % of the outer viscosity (inside = the interval [eta gamma_lo, eta gamma_hi] overlaps "
+                       "them).\n\n",
+                       cases, failed, t.inside, t.outside, t.noData, t.other) +
+           t.md;
+}
+
+/// Tables, comparison with the experimental scatter, summary; returns the summary JSON.
+json writeTables(const Runner& R) {
+    ValidationEvidence evidence(R.cfg.dataDir);
+    ComparisonTable table;
+    std::string shear = kShearHeader, tube = kTubeHeader;
+    int failed = 0;
+    for (const ValidationCase& c : R.cases) {
+        const json& rec = R.results.at(c.id);
+        if (rec.at("result").value("status", "failed") != "ok") ++failed;
+        if (c.kind == "tube")
+            tube += tubeCase(c, rec, R.cfg, evidence, table);
+        else
+            shear += shearCase(c, rec, R.cfg, evidence, table);
+    }
+    const std::string thr = thresholdTable(R, evidence, table);
+    writeFileAtomically(R.out / "shear.csv", shear);
+    writeFileAtomically(R.out / "tube.csv", tube);
+    writeFileAtomically(R.out / "threshold.csv", thr);
+    writeFileAtomically(R.out / "comparison.csv", table.csv());
+    writeFileAtomically(R.out / "validation.md", validationMarkdown(R.cases.size(), failed, table));
+    return {{"cases", R.cases.size()}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
+            {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
+}
+
+struct ValidateCommandOptions {
+    std::string config, out, posterior, shard;
+    std::vector<std::string> only, imports;
+    int jobs = 0, threads = 0, level = 0;
+    bool quiet = false, dryRun = false, retryFailed = false;
+};
+
+void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
+    cmd->add_option("--config", o.config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
+    addOutOption(cmd, o.out);
+    cmd->add_option("--posterior", o.posterior,
+                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
+    addNumber(cmd, "--level", o.level,
+              "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level unless that is 0)",
+              NumberRange::closed(1, 4));
+    addNumber(cmd, "--jobs", o.jobs, "cases run at the same time (overrides run.jobs)", NumberRange::closed(1, 256));
+    addThreadsOption(cmd, o.threads, "OpenMP threads per case (overrides run.threads)");
+    cmd->add_option("--only", o.only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
+                                      "the tables cover what has been run")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
+    cmd->add_option("--shard", o.shard,
+                    "run only part K of N of the (selected) initial cases, e.g. 2/4 on the second of four machines, each with "
+                    "its own OUT: dealt round-robin, one part per angle, TTF or tube case and per threshold viscosity (its "
+                    "refinements stay with it); merge the parts with --import");
+    cmd->add_option("--import", o.imports,
+                    "another validate OUT directory (repeatable): a finished case recorded there with the same key (same "
+                    "command, cell and version) is copied into OUT with its outputs instead of being run, e.g. the parts "
+                    "of a --shard run")
+        ->check(CLI::ExistingDirectory);
+    cmd->add_flag("--retry-failed", o.retryFailed, "run again the cases recorded as failed (a transient failure; "
+                                                  "by default a failed case is kept like a finished one)");
+    cmd->add_flag("--dry-run", o.dryRun, "list the initial cases and their commands, marking those recorded in OUT with the same key "
+                                      "([finished], or [failed] for a kept failure); run nothing");
+    cmd->add_flag("--quiet", o.quiet, "no progress lines on stderr");
+}
+
+/// The configuration with the command line's overrides, the output and import directories, the tools.
+void configureRunner(Runner& R, const ValidateCommandOptions& o) {
+    R.cfg = readValidationConfig(o.config, defaultExperimentDirectory());
+    if (!o.posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o.posterior).lexically_normal();
+    if (o.jobs > 0) R.cfg.jobs = o.jobs;
+    if (o.level > 0) R.cfg.level = o.level;
+    if (o.threads > 0) R.cfg.threads = o.threads;
+    if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
+    R.out = fs::absolute(o.out).lexically_normal();
+    R.quiet = o.quiet;
+    R.retryFailed = o.retryFailed;
+    R.dryRun = o.dryRun;
+    for (const std::string& d : o.imports) {
+        const fs::path dir = fs::absolute(d).lexically_normal();
+        if (!fs::is_directory(dir / "cases"))
+            throw InputError(fmt::format("--import {}: not a validate output directory (no cases/ in it)", d));
+        R.imports.push_back(dir);
+    }
+    R.exe = fs::read_symlink("/proc/self/exe");
+    R.scripts = scriptDirectory();
+    R.python = pythonInterpreter();
+}
+
+/// The initial cases of --only and --shard.
+std::vector<ValidationCase> selectedCases(std::vector<ValidationCase> initial, const ValidateCommandOptions& o) {
+    if (!o.only.empty())
+        std::erase_if(initial, [&](const ValidationCase& c) { return std::find(o.only.begin(), o.only.end(), c.kind) == o.only.end(); });
+    if (!o.shard.empty()) {
+        const auto [part, parts] = parseShard(o.shard, "--shard");
+        initial = validationShard(initial, part, parts);
+    }
+    return initial;
+}
+
+/// --dry-run: every case with its command. A case whose record in OUT has the same key is marked:
+/// a run would not repeat it ([failed]: kept as failed unless --retry-failed, which makes
+/// loadFinished refuse it).
+void listCases(Runner& R, const std::vector<ValidationCase>& initial) {
+    int finished = 0, failed = 0;
+    for (const ValidationCase& c : initial) {
+        const bool done = R.loadFinished(c);
+        const bool ok = done && R.resultOf(c.id).value("status", "") == "ok";
+        finished += ok;
+        failed += done && !ok;
+        std::cout << c.id << (ok ? " [finished]" : done ? " [failed]" : "") << ": trbc " << R.caseArgs(c) << "\n";
+    }
+    if (!R.quiet)
+        std::cerr << fmt::format("validate: {} case(s) in {}: {} finished{}, {} failed and kept, {} to run\n",
+                                 initial.size(), R.out.string(), finished,
+                                 R.imports.empty() ? std::string() : fmt::format(" ({} in --import directories)", R.imported),
+                                 failed, initial.size() - finished - failed);
+}
+
+/// Rounds of bisection of every threshold bracket, while a bracket is open.
+void refineThresholds(Runner& R) {
+    for (int round = 0; round < R.cfg.thresholdRefinements; ++round) {
+        std::vector<ValidationCase> more;
+        for (double eta : thresholdViscosities(R.cfg))
+            if (const auto rate = refinementRate(R.thresholdPoints(eta))) {
+                const std::string id = shearCaseId("threshold", eta, *rate);
+                if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0});
+            }
+        if (more.empty()) break;
+        if (!R.quiet) std::cerr << fmt::format("validate: threshold refinement {}: {} case(s)\n", round + 1, more.size());
+        R.runAll(more);
+    }
+}
+
+/// The cell of the cases: the source and its parameters (a posterior's means as the flow commands took them).
+json cellJson(const Runner& R) {
+    json cell = R.cfg.cellSource == "table1"
+                    ? json{{"source", "the paper's Table 1 means"}, {"v", table1::v}, {"mu_uN_per_m", table1::mu}, {"kb_J", table1::kbJ},
+                           {"b2", table1::b2}, {"etam_Pa_s_um", table1::etam}}
+                : R.cfg.cellSource == "explicit"
+                    ? json{{"source", "explicit"}, {"v", R.cfg.v}, {"mu_uN_per_m", R.cfg.mu}, {"kb_J", R.cfg.kbJ}, {"b2", R.cfg.b2},
+                           {"etam_Pa_s_um", R.cfg.etam}}
+                    : json{{"source", "means of " + R.cfg.posterior.string()}};
+    if (R.cfg.cellSource == "posterior")
+        for (const ValidationCase& c : R.cases)
+            if (R.resultOf(c.id).contains("parameters")) {
+                cell["parameters"] = R.resultOf(c.id).at("parameters").value("cell", json());
+                break;
+            }
+    return cell;
+}
+
+/// OUT/validation.json: summary, selection, cell, levels, configuration and timing.
+json validationJson(const Runner& R, const ValidateCommandOptions& o, const json& summary, std::size_t configured, double wall) {
+    double caseWall = 0.0;
+    for (const auto& [id, rec] : R.results) caseWall += rec.value("wall_s", 0.0);
+    return {{"summary", summary},
+            {"initial_cases_configured", configured},
+            {"only", o.only},
+            {"shard", o.shard.empty() ? json() : json(o.shard)},
+            {"imported", o.imports},
+            {"cases_imported", R.imported},
+            {"cell", cellJson(R)},
+            {"level", R.cfg.level},
+            {"tube_level", R.cfg.tubeLevel > 0 ? R.cfg.tubeLevel : R.cfg.level},
+            {"config", R.cfg.file.string()},
+            {"config_text", readFileBytes(R.cfg.file)},
+            {"data_dir", R.cfg.dataDir.string()},
+            {"wall_s_this_run", wall},
+            {"case_wall_s_total", caseWall},
+            {"cases_run_this_time", R.ranHere},
+            {"jobs", R.cfg.jobs},
+            {"threads_per_case", R.cfg.threads},
+            {"provenance", {{"version", kVersion}, {"command", commandLine()}}}};
+}
+
+void drawValidationFigures(const Runner& R) {
+    const std::string plot = shellQuote(R.python) + " " + shellQuote(R.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
+                             shellQuote(R.cfg.dataDir) + " > " + shellQuote(R.out / "plot.log") + " 2>&1";
+    if (std::system(plot.c_str()) != 0)
+        std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());
+}
+
+void printValidationSummary(const Runner& R, const json& summary, std::size_t selected, std::size_t configured, double wall) {
+    if (selected < configured)
+        std::cout << fmt::format("trbc validate: --only/--shard: {} of the {} configured initial cases selected\n", selected, configured);
+    std::cout << fmt::format("trbc validate: {} cases ({} failed, {} run now) in {:.1f} min; {} predictions inside the experimental "
+                             "scatter, {} outside, {} without data, {} neither\n  tables: {}/{{shear,threshold,tube,comparison}}.csv\n  "
+                             "summary: {}\n  figures: {}\n",
+                             summary["cases"].get<int>(), summary["failed"].get<int>(), R.ranHere, wall / 60.0,
+                             summary["inside"].get<int>(), summary["outside"].get<int>(), summary["no_data"].get<int>(),
+                             summary["other"].get<int>(),
+                             R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
+}
+
+void runValidate(const ValidateCommandOptions& o) {
+    Runner R{};
+    configureRunner(R, o);
+    const std::vector<ValidationCase> all = initialValidationCases(R.cfg);
+    const std::vector<ValidationCase> initial = selectedCases(all, o);
+    if (o.dryRun) return listCases(R, initial);
+    ensureWritableDirectory(R.out.string());
+    fs::create_directories(R.out / "cases");
+    const DirectoryLock lock(R.out, ".validate.lock", "validate");
+    forwardSignalsToChildren();
+    const auto t0 = SteadyClock::now();
+    R.runAll(initial);
+    if (o.only.empty() || std::find(o.only.begin(), o.only.end(), "threshold") != o.only.end()) refineThresholds(R);
+    const json summary = writeTables(R);
+    const double wall = secondsSince(t0);
+    writeFileAtomically(R.out / "validation.json", validationJson(R, o, summary, all.size(), wall).dump(2) + "\n");
+    drawValidationFigures(R);
+    printValidationSummary(R, summary, initial.size(), all.size(), wall);
+    if (summary["failed"].get<int>() > 0)
+        throw NumericalError(fmt::format("validate: {} case(s) failed (see validation.md and cases/)", summary["failed"].get<int>()));
 }
 
 }  // namespace
 
 void registerValidate(CLI::App& app) {
-    struct Opts {
-        std::string config, out, posterior, shard;
-        std::vector<std::string> only, imports;
-        int jobs = 0, threads = 0, level = 0;
-        bool quiet = false, dryRun = false, retryFailed = false;
-    };
-    auto o = std::make_shared<Opts>();
+    auto o = std::make_shared<ValidateCommandOptions>();
     CLI::App* cmd = app.add_subcommand(
         "validate", "Run the flow-validation set of docs/FLOW.md (inclination angle, tank-treading frequency, "
                     "tumbling/tank-treading threshold in shear flow; velocity and length in a microtube) with `trbc flow`, "
                     "compare every case with the experimental scatter and draw the paper's figures. Resumable: run the same "
                     "command again after an interruption and only unfinished cases run. Writes OUT/shear.csv, "
                     "threshold.csv, tube.csv, comparison.csv, validation.md, validation.json, figures/ and cases/");
-    cmd->add_option("--config", o->config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
-    cmd->add_option("--out", o->out, "output directory")->required();
-    cmd->add_option("--posterior", o->posterior,
-                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
-    addNumber(cmd, "--level", o->level,
-              "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level unless that is 0)",
-              NumberRange::closed(1, 4));
-    addNumber(cmd, "--jobs", o->jobs, "cases run at the same time (overrides run.jobs)", NumberRange::closed(1, 256));
-    addNumber(cmd, "--threads", o->threads, "OpenMP threads per case (overrides run.threads)", NumberRange::closed(1, 1024));
-    cmd->add_option("--only", o->only, "run only these kinds of case (angle, ttf, threshold, tube; repeatable or comma-separated); "
-                                       "the tables cover what has been run")
-        ->delimiter(',')
-        ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
-    cmd->add_option("--shard", o->shard,
-                    "run only part K of N of the (selected) initial cases, e.g. 2/4 on the second of four machines, each with "
-                    "its own OUT: dealt round-robin, one part per angle, TTF or tube case and per threshold viscosity (its "
-                    "refinements stay with it); merge the parts with --import");
-    cmd->add_option("--import", o->imports,
-                    "another validate OUT directory (repeatable): a finished case recorded there with the same key (same "
-                    "command, cell and version) is copied into OUT with its outputs instead of being run, e.g. the parts "
-                    "of a --shard run")
-        ->check(CLI::ExistingDirectory);
-    cmd->add_flag("--retry-failed", o->retryFailed, "run again the cases recorded as failed (a transient failure; "
-                                                   "by default a failed case is kept like a finished one)");
-    cmd->add_flag("--dry-run", o->dryRun, "list the initial cases and their commands, marking those recorded in OUT with the same key "
-                                       "([finished], or [failed] for a kept failure); run nothing");
-    cmd->add_flag("--quiet", o->quiet, "no progress lines on stderr");
-    cmd->callback([o]() {
-        Runner R{};
-        R.cfg = readValidationConfig(o->config, defaultExperimentDirectory());
-        if (!o->posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o->posterior).lexically_normal();
-        if (o->jobs > 0) R.cfg.jobs = o->jobs;
-        if (o->level > 0) R.cfg.level = o->level;
-        if (o->threads > 0) R.cfg.threads = o->threads;
-        if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
-        R.out = fs::absolute(o->out).lexically_normal();
-        R.quiet = o->quiet;
-        R.retryFailed = o->retryFailed;
-        R.dryRun = o->dryRun;
-        for (const std::string& d : o->imports) {
-            const fs::path dir = fs::absolute(d).lexically_normal();
-            if (!fs::is_directory(dir / "cases"))
-                throw InputError(fmt::format("--import {}: not a validate output directory (no cases/ in it)", d));
-            R.imports.push_back(dir);
-        }
-        R.exe = fs::read_symlink("/proc/self/exe");
-        R.scripts = scriptDirectory();
-        R.python = pythonInterpreter();
-        std::vector<ValidationCase> initial = initialValidationCases(R.cfg);
-        const std::size_t configured = initial.size();
-        if (!o->only.empty())
-            std::erase_if(initial, [&](const ValidationCase& c) { return std::find(o->only.begin(), o->only.end(), c.kind) == o->only.end(); });
-        if (!o->shard.empty()) {
-            const auto [part, parts] = parseShard(o->shard, "--shard");
-            initial = validationShard(initial, part, parts);
-        }
-        if (o->dryRun) {
-            // A case whose record in OUT has the same key is marked: a run would not repeat it
-            // ([failed]: kept as failed unless --retry-failed, which makes loadFinished refuse it).
-            int finished = 0, failed = 0;
-            for (const ValidationCase& c : initial) {
-                const bool done = R.loadFinished(c);
-                const bool ok = done && R.resultOf(c.id).value("status", "") == "ok";
-                finished += ok;
-                failed += done && !ok;
-                std::cout << c.id << (ok ? " [finished]" : done ? " [failed]" : "") << ": trbc " << R.caseArgs(c) << "\n";
-            }
-            if (!o->quiet)
-                std::cerr << fmt::format("validate: {} case(s) in {}: {} finished{}, {} failed and kept, {} to run\n",
-                                         initial.size(), R.out.string(), finished,
-                                         R.imports.empty() ? std::string() : fmt::format(" ({} in --import directories)", R.imported),
-                                         failed, initial.size() - finished - failed);
-            return;
-        }
-        ensureWritableDirectory(R.out.string());
-        fs::create_directories(R.out / "cases");
-        const DirectoryLock lock(R.out, ".validate.lock", "validate");
-        forwardSignalsToChildren();
-        const auto t0 = Clock::now();
-        R.runAll(initial);
-        const bool thresholds = o->only.empty() || std::find(o->only.begin(), o->only.end(), "threshold") != o->only.end();
-        for (int round = 0; thresholds && round < R.cfg.thresholdRefinements; ++round) {
-            std::vector<ValidationCase> more;
-            for (double eta : thresholdViscosities(R.cfg))
-                if (const auto rate = refinementRate(R.thresholdPoints(eta))) {
-                    const std::string id = shearCaseId("threshold", eta, *rate);
-                    if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0});
-                }
-            if (more.empty()) break;
-            if (!R.quiet) std::cerr << fmt::format("validate: threshold refinement {}: {} case(s)\n", round + 1, more.size());
-            R.runAll(more);
-        }
-        const json summary = writeTables(R);
-        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-        json cell = R.cfg.cellSource == "table1"
-                        ? json{{"source", "the paper's Table 1 means"}, {"v", table1::v}, {"mu_uN_per_m", table1::mu}, {"kb_J", table1::kbJ},
-                               {"b2", table1::b2}, {"etam_Pa_s_um", table1::etam}}
-                    : R.cfg.cellSource == "explicit"
-                        ? json{{"source", "explicit"}, {"v", R.cfg.v}, {"mu_uN_per_m", R.cfg.mu}, {"kb_J", R.cfg.kbJ}, {"b2", R.cfg.b2},
-                               {"etam_Pa_s_um", R.cfg.etam}}
-                        : json{{"source", "means of " + R.cfg.posterior.string()}};
-        if (R.cfg.cellSource == "posterior" && !R.cases.empty())
-            for (const ValidationCase& c : R.cases)
-                if (R.resultOf(c.id).contains("parameters")) {
-                    cell["parameters"] = R.resultOf(c.id)["parameters"].value("cell", json());
-                    break;
-                }
-        double caseWall = 0.0;
-        for (const auto& [id, rec] : R.results) caseWall += rec.value("wall_s", 0.0);
-        const json j = {{"summary", summary},
-                        {"initial_cases_configured", configured},
-                        {"only", o->only},
-                        {"shard", o->shard.empty() ? json() : json(o->shard)},
-                        {"imported", o->imports},
-                        {"cases_imported", R.imported},
-                        {"cell", cell},
-                        {"level", R.cfg.level},
-                        {"tube_level", R.cfg.tubeLevel > 0 ? R.cfg.tubeLevel : R.cfg.level},
-                        {"config", R.cfg.file.string()},
-                        {"config_text", readFile(R.cfg.file)},
-                        {"data_dir", R.cfg.dataDir.string()},
-                        {"wall_s_this_run", wall},
-                        {"case_wall_s_total", caseWall},
-                        {"cases_run_this_time", R.ranHere},
-                        {"jobs", R.cfg.jobs},
-                        {"threads_per_case", R.cfg.threads},
-                        {"provenance", {{"version", kVersion}, {"command", commandLine()}}}};
-        writeFileAtomically(R.out / "validation.json", j.dump(2) + "\n");
-        const std::string plot = shellQuote(R.python) + " " + shellQuote(R.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
-                                 shellQuote(R.cfg.dataDir) + " > " + shellQuote(R.out / "plot.log") + " 2>&1";
-        if (std::system(plot.c_str()) != 0)
-            std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());
-        if (initial.size() < configured)
-            std::cout << fmt::format("trbc validate: --only/--shard: {} of the {} configured initial cases selected\n", initial.size(), configured);
-        std::cout << fmt::format("trbc validate: {} cases ({} failed, {} run now) in {:.1f} min; {} predictions inside the experimental "
-                                 "scatter, {} outside, {} without data, {} neither\n  tables: {}/{{shear,threshold,tube,comparison}}.csv\n  "
-                                 "summary: {}\n  figures: {}\n",
-                                 summary["cases"].get<int>(), summary["failed"].get<int>(), R.ranHere, wall / 60.0,
-                                 summary["inside"].get<int>(), summary["outside"].get<int>(), summary["no_data"].get<int>(),
-                                 summary["other"].get<int>(),
-                                 R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
-        if (summary["failed"].get<int>() > 0) throw NumericalError(fmt::format("validate: {} case(s) failed (see validation.md and cases/)", summary["failed"].get<int>()));
-    });
+    addValidateOptions(cmd, *o);
+    cmd->callback([o]() { runValidate(*o); });
 }
 
 }  // namespace trbc::cli

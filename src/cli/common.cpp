@@ -13,6 +13,7 @@
 #include <string>
 #include <string_view>
 
+#include "core/clock.hpp"
 #include "core/error.hpp"
 
 namespace trbc::cli {
@@ -83,6 +84,33 @@ CLI::Validator numberValidator(const NumberRange& range, bool integer) {
 
 std::string commandLine() { return g_commandLine; }
 
+CLI::Option* addThreadsOption(CLI::App* cmd, int& threads, const std::string& help, int minThreads, int maxThreads) {
+    CLI::Option* o = addNumber(cmd, "--threads", threads, help, NumberRange::closed(minThreads, maxThreads));
+    return threads != 0 ? o->capture_default_str() : o;
+}
+
+CLI::Option* addOutOption(CLI::App* cmd, std::string& out, const std::string& help, bool required) {
+    return cmd->add_option("--out", out, help)->required(required);
+}
+
+CLI::Option* addDataDirOption(CLI::App* cmd, std::string& dataDir) {
+    return cmd->add_option("--data-dir", dataDir,
+                           "experimental data directory with equilibrium/, stretching/, relaxation/ (default: $TRBC_EXPERIMENT_DATA, "
+                           "else the shipped copy data/experiments)");
+}
+
+std::filesystem::path experimentDirectory(const std::string& dataDir) {
+    return dataDir.empty() ? defaultExperimentDirectory() : std::filesystem::path(dataDir);
+}
+
+void addSurrogateModelOption(CLI::App* cmd, std::string& model) {
+    cmd->add_option("--model", model, "surrogate model directory (default: the shipped surrogates)");
+}
+
+std::filesystem::path surrogateModelDirectory(const std::string& model) {
+    return model.empty() ? defaultSurrogateDirectory() : std::filesystem::path(model);
+}
+
 void addModulusOptions(CLI::App* app, ModulusOptions& m) {
     auto& b = m.p.bending;
     auto& l = m.p.lim;
@@ -144,7 +172,7 @@ std::string ProgressLine::current() const {
 }
 
 double ProgressLine::elapsedSeconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    return secondsSince(start_);
 }
 
 void ProgressLine::print(const char* suffix) const {
@@ -223,12 +251,6 @@ NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* op
                                          "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c, option));
     if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
     return t;
-}
-
-std::string shellQuote(const std::filesystem::path& p) {
-    std::string s = "'";
-    for (char c : p.string()) s += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return s + "'";
 }
 
 std::filesystem::path pythonInterpreter() {

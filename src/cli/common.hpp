@@ -13,6 +13,7 @@
 #include <type_traits>
 
 #include "core/csv.hpp"
+#include "core/shell_quote.hpp"
 #include "membrane/model.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/sfs.hpp"
@@ -65,6 +66,23 @@ CLI::Option* addNumber(CLI::App* cmd, const std::string& name, T& value, const s
     }
     return cmd->add_option(name, value, help)->check(numberValidator(r, std::is_integral_v<T>));
 }
+
+/// The most threads that --threads accepts.
+constexpr int kMaxThreads = 1024;
+
+/// --threads N, N in [minThreads, maxThreads]; `help` says what runs in parallel. The default (the
+/// value of `threads`) is shown in the help unless it is 0, which stands for "not given": the
+/// count of the configuration file or OpenMP's own.
+CLI::Option* addThreadsOption(CLI::App* cmd, int& threads, const std::string& help = "OpenMP threads", int minThreads = 1,
+                              int maxThreads = kMaxThreads);
+
+/// --out PATH, the output file or directory that `help` describes; required unless `required` is false.
+CLI::Option* addOutOption(CLI::App* cmd, std::string& out, const std::string& help = "output directory", bool required = true);
+
+/// --data-dir DIR, the experimental data directory (empty: experimentDirectory() picks the default).
+CLI::Option* addDataDirOption(CLI::App* cmd, std::string& dataDir);
+/// The directory of --data-dir: the one given, else defaultExperimentDirectory().
+std::filesystem::path experimentDirectory(const std::string& dataDir);
 
 /// Progress of a long command on stderr: "<command>: <stage> (<elapsed> s)" when a stage starts, and
 /// the same line again every `interval` while it runs, so that a long stage is visibly alive.
@@ -144,12 +162,12 @@ std::filesystem::path dataDirectory();
 std::filesystem::path defaultSurrogateDirectory();
 /// `--model DIR`, the surrogate model directory (empty: defaultSurrogateDirectory()).
 void addSurrogateModelOption(CLI::App* cmd, std::string& model);
+/// The directory of --model: the one given, else defaultSurrogateDirectory().
+std::filesystem::path surrogateModelDirectory(const std::string& model);
 /// Experimental data: $TRBC_EXPERIMENT_DATA, else dataDirectory()/experiments.
 std::filesystem::path defaultExperimentDirectory();
 /// The figure scripts run by calibrate, validate and sobol: resourceRoot()/scripts.
 std::filesystem::path scriptDirectory();
-/// A path quoted for /bin/sh.
-std::string shellQuote(const std::filesystem::path& p);
 /// The Python of the figure scripts: $TRBC_PYTHON, else Debian's /usr/bin/python3 (with
 /// python3-matplotlib, scripts/bootstrap), else python3 on PATH.
 std::filesystem::path pythonInterpreter();

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <sstream>
 
 #include "core/error.hpp"
 
@@ -40,6 +41,20 @@ void writeFileAtomically(const std::filesystem::path& path, std::string_view tex
         std::filesystem::remove(tmp, ec);
         throw InputError(fmt::format("cannot replace {}: {}", path.string(), why));
     }
+}
+
+std::string readFileBytes(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    return bytes.str();
+}
+
+std::optional<nlohmann::json> tryReadJson(const std::filesystem::path& path) {
+    if (!std::filesystem::exists(path)) return std::nullopt;
+    nlohmann::json j = nlohmann::json::parse(readFileBytes(path), nullptr, false);
+    if (j.is_discarded()) return std::nullopt;
+    return j;
 }
 
 }  // namespace trbc

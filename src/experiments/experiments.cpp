@@ -7,6 +7,7 @@
 #include <cmath>
 #include <optional>
 
+#include "core/clock.hpp"
 #include "core/error.hpp"
 #include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
@@ -18,13 +19,10 @@
 namespace trbc {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
 const AreaVolumeConstraint kCellConstraint{cell::area, cell::volume};
 constexpr double kReferenceSymmetryTolerance = 1e-3;
 
-SolverDiagnostics staticDiagnostics(const MinimizeResult& r, Clock::time_point t0) {
+SolverDiagnostics staticDiagnostics(const MinimizeResult& r, SteadyClock::time_point t0) {
     SolverDiagnostics d;
     d.converged = r.converged;
     d.iterations = r.iterations;
@@ -143,7 +141,7 @@ CellMeshes cellMeshes(const StressFreeState& sfs, bool symmetricReference) {
 }
 
 EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& meshes, const ExperimentOptions& opt) {
-    const auto t0 = Clock::now();
+    const auto t0 = SteadyClock::now();
     const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
     EquilibriumResult res;
     Vertices X = meshes.initial;
@@ -198,7 +196,7 @@ std::vector<StretchPoint> runStretching(const CellParameters& p, const CellMeshe
     double fPrev = 0.0, fPrevPrev = 0.0;
     int lastIterations = 0;
     for (double f : forces) {
-        const auto t0 = Clock::now();
+        const auto t0 = SteadyClock::now();
         // Secant predictor along the force path, X(f) ~ X_k + (f - f_k) / (f_k - f_{k-1}) (X_k - X_{k-1}),
         // its step capped at the last one; the minimiser's retraction restores A and V. Falls back
         // to the plain continuation (start from X_k) when the predicted shape fails.
@@ -242,7 +240,7 @@ RelaxationResult runRelaxation(const CellParameters& p, const CellMeshes& meshes
     res.preStretch = pre.front().diagnostics;
     res.released = alignPrincipalAxes(stretched.front());
 
-    const auto t0 = Clock::now();
+    const auto t0 = SteadyClock::now();
     const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
     ViscousDynamicsOptions vo;
     vo.gamma = 4.0 * p.etam / std::sqrt(3.0);

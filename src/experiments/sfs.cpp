@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/version.hpp"
@@ -53,13 +54,6 @@ Vertices oblateSeed(const Vertices& sphere, const Faces& F, double vTarget) {
     return scaleToArea(Y, F, kFourPi);
 }
 
-std::string readBytes(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
 std::string cacheKey(double v, int level) { return fmt::format("sfs_L{}_v{:.10g}_m{}", level, v, kSfsModelVersion); }
 
 nlohmann::json diagnosticsJson(const StressFreeState& s) {
@@ -88,8 +82,8 @@ bool loadCached(const std::filesystem::path& off, double v, int level, const Sfs
         return false;
     }
     try {
-        const nlohmann::json j = nlohmann::json::parse(readBytes(meta));
-        const std::string bytes = readBytes(off);
+        const nlohmann::json j = nlohmann::json::parse(readFileBytes(meta));
+        const std::string bytes = readFileBytes(off);
         if (j.at("model_version").get<int>() != kSfsModelVersion || j.at("level").get<int>() != level ||
             j.at("v").get<double>() != v || j.at("gradient_tolerance").get<double>() > opt.gradientTolerance) {
             reason = "metadata does not match the request";
@@ -147,7 +141,7 @@ void storeCached(const std::filesystem::path& off, const StressFreeState& s, con
                               {"v", s.v},
                               {"level", s.level},
                               {"gradient_tolerance", opt.gradientTolerance},
-                              {"checksum", fmt::format("{:016x}", fnv1a(readBytes(tmpOff)))},
+                              {"checksum", fmt::format("{:016x}", fnv1a(readFileBytes(tmpOff)))},
                               {"diagnostics", diagnosticsJson(s)}};
     {
         std::ofstream out(tmpMeta);

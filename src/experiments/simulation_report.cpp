@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/error.hpp"
 #include "experiments/reference_protocol.hpp"
@@ -57,6 +58,38 @@ ExperimentSet parseExperimentSet(const std::vector<std::string>& names, const st
 nlohmann::json simulationParametersJson(const CellParameters& p, double fextPn) {
     return {{"v", p.v}, {"mu_uN_per_m", p.mu}, {"FvK", p.FvK}, {"kb_J", p.kbJoule()},
             {"b2", p.b2}, {"etam_Pa_s_um", p.etam}, {"Fext_pN", fextPn}};
+}
+
+nlohmann::json cellPhysicalJson(const CellParameters& p, double kbJ) {
+    return {{"v", p.v},
+            {"mu_uN_per_m", p.mu},
+            {"kb_J", kbJ},
+            {"FvK", p.FvK},
+            {"b2", p.b2},
+            {"etam_Pa_s_um", p.etam},
+            {"Kalpha_uN_per_m", p.mu},
+            {"A0_um2", cell::area},
+            {"V0_um3", cell::volume},
+            {"R_A_um", std::sqrt(cell::radiusSquared)}};
+}
+
+nlohmann::json cellDimensionlessJson(const CellParameters& p) {
+    const double RA = std::sqrt(cell::radiusSquared);
+    return {{"length_unit_um", RA},
+            {"energy_unit_J", p.mu * cell::radiusSquared * 1e-18},
+            {"time_unit_s", p.etam / p.mu},
+            {"mu", 1.0},
+            {"Kalpha", 1.0},
+            {"kb", 1.0 / p.FvK},
+            {"a3", cell::a3},
+            {"a4", cell::a4},
+            {"b1", cell::b1},
+            {"b2", p.b2},
+            {"reduced_volume", p.v},
+            {"area", 4.0 * M_PI},
+            {"volume", cell::volume / (RA * RA * RA)},
+            {"note", "lengths in R_A = sqrt(A0 / 4 pi), moduli in mu, kb = 1 / FvK, times in etam / mu "
+                     "(membrane relaxation scale; docs/MEMBRANE_MODEL.md)"}};
 }
 
 nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level, const ExperimentSet& which,

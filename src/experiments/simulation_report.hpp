@@ -22,6 +22,14 @@ ExperimentSet parseExperimentSet(const std::vector<std::string>& names, const st
 /// {"v", "mu_uN_per_m", "FvK", "kb_J", "b2", "etam_Pa_s_um", "Fext_pN"}.
 nlohmann::json simulationParametersJson(const CellParameters& p, double fextPn);
 
+/// A calibrated cell for other codes (`trbc export`): v, mu_uN_per_m, kb_J (as given), FvK, b2,
+/// etam_Pa_s_um, Kalpha_uN_per_m (= mu), A0_um2, V0_um3, R_A_um.
+nlohmann::json cellPhysicalJson(const CellParameters& p, double kbJ);
+/// The same cell in the dimensionless units of docs/MEMBRANE_MODEL.md: lengths in
+/// R_A = sqrt(A0 / 4 pi), moduli in mu (kb = 1 / FvK), times in etam / mu; with those units in
+/// um, J and s.
+nlohmann::json cellDimensionlessJson(const CellParameters& p);
+
 /// "parameters", "status" ("ok"), "observables" (D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s; null for
 /// an experiment not run), "diagnostics" (per experiment, with the steps of the reference's protocol,
 /// and the totals with `wallSeconds`), "stretching_curve" and "relaxation_fit" when they apply.

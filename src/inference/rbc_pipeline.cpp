@@ -8,7 +8,9 @@
 #include <fstream>
 #include <limits>
 
+#include "core/clock.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/hash.hpp"
 #include "core/version.hpp"
 #include "inference/mcmc_diagnostics.hpp"
@@ -19,16 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-void writeText(const fs::path& p, const std::string& text) {
-    std::ofstream out(p, std::ios::trunc);
-    out << text;
-    if (!out) throw InputError(fmt::format("cannot write {}", p.string()));
-}
 
 /// How a posterior is stored: its directory and the physical-unit columns of its samples.
 struct Posterior {
@@ -83,7 +76,7 @@ void writeStages(const fs::path& file, const TmcmcResult& r) {
                          g.coefficientOfVariation, g.acceptanceRate, g.uniqueSelections, g.effectiveSampleSize,
                          g.maxLogLikelihood, g.logEvidenceIncrement, g.covarianceJitter, g.likelihoodEvaluations,
                          g.elapsedSeconds);
-    writeText(file, s);
+    writeFileAtomically(file, s);
 }
 
 void writeSamples(const fs::path& file, const Eigen::MatrixXd& x, const std::vector<std::string>& names,
@@ -94,13 +87,22 @@ void writeSamples(const fs::path& file, const Eigen::MatrixXd& x, const std::vec
         for (Eigen::Index j = 0; j < x.rows(); ++j) fmt::format_to(std::back_inserter(s), "{:.10g},", x(j, k));
         fmt::format_to(std::back_inserter(s), "{:.10g},{:.10g}\n", logLikelihood[k], logPrior[k]);
     }
-    writeText(file, s);
+    writeFileAtomically(file, s);
 }
 
 /// A finished run's timing record (also reused when a finished run is only loaded).
 struct RunTiming {
     double wall = 0.0, surrogate = 0.0, population = 0.0;
 };
+
+/// The timing recorded in an earlier run.json, if it has one.
+std::optional<RunTiming> recordedTiming(const fs::path& runFile) {
+    const std::optional<nlohmann::json> old = tryReadJson(runFile);
+    if (!old || !old->is_object()) return std::nullopt;
+    for (const char* key : {"wall_s", "surrogate_s", "population_s"})
+        if (!old->contains(key) || !(*old)[key].is_number()) return std::nullopt;
+    return RunTiming{(*old)["wall_s"].get<double>(), (*old)["surrogate_s"].get<double>(), (*old)["population_s"].get<double>()};
+}
 
 nlohmann::json runJson(const Posterior& p, const TmcmcOptions& opt, const TmcmcResult& r, const RunTiming& t) {
     return {{"posterior", p.name},
@@ -141,25 +143,19 @@ TmcmcResult runPosterior(Context& ctx, const Posterior& p, const TmcmcProblem& p
                             g.maxLogLikelihood, g.elapsedSeconds));
     };
     const double s0 = ctx.modelTimer->seconds, p0 = ctx.populationTimer->seconds;
-    const auto t0 = Clock::now();
+    const auto t0 = SteadyClock::now();
     TmcmcResult r = runTmcmc(problem, opt);
     RunTiming t{secondsSince(t0), ctx.modelTimer->seconds - s0, ctx.populationTimer->seconds - p0};
     const fs::path runFile = dir / "run.json";
-    if (stagesRun == 0 && fs::exists(runFile)) {  // a finished run was only loaded: keep its timing
-        try {
-            std::ifstream f(runFile);
-            const nlohmann::json old = nlohmann::json::parse(f);
-            t = {old.at("wall_s").get<double>(), old.at("surrogate_s").get<double>(), old.at("population_s").get<double>()};
-        } catch (const std::exception&) {
-        }
-    }
+    if (stagesRun == 0)  // a finished run was only loaded: keep its timing
+        if (const std::optional<RunTiming> recorded = recordedTiming(runFile)) t = *recorded;
     std::vector<std::string> names;
     const Eigen::MatrixXd phys = physicalSamples(p, r.samples, names);
     writeSamples(dir / "samples.csv", phys, names, r.logLikelihood, mapLogPrior ? mapLogPrior(r) : r.logPrior);
     writeStages(dir / "stages.csv", r);
     nlohmann::json j = runJson(p, opt, r, t);
     j["samples_columns"] = names;
-    writeText(runFile, j.dump(2) + "\n");
+    writeFileAtomically(runFile, j.dump(2) + "\n");
     ctx.runs[label] = j;
     ctx.say(fmt::format("infer {}: done, {} stages, log evidence {:.4f}, {} likelihood evaluations, {:.1f} s{}", label,
                         r.stages.size(), r.logEvidence, r.likelihoodEvaluations, t.wall, stagesRun == 0 ? " (reused)" : ""));
@@ -323,14 +319,8 @@ std::string tableMarkdown(const RbcInferenceOptions& o, const std::vector<Poster
 }
 
 nlohmann::json readJsonOrEmpty(const fs::path& p) {
-    if (!fs::exists(p)) return nlohmann::json::object();
-    try {
-        std::ifstream f(p);
-        nlohmann::json j = nlohmann::json::parse(f);
-        return j.is_object() ? j : nlohmann::json::object();
-    } catch (const std::exception&) {
-        return nlohmann::json::object();
-    }
+    const std::optional<nlohmann::json> j = tryReadJson(p);
+    return j && j->is_object() ? *j : nlohmann::json::object();
 }
 
 nlohmann::json timingJson(const RbcPhaseTiming& t) {
@@ -356,11 +346,10 @@ nlohmann::json ancestralCheck(const Eigen::MatrixXd& tmcmc, const Eigen::MatrixX
         j[names[static_cast<std::size_t>(p)]] = {{"tmcmc_mean", ma}, {"ancestral_mean", mb}, {"tmcmc_sd", sa}, {"ancestral_sd", sb},
                                                  {"mean_difference_in_sd", diff}};
     }
-    writeText(file, csv);
+    writeFileAtomically(file, csv);
     j["max_mean_difference_in_sd"] = worst;
     return j;
 }
-
 
 // ------------------------------------------------------------------------------------------------
 // The joint method (phases 2 and 3 from one multi-chain MCMC run)
@@ -392,7 +381,7 @@ void saveJointDraws(const fs::path& dir, const nlohmann::json& settings, const H
     h["acceptance"] = {{"groups", r.groupAcceptance}, {"hyper", r.hyperAcceptance}, {"shift", r.shiftAcceptance}, {"scale", r.scaleAcceptance}};
     h["likelihood_evaluations"] = r.likelihoodEvaluations;
     h["wall_s"] = r.wallSeconds;
-    writeText(dir / "draws.json", h.dump(1) + "\n");
+    writeFileAtomically(dir / "draws.json", h.dump(1) + "\n");
 }
 
 /// Loads draws saved with the same settings; false when there are none or they were made otherwise.
@@ -461,7 +450,7 @@ std::vector<PosteriorStatsRow> writeJointPosterior(Context& ctx, const Posterior
     j["chains"] = chains;
     j["draws_per_chain"] = samples.cols() / std::max(chains, 1);
     j["layout"] = "chain c holds the columns c * draws_per_chain ... (c + 1) * draws_per_chain - 1";
-    writeText(dir / "run.json", j.dump(2) + "\n");
+    writeFileAtomically(dir / "run.json", j.dump(2) + "\n");
     ctx.runs[p.label()] = j;
     return posteriorStatsRows(p.name, phys, names, ll, lp, chains);
 }
@@ -585,7 +574,7 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
         res.phase3b.push_back(std::move(r));
     }
     writePosteriorStats(o.outputDirectory / "posterior_stats.csv", rows);
-    writeText(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, nlohmann::json()));
+    writeFileAtomically(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, nlohmann::json()));
     res.stats = rows;
     double worstRhat = 0.0, leastBulk = kInf, leastTail = kInf;
     for (const PosteriorStatsRow& r : rows) {
@@ -601,6 +590,15 @@ void runJointPhases(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
 }  // namespace
 
 // ------------------------------------------------------------------------------------------------
+
+nlohmann::json priorBoxJson(const RbcPriorBox& box) {
+    nlohmann::json j = nlohmann::json::object();
+    for (const std::string& name : RbcPriorBox::parameterNames()) {
+        const auto [lo, hi] = box.bounds(name);
+        j[name] = {lo, hi};
+    }
+    return j;
+}
 
 std::uint64_t rbcRunSeed(std::uint64_t seed, const std::string& runName) { return splitmix64(seed ^ fnv1a(runName)); }
 
@@ -637,7 +635,7 @@ void writePosteriorStats(const fs::path& file, const std::vector<PosteriorStatsR
         s += fmt::format("{},{},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.4g},{:.4g},{:.4g},{:.4g},{:.4g},{:.5f},{:.0f},{:.0f}\n",
                          r.posterior, r.parameter, r.mean, r.median, r.ml, r.map, r.sd, r.q05, r.q95, r.mcseMean, r.mcseMedian,
                          r.mcseSd, r.mcseQ05, r.mcseQ95, r.rhat, r.essBulk, r.essTail);
-    writeText(file, s);
+    writeFileAtomically(file, s);
 }
 
 RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& o) {
@@ -651,11 +649,11 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
     if (o.outputDirectory.empty()) throw InputError("infer: no output directory");
     fs::create_directories(o.outputDirectory);
 
-    const auto tStart = Clock::now();
+    const auto tStart = SteadyClock::now();
     Context ctx{o, {}, std::make_shared<ModelTimer>(), std::make_shared<PopulationTimer>()};
     ctx.model = timedModel(model, ctx.modelTimer);
     RbcInferenceResult res;
-    const auto phaseBegin = [&](int) { return std::tuple{Clock::now(), ctx.modelTimer->seconds, ctx.modelTimer->evaluations,
+    const auto phaseBegin = [&](int) { return std::tuple{SteadyClock::now(), ctx.modelTimer->seconds, ctx.modelTimer->evaluations,
                                                          ctx.populationTimer->seconds, ctx.populationTimer->terms}; };
     auto phaseEnd = [&](int phase, const auto& begin) {
         const auto& [t0, s0, e0, p0, n0] = begin;
@@ -755,7 +753,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
                 res.phase3b.push_back(std::move(r));
             }
             writePosteriorStats(o.outputDirectory / "posterior_stats.csv", rows);
-            writeText(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, check));
+            writeFileAtomically(o.outputDirectory / "posterior_table.md", tableMarkdown(o, rows, data, ctx.extrapolation, check));
             res.stats = rows;
             phaseEnd(3, begin3);
 
@@ -812,7 +810,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
                                {"surrogate_s", ctx.modelTimer->seconds},
                                {"population_s", ctx.populationTimer->seconds},
                                {"sampler_s", res.wallSeconds - ctx.modelTimer->seconds - ctx.populationTimer->seconds}};
-    writeText(infoFile, info.dump(2) + "\n");
+    writeFileAtomically(infoFile, info.dump(2) + "\n");
     return res;
 }
 

@@ -114,6 +114,12 @@ std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, 
                                                   const Eigen::VectorXd& logPrior, int chains = 1);
 void writePosteriorStats(const std::filesystem::path& file, const std::vector<PosteriorStatsRow>& rows);
 
+/// DIR/phase1_prior_box.json: the prior box of the phase-1 posteriors in DIR, which phases 2-3 and
+/// a resumed phase 1 must share.
+inline constexpr const char* kPhase1PriorBoxFile = "phase1_prior_box.json";
+/// {"<parameter>": [lo, hi]} in physical units, for every parameter of the box.
+nlohmann::json priorBoxJson(const RbcPriorBox& box);
+
 /// Seed of one run: splitmix64(seed ^ FNV-1a(name)).
 std::uint64_t rbcRunSeed(std::uint64_t seed, const std::string& runName);
 

@@ -38,6 +38,10 @@ double reducedVolume(const Vertices& X, const Faces& F) {
     return reducedVolume(totalArea(X, F), enclosedVolume(X, F));
 }
 
+double volumeOfReducedVolume(double reducedVolume, double area) {
+    return reducedVolume * std::pow(area, 1.5) / (6.0 * std::sqrt(std::numbers::pi));
+}
+
 namespace {
 template <bool Gradients>
 AreaVolume blockedAreaVolume(const Vertices& X, const Faces& F) {

@@ -17,6 +17,8 @@ double enclosedVolume(const Vertices& X, const Faces& F);
 /// v = 6 sqrt(pi) V / A^{3/2}: volume over that of the sphere with the same area.
 double reducedVolume(double area, double volume);
 double reducedVolume(const Vertices& X, const Faces& F);
+/// V = v A^{3/2} / (6 sqrt(pi)): the volume of reduced volume v at area A.
+double volumeOfReducedVolume(double reducedVolume, double area);
 /// A, V and their gradients dA/dx_i = 1/2 sum_t n_t x (x_k - x_j), dV/dx_i = 1/6 sum_t x_j x x_k
 /// over the faces (i, j, k) around vertex i, in one pass over the faces (the retraction of the
 /// constrained minimiser calls this a few times per step).

@@ -13,17 +13,15 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 
-#include "core/file_io.hpp"
+#include "core/clock.hpp"
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 #include "core/version.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 fs::path partsDir(const CampaignOptions& o) { return o.outDir / "parts"; }
 fs::path partPath(const CampaignOptions& o, int rank) { return partsDir(o) / fmt::format("rank{}.csv", rank); }
@@ -178,7 +176,7 @@ void markFailed(std::vector<CampaignRow>& rows, const std::string& reason) {
 
 std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell, std::uint64_t seed,
                                          const ExperimentOptions& opt, bool injectFailure) {
-    const auto t0 = Clock::now();
+    const auto t0 = SteadyClock::now();
     std::vector<CampaignRow> rows(cell.size());
     for (std::size_t i = 0; i < cell.size(); ++i) {
         rows[i].point = cell[i];
@@ -306,7 +304,7 @@ void prepareCampaign(const CampaignOptions& o) {
 CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) {
     validateOptions(o);
     if (rank < 0 || rank >= ranks) throw InputError(fmt::format("rank {} is outside [0, {})", rank, ranks));
-    const auto t0 = Clock::now();
+    const auto t0 = SteadyClock::now();
     const auto cells = cellsOf(campaignDesign(o.design, o.samples, o.forcesPerCell, o.seed));
     const auto finished = finishedRows(o, cells);
     const int fd = openPartFile(o, rank, finished);
@@ -334,7 +332,7 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
         const bool inject = std::any_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return o.injectFailures.count(q.sampleId); });
         ExperimentOptions experiment = o.experiment;
         if (o.cellTimeLimit > 0)
-            experiment.deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+            experiment.deadline = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(
                                                      std::chrono::duration<double>(o.cellTimeLimit));
         const auto rows = runCampaignCell(cell, o.seed, experiment, inject);
         std::string block;

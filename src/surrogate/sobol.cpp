@@ -21,18 +21,18 @@ using Eigen::VectorXd;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 void validateOptions(const SobolOptions& opt) {
-    if (opt.n_base < 2)
-        throw InputError("sobol: option n_base = " + std::to_string(opt.n_base) + " is out of range; valid: N >= 2");
+    if (opt.nBase < 2)
+        throw InputError("sobol: option nBase = " + std::to_string(opt.nBase) + " is out of range; valid: N >= 2");
     if (opt.resamples != 0 && opt.resamples < 2)
         throw InputError("sobol: option resamples = " + std::to_string(opt.resamples) +
                          " is out of range; valid: 0 (no intervals) or R >= 2");
     if (!(opt.z > 0) || !std::isfinite(opt.z))
         throw InputError("sobol: option z = " + std::to_string(opt.z) + " is out of range; valid: finite z > 0");
-    if (opt.batch_size < 0)
-        throw InputError("sobol: option batch_size = " + std::to_string(opt.batch_size) +
+    if (opt.batchSize < 0)
+        throw InputError("sobol: option batchSize = " + std::to_string(opt.batchSize) +
                          " is out of range; valid: 0 (one call) or >= 1");
-    if (opt.sobol_skip < -1)
-        throw InputError("sobol: option sobol_skip = " + std::to_string(opt.sobol_skip) +
+    if (opt.sobolSkip < -1)
+        throw InputError("sobol: option sobolSkip = " + std::to_string(opt.sobolSkip) +
                          " is out of range; valid: -1 (auto) or >= 0");
 }
 
@@ -72,7 +72,7 @@ MatrixXd baseSample(Index n, Index d, const SobolOptions& opt) {
             throw InputError("sobol: the Sobol' base sample needs 2D = " + std::to_string(2 * d) +
                              " dimensions; valid: D <= " + std::to_string(SobolSequence::kMaxDimensions / 2) +
                              " inputs (use the pseudo-random base for more)");
-        const std::uint64_t skip = opt.sobol_skip >= 0 ? static_cast<std::uint64_t>(opt.sobol_skip)
+        const std::uint64_t skip = opt.sobolSkip >= 0 ? static_cast<std::uint64_t>(opt.sobolSkip)
                                                        : std::bit_ceil(static_cast<std::uint64_t>(n));
         SobolSequence seq(static_cast<int>(2 * d), skip);
         return seq.next(n);
@@ -110,7 +110,7 @@ Estimates estimate(const Eigen::Ref<const MatrixXd>& F, const SaltelliDesign& ds
         e.S1[i] = (fB * (fAB - fA)).mean() / V;
         e.ST[i] = 0.5 * (fA - fAB).square().mean() / V;
     }
-    if (dsg.second_order) {
+    if (dsg.secondOrder) {
         e.S2 = MatrixXd::Zero(d, d);
         const double meanAB = (fA * fB).mean();
         for (Index i = 0; i < d; ++i)
@@ -177,7 +177,7 @@ MatrixXd SaltelliDesign::points() const {
         auto AB = X.middleRows(blockAB(i) * n, n);
         AB = A;
         AB.col(i) = B.col(i);
-        if (second_order) {
+        if (secondOrder) {
             auto BA = X.middleRows(blockBA(i) * n, n);
             BA = B;
             BA.col(i) = A.col(i);
@@ -191,9 +191,9 @@ SaltelliDesign saltelliDesign(const VectorXd& lo, const VectorXd& hi, const Sobo
     validateOptions(opt);
     validateBox(lo, hi);
     SaltelliDesign dsg;
-    dsg.n = opt.n_base;
+    dsg.n = opt.nBase;
     dsg.d = lo.size();
-    dsg.second_order = opt.second_order;
+    dsg.secondOrder = opt.secondOrder;
     const MatrixXd U = baseSample(dsg.n, dsg.d, opt);
     // x = lo + u (hi - lo), per column.
     const Eigen::RowVectorXd l = lo.transpose(), w = (hi - lo).transpose();
@@ -213,7 +213,7 @@ SobolResult sobolIndices(const SaltelliDesign& dsg, const MatrixXd& Y, const Sob
     SobolResult res;
     res.inputs = defaultNames(std::move(inputNames), d, "x", "input");
     res.outputs = defaultNames(std::move(outputNames), nOut, "y", "output");
-    res.n_base = n;
+    res.nBase = n;
     res.evaluations = dsg.rows();
     res.resamples = opt.resamples;
     checkFinite(dsg, Y, res.outputs);
@@ -227,12 +227,12 @@ SobolResult sobolIndices(const SaltelliDesign& dsg, const MatrixXd& Y, const Sob
         Estimates e = estimate(F, dsg);
         res.S1.row(o) = e.S1.transpose();
         res.ST.row(o) = e.ST.transpose();
-        if (dsg.second_order) res.S2.push_back(std::move(e.S2));
+        if (dsg.secondOrder) res.S2.push_back(std::move(e.S2));
     }
 
     res.S1_ci = MatrixXd::Zero(nOut, d);
     res.ST_ci = MatrixXd::Zero(nOut, d);
-    if (dsg.second_order) res.S2_ci.assign(static_cast<std::size_t>(nOut), MatrixXd::Zero(d, d));
+    if (dsg.secondOrder) res.S2_ci.assign(static_cast<std::size_t>(nOut), MatrixXd::Zero(d, d));
     if (opt.resamples == 0) return res;
 
     // Bootstrap: replicate r draws N base rows with replacement from its own stream, and
@@ -246,7 +246,7 @@ SobolResult sobolIndices(const SaltelliDesign& dsg, const MatrixXd& Y, const Sob
         for (Index& k : rows) k = static_cast<Index>(uniformBelow(gen, static_cast<std::uint64_t>(n)));
         s1Rep[r].resize(nOut, d);
         stRep[r].resize(nOut, d);
-        if (dsg.second_order) s2Rep[r].resize(nOut, d * d);
+        if (dsg.secondOrder) s2Rep[r].resize(nOut, d * d);
         MatrixXd F(n, blocks);
         for (Index o = 0; o < nOut; ++o) {
             for (Index b = 0; b < blocks; ++b)
@@ -254,12 +254,12 @@ SobolResult sobolIndices(const SaltelliDesign& dsg, const MatrixXd& Y, const Sob
             const Estimates e = estimate(F, dsg);
             s1Rep[r].row(o) = e.S1.transpose();
             stRep[r].row(o) = e.ST.transpose();
-            if (dsg.second_order) s2Rep[r].row(o) = e.S2.reshaped().transpose();
+            if (dsg.secondOrder) s2Rep[r].row(o) = e.S2.reshaped().transpose();
         }
     }
     res.S1_ci = halfWidth(s1Rep, opt.z);
     res.ST_ci = halfWidth(stRep, opt.z);
-    if (dsg.second_order) {
+    if (dsg.secondOrder) {
         const MatrixXd s2ci = halfWidth(s2Rep, opt.z);
         for (Index o = 0; o < nOut; ++o) res.S2_ci[o] = s2ci.row(o).reshaped(d, d);
     }
@@ -268,7 +268,7 @@ SobolResult sobolIndices(const SaltelliDesign& dsg, const MatrixXd& Y, const Sob
 
 MatrixXd evaluateInBatches(const SobolModel& model, const MatrixXd& X, Index batchSize) {
     if (batchSize < 0)
-        throw InputError("sobol: option batch_size = " + std::to_string(batchSize) +
+        throw InputError("sobol: option batchSize = " + std::to_string(batchSize) +
                          " is out of range; valid: 0 (one call) or >= 1");
     const Index rows = X.rows();
     const Index batch = batchSize == 0 ? rows : batchSize;
@@ -289,7 +289,7 @@ MatrixXd evaluateInBatches(const SobolModel& model, const MatrixXd& X, Index bat
 SobolResult sobolAnalysis(const SobolModel& model, const VectorXd& lo, const VectorXd& hi, const SobolOptions& opt,
                           std::vector<std::string> inputNames, std::vector<std::string> outputNames) {
     const SaltelliDesign dsg = saltelliDesign(lo, hi, opt);
-    const MatrixXd Y = evaluateInBatches(model, dsg.points(), opt.batch_size);
+    const MatrixXd Y = evaluateInBatches(model, dsg.points(), opt.batchSize);
     return sobolIndices(dsg, Y, opt, std::move(inputNames), std::move(outputNames));
 }
 

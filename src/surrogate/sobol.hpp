@@ -26,12 +26,12 @@ enum class SobolBase { Sobol, PseudoRandom };
 
 struct SobolOptions {
     /// N, number of base rows (>= 2). With the Sobol' base a power of two keeps its balance.
-    Eigen::Index n_base = 1024;
+    Eigen::Index nBase = 1024;
     SobolBase base = SobolBase::Sobol;
     /// Sobol' base only: points of the 2D-dimensional sequence dropped before the N used
     /// (>= 0), or -1 (default): the smallest power of two >= N, so that the N points used are
     /// the aligned block [2^m, 2^m + N) (a net when N = 2^m) and the origin is never used.
-    std::int64_t sobol_skip = -1;
+    std::int64_t sobolSkip = -1;
     /// Seeds the pseudo-random base sample (std::mt19937_64(seed)) and the bootstrap (replicate r
     /// uses its own stream derived from (seed, r), so results do not depend on the thread count).
     std::uint64_t seed = 12345;
@@ -40,9 +40,9 @@ struct SobolOptions {
     /// Confidence-interval half-width = z * SD of the bootstrap replicates (95 %: z_0.975).
     double z = 1.959964;
     /// Build the B_A^(i) matrices and estimate S_ij (N(2D+2) evaluations, else N(D+2)).
-    bool second_order = true;
+    bool secondOrder = true;
     /// Rows per model call (>= 1), or 0: the whole design in one call.
-    Eigen::Index batch_size = 0;
+    Eigen::Index batchSize = 0;
 };
 
 /// Saltelli design in physical units. The stacked points() are blocks of N rows:
@@ -51,10 +51,10 @@ struct SobolOptions {
 struct SaltelliDesign {
     Eigen::Index n = 0;  ///< N, base rows
     Eigen::Index d = 0;  ///< D, inputs
-    bool second_order = true;
+    bool secondOrder = true;
     Eigen::MatrixXd A, B;  ///< N x D, scaled to the box
 
-    Eigen::Index blocks() const { return second_order ? 2 * d + 2 : d + 2; }
+    Eigen::Index blocks() const { return secondOrder ? 2 * d + 2 : d + 2; }
     Eigen::Index rows() const { return n * blocks(); }
     Eigen::Index blockAB(Eigen::Index i) const { return 1 + i; }
     Eigen::Index blockBA(Eigen::Index i) const { return 1 + d + i; }
@@ -71,7 +71,7 @@ SaltelliDesign saltelliDesign(const Eigen::VectorXd& lo, const Eigen::VectorXd& 
 /// Indices per output (rows) and input (columns). With R = 0 the *_ci are 0.
 struct SobolResult {
     std::vector<std::string> inputs, outputs;
-    Eigen::Index n_base = 0, evaluations = 0;
+    Eigen::Index nBase = 0, evaluations = 0;
     int resamples = 0;
     Eigen::MatrixXd S1, S1_ci, ST, ST_ci;  ///< outputs x inputs
     /// Per output a symmetric D x D matrix of S_ij (diagonal unused, 0); empty without second order.
@@ -87,7 +87,7 @@ struct SobolResult {
 SobolResult sobolIndices(const SaltelliDesign& design, const Eigen::MatrixXd& Y, const SobolOptions& opt,
                          std::vector<std::string> inputNames = {}, std::vector<std::string> outputNames = {});
 
-/// Whole analysis: design on [lo, hi], model evaluated in batches of opt.batch_size rows, indices.
+/// Whole analysis: design on [lo, hi], model evaluated in batches of opt.batchSize rows, indices.
 SobolResult sobolAnalysis(const SobolModel& model, const Eigen::VectorXd& lo, const Eigen::VectorXd& hi,
                           const SobolOptions& opt, std::vector<std::string> inputNames = {},
                           std::vector<std::string> outputNames = {});

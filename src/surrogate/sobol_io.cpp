@@ -41,7 +41,7 @@ void writeSobolCsv(const std::filesystem::path& path, const SobolResult& r) {
 
 void writeSobolSecondOrderCsv(const std::filesystem::path& path, const SobolResult& r) {
     if (r.S2.size() != r.outputs.size())
-        throw InputError("sobol csv: the result has no second-order indices (run with second_order = true)");
+        throw InputError("sobol csv: the result has no second-order indices (run with secondOrder = true)");
     std::ofstream out = openCsv(path);
     out << "output,input_i,input_j,S2,S2_ci\n";
     for (std::size_t o = 0; o < r.S2.size(); ++o)

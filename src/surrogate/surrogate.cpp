@@ -31,6 +31,14 @@ const std::vector<std::string>& surrogateNetworkNames() {
     return names;
 }
 
+nlohmann::json surrogateNetworksJson(const Surrogate& s) {
+    nlohmann::json networks = nlohmann::json::object();
+    const std::pair<const char*, const TrainedNetwork*> nets[3] = {
+        {"equilibrium", &s.equilibrium}, {"stretching", &s.stretching}, {"relaxation", &s.relaxation}};
+    for (const auto& [name, net] : nets) networks[name] = {{"data_hash", net->dataHash}, {"command", net->command}};
+    return networks;
+}
+
 namespace {
 
 const std::vector<std::string>& kNetworks = surrogateNetworkNames();

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,9 @@ struct Surrogate {
     /// dy_i/dx_j at column k of x (so each column is the row-major 6 x 6 Jacobian).
     Eigen::MatrixXd inputJacobian(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
 };
+
+/// Provenance of the networks: {"<network>": {"data_hash", "command"}} for each of the three.
+nlohmann::json surrogateNetworksJson(const Surrogate& s);
 
 /// For each column of a 6 x n input batch, whether it lies outside the training box of
 /// docs/CAMPAIGN_AND_SURROGATE.md, input box (evaluations there are extrapolations: flagged, never clipped).
