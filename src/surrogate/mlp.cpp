@@ -16,15 +16,15 @@ namespace trbc {
 //
 // Eigen 3.4 vectorises tanh for float only; for double it calls std::tanh per element, which costs
 // more than all matrix products of the network together. Branch-free packet version, a = |x|:
-//   a <  1/8:  Taylor series x + x^3 (c3 + x^2 (c5 + ... + x^2 c15)); the first omitted term
-//              c17 x^17 is < 2e-18 |x| there;
-//   a >= 1/8:  tanh a = (s - 1) / (s + 1), s = e^u, u = 2 min(a, 20) (tanh 20 = 1 - 8e-18 rounds
-//              to 1). e^u = 2^k e^r with k = rint(u / ln 2), r = u - k ln 2 in [-ln2/2, ln2/2]
-//              (Cody-Waite: ln 2 = hi + lo, k hi exact), e^r by its Taylor polynomial of degree 13
-//              (remainder r^14/14! < 6e-18). Cancellation in s - 1 costs at most a factor
-//              s / (s - 1) <= 4.6 on the rounding error of s. One division per element.
-//   the sign of x is put back with a bitwise or.
-// Both branches are evaluated and blended with a mask; NaN propagates, +-inf gives +-1.
+//   tanh a = m / (m + 2),  m = expm1(u),  u = 2 min(a, 20)   (tanh 20 = 1 - 8e-18 rounds to 1).
+//   expm1(u) = 2^k (1 + p) - 1 = 2^k p + (2^k - 1) with k = rint(u / ln 2), r = u - k ln 2 in
+//   [-ln2/2, ln2/2] (Cody-Waite: ln 2 = hi + lo, k hi exact) and p = expm1(r) by its Taylor
+//   polynomial of degree 13 (remainder r^14/14! < 1e-17 |r|). For k = 0 (a < 0.173) m = p exactly,
+//   so small arguments keep their relative accuracy without a second branch; for k >= 1 the sum
+//   2^k p + (2^k - 1) >= 0.41 amplifies the error of p by at most 2^k |p| / m <= 1.42. One division
+//   per element.
+//   The sign of x is put back with a bitwise or.
+// NaN propagates, +-inf gives +-1.
 // A partial last packet is padded, so every element goes through the same packet code and its
 // value does not depend on its position in the array.
 namespace {
@@ -50,32 +50,21 @@ inline Packet exp2Integer(const Packet& k) {
 
 inline Packet tanhPacket(const Packet& x) {
     using namespace Eigen::internal;
-    const Packet a = pabs(x);
-    // |x| < 1/8: Taylor coefficients c_{2k+1} of tanh
-    const Packet x2 = pmul(x, x);
-    Packet p = pmadd(x2, pset1<Packet>(-929569.0 / 638512875.0), pset1<Packet>(21844.0 / 6081075.0));
-    p = pmadd(x2, p, pset1<Packet>(-1382.0 / 155925.0));
-    p = pmadd(x2, p, pset1<Packet>(62.0 / 2835.0));
-    p = pmadd(x2, p, pset1<Packet>(-17.0 / 315.0));
-    p = pmadd(x2, p, pset1<Packet>(2.0 / 15.0));
-    p = pmadd(x2, p, pset1<Packet>(-1.0 / 3.0));
-    const Packet small = pmadd(pmul(x, x2), p, x);
-
-    // |x| >= 1/8: (s - 1) / (s + 1), s = e^u = 2^k e^r
-    const Packet u = pmul(pset1<Packet>(2.0), pmin<Eigen::PropagateNaN>(a, pset1<Packet>(20.0)));
+    const Packet u = pmul(pset1<Packet>(2.0), pmin<Eigen::PropagateNaN>(pabs(x), pset1<Packet>(20.0)));
     const Packet k = print(pmul(u, pset1<Packet>(1.4426950408889634)));  // u / ln 2
     const Packet minusK = pnegate(k);
     Packet r = pmadd(minusK, pset1<Packet>(0x1.62e42fee00000p-1), u);  // u - k ln2_hi (exact)
     r = pmadd(minusK, pset1<Packet>(0x1.a39ef35793c76p-33), r);        // - k ln2_lo
-    Packet e = pset1<Packet>(1.0 / 6227020800.0);                       // 1/13!
+    // p = expm1(r) = r (1 + r/2! + r^2/3! + ... + r^12/13!)
+    Packet e = pset1<Packet>(1.0 / 6227020800.0);  // 1/13!
     for (const double c : {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0, 1.0 / 40320.0,
-                           1.0 / 5040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0})
+                           1.0 / 5040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0})
         e = pmadd(e, r, pset1<Packet>(c));
-    const Packet s = pmul(e, exp2Integer(k));
+    const Packet p = pmul(e, r);
     const Packet one = pset1<Packet>(1.0);
-    const Packet large = por(pdiv(psub(s, one), padd(s, one)), pand(x, pset1<Packet>(-0.0)));  // sign of x
-
-    return pselect(pcmp_lt(a, pset1<Packet>(0.125)), small, large);
+    const Packet twoK = exp2Integer(k);
+    const Packet m = pmadd(twoK, p, psub(twoK, one));  // expm1(u)
+    return por(pdiv(m, padd(m, pset1<Packet>(2.0))), pand(x, pset1<Packet>(-0.0)));  // sign of x
 }
 
 }  // namespace
@@ -147,7 +136,7 @@ Mlp::VectorMap Mlp::biasesIn(Eigen::VectorXd& flat, int l) const {
     return VectorMap(flat.data() + biasOffset(l), sizes_[l + 1]);
 }
 
-int Mlp::maxWidth() const { return *std::max_element(sizes_.begin() + 1, sizes_.end()); }
+int Mlp::maxRows() const { return *std::max_element(sizes_.begin(), sizes_.end()); }
 
 // ---------------------------------------------------------------------------------------------
 // Forward pass
@@ -176,25 +165,80 @@ void checkShape(const char* what, Eigen::Index rows, Eigen::Index cols, Eigen::I
 
 }  // namespace
 
+// The double-precision forward pass runs on blocks of kForwardBlock samples stored feature-major
+// (element (feature f, sample j) at buf[f * kForwardBlock + j]), so that one packet holds one feature
+// of kPacketSize samples. Z = W A + b is then a register-tiled product: a tile of kTileRows outputs
+// x kTilePackets packets keeps its 4 x 3 accumulators in registers over the whole input loop, with
+// kTilePackets loads and kTileRows broadcasts per 12 FMAs; the block (<= 32 x 96 doubles per
+// activation buffer) stays in the L1/L2 cache through all layers. Eigen's general product packs
+// its operands for every call, which costs more than the product itself at these sizes.
+// A partial block is padded with zero samples and goes through the same code, so a sample's value
+// does not depend on its position in the batch or on the thread count.
+namespace {
+
+constexpr int kTileRows = 4;
+constexpr int kTilePackets = 3;
+constexpr Eigen::Index kTileSamples = Eigen::Index(kTilePackets) * kPacketSize;
+constexpr Eigen::Index kForwardBlock = Mlp::kBlockColumns;
+static_assert(kForwardBlock % kTileSamples == 0, "a block is a whole number of tiles");
+
+/// Rows [i0, i0 + R) of Z = W A + b on one block: W column-major nOut x nIn, A nIn x kForwardBlock
+/// and Z nOut x kForwardBlock feature-major.
+template <int R>
+void affineRows(const double* W, const double* b, Eigen::Index nOut, Eigen::Index nIn, const double* A,
+                double* Z, Eigen::Index i0) {
+    using namespace Eigen::internal;
+    for (Eigen::Index j = 0; j < kForwardBlock; j += kTileSamples) {
+        Packet acc[R][kTilePackets];
+        for (int r = 0; r < R; ++r)
+            for (int c = 0; c < kTilePackets; ++c) acc[r][c] = pset1<Packet>(b[i0 + r]);
+        for (Eigen::Index k = 0; k < nIn; ++k) {
+            const double* a = A + k * kForwardBlock + j;
+            Packet in[kTilePackets];
+            for (int c = 0; c < kTilePackets; ++c) in[c] = ploadu<Packet>(a + c * kPacketSize);
+            const double* w = W + k * nOut + i0;
+            for (int r = 0; r < R; ++r) {
+                const Packet wr = pset1<Packet>(w[r]);
+                for (int c = 0; c < kTilePackets; ++c) acc[r][c] = pmadd(wr, in[c], acc[r][c]);
+            }
+        }
+        for (int r = 0; r < R; ++r)
+            for (int c = 0; c < kTilePackets; ++c)
+                pstoreu(Z + (i0 + r) * kForwardBlock + j + c * kPacketSize, acc[r][c]);
+    }
+}
+
+/// Z = W A + b on one feature-major block, then tanh in place if `hidden`.
+void affineBlock(const double* W, const double* b, Eigen::Index nOut, Eigen::Index nIn, const double* A, double* Z,
+                 bool hidden) {
+    Eigen::Index i = 0;
+    for (; i + kTileRows <= nOut; i += kTileRows) affineRows<kTileRows>(W, b, nOut, nIn, A, Z, i);
+    switch (nOut - i) {
+        case 3: affineRows<3>(W, b, nOut, nIn, A, Z, i); break;
+        case 2: affineRows<2>(W, b, nOut, nIn, A, Z, i); break;
+        case 1: affineRows<1>(W, b, nOut, nIn, A, Z, i); break;
+        default: break;
+    }
+    if (hidden) tanhInPlace(Z, nOut * kForwardBlock);
+}
+
+}  // namespace
+
 void Mlp::forwardBlock(const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::Ref<Eigen::MatrixXd> Y,
                        Eigen::VectorXd& bufA, Eigen::VectorXd& bufB) const {
     const Eigen::Index n = X.cols();
+    double* in = bufA.data();
+    double* out = bufB.data();
+    using FeatureMajor = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+    FeatureMajor A0(in, X.rows(), kForwardBlock);
+    A0.leftCols(n) = X;
+    A0.rightCols(kForwardBlock - n).setZero();
     const int L = numLayers();
-    if (L == 1) {
-        affineLayer(weights(0), biases(0), X, Y, false);
-        return;
+    for (int l = 0; l < L; ++l) {
+        affineBlock(weights(l).data(), biases(l).data(), sizes_[l + 1], sizes_[l], in, out, l + 1 < L);
+        std::swap(in, out);
     }
-    // hidden activations alternate between the two buffers
-    MatrixMap A(bufA.data(), sizes_[1], n);
-    affineLayer(weights(0), biases(0), X, A, true);
-    for (int l = 1; l < L - 1; ++l) {
-        double* out = (l % 2 == 1) ? bufB.data() : bufA.data();
-        const double* in = (l % 2 == 1) ? bufA.data() : bufB.data();
-        MatrixMap Z(out, sizes_[l + 1], n);
-        affineLayer(weights(l), biases(l), ConstMatrixMap(in, sizes_[l], n), Z, true);
-    }
-    const double* last = ((L - 2) % 2 == 0) ? bufA.data() : bufB.data();
-    affineLayer(weights(L - 1), biases(L - 1), ConstMatrixMap(last, sizes_[L - 1], n), Y, false);
+    Y = FeatureMajor(in, numOutputs(), kForwardBlock).leftCols(n);
 }
 
 namespace {
@@ -246,15 +290,15 @@ void Mlp::forward(const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::Ref<Eigen::
     checkShape("input", X.rows(), X.cols(), numInputs(), X.cols());
     checkShape("output", Y.rows(), Y.cols(), numOutputs(), X.cols());
     const Eigen::Index n = X.cols();
+    const bool single = precision == Precision::Single;
     const Eigen::Index blocks = (n + kBlockColumns - 1) / kBlockColumns;
     const int threads = static_cast<int>(std::min<Eigen::Index>(omp_get_max_threads(), blocks));
-    const bool single = precision == Precision::Single;
     std::optional<FloatLayers> floatLayers;
     if (single) floatLayers.emplace(*this);
     const SerialEigenScope serial;  // our threads run whole blocks; Eigen must not nest its own
 #pragma omp parallel num_threads(std::max(threads, 1)) if (threads > 1)
     {
-        Eigen::VectorXd bufA(single ? 0 : Eigen::Index(maxWidth()) * kBlockColumns), bufB(bufA.size());
+        Eigen::VectorXd bufA(single ? 0 : Eigen::Index(maxRows()) * kBlockColumns), bufB(bufA.size());
         Eigen::VectorXf fa(single ? floatLayers->maxRows * kBlockColumns : 0), fb(fa.size());
 #pragma omp for schedule(static)
         for (Eigen::Index b = 0; b < blocks; ++b) {
@@ -306,7 +350,7 @@ double Mlp::loss(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<co
     checkShape("target", Y.rows(), Y.cols(), numOutputs(), X.cols());
     const Eigen::Index n = X.cols();
     const SerialEigenScope serial;
-    Eigen::VectorXd bufA(Eigen::Index(maxWidth()) * kBlockColumns), bufB(bufA.size());
+    Eigen::VectorXd bufA(Eigen::Index(maxRows()) * kBlockColumns), bufB(bufA.size());
     Eigen::MatrixXd out(numOutputs(), kBlockColumns);
     double sum = 0.0;
     for (Eigen::Index c0 = 0; c0 < n; c0 += kBlockColumns) {

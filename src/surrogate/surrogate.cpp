@@ -102,10 +102,23 @@ Eigen::VectorXd Surrogate::relaxationTime(const Eigen::Ref<const Eigen::MatrixXd
 
 Eigen::MatrixXd Surrogate::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
     expectRows(x, 6, "surrogate");
-    Eigen::MatrixXd y(6, x.cols());
-    y.topRows(3) = equilibriumOutputs(pickRows(x, kEqRows));
-    y.middleRows(3, 2) = stretchingOutputs(pickRows(x, kStretchRows));
-    y.row(5) = relaxationTime(pickRows(x, kRelaxRows)).transpose();
+    // In chunks of 4096 samples, so that the inputs picked for each network, their scaled copies and
+    // the outputs stay in the cache between the three networks' passes instead of streaming through
+    // memory several times; threads take whole chunks (a network pass inside sees one thread). Every
+    // sample's value is independent of the chunking and the thread count (Mlp::forward).
+    constexpr Eigen::Index kChunk = 4096;
+    const Eigen::Index n = x.cols(), chunks = (n + kChunk - 1) / kChunk;
+    Eigen::MatrixXd y(6, n);
+    const int threads = static_cast<int>(std::min<Eigen::Index>(omp_get_max_threads(), chunks));
+#pragma omp parallel for schedule(static) num_threads(std::max(threads, 1)) if (threads > 1)
+    for (Eigen::Index c = 0; c < chunks; ++c) {
+        const Eigen::Index c0 = c * kChunk, nc = std::min(kChunk, n - c0);
+        const auto xc = x.middleCols(c0, nc);
+        auto yc = y.middleCols(c0, nc);
+        yc.topRows(3) = equilibriumOutputs(pickRows(xc, kEqRows));
+        yc.middleRows(3, 2) = stretchingOutputs(pickRows(xc, kStretchRows));
+        yc.row(5) = relaxationTime(pickRows(xc, kRelaxRows)).transpose();
+    }
     return y;
 }
 
