@@ -61,6 +61,7 @@ struct ValidationCase {
     std::string id;      ///< e.g. angle_eta23.9_rate55.4, tube_pg30
     std::string kind;    ///< angle | ttf | threshold | tube
     double etaOut = 0.0, rate = 0.0, pressureGradient = 0.0;
+    long sample = -1;    ///< the posterior draw's sample (validation_draws.hpp); -1: the configured cell
 };
 
 /// The cases of the sweeps and the tube before any refinement, in a fixed order.
