@@ -4,6 +4,7 @@
 // 5-95 % band of an observable over the draws, and the band verdict against the experimental
 // scatter.
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
