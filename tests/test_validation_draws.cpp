@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 
@@ -158,7 +159,7 @@ TEST(ShearTilt, TurnsTheStartAboutTheFlowAxisAndChecksItsRange) {
     o.shearRate = 20.0;
     o.tiltDeg = 90.0;
     EXPECT_NO_THROW(validateShearCaseOptions(o));
-    for (double bad : {-1.0, 90.5, NAN}) {
+    for (double bad : {-1.0, 90.5, std::numeric_limits<double>::quiet_NaN()}) {
         o.tiltDeg = bad;
         const std::string e = errorOf([&] { validateShearCaseOptions(o); });
         EXPECT_NE(e.find("parameter tilt_deg"), std::string::npos) << e;

@@ -411,13 +411,16 @@ DrawOutcome drawOutcome(const json& rec, const std::string& key) {
 struct BandTable {
     json rows = json::array();
     std::map<std::string, std::array<int, 3>> tally;  ///< kind -> compared, configured cell inside, band overlap
-    std::string csv = "case,kind,observable,mean_cell,mean_cell_verdict,median,q05,q95,draws,finished,failed,with_value,scatter_lo,"
-                      "scatter_hi,points,band_verdict,reasons\n";
+    std::string csv = "case,kind,observable,eta_out_mPa_s,shear_rate_per_s,pg_mmHg_per_mm,mean_cell,mean_cell_verdict,median,q05,q95,"
+                      "draws,finished,failed,with_value,scatter_lo,scatter_hi,points,band_verdict,reasons\n";
     std::string md = "| case | observable | mean cell | median [5 – 95 %] | finished / failed / with a value | experimental scatter | "
                      "mean-cell verdict | band verdict | draws without a value |\n|---|---|---|---|---|---|---|---|---|\n";
 
-    void record(const std::string& kind, const std::string& id, const std::string& observable, const DrawBand& b,
-                const ScatterComparison& s, const ComparisonTable& mean) {
+    /// One observable of case c (a threshold viscosity: the id threshold_eta<eta>, no rate).
+    void record(const ValidationCase& c, const std::string& observable, const DrawBand& b, const ScatterComparison& s,
+                const ComparisonTable& mean) {
+        const std::string& id = c.id;
+        const std::string& kind = c.kind;
         const auto m = std::find_if(mean.rows.begin(), mean.rows.end(),
                                     [&](const json& r) { return r["case"] == id && r["observable"] == observable; });
         const double meanValue = m == mean.rows.end() ? NAN : numberOr(*m, "predicted");
@@ -431,7 +434,9 @@ struct BandTable {
                         {"scatter_lo", s.lo}, {"scatter_hi", s.hi}, {"points", s.points}, {"band_verdict", verdict},
                         {"reasons", b.reasons}});
         const auto g = [](double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : std::string(); };
-        csv += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", id, kind, observable, g(meanValue), meanVerdict,
+        csv += fmt::format("{},{},{},{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", id, kind, observable, c.etaOut,
+                           c.rate > 0.0 ? fmt::format("{:.6g}", c.rate) : "", kind == "tube" ? fmt::format("{:g}", c.pressureGradient) : "",
+                           g(meanValue), meanVerdict,
                            g(b.median), g(b.lo), g(b.hi), b.draws, b.finished, b.failed, b.withValue, g(s.lo), g(s.hi), s.points,
                            verdict, reasons);
         md += fmt::format("| {} | {} | {} | {} | {} / {} / {} | {} | {} | {} | {} |\n", id, observable,
@@ -495,7 +500,7 @@ BandTable drawTables(const Runner& R, ValidationEvidence& evidence, const Compar
                     outcomes.push_back(drawOutcome(it->second, key));
             const DrawBand b = drawBand(outcomes);
             if (key == "velocity_cm_per_s") velocity = b.median;
-            if (const auto s = drawScatter(c, name, b.median, velocity, evidence)) bands.record(c.kind, c.id, name, b, *s, mean);
+            if (const auto s = drawScatter(c, name, b.median, velocity, evidence)) bands.record(c, name, b, *s, mean);
         }
     }
     for (double eta : thresholdViscosities(R.cfg)) {
@@ -504,7 +509,8 @@ BandTable drawTables(const Runner& R, ValidationEvidence& evidence, const Compar
         for (const PosteriorDraw& d : R.draws) outcomes.push_back(criticalStressOutcome(R.thresholdPoints(eta, d.sample), eta));
         const DrawBand b = drawBand(outcomes);
         const std::optional<double> tau = std::isfinite(b.median) ? std::optional(b.median) : std::nullopt;
-        bands.record("threshold", fmt::format("threshold_eta{:g}", eta), "critical stress [Pa]", b, evidence.criticalStress(eta, tau, tau), mean);
+        bands.record({fmt::format("threshold_eta{:g}", eta), "threshold", eta, 0.0, 0.0}, "critical stress [Pa]", b,
+                     evidence.criticalStress(eta, tau, tau), mean);
     }
     writeFileAtomically(R.out / "draws.csv", runs);
     writeFileAtomically(R.out / "bands.csv", bands.csv);
