@@ -94,6 +94,7 @@ SERIES_STYLES = [("#1f3b73", "s", "-"), ("#1e8449", "D", "--"), ("#7d3c98", "v",
                  ("#a04000", "P", ":"), ("#117a8b", "X", (0, (5, 1, 1, 1, 1, 1))),
                  ("#7b241c", "h", (0, (8, 2)))]
 SERIES_SPREAD_PT = 4.5     # horizontal distance (points) between neighbouring series
+BAND_OFFSET_PT = 6.0       # horizontal distance (points) of a posterior band from its case
 SRC = "\x00dir"            # key added to the rows in --series mode: their directory
 
 plt.rcParams.update({
@@ -392,12 +393,14 @@ def draw_bands(ax, run, s, ctx, pts, colour, what="draws"):
     m = np.array([p[1] for p in pts])
     lo = np.array([p[2] for p in pts])
     hi = np.array([p[3] for p in pts])
+    # a few points right of the case's own marker, so that neither hides the other
+    tr = offset_copy(ctx.shift(ax, s), fig=ax.figure, x=BAND_OFFSET_PT, units="points")
     ax.errorbar(x, m, yerr=[m - lo, hi - m], ls="none", marker=s.marker, ms=5, mfc="white",
                 mec=colour, ecolor=colour, elinewidth=5, alpha=0.35, capsize=0, zorder=3,
                 label=ctx.label(s, f"posterior {what}: median, 5-95 % band",
                                 f": posterior {what}, median and 5-95 % band", 3),
-                **tkw(run, ctx.shift(ax, s)))
-    anchor(ax, run, np.r_[x, x], np.r_[lo, hi])
+                transform=tr)
+    ax.plot(np.r_[x, x], np.r_[lo, hi], ls="none", marker="none")  # the band inside the limits
 
 
 def legend_below(fig, ctx, sub):

@@ -120,6 +120,7 @@ TEST(ValidationDraws, MedianBandAndBandVerdictOnHandMadeNumbers) {
     s.points = 3;
     EXPECT_EQ(bandVerdict(drawBand({{false, NAN, "x"}}), s), "no prediction");
     EXPECT_EQ(bandVerdict(drawBand({{true, NAN, "no value (tumbling)"}}), s), "no overlap");
+    EXPECT_EQ(bandVerdict(drawBand({{true, NAN, "not bracketed"}}), s, false), "no prediction");
     const DrawBand one = drawBand({{true, 3.0, ""}});
     EXPECT_DOUBLE_EQ(one.lo, 3.0);
     EXPECT_DOUBLE_EQ(one.hi, 3.0);
@@ -215,14 +216,14 @@ TEST(ValidationConfig, ReferenceCellConfigOverridesTheCellOfItsBase) {
     EXPECT_DOUBLE_EQ(readValidationConfig(tilted, kExperiments).tiltDeg, 5.0);
 }
 
-// Two draws of a fake posterior on a tiny set (level 1, one rotation): every case runs for the
+// Two draws of a fake posterior on a tiny set (level 1, four rotations): every case runs for the
 // configured cell and for each draw; the tables carry the bands; the configured cell's tables are
 // those of a run without draws; a lost (case, draw) record runs again alone; bad input is named.
 TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     TempDir dir;
     const fs::path post = writeFakePosterior(dir.path() / "post", 6);
     const fs::path cfg = writeText(dir.path() / "tiny.toml",
-                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 0\n"
+                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 4\nthreshold_refinements = 0\n"
                                    "[[shear.angle]]\neta_out = 23.9\nrate_min = 40\nrate_max = 40\ncount = 1\n"
                                    "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
                                    "[tube]\nenabled = false\n");
@@ -232,6 +233,10 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("posterior draws: 2 (seed 5)"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("9 run now"), std::string::npos) << r.out;  // 3 cases x (cell + 2 draws)
+    // The figures draw the bands without an error (where matplotlib is installed).
+    const std::string plotLog = test::slurp(out / "plot.log");
+    EXPECT_EQ(plotLog.find("error while drawing"), std::string::npos) << plotLog;
+    if (plotLog.find("Error") == std::string::npos) EXPECT_TRUE(fs::exists(out / "figures" / "angle_vs_shear_rate.png")) << plotLog;
     const std::vector<PosteriorDraw> draws = selectPosteriorDraws(readNumericTable(post / "samples.csv"), 2, 5);
     const nlohmann::json j = nlohmann::json::parse(test::slurp(out / "validation.json"));
     EXPECT_EQ(j["draws"]["seed"].get<int>(), 5);
@@ -248,6 +253,26 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     EXPECT_NE(md.find("## Posterior draws"), std::string::npos) << md;
     EXPECT_NE(md.find("| kind | compared | mean cell inside | band overlaps |"), std::string::npos) << md;
     EXPECT_NE(test::slurp(out / "draws.csv").find(id + ",angle_eta23.9_rate40,angle,"), std::string::npos);
+    // The angle's band is that of the two draws' records (both tank-tread at 40/s).
+    std::vector<DrawOutcome> angles;
+    for (const PosteriorDraw& d : draws) {
+        const nlohmann::json x = nlohmann::json::parse(test::slurp(out / "cases" / fmt::format("angle_eta23.9_rate40_sample{}.json", d.sample)));
+        ASSERT_EQ(x["result"]["observables"]["regime"], "tank-treading") << x.dump();
+        angles.push_back({true, x["result"]["observables"]["inclination_deg"].get<double>(), ""});
+    }
+    const DrawBand expected = drawBand(angles);
+    const nlohmann::json angleRow = j["draws"]["bands"][0];
+    EXPECT_EQ(angleRow["case"], "angle_eta23.9_rate40");
+    EXPECT_EQ(angleRow["with_value"].get<int>(), 2);
+    EXPECT_DOUBLE_EQ(angleRow["median"].get<double>(), expected.median);
+    EXPECT_DOUBLE_EQ(angleRow["q05"].get<double>(), expected.lo);
+    EXPECT_DOUBLE_EQ(angleRow["q95"].get<double>(), expected.hi);
+    EXPECT_LT(expected.lo, expected.hi);  // two different cells
+    ScatterComparison scatter;
+    scatter.lo = angleRow["scatter_lo"].get<double>(), scatter.hi = angleRow["scatter_hi"].get<double>();
+    scatter.points = angleRow["points"].get<int>();
+    EXPECT_GT(scatter.points, 0);
+    EXPECT_EQ(angleRow["band_verdict"], bandVerdict(expected, scatter));
 
     // Without --draws: the configured cell's outputs as before, the same as the banded run's.
     r = test::runTrbc(base + " --out " + plain.string(), dir.path());

@@ -65,10 +65,10 @@ std::string drawReasonsText(const DrawBand& band) {
     return s;
 }
 
-std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter) {
+std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, bool noValueDisagrees) {
     if (scatter.points == 0) return "no data";
     if (band.finished == 0) return "no prediction";
-    if (band.withValue == 0) return "no overlap";
+    if (band.withValue == 0) return noValueDisagrees ? "no overlap" : "no prediction";
     return band.lo <= scatter.hi && band.hi >= scatter.lo ? "overlap" : "no overlap";
 }
 

@@ -54,10 +54,11 @@ DrawBand drawBand(const std::vector<DrawOutcome>& outcomes);
 std::string drawReasonsText(const DrawBand& band);
 
 /// The band verdict: "overlap" when [lo, hi] meets the scatter [scatter.lo, scatter.hi]; "no data"
-/// without scatter (scatter.points = 0); "no prediction" when no draw finished; "no overlap"
-/// otherwise, finished draws without a value included (a tumbling cell where the donors
-/// tank-tread, as in the mean-cell verdict).
-std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter);
+/// without scatter (scatter.points = 0); "no prediction" when no draw finished; when the finished
+/// draws gave no value, "no overlap" if `noValueDisagrees` (a tumbling cell where the donors
+/// tank-tread, as in the mean-cell verdict), else "no prediction" (no threshold bracketed);
+/// "no overlap" otherwise.
+std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, bool noValueDisagrees = true);
 
 /// A draw's critical shear stress [Pa] from its threshold cases at outer viscosity etaOut (mPa s):
 /// sqrt(tau_lo tau_hi) of criticalStressInterval, the bracket's centre on the log scale on which

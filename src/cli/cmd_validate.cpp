@@ -416,16 +416,17 @@ struct BandTable {
     std::string md = "| case | observable | mean cell | median [5 – 95 %] | finished / failed / with a value | experimental scatter | "
                      "mean-cell verdict | band verdict | draws without a value |\n|---|---|---|---|---|---|---|---|---|\n";
 
-    /// One observable of case c (a threshold viscosity: the id threshold_eta<eta>, no rate).
+    /// One observable of case c (a threshold viscosity: the id threshold_eta<eta>, no rate) with
+    /// the configured cell's value: `meanValue`, or the prediction of its comparison when NaN.
     void record(const ValidationCase& c, const std::string& observable, const DrawBand& b, const ScatterComparison& s,
-                const ComparisonTable& mean) {
+                const ComparisonTable& mean, double meanValue = NAN) {
         const std::string& id = c.id;
         const std::string& kind = c.kind;
         const auto m = std::find_if(mean.rows.begin(), mean.rows.end(),
                                     [&](const json& r) { return r["case"] == id && r["observable"] == observable; });
-        const double meanValue = m == mean.rows.end() ? NAN : numberOr(*m, "predicted");
+        if (std::isnan(meanValue) && kind != "threshold" && m != mean.rows.end()) meanValue = numberOr(*m, "predicted");
         const std::string meanVerdict = m == mean.rows.end() ? "not compared" : (*m)["verdict"].get<std::string>();
-        const std::string verdict = bandVerdict(b, s), reasons = drawReasonsText(b);
+        const std::string verdict = bandVerdict(b, s, kind != "threshold"), reasons = drawReasonsText(b);
         std::array<int, 3>& t = tally[kind];
         ++t[0], t[1] += meanVerdict == "inside", t[2] += verdict == "overlap";
         rows.push_back({{"case", id}, {"kind", kind}, {"observable", observable}, {"mean_cell", meanValue},
@@ -510,7 +511,7 @@ BandTable drawTables(const Runner& R, ValidationEvidence& evidence, const Compar
         const DrawBand b = drawBand(outcomes);
         const std::optional<double> tau = std::isfinite(b.median) ? std::optional(b.median) : std::nullopt;
         bands.record({fmt::format("threshold_eta{:g}", eta), "threshold", eta, 0.0, 0.0}, "critical stress [Pa]", b,
-                     evidence.criticalStress(eta, tau, tau), mean);
+                     evidence.criticalStress(eta, tau, tau), mean, criticalStressOutcome(R.thresholdPoints(eta), eta).value);
     }
     writeFileAtomically(R.out / "draws.csv", runs);
     writeFileAtomically(R.out / "bands.csv", bands.csv);
