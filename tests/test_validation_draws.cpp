@@ -231,18 +231,20 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     const std::string base = "validate --quiet --config " + cfg.string() + " --posterior " + post.string();
     test::CliRun r = test::runTrbc(base + " --out " + out.string() + " --draws 2 --seed 5", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_NE(r.out.find("posterior draws: 2 (seed 5)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("posterior draws: 2 (seed 5), 6 runs (0 failed)"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("9 run now"), std::string::npos) << r.out;  // 3 cases x (cell + 2 draws)
     // The figures draw the bands without an error (where matplotlib is installed).
     const std::string plotLog = test::slurp(out / "plot.log");
     EXPECT_EQ(plotLog.find("error while drawing"), std::string::npos) << plotLog;
-    if (plotLog.find("Error") == std::string::npos) EXPECT_TRUE(fs::exists(out / "figures" / "angle_vs_shear_rate.png")) << plotLog;
+    if (plotLog.find("Error") == std::string::npos) {
+        EXPECT_TRUE(fs::exists(out / "figures" / "angle_vs_shear_rate.png")) << plotLog;
+    }
     const std::vector<PosteriorDraw> draws = selectPosteriorDraws(readNumericTable(post / "samples.csv"), 2, 5);
     const nlohmann::json j = nlohmann::json::parse(test::slurp(out / "validation.json"));
     EXPECT_EQ(j["draws"]["seed"].get<int>(), 5);
     EXPECT_EQ(j["draws"]["samples"], nlohmann::json({draws[0].sample, draws[1].sample}));
     EXPECT_EQ(j["summary"]["cases"].get<int>(), 3);
-    EXPECT_EQ(j["summary"]["draws"]["threshold"]["compared"].get<int>(), 1);
+    EXPECT_EQ(j["summary"]["draws"]["kinds"]["threshold"]["compared"].get<int>(), 1);
     const std::string id = fmt::format("angle_eta23.9_rate40_sample{}", draws[1].sample);
     const nlohmann::json rec = nlohmann::json::parse(test::slurp(out / "cases" / (id + ".json")));
     EXPECT_EQ(rec["draw"]["seed"].get<int>(), 5);

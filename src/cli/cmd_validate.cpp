@@ -447,10 +447,14 @@ struct BandTable {
                           meanVerdict, verdict == "no overlap" ? "**no overlap**" : verdict, reasons.empty() ? "–" : reasons);
     }
 
-    json summary() const {
-        json j = json::object();
-        for (const auto& [kind, t] : tally) j[kind] = {{"compared", t[0]}, {"mean_cell_inside", t[1]}, {"band_overlap", t[2]}};
-        return j;
+    /// Per kind: observables compared and agreeing under each verdict; the draw runs and their failures.
+    json summary(const Runner& R) const {
+        int runs = 0, failed = 0;
+        for (const ValidationCase& c : R.cases)
+            if (c.sample >= 0) ++runs, failed += R.resultOf(c.id).value("status", "failed") != "ok";
+        json kinds = json::object();
+        for (const auto& [kind, t] : tally) kinds[kind] = {{"compared", t[0]}, {"mean_cell_inside", t[1]}, {"band_overlap", t[2]}};
+        return {{"runs", runs}, {"runs_failed", failed}, {"kinds", kinds}};
     }
 
     std::string markdown(const Runner& R) const {
@@ -465,7 +469,8 @@ struct BandTable {
             "|---|---|---|---|\n",
             R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, samples);
         for (const auto& [kind, t] : tally) md += fmt::format("| {} | {} | {} | {} |\n", kind, t[0], t[1], t[2]);
-        return md + "\n" + this->md;
+        const json runs = summary(R);
+        return md + fmt::format("\n{} draw runs, {} failed.\n\n", runs["runs"].get<int>(), runs["runs_failed"].get<int>()) + this->md;
     }
 };
 
@@ -547,7 +552,7 @@ json writeTables(const Runner& R, json& bandRows) {
     if (!R.draws.empty()) {
         const BandTable bands = drawTables(R, evidence, table);
         md += bands.markdown(R);
-        summary["draws"] = bands.summary();
+        summary["draws"] = bands.summary(R);
         bandRows = bands.rows;
     }
     writeFileAtomically(R.out / "validation.md", md);
@@ -566,7 +571,8 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
     cmd->add_option("--config", o.config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
     addOutOption(cmd, o.out);
     cmd->add_option("--posterior", o.posterior,
-                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
+                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]; "
+                    "--draws takes its samples");
     addNumber(cmd, "--draws", o.draws,
               "also run every case for N draws of the posterior's samples (--posterior or [cell] posterior), chosen with "
               "--seed; tabulates the median and 5-95 % band of each observable (bands.csv, draws.csv, validation.md); 0: "
@@ -751,11 +757,12 @@ void printValidationSummary(const Runner& R, const json& summary, std::size_t se
                              R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
     if (!summary.contains("draws")) return;
     int compared = 0, inside = 0, overlap = 0;
-    for (const auto& [kind, t] : summary["draws"].items())
+    for (const auto& [kind, t] : summary["draws"]["kinds"].items())
         compared += t["compared"].get<int>(), inside += t["mean_cell_inside"].get<int>(), overlap += t["band_overlap"].get<int>();
-    std::cout << fmt::format("  posterior draws: {} (seed {}); of {} observables compared, the 5-95 % band overlaps the scatter "
-                             "in {} (the configured cell is inside in {}); tables: {}/{{draws,bands}}.csv\n",
-                             R.draws.size(), R.seed, compared, overlap, inside, R.out.string());
+    std::cout << fmt::format("  posterior draws: {} (seed {}), {} runs ({} failed); of {} observables compared, the 5-95 % band "
+                             "overlaps the scatter in {} (the configured cell is inside in {}); tables: {}/{{draws,bands}}.csv\n",
+                             R.draws.size(), R.seed, summary["draws"]["runs"].get<int>(), summary["draws"]["runs_failed"].get<int>(),
+                             compared, overlap, inside, R.out.string());
 }
 
 void runValidate(const ValidateCommandOptions& o) {
