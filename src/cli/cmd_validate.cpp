@@ -426,7 +426,12 @@ struct BandTable {
                                     [&](const json& r) { return r["case"] == id && r["observable"] == observable; });
         if (std::isnan(meanValue) && kind != "threshold" && m != mean.rows.end()) meanValue = numberOr(*m, "predicted");
         const std::string meanVerdict = m == mean.rows.end() ? "not compared" : (*m)["verdict"].get<std::string>();
-        const std::string verdict = bandVerdict(b, s, kind != "threshold"), reasons = drawReasonsText(b);
+        const std::string verdict = bandVerdict(b, s, kind != "threshold");
+        std::string reasons = drawReasonsText(b), quoted;  // a failure's text: '"' doubled in the CSV, no '|' in the markdown
+        for (char& ch : reasons) {
+            quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+            if (ch == '|') ch = '/';
+        }
         std::array<int, 3>& t = tally[kind];
         ++t[0], t[1] += meanVerdict == "inside", t[2] += verdict == "overlap";
         rows.push_back({{"case", id}, {"kind", kind}, {"observable", observable}, {"mean_cell", meanValue},
@@ -439,7 +444,7 @@ struct BandTable {
                            c.rate > 0.0 ? fmt::format("{:.6g}", c.rate) : "", kind == "tube" ? fmt::format("{:g}", c.pressureGradient) : "",
                            g(meanValue), meanVerdict,
                            g(b.median), g(b.lo), g(b.hi), b.draws, b.finished, b.failed, b.withValue, g(s.lo), g(s.hi), s.points,
-                           verdict, reasons);
+                           verdict, quoted);
         md += fmt::format("| {} | {} | {} | {} | {} / {} / {} | {} | {} | {} | {} |\n", id, observable,
                           std::isfinite(meanValue) ? fmt::format("{:.3g}", meanValue) : "–",
                           b.withValue > 0 ? fmt::format("{:.3g} [{:.3g} – {:.3g}]", b.median, b.lo, b.hi) : "–", b.finished,
