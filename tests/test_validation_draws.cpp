@@ -228,7 +228,7 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
                                    "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
                                    "[tube]\nenabled = false\n");
     const fs::path out = dir.path() / "o", plain = dir.path() / "p";
-    const std::string base = "validate --quiet --config " + cfg.string() + " --posterior " + post.string();
+    const std::string base = "validate --config " + cfg.string() + " --posterior " + post.string();
     test::CliRun r = test::runTrbc(base + " --out " + out.string() + " --draws 2 --seed 5", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("posterior draws: 2 (seed 5), 6 runs (0 failed)"), std::string::npos) << r.out;
@@ -294,6 +294,11 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     EXPECT_NE(r.out.find("1 run now"), std::string::npos) << r.out;
     EXPECT_EQ(nlohmann::json::parse(test::slurp(out / "cases" / (id + ".json")))["result"]["observables"], rec["result"]["observables"]);
     EXPECT_EQ(test::slurp(out / "bands.csv"), bands);
+    // Importable: another OUT takes every (case, draw) from this one.
+    r = test::runTrbc(base + " --out " + (dir.path() / "m").string() + " --draws 2 --seed 5 --dry-run --import " + out.string(),
+                      dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find(": 9 finished (9 in --import directories), 0 failed and kept, 0 to run"), std::string::npos) << r.err;
     // Another seed draws other samples: a sample drawn before is finished, the others are to run.
     r = test::runTrbc(base + " --out " + out.string() + " --draws 2 --seed 6 --dry-run", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
