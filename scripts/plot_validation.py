@@ -19,7 +19,10 @@ on the experimental data of data/experiments/validation:
                                (6.6 um) and Hochmuth 1970 (6.7 um, mm/s -> cm/s)
 
 Inputs in DIR (each optional; a missing or empty file only skips its figures):
-  shear.csv, threshold.csv, tube.csv, validation.json ("cell", "level").
+  shear.csv, threshold.csv, tube.csv, validation.json ("cell", "level"), and
+  bands.csv of `trbc validate --draws N`: where present, every figure also shows
+  the 5-95 % band over the posterior draws of each case (a wide pale bar) with
+  its median (open marker), beside the configured cell's points.
 Rows with status != "ok" and rows with empty observables are ignored.
 
 Usage:
@@ -91,6 +94,7 @@ SERIES_STYLES = [("#1f3b73", "s", "-"), ("#1e8449", "D", "--"), ("#7d3c98", "v",
                  ("#a04000", "P", ":"), ("#117a8b", "X", (0, (5, 1, 1, 1, 1, 1))),
                  ("#7b241c", "h", (0, (8, 2)))]
 SERIES_SPREAD_PT = 4.5     # horizontal distance (points) between neighbouring series
+BAND_OFFSET_PT = 6.0       # horizontal distance (points) of a posterior band from its case
 SRC = "\x00dir"            # key added to the rows in --series mode: their directory
 
 plt.rcParams.update({
@@ -234,7 +238,7 @@ class Series:
         self.index = index
         self.count = count
         self.colour, self.marker, self.ls = SERIES_STYLES[index % len(SERIES_STYLES)]
-        self.shear, self.threshold, self.tube = [], [], []
+        self.shear, self.threshold, self.tube, self.bands = [], [], [], []
         self.meta = {}  # str(dir) -> validation.json (dict or None)
 
     def load(self):
@@ -243,7 +247,7 @@ class Series:
         for d in self.dirs:
             found = []
             for attr, name in (("shear", "shear.csv"), ("threshold", "threshold.csv"),
-                               ("tube", "tube.csv")):
+                               ("tube", "tube.csv"), ("bands", "bands.csv")):
                 rows = read_rows(d / name)
                 for r in rows:
                     r[SRC] = str(d)
@@ -365,6 +369,38 @@ def anchor(ax, run, x, y):
 def tkw(run, tr):
     """transform= keyword for the --series form (nothing for the single-DIR form)."""
     return {"transform": tr} if run.multi else {}
+
+
+def band_points(s, kind, observable, xcol, eta=None):
+    """(x, median, q05, q95) of the bands.csv rows of series s with a band (--draws)."""
+    out = []
+    for r in s.bands:
+        if r.get("kind") != kind or r.get("observable") != observable:
+            continue
+        if eta is not None and eta_key(fnum(r.get("eta_out_mPa_s")) or 0.0) != eta_key(eta):
+            continue
+        x, m, lo, hi = (fnum(r.get(c)) for c in (xcol, "median", "q05", "q95"))
+        if None not in (x, m, lo, hi):
+            out.append((x, m, lo, hi))
+    return sorted(out)
+
+
+def draw_bands(ax, run, s, ctx, pts, colour, what="draws"):
+    """The 5-95 % band of each case over the posterior draws (pale bar) and its median."""
+    if not pts:
+        return
+    x = np.array([p[0] for p in pts])
+    m = np.array([p[1] for p in pts])
+    lo = np.array([p[2] for p in pts])
+    hi = np.array([p[3] for p in pts])
+    # a few points right of the case's own marker, so that neither hides the other
+    tr = offset_copy(ctx.shift(ax, s), fig=ax.figure, x=BAND_OFFSET_PT, units="points")
+    ax.errorbar(x, m, yerr=[m - lo, hi - m], ls="none", marker=s.marker, ms=5, mfc="white",
+                mec=colour, ecolor=colour, elinewidth=5, alpha=0.35, capsize=0, zorder=3,
+                label=ctx.label(s, f"posterior {what}: median, 5-95 % band",
+                                f": posterior {what}, median and 5-95 % band", 3),
+                transform=tr)
+    ax.plot(np.r_[x, x], np.r_[lo, hi], ls="none", marker="none")  # the band inside the limits
 
 
 def legend_below(fig, ctx, sub):
@@ -586,6 +622,10 @@ def plot_angle(run):
                         zorder=6, clip_on=False, **tkw(run, ctx.stack(ax, s)))
                 anchor(ax, run, tb, np.zeros(len(tb)))
                 xs_all += tb
+        for s in run.series:
+            pts = band_points(s, "angle", "inclination [deg]", "shear_rate_per_s", eta)
+            draw_bands(ax, run, s, ctx, pts, s.colour if run.multi else PANEL_COLOURS[k % len(PANEL_COLOURS)])
+            xs_all += [p[0] for p in pts]
         if xs_all and min(xs_all) > 0:  # shear rates span decades (docs/FLOW.md, shear)
             ax.set_xscale("log")
         ax.axhline(0, color="0.8", lw=0.6, zorder=0)
@@ -658,6 +698,10 @@ def plot_ttf(run):
                     clip_on=False, zorder=6, **tkw(run, ctx.stack(ax, s)))
             anchor(ax, run, tumbling, np.zeros(len(tumbling)))
             xs += tumbling
+    for s in run.series:
+        pts = band_points(s, "ttf", "4 pi f / rate", "shear_rate_per_s")
+        draw_bands(ax, run, s, ctx, pts, s.colour if run.multi else C_SIM)
+        xs += [p[0] for p in pts]
     if xs and min(xs) > 0:
         ax.set_xscale("log")
     ax.set_ylim(bottom=0)
@@ -802,6 +846,9 @@ def plot_threshold(run):
                                          ": one bound only (arrow towards threshold)", 1)
                                if first_one else None))
                 first_one = False
+    for s in run.series:
+        draw_bands(ax, run, s, ctx, band_points(s, "threshold", "critical stress [Pa]", "eta_out_mPa_s"),
+                   s.colour if run.multi else C_SIM, "draws, sqrt(tau_lo tau_hi)")
     ax.set_yscale("log")
     all_eta = ([b[0] for p in per for b in p[1]]
                + [c[0] for p in per for v in p[2].values() for c in v])
@@ -886,6 +933,9 @@ def plot_tube_v_pg(run):
         ctx.use(s, [r for r in ok_rows(s.tube) if fnum(r.get("pg_mmHg_per_mm")) is not None
                     and fnum(r.get("velocity_cm_per_s")) is not None], tube=True)
         draw_tube_sim(ax, pts, s, ctx)
+    for s in run.series:
+        draw_bands(ax, run, s, ctx, band_points(s, "tube", "velocity [cm/s]", "pg_mmHg_per_mm"),
+                   s.colour if run.multi else C_SIM)
     ax.set_xlim(left=0)
     ax.set_ylim(bottom=0)
     ax.set_xlabel(r"pressure gradient $\Delta P/L$ [mmHg/mm]")
@@ -927,6 +977,14 @@ def plot_tube_l_v(run):
         ctx.use(s, [r for r in ok_rows(s.tube) if fnum(r.get("velocity_cm_per_s")) is not None
                     and fnum(r.get("length_um")) is not None], tube=True)
         draw_tube_sim(ax, pts, s, ctx)
+    for s in run.series:  # at the median velocity of the case's draws
+        velocity = {r.get("case"): fnum(r.get("median")) for r in s.bands
+                    if r.get("observable") == "velocity [cm/s]"}
+        pts = [(velocity[r.get("case")], fnum(r.get("median")), fnum(r.get("q05")), fnum(r.get("q95")))
+               for r in s.bands if r.get("observable") == "length [um]"
+               and velocity.get(r.get("case")) is not None and fnum(r.get("median")) is not None]
+        draw_bands(ax, run, s, ctx, sorted(pts), s.colour if run.multi else C_SIM)
+        xs += [p[0] for p in pts]
     if use_log(xs, ratio=30.0):
         ax.set_xscale("log")
     else:
@@ -1010,6 +1068,7 @@ def main(argv=None):
             return 0
         s = Series(None, [d])
         s.shear, s.threshold, s.tube = shear, threshold, tube
+        s.bands = read_rows(d / "bands.csv")
         run = Run([s], data, figdir, sub=subtitle(read_json(d / "validation.json")))
     else:  # --series form
         missing = [d for grp in args.series for d in grp[1:] if not Path(d).is_dir()]

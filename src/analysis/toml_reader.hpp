@@ -125,4 +125,12 @@ inline std::filesystem::path resolveConfigPath(const std::string& s, const std::
     return (p.is_absolute() ? p : configDir / p).lexically_normal();
 }
 
+/// The configuration in `file` over the one its `base` key names, recursively: a table of the
+/// file is merged key by key into the base's table of the same name, any other value (arrays such
+/// as [[data]] included) replaces the base's. `chain` holds the files read so far (the including
+/// ones); the bases are appended to `bases`, nearest first. A missing base, a base that is not a
+/// string or a cycle is an InputError naming the `base` line.
+toml::table parseWithBases(const std::filesystem::path& file, std::vector<std::filesystem::path>& chain,
+                           std::vector<std::filesystem::path>& bases);
+
 }  // namespace trbc

@@ -63,21 +63,25 @@ std::string trim(const std::string& s) {
 }  // namespace
 
 ValidationConfig readValidationConfig(const fs::path& file, const fs::path& experiments) {
-    const toml::table root = parseTomlFile(file);
     ValidationConfig c;
+    std::vector<fs::path> chain;
+    const toml::table root = parseWithBases(file, chain, c.bases);
     c.file = fs::absolute(file).lexically_normal();
     c.dataDir = experiments / "validation";
     c.sweeps = defaultSweeps();
     for (int k = 1; k <= 15; ++k) c.pressureGradients.push_back(5.0 * k);
     TableReader top(file, root, "");
-    top.allowOnly({"run", "data", "cell", "shear", "tube"});
+    top.allowOnly({"base", "run", "data", "cell", "shear", "tube"});
     auto section = [&](const char* name) -> const toml::table* {
         const toml::node* n = root.get(name);
         if (!n) return nullptr;
         if (!n->is_table()) top.fail(*n, fmt::format("'{}' must be a table [{}]", name, name));
         return n->as_table();
     };
-    const fs::path dir = file.parent_path();
+    // A path is relative to the directory of the file that sets it (this one or a base).
+    auto pathOf = [&](const toml::table& t, const char* key, const std::string& value) {
+        return resolveConfigPath(value, TableReader::sourceFile(*t.get(key), file).parent_path(), experiments);
+    };
     if (const toml::table* t = section("run")) {
         TableReader r(file, *t, "run");
         r.allowOnly({"level", "jobs", "threads", "step_tol", "checkpoint_interval"});
@@ -92,7 +96,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         r.allowOnly({"dir"});
         std::string d;
         r.string("dir", d);
-        if (!d.empty()) c.dataDir = resolveConfigPath(d, dir, experiments);
+        if (!d.empty()) c.dataDir = pathOf(*t, "dir", d);
     }
     if (!fs::is_directory(c.dataDir / "shear_flow") || !fs::is_directory(c.dataDir / "microtube"))
         throw InputError(fmt::format("{}: validation data directory {} lacks shear_flow/ or microtube/ (data.dir)", file.string(),
@@ -103,7 +107,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         r.string("source", c.cellSource, {"table1", "posterior", "explicit"});
         std::string post;
         r.string("posterior", post);
-        if (!post.empty()) c.posterior = resolveConfigPath(post, dir, experiments);
+        if (!post.empty()) c.posterior = pathOf(*t, "posterior", post);
         // Prior box of docs/MEMBRANE_MODEL.md (docs/CAMPAIGN_AND_SURROGATE.md, input box); flow solvers accept no cell outside it.
         const RbcPriorBox box;
         for (const auto& [key, value] : {std::pair{"v", &c.v}, {"mu_uN_per_m", &c.mu}, {"kb_J", &c.kbJ}, {"b2", &c.b2},
@@ -118,9 +122,10 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     }
     if (const toml::table* t = section("shear")) {
         TableReader r(file, *t, "shear");
-        r.allowOnly({"eta_in", "rotations", "threshold_refinements", "angle", "ttf", "threshold"});
+        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "angle", "ttf", "threshold"});
         r.real("eta_in", c.etaIn, 0.0, 1e6, true);
         r.real("rotations", c.rotations, 0.0, 1000.0, true);
+        r.real("tilt_deg", c.tiltDeg, 0.0, 90.0);
         r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
         // Sweeps given in the file replace all the default ones (the kinds not given are not run).
         if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();

@@ -24,6 +24,7 @@ struct ShearSweep {
 
 struct ValidationConfig {
     std::filesystem::path file;       ///< the TOML file (absolute)
+    std::vector<std::filesystem::path> bases;  ///< the configurations it overrides (`base`), nearest first
     std::filesystem::path dataDir;    ///< experimental validation data (shear_flow/, microtube/)
     int level = 2, jobs = 1, threads = 1;
     double stepTol = 1e-3;            ///< local error per step of the shear runs, R_A
@@ -34,6 +35,7 @@ struct ValidationConfig {
     std::filesystem::path posterior;
     double v = table1::v, mu = table1::mu, kbJ = table1::kbJ, b2 = table1::b2, etam = table1::etam;
     double etaIn = 10.0, rotations = 10.0;  ///< shear flow: cytosol (mPa s), duration in rigid-sphere turns
+    double tiltDeg = 0.0;                   ///< shear start turned about the flow axis (`flow shear --tilt-deg`)
     std::vector<ShearSweep> sweeps;         ///< the defaults of docs/FLOW.md unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
     bool tubeEnabled = true;
@@ -59,6 +61,7 @@ struct ValidationCase {
     std::string id;      ///< e.g. angle_eta23.9_rate55.4, tube_pg30
     std::string kind;    ///< angle | ttf | threshold | tube
     double etaOut = 0.0, rate = 0.0, pressureGradient = 0.0;
+    long sample = -1;    ///< the posterior draw's sample (validation_draws.hpp); -1: the configured cell
 };
 
 /// The cases of the sweeps and the tube before any refinement, in a fixed order.

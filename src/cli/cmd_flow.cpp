@@ -34,7 +34,7 @@ void writeText(const std::string& path, const std::string& text) { writeFileAtom
 std::string cliOptionName(const std::string& name) {
     static const std::map<std::string, std::string> names = {
         {"eta_out_mPa_s", "--eta-out"}, {"eta_in_mPa_s", "--eta-in"}, {"shear_rate_per_s", "--shear-rate"},
-        {"level", "--level"}, {"rotations", "--rotations"}, {"radius_um", "--radius"},
+        {"level", "--level"}, {"rotations", "--rotations"}, {"tilt_deg", "--tilt-deg"}, {"radius_um", "--radius"},
         {"pressure_gradient_mmHg_per_mm", "--pressure-gradient"}, {"viscosity_ratio", "--viscosity-ratio"},
         {"duration_R_over_V", "--duration"}, {"settle_R_over_V", "--settle"}, {"settle_relax_R_over_V", "--settle-relax"},
         {"settle_etam_Pa_s_um", "--settle-etam"}, {"settle_tol", "--settle-tol"}, {"wall_points", "--wall-points"},
@@ -311,6 +311,7 @@ nlohmann::json shearParametersJson(const ShearCaseResult& res, const ShearCli& o
             {"A0_um2", fc.A0},
             {"V0_um3", fc.V0},
             {"rotations", o.c.rotations},
+            {"tilt_deg", o.c.tiltDeg},
             {"t_end_s", res.tEndSeconds},
             {"dimensionless", {{"capillary_number", g.capillary},
                                {"viscosity_ratio", g.viscosityRatio},
@@ -402,6 +403,11 @@ void registerShear(CLI::App* flow) {
         ->capture_default_str();
     addNumber(cmd, "--rotations", o->c.rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate",
               NumberRange::leftOpen(0.0, 1000.0))
+        ->capture_default_str();
+    addNumber(cmd, "--tilt-deg", o->c.tiltDeg,
+              "start turned by this angle about the flow (x) axis, out of the shear plane (the in-plane start, 0, "
+              "stays mirror symmetric about that plane and cannot leave it; docs/FLOW.md)",
+              NumberRange::closed(0.0, 90.0, "deg"))
         ->capture_default_str();
     addSteppingOptions(cmd, o->step, "1/rate");
     addCacheOptions(cmd, o->cache);

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -20,6 +21,7 @@
 
 #include "analysis/stage_ledger.hpp"
 #include "analysis/validation.hpp"
+#include "analysis/validation_draws.hpp"
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/clock.hpp"
@@ -58,24 +60,37 @@ struct Runner {
     std::mutex mutex;
     std::map<std::string, json> results;  ///< case id -> {"key", "command", "exit", "wall_s", "result"}
     std::vector<ValidationCase> cases;    ///< every case so far, in order
+    std::vector<PosteriorDraw> draws;     ///< --draws: the posterior draws run beside the configured cell
+    std::uint64_t seed = 0;               ///< of their choice
+    long posteriorSamples = 0;            ///< samples in the posterior they are drawn from
     int done = 0, total = 0;
     double caseSeconds = 0.0;
     int ranHere = 0;
     SteadyClock::time_point start = SteadyClock::now();
 
-    std::string cellArgs() const {
+    const PosteriorDraw& drawOf(long sample) const {
+        return *std::find_if(draws.begin(), draws.end(), [&](const PosteriorDraw& d) { return d.sample == sample; });
+    }
+
+    /// The cell options of a case: a draw's parameters, else the configured cell's.
+    std::string cellArgs(const ValidationCase& c) const {
+        if (c.sample >= 0) {
+            const PosteriorDraw& d = drawOf(c.sample);
+            return fmt::format("--v {} --mu {} --kb {} --b2 {} --etam {}", d.v, d.mu, d.kbJ, d.b2, d.etam);
+        }
         if (cfg.cellSource == "posterior") return "--posterior " + shellQuote(cfg.posterior);
         if (cfg.cellSource == "explicit")
             return fmt::format("--v {} --mu {} --kb {} --b2 {} --etam {}", cfg.v, cfg.mu, cfg.kbJ, cfg.b2, cfg.etam);
         return "";  // the flow commands' default: the paper's Table 1 means
     }
 
-    /// What the cell is, for the key: the arguments, the posterior's bytes, or the Table 1 values
-    /// the flow commands use by default.
-    std::string cellKey() const {
+    /// What the cell is, for the key: the arguments (a draw's parameters included), the posterior's
+    /// bytes, or the Table 1 values the flow commands use by default.
+    std::string cellKey(const ValidationCase& c) const {
+        if (c.sample >= 0) return cellArgs(c);
         if (cfg.cellSource == "posterior")
-            return cellArgs() + " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
-        if (cfg.cellSource == "explicit") return cellArgs();
+            return cellArgs(c) + " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
+        if (cfg.cellSource == "explicit") return cellArgs(c);
         return fmt::format("table1 v={} mu={} kb={} b2={} etam={}", table1::v, table1::mu, table1::kbJ, table1::b2, table1::etam);
     }
 
@@ -88,13 +103,21 @@ struct Runner {
                                cfg.tubeDuration, cfg.tubeSettle,
                                cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {}", cfg.tubeSettleEtam)
                                                         : fmt::format("--settle-relax {}", cfg.tubeSettleRelax),
-                               cfg.tubeSettleTol, cfg.tubeStepTol > 0.0 ? cfg.tubeStepTol : kTubeStepTolerance, cellArgs());
+                               cfg.tubeSettleTol, cfg.tubeStepTol > 0.0 ? cfg.tubeStepTol : kTubeStepTolerance, cellArgs(c));
         return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
-                           "--step-tol {} {}",
-                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, cellArgs());
+                           "--step-tol {}{} {}",
+                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol,
+                           cfg.tiltDeg > 0.0 ? fmt::format(" --tilt-deg {}", cfg.tiltDeg) : std::string(), cellArgs(c));
     }
 
-    std::string caseKey(const ValidationCase& c) const { return fingerprintOf({kVersion, caseArgs(c), cellKey()}); }
+    std::string caseKey(const ValidationCase& c) const { return fingerprintOf({kVersion, caseArgs(c), cellKey(c)}); }
+
+    /// A draw's record entry: its sample, the seed of the choice, the posterior and the parameters.
+    json drawJson(long sample) const {
+        const PosteriorDraw& d = drawOf(sample);
+        return {{"sample", d.sample}, {"seed", seed}, {"posterior", cfg.posterior.string()},
+                {"cell", {{"v", d.v}, {"mu_uN_per_m", d.mu}, {"kb_J", d.kbJ}, {"b2", d.b2}, {"etam_Pa_s_um", d.etam}}}};
+    }
 
     fs::path caseFile(const ValidationCase& c) const { return out / "cases" / (c.id + ".json"); }
 
@@ -162,6 +185,7 @@ struct Runner {
         if (rc != 0 && stringOr(result, "status") == "ok") result["status"] = "failed";
         json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                        {"exit", rc},         {"wall_s", wall}, {"result", result}};
+        if (c.sample >= 0) record["draw"] = drawJson(c.sample);
         writeFileAtomically(caseFile(c), record.dump(1) + "\n");
         fs::remove(stdoutFile);
         std::lock_guard lock(mutex);
@@ -223,10 +247,11 @@ struct Runner {
 
     const json& resultOf(const std::string& id) const { return results.at(id).at("result"); }
 
-    std::vector<RegimePoint> thresholdPoints(double eta) const {
+    /// The threshold cases at eta of the configured cell (sample -1) or of one draw.
+    std::vector<RegimePoint> thresholdPoints(double eta, long sample = -1) const {
         std::vector<RegimePoint> p;
         for (const ValidationCase& c : cases)
-            if (c.kind == "threshold" && c.etaOut == eta) {
+            if (c.kind == "threshold" && c.etaOut == eta && c.sample == sample) {
                 const json& r = resultOf(c.id);
                 const json reg = r.value("observables", json::object()).value("regime", json());
                 p.push_back({c.rate, r.value("status", "") == "ok" && reg.is_string() ? reg.get<std::string>() : ""});
@@ -358,13 +383,162 @@ std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTa
            t.md;
 }
 
-/// Tables, comparison with the experimental scatter, summary; returns the summary JSON.
-json writeTables(const Runner& R) {
+// ---- the posterior draws ------------------------------------------------------------------------
+
+/// The observables of a kind of case: (name in the tables, key of the flow JSON's observables).
+std::vector<std::pair<std::string, std::string>> drawObservables(const std::string& kind) {
+    if (kind == "angle") return {{"inclination [deg]", "inclination_deg"}};
+    if (kind == "ttf") return {{"4 pi f / rate", "ttf_4pi_f_over_shear_rate"}};
+    if (kind == "tube") return {{"velocity [cm/s]", "velocity_cm_per_s"}, {"length [um]", "length_um"}};
+    return {};
+}
+
+/// What a draw's record gives for one observable; a failure's reason up to its first line break
+/// or 100 characters, so that equal failures count together.
+DrawOutcome drawOutcome(const json& rec, const std::string& key) {
+    const json& r = rec.at("result");
+    if (r.value("status", "failed") != "ok") {
+        std::string why = stringOr(r, "reason").substr(0, 100);
+        return {false, NAN, why.substr(0, why.find('\n'))};
+    }
+    const json o = r.value("observables", json::object());
+    const double x = numberOr(o, key.c_str());
+    return {true, x, std::isfinite(x) ? "" : "no value (" + (regimeOf(o).empty() ? std::string("?") : regimeOf(o)) + ")"};
+}
+
+/// The bands over the draws against the scatter, beside the configured cell's verdict: rows of
+/// bands.csv, validation.md and validation.json, and the agreeing count per kind under each verdict.
+struct BandTable {
+    json rows = json::array();
+    std::map<std::string, std::array<int, 3>> tally;  ///< kind -> compared, configured cell inside, band overlap
+    std::string csv = "case,kind,observable,eta_out_mPa_s,shear_rate_per_s,pg_mmHg_per_mm,mean_cell,mean_cell_verdict,median,q05,q95,"
+                      "draws,finished,failed,with_value,scatter_lo,scatter_hi,points,band_verdict,reasons\n";
+    std::string md = "| case | observable | mean cell | median [5 – 95 %] | finished / failed / with a value | experimental scatter | "
+                     "mean-cell verdict | band verdict | draws without a value |\n|---|---|---|---|---|---|---|---|---|\n";
+
+    /// One observable of case c (a threshold viscosity: the id threshold_eta<eta>, no rate) with
+    /// the configured cell's value: `meanValue`, or the prediction of its comparison when NaN.
+    void record(const ValidationCase& c, const std::string& observable, const DrawBand& b, const ScatterComparison& s,
+                const ComparisonTable& mean, double meanValue = NAN) {
+        const std::string& id = c.id;
+        const std::string& kind = c.kind;
+        const auto m = std::find_if(mean.rows.begin(), mean.rows.end(),
+                                    [&](const json& r) { return r["case"] == id && r["observable"] == observable; });
+        if (std::isnan(meanValue) && kind != "threshold" && m != mean.rows.end()) meanValue = numberOr(*m, "predicted");
+        const std::string meanVerdict = m == mean.rows.end() ? "not compared" : (*m)["verdict"].get<std::string>();
+        const std::string verdict = bandVerdict(b, s, kind != "threshold");
+        std::string reasons = drawReasonsText(b), quoted;  // a failure's text: '"' doubled in the CSV, no '|' in the markdown
+        for (char& ch : reasons) {
+            quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+            if (ch == '|') ch = '/';
+        }
+        std::array<int, 3>& t = tally[kind];
+        ++t[0], t[1] += meanVerdict == "inside", t[2] += verdict == "overlap";
+        rows.push_back({{"case", id}, {"kind", kind}, {"observable", observable}, {"mean_cell", meanValue},
+                        {"mean_cell_verdict", meanVerdict}, {"median", b.median}, {"q05", b.lo}, {"q95", b.hi},
+                        {"draws", b.draws}, {"finished", b.finished}, {"failed", b.failed}, {"with_value", b.withValue},
+                        {"scatter_lo", s.lo}, {"scatter_hi", s.hi}, {"points", s.points}, {"band_verdict", verdict},
+                        {"reasons", b.reasons}});
+        const auto g = [](double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : std::string(); };
+        csv += fmt::format("{},{},{},{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", id, kind, observable, c.etaOut,
+                           c.rate > 0.0 ? fmt::format("{:.6g}", c.rate) : "", kind == "tube" ? fmt::format("{:g}", c.pressureGradient) : "",
+                           g(meanValue), meanVerdict,
+                           g(b.median), g(b.lo), g(b.hi), b.draws, b.finished, b.failed, b.withValue, g(s.lo), g(s.hi), s.points,
+                           verdict, quoted);
+        md += fmt::format("| {} | {} | {} | {} | {} / {} / {} | {} | {} | {} | {} |\n", id, observable,
+                          std::isfinite(meanValue) ? fmt::format("{:.3g}", meanValue) : "–",
+                          b.withValue > 0 ? fmt::format("{:.3g} [{:.3g} – {:.3g}]", b.median, b.lo, b.hi) : "–", b.finished,
+                          b.failed, b.withValue, s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g}", s.lo, s.hi),
+                          meanVerdict, verdict == "no overlap" ? "**no overlap**" : verdict, reasons.empty() ? "–" : reasons);
+    }
+
+    /// Per kind: observables compared and agreeing under each verdict; the draw runs and their failures.
+    json summary(const Runner& R) const {
+        int runs = 0, failed = 0;
+        for (const ValidationCase& c : R.cases)
+            if (c.sample >= 0) ++runs, failed += R.resultOf(c.id).value("status", "failed") != "ok";
+        json kinds = json::object();
+        for (const auto& [kind, t] : tally) kinds[kind] = {{"compared", t[0]}, {"mean_cell_inside", t[1]}, {"band_overlap", t[2]}};
+        return {{"runs", runs}, {"runs_failed", failed}, {"kinds", kinds}};
+    }
+
+    std::string markdown(const Runner& R) const {
+        std::string samples;
+        for (const PosteriorDraw& d : R.draws) samples += fmt::format("{}{}", samples.empty() ? "" : ", ", d.sample);
+        std::string md = fmt::format(
+            "\n## Posterior draws\n\n{} draws of theta_new ({}, {} samples; seed {}: samples {}) ran every case beside the "
+            "cell above. Per case and observable: the median and the 5 – 95 % band (type-7 quantiles) over the draws that "
+            "gave a value (a tumbling cell has no angle); the critical stress of a draw is sqrt(tau_lo tau_hi) of its "
+            "bracket. Band verdict: overlap when the band meets the experimental scatter of the window above, taken at the "
+            "median (the length's band at the median velocity).\n\n| kind | compared | mean cell inside | band overlaps |\n"
+            "|---|---|---|---|\n",
+            R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, samples);
+        for (const auto& [kind, t] : tally) md += fmt::format("| {} | {} | {} | {} |\n", kind, t[0], t[1], t[2]);
+        const json runs = summary(R);
+        return md + fmt::format("\n{} draw runs, {} failed.\n\n", runs["runs"].get<int>(), runs["runs_failed"].get<int>()) + this->md;
+    }
+};
+
+/// The scatter of an observable's window, taken at the band's median (the length's at the median velocity).
+std::optional<ScatterComparison> drawScatter(const ValidationCase& c, const std::string& observable, double median, double velocity,
+                                             ValidationEvidence& evidence) {
+    if (c.kind == "angle") return evidence.inclination(c.etaOut, c.rate, median, "");
+    if (c.kind == "ttf") return evidence.tankTreadingFrequency(c.rate, median, "");
+    if (observable == "velocity [cm/s]") return evidence.tubeVelocity(c.pressureGradient, median);
+    return evidence.tubeLength(velocity, median);
+}
+
+/// draws.csv (one row per draw run) and bands.csv; returns the bands.
+BandTable drawTables(const Runner& R, ValidationEvidence& evidence, const ComparisonTable& mean) {
+    BandTable bands;
+    std::string runs = "case_id,case,kind,sample,status,regime,inclination_deg,ttf_4pi_f_over_shear_rate,velocity_cm_per_s,length_um,wall_s\n";
+    for (const ValidationCase& c : R.cases) {
+        if (c.sample >= 0) {
+            const json& rec = R.results.at(c.id);
+            const json& r = rec.at("result");
+            const json o = r.value("observables", json::object());
+            runs += fmt::format("{},{},{},{},{},{},{},{},{},{},{:.1f}\n", c.id, c.id.substr(0, c.id.rfind("_sample")), c.kind, c.sample,
+                                r.value("status", "failed"), regimeOf(o), num(o.value("inclination_deg", json())),
+                                num(o.value("ttf_4pi_f_over_shear_rate", json())), num(o.value("velocity_cm_per_s", json())),
+                                num(o.value("length_um", json())), rec.value("wall_s", 0.0));
+            continue;
+        }
+        double velocity = NAN;  // the median of the case's draws, where the length's band is read
+        for (const auto& [name, key] : drawObservables(c.kind)) {
+            std::vector<DrawOutcome> outcomes;
+            for (const PosteriorDraw& d : R.draws)
+                if (const auto it = R.results.find(drawCaseId(c.id, d.sample)); it != R.results.end())
+                    outcomes.push_back(drawOutcome(it->second, key));
+            const DrawBand b = drawBand(outcomes);
+            if (key == "velocity_cm_per_s") velocity = b.median;
+            if (const auto s = drawScatter(c, name, b.median, velocity, evidence)) bands.record(c, name, b, *s, mean);
+        }
+    }
+    for (double eta : thresholdViscosities(R.cfg)) {
+        if (R.thresholdPoints(eta).empty()) continue;  // not run (--only)
+        std::vector<DrawOutcome> outcomes;
+        for (const PosteriorDraw& d : R.draws) outcomes.push_back(criticalStressOutcome(R.thresholdPoints(eta, d.sample), eta));
+        const DrawBand b = drawBand(outcomes);
+        const std::optional<double> tau = std::isfinite(b.median) ? std::optional(b.median) : std::nullopt;
+        bands.record({fmt::format("threshold_eta{:g}", eta), "threshold", eta, 0.0, 0.0}, "critical stress [Pa]", b,
+                     evidence.criticalStress(eta, tau, tau), mean, criticalStressOutcome(R.thresholdPoints(eta), eta).value);
+    }
+    writeFileAtomically(R.out / "draws.csv", runs);
+    writeFileAtomically(R.out / "bands.csv", bands.csv);
+    return bands;
+}
+
+/// Tables, comparison with the experimental scatter, summary; returns the summary JSON (and the
+/// bands over the draws in `bandRows`).
+json writeTables(const Runner& R, json& bandRows) {
     ValidationEvidence evidence(R.cfg.dataDir);
     ComparisonTable table;
     std::string shear = kShearHeader, tube = kTubeHeader;
     int failed = 0;
+    std::size_t cases = 0;
     for (const ValidationCase& c : R.cases) {
+        if (c.sample >= 0) continue;  // the draws: drawTables
+        ++cases;
         const json& rec = R.results.at(c.id);
         if (rec.at("result").value("status", "failed") != "ok") ++failed;
         if (c.kind == "tube")
@@ -377,15 +551,24 @@ json writeTables(const Runner& R) {
     writeFileAtomically(R.out / "tube.csv", tube);
     writeFileAtomically(R.out / "threshold.csv", thr);
     writeFileAtomically(R.out / "comparison.csv", table.csv());
-    writeFileAtomically(R.out / "validation.md", validationMarkdown(R.cases.size(), failed, table));
-    return {{"cases", R.cases.size()}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
-            {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
+    json summary = {{"cases", cases}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
+                    {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
+    std::string md = validationMarkdown(cases, failed, table);
+    if (!R.draws.empty()) {
+        const BandTable bands = drawTables(R, evidence, table);
+        md += bands.markdown(R);
+        summary["draws"] = bands.summary(R);
+        bandRows = bands.rows;
+    }
+    writeFileAtomically(R.out / "validation.md", md);
+    return summary;
 }
 
 struct ValidateCommandOptions {
     std::string config, out, posterior, shard;
     std::vector<std::string> only, imports;
-    int jobs = 0, threads = 0, level = 0;
+    int jobs = 0, threads = 0, level = 0, draws = 0;
+    std::uint64_t seed = 1;
     bool quiet = false, dryRun = false, retryFailed = false;
 };
 
@@ -393,7 +576,16 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
     cmd->add_option("--config", o.config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
     addOutOption(cmd, o.out);
     cmd->add_option("--posterior", o.posterior,
-                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]");
+                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]; "
+                    "--draws takes its samples");
+    addNumber(cmd, "--draws", o.draws,
+              "also run every case for N draws of the posterior's samples (--posterior or [cell] posterior), chosen with "
+              "--seed; tabulates the median and 5-95 % band of each observable (bands.csv, draws.csv, validation.md); 0: "
+              "the configured cell only",
+              NumberRange::closed(0, 100000));
+    addNumber(cmd, "--seed", o.seed, "seed of the choice of the --draws samples (recorded in validation.json and each draw's record)",
+              NumberRange::nonNegative())
+        ->capture_default_str();
     addNumber(cmd, "--level", o.level,
               "icosphere level of the shear cases (overrides run.level; the tube keeps tube.level unless that is 0)",
               NumberRange::closed(1, 4));
@@ -426,7 +618,15 @@ void configureRunner(Runner& R, const ValidateCommandOptions& o) {
     if (o.jobs > 0) R.cfg.jobs = o.jobs;
     if (o.level > 0) R.cfg.level = o.level;
     if (o.threads > 0) R.cfg.threads = o.threads;
-    if (R.cfg.cellSource == "posterior") readThetaNewSamples(R.cfg.posterior, "cell.posterior");
+    if (o.draws > 0 && R.cfg.cellSource != "posterior")
+        throw InputError(fmt::format("--draws {}: draws are taken from a theta_new posterior; give --posterior DIR (or [cell] "
+                                     "source = \"posterior\" in {})", o.draws, o.config));
+    if (R.cfg.cellSource == "posterior") {
+        const NumericTable samples = readThetaNewSamples(R.cfg.posterior, o.posterior.empty() ? "cell.posterior" : "--posterior");
+        if (o.draws > 0) R.draws = selectPosteriorDraws(samples, o.draws, o.seed, "--draws");
+        R.seed = o.seed;
+        R.posteriorSamples = static_cast<long>(samples.values.rows());
+    }
     R.out = fs::absolute(o.out).lexically_normal();
     R.quiet = o.quiet;
     R.retryFailed = o.retryFailed;
@@ -472,15 +672,19 @@ void listCases(Runner& R, const std::vector<ValidationCase>& initial) {
                                  failed, initial.size() - finished - failed);
 }
 
-/// Rounds of bisection of every threshold bracket, while a bracket is open.
+/// Rounds of bisection of every threshold bracket (of the configured cell and of each draw), while a bracket is open.
 void refineThresholds(Runner& R) {
+    std::vector<long> samples = {-1};
+    for (const PosteriorDraw& d : R.draws) samples.push_back(d.sample);
     for (int round = 0; round < R.cfg.thresholdRefinements; ++round) {
         std::vector<ValidationCase> more;
         for (double eta : thresholdViscosities(R.cfg))
-            if (const auto rate = refinementRate(R.thresholdPoints(eta))) {
-                const std::string id = shearCaseId("threshold", eta, *rate);
-                if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0});
-            }
+            for (const long sample : samples)
+                if (const auto rate = refinementRate(R.thresholdPoints(eta, sample))) {
+                    const std::string mean = shearCaseId("threshold", eta, *rate);
+                    const std::string id = sample < 0 ? mean : drawCaseId(mean, sample);
+                    if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0, sample});
+                }
         if (more.empty()) break;
         if (!R.quiet) std::cerr << fmt::format("validate: threshold refinement {}: {} case(s)\n", round + 1, more.size());
         R.runAll(more);
@@ -498,7 +702,7 @@ json cellJson(const Runner& R) {
                     : json{{"source", "means of " + R.cfg.posterior.string()}};
     if (R.cfg.cellSource == "posterior")
         for (const ValidationCase& c : R.cases)
-            if (R.resultOf(c.id).contains("parameters")) {
+            if (c.sample < 0 && R.resultOf(c.id).contains("parameters")) {
                 cell["parameters"] = R.resultOf(c.id).at("parameters").value("cell", json());
                 break;
             }
@@ -506,10 +710,11 @@ json cellJson(const Runner& R) {
 }
 
 /// OUT/validation.json: summary, selection, cell, levels, configuration and timing.
-json validationJson(const Runner& R, const ValidateCommandOptions& o, const json& summary, std::size_t configured, double wall) {
+json validationJson(const Runner& R, const ValidateCommandOptions& o, const json& summary, const json& bandRows, std::size_t configured,
+                    double wall) {
     double caseWall = 0.0;
     for (const auto& [id, rec] : R.results) caseWall += rec.value("wall_s", 0.0);
-    return {{"summary", summary},
+    json j = {{"summary", summary},
             {"initial_cases_configured", configured},
             {"only", o.only},
             {"shard", o.shard.empty() ? json() : json(o.shard)},
@@ -527,6 +732,15 @@ json validationJson(const Runner& R, const ValidateCommandOptions& o, const json
             {"jobs", R.cfg.jobs},
             {"threads_per_case", R.cfg.threads},
             {"provenance", {{"version", kVersion}, {"command", commandLine()}}}};
+    if (!R.cfg.bases.empty()) j["config_bases"] = R.cfg.bases;
+    if (R.draws.empty()) return j;
+    std::vector<long> samples;
+    for (const PosteriorDraw& d : R.draws) samples.push_back(d.sample);
+    j["draws"] = {{"count", R.draws.size()}, {"seed", R.seed}, {"posterior", R.cfg.posterior.string()},
+                  {"posterior_samples", R.posteriorSamples}, {"samples", samples},
+                  {"choice", "subsampleIndices(samples, count, seed): partial Fisher-Yates on mt19937_64(seed), sample order"},
+                  {"bands", bandRows}};
+    return j;
 }
 
 void drawValidationFigures(const Runner& R) {
@@ -546,13 +760,22 @@ void printValidationSummary(const Runner& R, const json& summary, std::size_t se
                              summary["inside"].get<int>(), summary["outside"].get<int>(), summary["no_data"].get<int>(),
                              summary["other"].get<int>(),
                              R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
+    if (!summary.contains("draws")) return;
+    int compared = 0, inside = 0, overlap = 0;
+    for (const auto& [kind, t] : summary["draws"]["kinds"].items())
+        compared += t["compared"].get<int>(), inside += t["mean_cell_inside"].get<int>(), overlap += t["band_overlap"].get<int>();
+    std::cout << fmt::format("  posterior draws: {} (seed {}), {} runs ({} failed); of {} observables compared, the 5-95 % band "
+                             "overlaps the scatter in {} (the configured cell is inside in {}); tables: {}/{{draws,bands}}.csv\n",
+                             R.draws.size(), R.seed, summary["draws"]["runs"].get<int>(), summary["draws"]["runs_failed"].get<int>(),
+                             compared, overlap, inside, R.out.string());
 }
 
 void runValidate(const ValidateCommandOptions& o) {
     Runner R{};
     configureRunner(R, o);
     const std::vector<ValidationCase> all = initialValidationCases(R.cfg);
-    const std::vector<ValidationCase> initial = selectedCases(all, o);
+    const std::vector<ValidationCase> selected = selectedCases(all, o);
+    const std::vector<ValidationCase> initial = casesWithDraws(selected, R.draws);
     if (o.dryRun) return listCases(R, initial);
     ensureWritableDirectory(R.out.string());
     fs::create_directories(R.out / "cases");
@@ -561,11 +784,12 @@ void runValidate(const ValidateCommandOptions& o) {
     const auto t0 = SteadyClock::now();
     R.runAll(initial);
     if (o.only.empty() || std::find(o.only.begin(), o.only.end(), "threshold") != o.only.end()) refineThresholds(R);
-    const json summary = writeTables(R);
+    json bandRows;
+    const json summary = writeTables(R, bandRows);
     const double wall = secondsSince(t0);
-    writeFileAtomically(R.out / "validation.json", validationJson(R, o, summary, all.size(), wall).dump(2) + "\n");
+    writeFileAtomically(R.out / "validation.json", validationJson(R, o, summary, bandRows, all.size(), wall).dump(2) + "\n");
     drawValidationFigures(R);
-    printValidationSummary(R, summary, initial.size(), all.size(), wall);
+    printValidationSummary(R, summary, selected.size(), all.size(), wall);
     if (summary["failed"].get<int>() > 0)
         throw NumericalError(fmt::format("validate: {} case(s) failed (see validation.md and cases/)", summary["failed"].get<int>()));
 }
@@ -578,7 +802,8 @@ void registerValidate(CLI::App& app) {
         "validate", "Run the flow-validation set of docs/FLOW.md (inclination angle, tank-treading frequency, "
                     "tumbling/tank-treading threshold in shear flow; velocity and length in a microtube) with `trbc flow`, "
                     "compare every case with the experimental scatter and draw the paper's figures. Resumable: run the same "
-                    "command again after an interruption and only unfinished cases run. Writes OUT/shear.csv, "
+                    "command again after an interruption and only unfinished cases run. With --draws N, every case also "
+                    "runs for N draws of the posterior and each observable gets its median and 5-95 % band. Writes OUT/shear.csv, "
                     "threshold.csv, tube.csv, comparison.csv, validation.md, validation.json, figures/ and cases/");
     addValidateOptions(cmd, *o);
     cmd->callback([o]() { runValidate(*o); });

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <numbers>
 
 #include "core/error.hpp"
@@ -70,7 +71,14 @@ void validateShearCaseOptions(const ShearCaseOptions& o) {
     validateCellParameters(o.cell, o.allowOutsidePrior);
     requireOptionRange(n, "level", o.level, {1.0, 5.0, false, ""});
     requireOptionRange(n, "rotations", o.rotations, {0.0, 1000.0, true, ""});
+    requireOptionRange(n, "tilt_deg", o.tiltDeg, {0.0, 90.0, false, "deg"});
     validateStepping(o.step, "1/rate");
+}
+
+Vertices tiltAboutFlowAxis(const Vertices& X, double tiltDeg) {
+    const Eigen::Vector3d c = centroid(X);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(tiltDeg * kPi / 180.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    return (R * (X.colwise() - c)).colwise() + c;
 }
 
 ShearCaseResult runShearCase(const ShearCaseOptions& o) {
@@ -81,6 +89,7 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o) {
     res.conditions = shearConditions(o);
     res.tEndSeconds = o.rotations * 4.0 * kPi / o.shearRate;
     res.prepared = prepareShearCell(o.cell, o.level, o.cacheDir);
+    if (o.tiltDeg != 0.0) res.prepared.initial = tiltAboutFlowAxis(res.prepared.initial, o.tiltDeg);
     const CellFlowModel model(o.cell, res.conditions, res.prepared.faces, res.prepared.reference);
     res.scales = model.scales();
     res.groups = model.groups();

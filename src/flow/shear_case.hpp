@@ -25,14 +25,22 @@ struct ShearCaseOptions {
     bool allowOutsidePrior = false;
     int level = 3;            ///< icosphere level of the cell mesh, 1..5
     double rotations = 10.0;  ///< duration t_end = rotations 4 pi / rate
+    /// The start turned by this angle about the flow (x) axis, in [0, 90] degrees: its symmetry
+    /// axis leaves the gradient direction y for (0, cos, sin), so the cell is no longer mirror
+    /// symmetric about the shear plane z = 0, whose exactly in-plane start cannot leave it
+    /// (a stand-in for thermal symmetry breaking).
+    double tiltDeg = 0.0;
     std::filesystem::path cacheDir;  ///< SFS cache; empty: none
     FlowCaseStepping step;    ///< times in 1/rate
 };
 
 /// Throws InputError naming the option and its valid range: eta_out_mPa_s, shear_rate_per_s,
 /// eta_in_mPa_s in (0, 1e6], the cell inside the prior box (unless allowOutsidePrior), level in
-/// [1, 5], rotations in (0, 1000], the stepping options (validateStepping).
+/// [1, 5], rotations in (0, 1000], tilt_deg in [0, 90], the stepping options (validateStepping).
 void validateShearCaseOptions(const ShearCaseOptions& o);
+
+/// X turned by tiltDeg degrees about the flow (x) axis through its centroid, y towards z.
+Vertices tiltAboutFlowAxis(const Vertices& X, double tiltDeg);
 
 /// Per frame, in physical units.
 struct ShearFrameSeries {
@@ -52,7 +60,7 @@ struct ShearCaseResult {
     FlowScales scales;       ///< internal units: length R_A (um), time 1/rate (s)
     FlowGroups groups;
     double tEndSeconds = 0.0;
-    ShearCell prepared;      ///< SFS, mesh, Lim reference and initial shape (um), equilibrium diagnostics
+    ShearCell prepared;      ///< SFS, mesh, Lim reference and initial shape (um, tilted), equilibrium diagnostics
     CellFlowOptions integrator;  ///< the time stepping as run
     CellFlowResult flow;     ///< internal units
     ShearFrameSeries series;

@@ -26,6 +26,7 @@ def test_flow_shear_gives_the_cli_numbers(run_cli, cache):
     (dict(shear_rate_per_s=-1.0), "shear_rate_per_s"), (dict(eta_out_mPa_s=0.0), "eta_out_mPa_s"),
     (dict(level=9), "level"), (dict(v=0.5), "v"), (dict(FvK=100.0, kb_J=2e-19), "kb_J"),
     (dict(rotations=0.0), "rotations"), (dict(frame_interval=-1.0), "frame_interval"), (dict(dt=500.0), "dt"),
+    (dict(tilt_deg=95.0), "tilt_deg"), (dict(tilt_deg=-1.0), "tilt_deg"),
 ])
 def test_flow_shear_bad_input(kwargs, name):
     args = {**dict(eta_out_mPa_s=28.9, shear_rate_per_s=20.0, level=1, rotations=1.0), **kwargs}

@@ -1,0 +1,93 @@
+#include "analysis/validation_draws.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "analysis/prediction.hpp"
+#include "core/error.hpp"
+#include "inference/statistics.hpp"
+
+namespace trbc {
+
+std::vector<PosteriorDraw> selectPosteriorDraws(const NumericTable& samples, int n, std::uint64_t seed, const std::string& option) {
+    const Eigen::Index rows = samples.values.rows();
+    if (n < 1 || n > rows)
+        throw InputError(fmt::format("{} {}: out of range: valid range [1, {}] (the samples of {})", option, n, rows,
+                                     samples.path.string()));
+    const Eigen::VectorXd v = samples.column("v"), mu = samples.column("mu_uN_per_m"), kb = samples.column("kb_J"),
+                          b2 = samples.column("b2"), etam = samples.column("etam_Pa_s_um");
+    std::vector<PosteriorDraw> draws;
+    for (const Eigen::Index k : subsampleIndices(rows, n, seed)) draws.push_back({static_cast<long>(k), v[k], mu[k], kb[k], b2[k], etam[k]});
+    return draws;
+}
+
+std::string drawCaseId(const std::string& caseId, long sample) { return fmt::format("{}_sample{}", caseId, sample); }
+
+std::vector<ValidationCase> casesWithDraws(const std::vector<ValidationCase>& cases, const std::vector<PosteriorDraw>& draws) {
+    std::vector<ValidationCase> all;
+    for (const ValidationCase& c : cases) {
+        all.push_back(c);
+        for (const PosteriorDraw& d : draws) {
+            ValidationCase x = c;
+            x.id = drawCaseId(c.id, d.sample);
+            x.sample = d.sample;
+            all.push_back(x);
+        }
+    }
+    return all;
+}
+
+DrawBand drawBand(const std::vector<DrawOutcome>& outcomes) {
+    DrawBand b;
+    std::vector<double> values;
+    for (const DrawOutcome& o : outcomes) {
+        ++b.draws;
+        (o.finished ? b.finished : b.failed)++;
+        if (o.finished && std::isfinite(o.value))
+            values.push_back(o.value);
+        else
+            ++b.reasons[o.reason.empty() ? std::string(o.finished ? "no value" : "failed") : o.reason];
+    }
+    b.withValue = static_cast<int>(values.size());
+    if (values.empty()) return b;
+    std::sort(values.begin(), values.end());
+    b.median = quantileSorted(values, 0.5);
+    b.lo = quantileSorted(values, 0.05);
+    b.hi = quantileSorted(values, 0.95);
+    return b;
+}
+
+std::string drawReasonsText(const DrawBand& band) {
+    std::string s;
+    for (const auto& [reason, count] : band.reasons) s += fmt::format("{}{} x {}", s.empty() ? "" : "; ", count, reason);
+    return s;
+}
+
+std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, bool noValueDisagrees) {
+    if (scatter.points == 0) return "no data";
+    if (band.finished == 0) return "no prediction";
+    if (band.withValue == 0) return noValueDisagrees ? "no overlap" : "no prediction";
+    return band.lo <= scatter.hi && band.hi >= scatter.lo ? "overlap" : "no overlap";
+}
+
+DrawOutcome criticalStressOutcome(const std::vector<RegimePoint>& points, double etaOut) {
+    DrawOutcome o;
+    o.finished = std::any_of(points.begin(), points.end(), [](const RegimePoint& p) { return !p.regime.empty(); });
+    if (!o.finished) {
+        o.reason = "every threshold case failed";
+        return o;
+    }
+    const ThresholdBracket b = thresholdBracket(points);
+    const auto [lo, hi] = criticalStressInterval(b, etaOut);
+    if (!lo || !hi)
+        o.reason = "not bracketed";
+    else if (!b.monotone)
+        o.reason = "not monotone";
+    else
+        o.value = std::sqrt(*lo * *hi);
+    return o;
+}
+
+}  // namespace trbc

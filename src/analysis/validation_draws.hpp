@@ -1,0 +1,69 @@
+#pragma once
+// The flow validations over draws of a theta_new posterior (docs/VALIDATION_RESULTS.md,
+// "Posterior bands"): the seeded choice of the draws, the cases of each draw, the median and the
+// 5-95 % band of an observable over the draws, and the band verdict against the experimental
+// scatter.
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "analysis/validation.hpp"
+#include "core/csv.hpp"
+
+namespace trbc {
+
+/// One draw of theta_new: its sample (0-based data row of samples.csv) and its cell.
+struct PosteriorDraw {
+    long sample = 0;
+    double v = 0.0, mu = 0.0, kbJ = 0.0, b2 = 0.0, etam = 0.0;  ///< mu in uN/m, kb in J, etam in Pa s um
+};
+
+/// `n` distinct samples of a theta_new table (columns v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um),
+/// chosen by subsampleIndices(rows, n, seed) and listed in sample order. The choice is a partial
+/// Fisher-Yates shuffle, so the samples of n draws are among those of any larger n with the same
+/// seed. InputError naming `option` and the valid range [1, rows] unless 1 <= n <= rows.
+std::vector<PosteriorDraw> selectPosteriorDraws(const NumericTable& samples, int n, std::uint64_t seed,
+                                                const std::string& option = "--draws");
+
+/// The id of a case run for one draw: "<case>_sample<row>".
+std::string drawCaseId(const std::string& caseId, long sample);
+
+/// Every case followed by its copy for each draw (ValidationCase::sample set, drawCaseId).
+std::vector<ValidationCase> casesWithDraws(const std::vector<ValidationCase>& cases, const std::vector<PosteriorDraw>& draws);
+
+/// What one draw gave for one observable.
+struct DrawOutcome {
+    bool finished = false;  ///< the run gave a result; false: it failed (`reason`)
+    double value = std::numeric_limits<double>::quiet_NaN();  ///< NaN: no value (`reason`, e.g. tumbling: no angle)
+    std::string reason;
+};
+
+/// An observable over the draws.
+struct DrawBand {
+    int draws = 0, finished = 0, failed = 0, withValue = 0;
+    /// Type-7 quantiles 0.5, 0.05, 0.95 (inference/statistics.hpp, quantileSorted) of the finished
+    /// draws' values; NaN without any.
+    double median = std::numeric_limits<double>::quiet_NaN(), lo = median, hi = median;
+    std::map<std::string, int> reasons;  ///< why draws failed or gave no value, with their counts
+};
+DrawBand drawBand(const std::vector<DrawOutcome>& outcomes);
+
+/// "N x reason; ..." in the order of the reasons' text ("" when none).
+std::string drawReasonsText(const DrawBand& band);
+
+/// The band verdict: "overlap" when [lo, hi] meets the scatter [scatter.lo, scatter.hi]; "no data"
+/// without scatter (scatter.points = 0); "no prediction" when no draw finished; when the finished
+/// draws gave no value, "no overlap" if `noValueDisagrees` (a tumbling cell where the donors
+/// tank-tread, as in the mean-cell verdict), else "no prediction" (no threshold bracketed);
+/// "no overlap" otherwise.
+std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, bool noValueDisagrees = true);
+
+/// A draw's critical shear stress [Pa] from its threshold cases at outer viscosity etaOut (mPa s):
+/// sqrt(tau_lo tau_hi) of criticalStressInterval, the bracket's centre on the log scale on which
+/// the refinement bisects it. No value when not bracketed or not monotone (the reason says which);
+/// not finished when every case failed.
+DrawOutcome criticalStressOutcome(const std::vector<RegimePoint>& points, double etaOut);
+
+}  // namespace trbc
