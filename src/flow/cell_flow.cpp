@@ -231,8 +231,12 @@ public:
             y.resize(n + 2);
             const Eigen::Map<const Vertices> u(x.data(), 3, nv);
             Eigen::Map<Vertices> yu(y.data(), 3, nv);
-            yu = u - forceVelocity(implicitForce(u));
-            if (k_ != 0.0) yu -= k_ * doubleLayer(u);
+            const Vertices f = implicitForce(u) * invArea_.asDiagonal();
+            Vertices Sf, Du;
+            layers(f, u, Sf, Du);
+            if (wall_) Sf += wall_(f);
+            yu = u - c_ * Sf;
+            if (k_ != 0.0) yu -= k_ * Du;
             yu += (x[n] / wNorm_) * w_ - x[n + 1] * normals_;
             y[n] = (areaGradient_.array() * u.array()).sum() / gNorm_;
             y[n + 1] = (volumeGradient_.array() * u.array()).sum() / vNorm_;
@@ -267,11 +271,16 @@ private:
         Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Sd_ * Eigen::Map<const VectorXd>(f.data(), f.size());
         return y;
     }
-    Vertices doubleLayer(const Vertices& u) const {
-        if (!dense_) return ops_.doubleLayer(u);
-        Vertices y(3, u.cols());
-        Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Dd_ * Eigen::Map<const VectorXd>(u.data(), u.size());
-        return y;
+    /// S f and, unless k = 0 (lambda = 1), D u: dense products or one fused matrix-free pass.
+    void layers(const Vertices& f, const Vertices& u, Vertices& Sf, Vertices& Du) const {
+        if (k_ == 0.0) {
+            Sf = single(f);
+            return;
+        }
+        if (!dense_) return ops_.layers(f, u, Sf, Du);
+        Sf = single(f);
+        Du.resize(3, u.cols());
+        Eigen::Map<VectorXd>(Du.data(), Du.size()).noalias() = Dd_ * Eigen::Map<const VectorXd>(u.data(), u.size());
     }
     /// Nodal force of the implicit terms, -(Gamma u + alpha H u).
     Vertices implicitForce(const Vertices& u) const {
@@ -405,7 +414,7 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
         d += fmt::format("{:a},", v);
     for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
                    long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),
-                   long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints), long(initial.cols()),
+                   long(q.farRule), long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints), long(initial.cols()),
                    long(model.faces().cols())})
         d += fmt::format("{},", v);
     std::uint64_t h = fnv1a(d);
