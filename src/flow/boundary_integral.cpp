@@ -498,13 +498,13 @@ struct KernelRow {
     explicit KernelRow(std::size_t n) : dx(n), dy(n), dz(n), a(n), b(n) {}
 };
 
-/// Row buffer of symmetric blocks: sum over the points of phi_m(q) (a I + b d d^T), components
-/// (xx, xy, xz, yy, yz, zz) per vertex. The first `corners` points sit on the vertices (phi = 1
+/// Row buffer of symmetric blocks (nv vertices): sum over the points of phi_m(q) (a I + b d d^T),
+/// components (xx, xy, xz, yy, yz, zz) per vertex. The first `corners` points sit on the vertices (phi = 1
 /// there); the rest are `bary.rows()` points per face, face-major. Faces with skip[f] set (if
 /// given; only without corner points) are left out.
 void scatterSymmetricBlocks(const KernelRow& k, Index corners, const Eigen::MatrixX3d& bary, const Faces& F,
-                            std::vector<double>& buf, const std::vector<char>* skip = nullptr) {
-    std::fill(buf.begin(), buf.end(), 0.0);
+                            Index nv, double* buf, const std::vector<char>* skip = nullptr) {
+    std::fill(buf, buf + 6 * nv, 0.0);
     const auto block = [&](std::size_t i, double (&c)[6]) {
         const double dx = k.dx[i], dy = k.dy[i], dz = k.dz[i], a = k.a[i], b = k.b[i];
         const double bx = b * dx, by = b * dy, bz = b * dz;
@@ -573,33 +573,69 @@ void storeBlockRow(const std::vector<double>& buf, Index i, Eigen::MatrixXd& A) 
 
 }  // namespace
 
-Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayer() const {
+SymmetricBlockMatrix::SymmetricBlockMatrix(Index blocks)
+    : n_(blocks), a_(static_cast<std::size_t>(6 * blocks * blocks), 0.0) {}
+
+Eigen::Matrix3d SymmetricBlockMatrix::block(Index i, Index j) const {
+    const double* o = row(i) + 6 * j;
+    Mat3 b;
+    b << o[0], o[1], o[2], o[1], o[3], o[4], o[2], o[4], o[5];
+    return b;
+}
+
+void SymmetricBlockMatrix::addToBlock(Index i, Index j, const Mat3& b) {
+    double* o = row(i) + 6 * j;
+    o[0] += b(0, 0), o[1] += b(0, 1), o[2] += b(0, 2), o[3] += b(1, 1), o[4] += b(1, 2), o[5] += b(2, 2);
+}
+
+void SymmetricBlockMatrix::multiply(const double* x, double* y) const {
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < n_; ++i) {
+        const double* o = row(i);
+        double y0 = 0.0, y1 = 0.0, y2 = 0.0;
+#pragma omp simd reduction(+ : y0, y1, y2)
+        for (Index j = 0; j < n_; ++j) {
+            const double* b = o + 6 * j;
+            const double x0 = x[3 * j], x1 = x[3 * j + 1], x2 = x[3 * j + 2];
+            y0 += b[0] * x0 + b[1] * x1 + b[2] * x2;
+            y1 += b[1] * x0 + b[3] * x1 + b[4] * x2;
+            y2 += b[2] * x0 + b[4] * x1 + b[5] * x2;
+        }
+        y[3 * i] = y0, y[3 * i + 1] = y1, y[3 * i + 2] = y2;
+    }
+}
+
+Eigen::MatrixXd SymmetricBlockMatrix::toDense() const {
+    Eigen::MatrixXd A(3 * n_, 3 * n_);
+    for (Index j = 0; j < n_; ++j)
+        for (Index i = 0; i < n_; ++i) A.block<3, 3>(3 * i, 3 * j) = block(i, j);
+    return A;
+}
+
+SymmetricBlockMatrix BoundaryIntegralOperators::assembleSingleLayerBlocks() const {
     const Index nv = numVertices(), n = static_cast<Index>(qx_.size());
-    Eigen::MatrixXd A(3 * nv, 3 * nv);
+    SymmetricBlockMatrix A(nv);
 #pragma omp parallel
     {
         KernelRow k(static_cast<std::size_t>(n));
-        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
 #pragma omp for schedule(static)
         for (Index i = 0; i < nv; ++i) {
             singleLayerKernelRow(mesh_.X(0, i), mesh_.X(1, i), mesh_.X(2, i), qx_, qy_, qz_, qw_, k);
-            scatterSymmetricBlocks(k, cornerPoints_, farBary_, mesh_.F, buf);
-            storeBlockRow(buf, i, A);
+            scatterSymmetricBlocks(k, cornerPoints_, farBary_, mesh_.F, nv, A.row(i));
             for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-                A.block<3, 3>(3 * i, 3 * corrCol_[p]) += Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]);
+                A.addToBlock(i, corrCol_[p], Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]));
         }
     }
     return A;
 }
 
-Eigen::MatrixXd BoundaryIntegralOperators::assembleDoubleLayer() const {
+SymmetricBlockMatrix BoundaryIntegralOperators::assembleDoubleLayerBlocks() const {
     const Index nv = numVertices(), n = static_cast<Index>(qx_.size());
-    Eigen::MatrixXd A(3 * nv, 3 * nv);
+    SymmetricBlockMatrix A(nv);
 #pragma omp parallel
     {
         KernelRow k(static_cast<std::size_t>(n));
         std::fill(k.a.begin(), k.a.end(), 0.0);  // w K(d, n) = c d d^T: no identity part
-        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
 #pragma omp for schedule(static)
         for (Index i = 0; i < nv; ++i) {
             const double x0 = mesh_.X(0, i), y0 = mesh_.X(1, i), z0 = mesh_.X(2, i);
@@ -619,13 +655,12 @@ Eigen::MatrixXd BoundaryIntegralOperators::assembleDoubleLayer() const {
                 s[0] += c * dx * dx, s[1] += c * dx * dy, s[2] += c * dx * dz;
                 s[3] += c * dy * dy, s[4] += c * dy * dz, s[5] += c * dz * dz;
             }
-            scatterSymmetricBlocks(k, cornerPoints_, farBary_, mesh_.F, buf);
-            storeBlockRow(buf, i, A);
+            scatterSymmetricBlocks(k, cornerPoints_, farBary_, mesh_.F, nv, A.row(i));
             Mat3 ksum;
             ksum << s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5];
-            A.block<3, 3>(3 * i, 3 * i) -= ksum + 4.0 * kPi * Mat3::Identity();
+            A.addToBlock(i, i, -(ksum + 4.0 * kPi * Mat3::Identity()));
             for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-                A.block<3, 3>(3 * i, 3 * corrCol_[p]) += Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]);
+                A.addToBlock(i, corrCol_[p], Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]));
         }
     }
     return A;
@@ -689,7 +724,7 @@ Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Ma
             const Vec3 x0 = targets.col(t);
             singleLayerKernelRow(x0.x(), x0.y(), x0.z(), fx_, fy_, fz_, fw_, k);
             for (Index f = 0; f < nf; ++f) near[static_cast<std::size_t>(f)] = isNearFace(x0, f);
-            scatterSymmetricBlocks(k, 0, ruleBary_, mesh_.F, buf, &near);
+            scatterSymmetricBlocks(k, 0, ruleBary_, mesh_.F, nv, buf.data(), &near);
             for (Index f = 0; f < nf; ++f)
                 if (near[static_cast<std::size_t>(f)]) {
                     offSurfaceBlocks(x0, f, maxDepth, blocks);

@@ -52,6 +52,32 @@ struct QuadratureOptions {
     int singularPoints = 8;     ///< Gauss-Legendre points in the Duffy angle on adjacent faces
 };
 
+/// A dense operator on vertex densities whose 3x3 blocks are all symmetric, as those of S and D
+/// are (the kernels are a I + b d d^T and c d d^T at every point, and so are the corrections):
+/// 6 doubles per block (xx, xy, xz, yy, yz, zz), row-major by target. Two thirds of the memory
+/// of the full 3 Nv x 3 Nv matrix, and of the memory traffic of a product, which is what a
+/// product costs at Nv ~ 10^3.
+class SymmetricBlockMatrix {
+public:
+    SymmetricBlockMatrix() = default;
+    explicit SymmetricBlockMatrix(Eigen::Index blocks);
+
+    Eigen::Index blocks() const { return n_; }
+    /// The Nv blocks of target row i, 6 doubles each.
+    double* row(Eigen::Index i) { return &a_[static_cast<std::size_t>(6 * n_ * i)]; }
+    const double* row(Eigen::Index i) const { return &a_[static_cast<std::size_t>(6 * n_ * i)]; }
+    Eigen::Matrix3d block(Eigen::Index i, Eigen::Index j) const;
+    /// Adds the symmetric matrix b (its upper triangle is read) to block (i, j).
+    void addToBlock(Eigen::Index i, Eigen::Index j, const Eigen::Matrix3d& b);
+    /// y = A x for x, y of 3 Nv (vertex-major, as a Matrix3Xd's storage); OpenMP over rows.
+    void multiply(const double* x, double* y) const;
+    Eigen::MatrixXd toDense() const;
+
+private:
+    Eigen::Index n_ = 0;
+    std::vector<double> a_;
+};
+
 class BoundaryIntegralOperators {
 public:
     /// Precomputes quadrature points and near-field corrections. Throws InputError when the mesh
@@ -71,10 +97,13 @@ public:
     void layers(const Eigen::Matrix3Xd& f, const Eigen::Matrix3Xd& u, Eigen::Matrix3Xd& Sf,
                 Eigen::Matrix3Xd& Du) const;
 
-    /// Dense matrices of the same operators (3 Nv x 3 Nv; row 3 i + a, column 3 j + b), for
-    /// small meshes: 8 (3 Nv)^2 bytes each.
-    Eigen::MatrixXd assembleSingleLayer() const;
-    Eigen::MatrixXd assembleDoubleLayer() const;
+    /// Dense forms of the same operators, as symmetric blocks (48 Nv^2 bytes each): for small
+    /// meshes, where one assembly and a few dozen products are cheaper than the far sums.
+    SymmetricBlockMatrix assembleSingleLayerBlocks() const;
+    SymmetricBlockMatrix assembleDoubleLayerBlocks() const;
+    /// The same as full matrices (3 Nv x 3 Nv; row 3 i + a, column 3 j + b): 72 Nv^2 bytes each.
+    Eigen::MatrixXd assembleSingleLayer() const { return assembleSingleLayerBlocks().toDense(); }
+    Eigen::MatrixXd assembleDoubleLayer() const { return assembleDoubleLayerBlocks().toDense(); }
 
     /// Single layer at points off the surface, (S f)(y_t) = int_D G(x - y_t) . f(x) dS(x), as a
     /// dense 3 Nt x 3 Nv matrix (row 3 t + a, column 3 j + b). Faces near a target (centroid

@@ -167,8 +167,8 @@ public:
         dense_ = opt.operators == OperatorMode::Dense ||
                  (opt.operators == OperatorMode::Auto && 3 * nv <= opt.denseLimit);
         if (dense_) {
-            Sd_ = ops_.assembleSingleLayer();
-            if (k_ != 0.0) Dd_ = ops_.assembleDoubleLayer();
+            Sd_ = ops_.assembleSingleLayerBlocks();
+            if (k_ != 0.0) Dd_ = ops_.assembleDoubleLayerBlocks();
         }
         gp_.resize(3, nv);
         gm_.resize(3, nv);
@@ -268,7 +268,7 @@ private:
     Vertices single(const Vertices& f) const {
         if (!dense_) return ops_.singleLayer(f);
         Vertices y(3, f.cols());
-        Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Sd_ * Eigen::Map<const VectorXd>(f.data(), f.size());
+        Sd_.multiply(f.data(), y.data());
         return y;
     }
     /// S f and, unless k = 0 (lambda = 1), D u: dense products or one fused matrix-free pass.
@@ -280,7 +280,7 @@ private:
         if (!dense_) return ops_.layers(f, u, Sf, Du);
         Sf = single(f);
         Du.resize(3, u.cols());
-        Eigen::Map<VectorXd>(Du.data(), Du.size()).noalias() = Dd_ * Eigen::Map<const VectorXd>(u.data(), u.size());
+        Dd_.multiply(u.data(), Du.data());
     }
     /// Nodal force of the implicit terms, -(Gamma u + alpha H u).
     Vertices implicitForce(const Vertices& u) const {
@@ -298,7 +298,7 @@ private:
     /// Self-block of the single layer at vertex i: from the dense matrix, or the integral over a
     /// flat disc of the star's area with a hat density, pi rho (3/2 I - 1/2 n n^T).
     Eigen::Matrix3d selfBlock(Index i) const {
-        if (dense_) return Sd_.block<3, 3>(3 * i, 3 * i);
+        if (dense_) return Sd_.block(i, i);
         const double rho = std::sqrt(3.0 * ops_.vertexAreas()[i] / kPi);
         const Eigen::Vector3d nrm = ops_.vertexNormals().col(i);
         return kPi * rho * (1.5 * Eigen::Matrix3d::Identity() - 0.5 * nrm * nrm.transpose());
@@ -350,7 +350,7 @@ private:
     double c_ = 0.0, k_ = 0.0;
     VectorXd invArea_;
     bool dense_ = false;
-    Eigen::MatrixXd Sd_, Dd_;
+    SymmetricBlockMatrix Sd_, Dd_;
     mutable Vertices gp_, gm_;
     double area_ = 0.0, volume_ = 0.0, gNorm_ = 1.0, vNorm_ = 1.0, wNorm_ = 1.0;
     Vertices areaGradient_, volumeGradient_, w_, normals_;
