@@ -35,7 +35,7 @@ constexpr int kBlock = 256;
 void inverseSqrt(double* r, Index n) {
     Index k = 0;
 #if defined(__AVX2__) && defined(__FMA__)
-    const __m256d half = _mm256_set1_pd(0.5), three = _mm256_set1_pd(3.0), zero = _mm256_setzero_pd();
+    const __m256d half = _mm256_set1_pd(0.5), three = _mm256_set1_pd(3.0);
     const __m256d lo = _mm256_set1_pd(static_cast<double>(std::numeric_limits<float>::min()));
     const __m256d hi = _mm256_set1_pd(static_cast<double>(std::numeric_limits<float>::max()));
     for (; k + 4 <= n; k += 4) {
@@ -52,7 +52,6 @@ void inverseSqrt(double* r, Index n) {
         }
         _mm256_storeu_pd(r + k, y);
     }
-    (void)zero;
 #endif
     for (; k < n; ++k) r[k] = r[k] > 0.0 ? 1.0 / std::sqrt(r[k]) : 0.0;
 }
