@@ -185,14 +185,28 @@ template <bool kSingle, bool kDouble>
 void farSum(const Vec3& x0, const FarPoints& p, const PointDensity& g, const PointDensity& u, const Vec3& u0,
             Vec3& s, Vec3& v) {
     alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
+    const double* __restrict px = p.x;
+    const double* __restrict py = p.y;
+    const double* __restrict pz = p.z;
+    const double* __restrict pw = p.w;
+    const double* __restrict nx = p.wnx;
+    const double* __restrict ny = p.wny;
+    const double* __restrict nz = p.wnz;
+    const double* __restrict gx = g.x;
+    const double* __restrict gy = g.y;
+    const double* __restrict gz = g.z;
+    const double* __restrict ux = u.x;
+    const double* __restrict uy = u.y;
+    const double* __restrict uz = u.z;
+    const double x00 = x0.x(), x01 = x0.y(), x02 = x0.z(), u00 = u0.x(), u01 = u0.y(), u02 = u0.z();
     double sx = 0.0, sy = 0.0, sz = 0.0, vx = 0.0, vy = 0.0, vz = 0.0;
     for (Index b0 = 0; b0 < p.n; b0 += kBlock) {
         const int m = static_cast<int>(std::min<Index>(kBlock, p.n - b0));
 #pragma omp simd
         for (int k = 0; k < m; ++k) {
-            dx[k] = p.x[b0 + k] - x0.x();
-            dy[k] = p.y[b0 + k] - x0.y();
-            dz[k] = p.z[b0 + k] - x0.z();
+            dx[k] = px[b0 + k] - x00;
+            dy[k] = py[b0 + k] - x01;
+            dz[k] = pz[b0 + k] - x02;
             rinv[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
         }
         inverseSqrt(rinv, m);
@@ -200,13 +214,11 @@ void farSum(const Vec3& x0, const FarPoints& p, const PointDensity& g, const Poi
         for (int k = 0; k < m; ++k) {
             const Index q = b0 + k;
             if constexpr (kSingle)
-                stokes::addStokeslet(dx[k], dy[k], dz[k], rinv[k], p.w[q], g.x[q], g.y[q], g.z[q], sx, sy, sz);
+                stokes::addStokeslet(dx[k], dy[k], dz[k], rinv[k], pw[q], gx[q], gy[q], gz[q], sx, sy, sz);
             if constexpr (kDouble) {
-                const double c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k], p.wnx[q], p.wny[q],
-                                                                p.wnz[q]);
+                const double c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k], nx[q], ny[q], nz[q]);
                 // K (u_q - u0) = c d (d . (u_q - u0))
-                const double du = c * (dx[k] * (u.x[q] - u0.x()) + dy[k] * (u.y[q] - u0.y()) +
-                                       dz[k] * (u.z[q] - u0.z()));
+                const double du = c * (dx[k] * (ux[q] - u00) + dy[k] * (uy[q] - u01) + dz[k] * (uz[q] - u02));
                 vx += du * dx[k];
                 vy += du * dy[k];
                 vz += du * dz[k];
