@@ -22,16 +22,16 @@ using stokes::Vec3;
 using Eigen::Index;
 
 constexpr double kPi = std::numbers::pi;
-// Quadrature points per block of the far loops: the square roots of a block go through Eigen's
-// packet sqrt (std::sqrt with errno semantics blocks vectorisation of the loop itself).
+// Points per block of the far loops: 1 / r of a block is computed in one pass (inverseSqrt), the
+// kernels in a second; both stay in L1.
 constexpr int kBlock = 256;
 
 /// r <- 1 / sqrt(r) elementwise, 0 where r = 0 (a point at the target, left out of the far sums).
-/// The far loops are bound by this: a packet square root and division cost ~30 cycles per 4
-/// doubles here, so with AVX2 + FMA it starts from the single-precision estimate (relative error
-/// < 1.5 2^-12) and takes three Newton steps y <- y (3 - r y^2) / 2 in double precision (the error
-/// squares at each: 4e-4, 2e-7, 6e-14, then rounding), a few ulp from the correctly rounded
-/// value. Lanes outside the float range take the exact formula.
+/// With AVX2 + FMA: the single-precision estimate (relative error < 1.5 2^-12) and three Newton
+/// steps y <- y (3 - r y^2) / 2 in double precision (the error squares at each: 4e-4, 2e-7,
+/// 6e-14, then rounding), a few ulp from the correctly rounded value; a fused far pass costs 0.88x
+/// of one with packet square root and division (bench_stokes, level 3). Lanes outside the float
+/// range take the exact formula.
 void inverseSqrt(double* r, Index n) {
     Index k = 0;
 #if defined(__AVX2__) && defined(__FMA__)

@@ -414,8 +414,8 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
         d += fmt::format("{:a},", v);
     for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
                    long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),
-                   long(q.farRule), long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints), long(initial.cols()),
-                   long(model.faces().cols())})
+                   long(q.farRule), long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints),
+                   long(initial.cols()), long(model.faces().cols())})
         d += fmt::format("{},", v);
     std::uint64_t h = fnv1a(d);
     h = fnv1a(std::string_view(reinterpret_cast<const char*>(model.faces().data()),
