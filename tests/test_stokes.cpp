@@ -176,17 +176,60 @@ TEST(StokesOperators, DenseAssemblyEqualsMatrixFreeApply) {
     EXPECT_LT((Eigen::Map<const Eigen::VectorXd>(D.data(), 3 * nv) - Dd).norm(), 1e-12 * Dd.norm());
 }
 
+TEST(StokesOperators, FusedPassAndSymmetricBlockProductsEqualTheSeparateForms) {
+    const BoundaryIntegralOperators ops(icosphere(2));
+    const Eigen::Index nv = ops.numVertices();
+    const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, nv), u = Eigen::Matrix3Xd::Random(3, nv);
+    Eigen::Matrix3Xd Sf, Du;
+    ops.layers(f, u, Sf, Du);
+    const Eigen::Matrix3Xd S = ops.singleLayer(f), D = ops.doubleLayer(u);
+    EXPECT_LT((Sf - S).norm(), 1e-13 * S.norm());
+    EXPECT_LT((Du - D).norm(), 1e-13 * D.norm());
+    // The block product against the full matrix it stands for.
+    const SymmetricBlockMatrix B = ops.assembleDoubleLayerBlocks();
+    Eigen::Matrix3Xd Bu(3, nv);
+    B.multiply(u.data(), Bu.data());
+    const Eigen::VectorXd Fu = B.toDense() * Eigen::Map<const Eigen::VectorXd>(u.data(), 3 * nv);
+    EXPECT_LT((Eigen::Map<const Eigen::VectorXd>(Bu.data(), 3 * nv) - Fu).norm(), 1e-13 * Fu.norm());
+    EXPECT_LT((Bu - D).norm(), 1e-12 * D.norm());
+}
+
+TEST(StokesOperators, CornerCentroidAndFaceRulesAgreeToTheQuadratureError) {
+    // Both far rules are of degree 2; on the level-3 sphere they differ by ~5e-5 of the largest
+    // value, far less than the flat-face error (~4e-3, docs/flow_verification.md), and they do differ.
+    QuadratureOptions faces;
+    faces.farRule = FarRule::FacePoints;
+    const BoundaryIntegralOperators a(icosphere(kProductionLevel)), b(icosphere(kProductionLevel), faces);
+    EXPECT_EQ(a.numQuadraturePoints(), a.numVertices() + a.mesh().numFaces());
+    EXPECT_EQ(b.numQuadraturePoints(), 3 * b.mesh().numFaces());
+    Eigen::Matrix3Xd f(3, a.numVertices());
+    for (Eigen::Index i = 0; i < f.cols(); ++i) {
+        const Eigen::Vector3d x = a.mesh().X.col(i);
+        f.col(i) = Eigen::Vector3d(x.y() * x.z(), 1.0 + x.x(), x.x() * x.y());
+    }
+    const Eigen::Matrix3Xd Sa = a.singleLayer(f), Sb = b.singleLayer(f);
+    const Eigen::Matrix3Xd Da = a.doubleLayer(f), Db = b.doubleLayer(f);
+    EXPECT_LT((Sa - Sb).cwiseAbs().maxCoeff(), 2e-4 * Sb.cwiseAbs().maxCoeff());
+    EXPECT_LT((Da - Db).cwiseAbs().maxCoeff(), 2e-4 * Db.cwiseAbs().maxCoeff());
+    EXPECT_GT((Sa - Sb).cwiseAbs().maxCoeff(), 1e-9 * Sb.cwiseAbs().maxCoeff());
+}
+
 TEST(StokesOperators, ResultDoesNotDependOnThreads) {
     const BoundaryIntegralOperators ops(icosphere(2));
     const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, ops.numVertices());
     const int saved = omp_get_max_threads();
     omp_set_num_threads(1);
     const Eigen::Matrix3Xd S1 = ops.singleLayer(f), D1 = ops.doubleLayer(f);
+    Eigen::Matrix3Xd L1s, L1d, L2s, L2d;
+    ops.layers(f, f, L1s, L1d);
     omp_set_num_threads(2);
     const Eigen::Matrix3Xd S2 = ops.singleLayer(f), D2 = ops.doubleLayer(f);
+    ops.layers(f, f, L2s, L2d);
     omp_set_num_threads(saved);
     EXPECT_EQ(S1, S2);
     EXPECT_EQ(D1, D2);
+    EXPECT_EQ(L1s, L2s);
+    EXPECT_EQ(L1d, L2d);
 }
 
 // ---- Verification at the production level.

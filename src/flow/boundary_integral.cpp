@@ -1,10 +1,12 @@
 #include "flow/boundary_integral.hpp"
 
 #include <fmt/format.h>
+#include <immintrin.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "core/error.hpp"
@@ -20,9 +22,39 @@ using stokes::Vec3;
 using Eigen::Index;
 
 constexpr double kPi = std::numbers::pi;
-// Quadrature points per block of the far loops: the square roots of a block go through Eigen's
-// packet sqrt (std::sqrt with errno semantics blocks vectorisation of the loop itself).
+// Points per block of the far loops: 1 / r of a block is computed in one pass (inverseSqrt), the
+// kernels in a second; both stay in L1.
 constexpr int kBlock = 256;
+
+/// r <- 1 / sqrt(r) elementwise, 0 where r = 0 (a point at the target, left out of the far sums).
+/// With AVX2 + FMA: the single-precision estimate (relative error < 1.5 2^-12) and three Newton
+/// steps y <- y (3 - r y^2) / 2 in double precision (the error squares at each: 4e-4, 2e-7,
+/// 6e-14, then rounding), a few ulp from the correctly rounded value; a fused far pass costs 0.88x
+/// of one with packet square root and division (bench_stokes, level 3). Lanes outside the float
+/// range take the exact formula.
+void inverseSqrt(double* r, Index n) {
+    Index k = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256d half = _mm256_set1_pd(0.5), three = _mm256_set1_pd(3.0);
+    const __m256d lo = _mm256_set1_pd(static_cast<double>(std::numeric_limits<float>::min()));
+    const __m256d hi = _mm256_set1_pd(static_cast<double>(std::numeric_limits<float>::max()));
+    for (; k + 4 <= n; k += 4) {
+        const __m256d x = _mm256_loadu_pd(r + k);
+        const __m256d inRange = _mm256_and_pd(_mm256_cmp_pd(x, lo, _CMP_GE_OQ), _mm256_cmp_pd(x, hi, _CMP_LE_OQ));
+        if (_mm256_movemask_pd(inRange) != 0xF) {
+            for (Index j = k; j < k + 4; ++j) r[j] = r[j] > 0.0 ? 1.0 / std::sqrt(r[j]) : 0.0;
+            continue;
+        }
+        __m256d y = _mm256_cvtps_pd(_mm_rsqrt_ps(_mm256_cvtpd_ps(x)));
+        for (int it = 0; it < 3; ++it) {
+            const __m256d xy2 = _mm256_mul_pd(_mm256_mul_pd(x, y), y);
+            y = _mm256_mul_pd(_mm256_mul_pd(half, y), _mm256_sub_pd(three, xy2));
+        }
+        _mm256_storeu_pd(r + k, y);
+    }
+#endif
+    for (; k < n; ++k) r[k] = r[k] > 0.0 ? 1.0 / std::sqrt(r[k]) : 0.0;
+}
 
 /// A rule on the reference triangle: barycentric coordinates (points x 3), weights summing to 1.
 struct TriangleRule {
@@ -136,61 +168,65 @@ struct CorrectionRow {
     }
 };
 
-/// sum_q w_q G(y_q - x0) g_q over quadrature points [0, n): the far part of the single layer.
-Vec3 farSingleLayer(const Vec3& x0, Index n, const double* qx, const double* qy, const double* qz,
-                    const double* qw, const double* gx, const double* gy, const double* gz) {
-    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
-    double ux = 0.0, uy = 0.0, uz = 0.0;
-    for (Index b0 = 0; b0 < n; b0 += kBlock) {
-        const int m = static_cast<int>(std::min<Index>(kBlock, n - b0));
-#pragma omp simd
-        for (int k = 0; k < m; ++k) {
-            dx[k] = qx[b0 + k] - x0.x();
-            dy[k] = qy[b0 + k] - x0.y();
-            dz[k] = qz[b0 + k] - x0.z();
-            rinv[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
-        }
-        Eigen::Map<Eigen::ArrayXd> r(rinv, m);
-        r = r.rsqrt();
-#pragma omp simd reduction(+ : ux, uy, uz)
-        for (int k = 0; k < m; ++k)
-            stokes::addStokeslet(dx[k], dy[k], dz[k], rinv[k], qw[b0 + k], gx[b0 + k], gy[b0 + k],
-                                 gz[b0 + k], ux, uy, uz);
-    }
-    return {ux, uy, uz};
-}
+/// The far-rule points and a density on them (structure of arrays).
+struct FarPoints {
+    const double *x, *y, *z, *w, *wnx, *wny, *wnz;  ///< position, weight, weighted normal
+    Index n;
+};
+struct PointDensity {
+    const double *x, *y, *z;
+};
 
-/// sum_q w_q (u_q - u0) . K(y_q - x0, n_q) over quadrature points [0, n): the far part of the
-/// double layer with the singularity subtracted.
-Vec3 farDoubleLayer(const Vec3& x0, const Vec3& u0, Index n, const double* qx, const double* qy,
-                    const double* qz, const double* wnx, const double* wny, const double* wnz,
-                    const double* ux, const double* uy, const double* uz) {
+/// Far parts at the target x0, in one pass over the points:
+///   single layer  s = sum_q w_q G(y_q - x0) g_q,
+///   double layer  v = sum_q w_q K(y_q - x0, n_q) (u_q - u0)   (singularity subtracted),
+/// either or both (template flags). A point at x0 contributes nothing (1/r set to 0).
+template <bool kSingle, bool kDouble>
+void farSum(const Vec3& x0, const FarPoints& p, const PointDensity& g, const PointDensity& u, const Vec3& u0,
+            Vec3& s, Vec3& v) {
     alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
-    double vx = 0.0, vy = 0.0, vz = 0.0;
-    for (Index b0 = 0; b0 < n; b0 += kBlock) {
-        const int m = static_cast<int>(std::min<Index>(kBlock, n - b0));
+    const double* __restrict px = p.x;
+    const double* __restrict py = p.y;
+    const double* __restrict pz = p.z;
+    const double* __restrict pw = p.w;
+    const double* __restrict nx = p.wnx;
+    const double* __restrict ny = p.wny;
+    const double* __restrict nz = p.wnz;
+    const double* __restrict gx = g.x;
+    const double* __restrict gy = g.y;
+    const double* __restrict gz = g.z;
+    const double* __restrict ux = u.x;
+    const double* __restrict uy = u.y;
+    const double* __restrict uz = u.z;
+    const double x00 = x0.x(), x01 = x0.y(), x02 = x0.z(), u00 = u0.x(), u01 = u0.y(), u02 = u0.z();
+    double sx = 0.0, sy = 0.0, sz = 0.0, vx = 0.0, vy = 0.0, vz = 0.0;
+    for (Index b0 = 0; b0 < p.n; b0 += kBlock) {
+        const int m = static_cast<int>(std::min<Index>(kBlock, p.n - b0));
 #pragma omp simd
         for (int k = 0; k < m; ++k) {
-            dx[k] = qx[b0 + k] - x0.x();
-            dy[k] = qy[b0 + k] - x0.y();
-            dz[k] = qz[b0 + k] - x0.z();
+            dx[k] = px[b0 + k] - x00;
+            dy[k] = py[b0 + k] - x01;
+            dz[k] = pz[b0 + k] - x02;
             rinv[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
         }
-        Eigen::Map<Eigen::ArrayXd> r(rinv, m);
-        r = r.rsqrt();
-#pragma omp simd reduction(+ : vx, vy, vz)
+        inverseSqrt(rinv, m);
+#pragma omp simd reduction(+ : sx, sy, sz, vx, vy, vz)
         for (int k = 0; k < m; ++k) {
-            const double c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k],
-                                                            wnx[b0 + k], wny[b0 + k], wnz[b0 + k]);
-            // K (u_q - u0) = c d (d . (u_q - u0))
-            const double du = dx[k] * (ux[b0 + k] - u0.x()) + dy[k] * (uy[b0 + k] - u0.y()) +
-                              dz[k] * (uz[b0 + k] - u0.z());
-            vx += c * du * dx[k];
-            vy += c * du * dy[k];
-            vz += c * du * dz[k];
+            const Index q = b0 + k;
+            if constexpr (kSingle)
+                stokes::addStokeslet(dx[k], dy[k], dz[k], rinv[k], pw[q], gx[q], gy[q], gz[q], sx, sy, sz);
+            if constexpr (kDouble) {
+                const double c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k], nx[q], ny[q], nz[q]);
+                // K (u_q - u0) = c d (d . (u_q - u0))
+                const double du = c * (dx[k] * (ux[q] - u00) + dy[k] * (uy[q] - u01) + dz[k] * (uz[q] - u02));
+                vx += du * dx[k];
+                vy += du * dy[k];
+                vz += du * dz[k];
+            }
         }
     }
-    return {vx, vy, vz};
+    s = {sx, sy, sz};
+    v = {vx, vy, vz};
 }
 
 Eigen::Matrix3d faceCorners(const Mesh& m, Index f) {
@@ -245,27 +281,50 @@ void BoundaryIntegralOperators::buildQuadrature() {
     const TriangleRule rule = symmetricRule(options_.farPoints);
     ruleBary_ = rule.bary;
     ruleWeight_ = rule.weight;
-    const Index nf = mesh_.numFaces(), nq = ruleWeight_.size(), n = nf * nq;
-    for (auto* v : {&qx_, &qy_, &qz_, &qw_, &qnx_, &qny_, &qnz_}) v->assign(n, 0.0);
+    const Index nf = mesh_.numFaces(), nv = mesh_.numVertices(), nq = ruleWeight_.size();
+    for (auto* v : {&fx_, &fy_, &fz_, &fw_}) v->assign(static_cast<std::size_t>(nf * nq), 0.0);
     for (Index f = 0; f < nf; ++f) {
         const Eigen::Matrix3d c = faceCorners(mesh_, f);
         for (Index q = 0; q < nq; ++q) {
-            const Index k = f * nq + q;
+            const std::size_t k = static_cast<std::size_t>(f * nq + q);
             const Vec3 y = c * ruleBary_.row(q).transpose();
-            const double w = faceArea_[f] * ruleWeight_[q];
-            qx_[k] = y.x();
-            qy_[k] = y.y();
-            qz_[k] = y.z();
-            qw_[k] = w;
-            qnx_[k] = w * faceNormal_(0, f);
-            qny_[k] = w * faceNormal_(1, f);
-            qnz_[k] = w * faceNormal_(2, f);
+            fx_[k] = y.x(), fy_[k] = y.y(), fz_[k] = y.z();
+            fw_[k] = faceArea_[f] * ruleWeight_[q];
         }
+    }
+
+    if (options_.farRule == FarRule::FacePoints) {
+        cornerWeight_ = 0.0;
+        farBary_ = ruleBary_;
+        farWeight_ = ruleWeight_;
+    } else {  // corners 1/12 each, centroid 3/4: exact for quadratics on the triangle
+        cornerWeight_ = 1.0 / 12.0;
+        farBary_ = Eigen::RowVector3d::Constant(1.0 / 3.0);
+        farWeight_ = Eigen::VectorXd::Constant(1, 0.75);
+    }
+    cornerPoints_ = cornerWeight_ > 0.0 ? nv : 0;
+    const Index nqf = farWeight_.size();
+    const std::size_t n = static_cast<std::size_t>(cornerPoints_ + nf * nqf);
+    for (auto* v : {&qx_, &qy_, &qz_, &qw_, &qnx_, &qny_, &qnz_}) v->assign(n, 0.0);
+    const auto addPoint = [&](std::size_t k, const Vec3& y, double w, const Vec3& n) {
+        qx_[k] = y.x(), qy_[k] = y.y(), qz_[k] = y.z();
+        qw_[k] += w;
+        qnx_[k] += w * n.x(), qny_[k] += w * n.y(), qnz_[k] += w * n.z();
+    };
+    for (Index f = 0; f < nf; ++f) {
+        const Eigen::Matrix3d c = faceCorners(mesh_, f);
+        const Vec3 n = faceNormal_.col(f);
+        if (cornerPoints_ > 0)
+            for (int m = 0; m < 3; ++m)
+                addPoint(static_cast<std::size_t>(mesh_.F(m, f)), c.col(m), faceArea_[f] * cornerWeight_, n);
+        for (Index q = 0; q < nqf; ++q)
+            addPoint(static_cast<std::size_t>(cornerPoints_ + f * nqf + q), c * farBary_.row(q).transpose(),
+                     faceArea_[f] * farWeight_[q], n);
     }
 }
 
 void BoundaryIntegralOperators::buildCorrections() {
-    const Index nf = mesh_.numFaces(), nv = mesh_.numVertices(), nq = ruleWeight_.size();
+    const Index nf = mesh_.numFaces(), nv = mesh_.numVertices();
     const TriangleRule nearRule =
         subdividedRule(TriangleRule{ruleBary_, ruleWeight_}, options_.nearSubdivisions);
     Eigen::VectorXd gt, gw;
@@ -282,18 +341,29 @@ void BoundaryIntegralOperators::buildCorrections() {
         CorrectionRow& row = rows[i];
         const Vec3 x0 = mesh_.X.col(i);
         const Mat3 zero = Mat3::Zero();
-        // Far-rule contribution of face f, to be replaced: S blocks per corner and the DL kernel.
+        // Far-rule contribution of face f, to be replaced: S blocks per corner and the DL kernel
+        // (its integral goes to the target's own column: singularity subtraction). A point at
+        // the target contributes nothing to the far sum, so nothing is subtracted for it.
+        auto subtractPoint = [&](const Vec3& y, double w, const double (&bary)[3], Index f, bool withDouble) {
+            const Vec3 d = y - x0;
+            if (d.squaredNorm() == 0.0) return;
+            const Mat3 g = w * stokes::stokeslet(d);
+            const Mat3 k = withDouble ? Mat3(w * stokes::stressletNormal(d, faceNormal_.col(f))) : zero;
+            for (int m = 0; m < 3; ++m)
+                if (bary[m] != 0.0) row.add(mesh_.F(m, f), -bary[m] * g, -bary[m] * k);
+            if (withDouble) row.add(static_cast<int>(i), zero, k);
+        };
         auto subtractFarRule = [&](Index f, bool withDouble) {
             const Eigen::Matrix3d c = faceCorners(mesh_, f);
-            const Vec3 n = faceNormal_.col(f);
-            for (Index q = 0; q < nq; ++q) {
-                const Vec3 d = c * ruleBary_.row(q).transpose() - x0;
-                const double w = faceArea_[f] * ruleWeight_[q];
-                const Mat3 g = w * stokes::stokeslet(d);
-                const Mat3 k = withDouble ? Mat3(w * stokes::stressletNormal(d, n)) : zero;
-                for (int m = 0; m < 3; ++m)
-                    row.add(mesh_.F(m, f), -ruleBary_(q, m) * g, -ruleBary_(q, m) * k);
-                if (withDouble) row.add(static_cast<int>(i), zero, k);
+            if (cornerPoints_ > 0)
+                for (int m = 0; m < 3; ++m) {
+                    double bary[3] = {0.0, 0.0, 0.0};
+                    bary[m] = 1.0;
+                    subtractPoint(c.col(m), faceArea_[f] * cornerWeight_, bary, f, withDouble);
+                }
+            for (Index q = 0; q < farWeight_.size(); ++q) {
+                const double bary[3] = {farBary_(q, 0), farBary_(q, 1), farBary_(q, 2)};
+                subtractPoint(c * farBary_.row(q).transpose(), faceArea_[f] * farWeight_[q], bary, f, withDouble);
             }
         };
         // Adjacent faces: single layer in Duffy coordinates about x_i (corner c0 = i, then c1, c2
@@ -382,17 +452,15 @@ double BoundaryIntegralOperators::meanCorrectionsPerTarget() const {
 
 void BoundaryIntegralOperators::interpolate(const Eigen::Matrix3Xd& v, std::vector<double>& vx,
                                             std::vector<double>& vy, std::vector<double>& vz) const {
-    const Index nf = mesh_.numFaces(), nq = ruleWeight_.size();
-    vx.resize(nf * nq);
-    vy.resize(nf * nq);
-    vz.resize(nf * nq);
+    const Index nf = mesh_.numFaces(), nq = farWeight_.size(), n0 = cornerPoints_;
+    for (auto* p : {&vx, &vy, &vz}) p->resize(static_cast<std::size_t>(n0 + nf * nq));
+    for (Index j = 0; j < n0; ++j) vx[j] = v(0, j), vy[j] = v(1, j), vz[j] = v(2, j);
     for (Index f = 0; f < nf; ++f) {
         const Vec3 a = v.col(mesh_.F(0, f)), b = v.col(mesh_.F(1, f)), c = v.col(mesh_.F(2, f));
         for (Index q = 0; q < nq; ++q) {
-            const Vec3 y = ruleBary_(q, 0) * a + ruleBary_(q, 1) * b + ruleBary_(q, 2) * c;
-            vx[f * nq + q] = y.x();
-            vy[f * nq + q] = y.y();
-            vz[f * nq + q] = y.z();
+            const Vec3 y = farBary_(q, 0) * a + farBary_(q, 1) * b + farBary_(q, 2) * c;
+            const Index k = n0 + f * nq + q;
+            vx[k] = y.x(), vy[k] = y.y(), vz[k] = y.z();
         }
     }
 }
@@ -404,41 +472,50 @@ void checkDensity(const Eigen::Matrix3Xd& v, Index nv, const char* name) {
 }
 }  // namespace
 
-Eigen::Matrix3Xd BoundaryIntegralOperators::singleLayer(const Eigen::Matrix3Xd& f) const {
+template <bool kSingle, bool kDouble>
+void BoundaryIntegralOperators::applyLayers(const Eigen::Matrix3Xd* f, const Eigen::Matrix3Xd* u,
+                                            Eigen::Matrix3Xd* Sf, Eigen::Matrix3Xd* Du) const {
     const Index nv = numVertices();
-    checkDensity(f, nv, "single-layer density");
-    std::vector<double> gx, gy, gz;
-    interpolate(f, gx, gy, gz);
-    Eigen::Matrix3Xd out(3, nv);
-    const Index nq = numQuadraturePoints();
+    std::vector<double> gx, gy, gz, ux, uy, uz;
+    if constexpr (kSingle) interpolate(*f, gx, gy, gz), Sf->resize(3, nv);
+    if constexpr (kDouble) interpolate(*u, ux, uy, uz), Du->resize(3, nv);
+    const FarPoints pts{qx_.data(), qy_.data(), qz_.data(), qw_.data(), qnx_.data(), qny_.data(), qnz_.data(),
+                        numQuadraturePoints()};
+    const PointDensity g{gx.data(), gy.data(), gz.data()}, ud{ux.data(), uy.data(), uz.data()};
 #pragma omp parallel for schedule(static)
     for (Index i = 0; i < nv; ++i) {
-        Vec3 u = farSingleLayer(mesh_.X.col(i), nq, qx_.data(), qy_.data(), qz_.data(), qw_.data(),
-                                gx.data(), gy.data(), gz.data());
-        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-            u += Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]) * f.col(corrCol_[p]);
-        out.col(i) = u;
+        const Vec3 u0 = kDouble ? Vec3(u->col(i)) : Vec3::Zero();
+        Vec3 s, v;
+        farSum<kSingle, kDouble>(mesh_.X.col(i), pts, g, ud, u0, s, v);
+        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p) {
+            const std::size_t o = 9 * static_cast<std::size_t>(p);
+            if constexpr (kSingle) s += Eigen::Map<const Mat3>(&corrS_[o]) * f->col(corrCol_[p]);
+            if constexpr (kDouble) v += Eigen::Map<const Mat3>(&corrD_[o]) * u->col(corrCol_[p]);
+        }
+        if constexpr (kSingle) Sf->col(i) = s;
+        if constexpr (kDouble) Du->col(i) = v - 4.0 * kPi * u0;
     }
+}
+
+Eigen::Matrix3Xd BoundaryIntegralOperators::singleLayer(const Eigen::Matrix3Xd& f) const {
+    checkDensity(f, numVertices(), "single-layer density");
+    Eigen::Matrix3Xd out;
+    applyLayers<true, false>(&f, nullptr, &out, nullptr);
     return out;
 }
 
 Eigen::Matrix3Xd BoundaryIntegralOperators::doubleLayer(const Eigen::Matrix3Xd& u) const {
-    const Index nv = numVertices();
-    checkDensity(u, nv, "double-layer density");
-    std::vector<double> ux, uy, uz;
-    interpolate(u, ux, uy, uz);
-    Eigen::Matrix3Xd out(3, nv);
-    const Index nq = numQuadraturePoints();
-#pragma omp parallel for schedule(static)
-    for (Index i = 0; i < nv; ++i) {
-        const Vec3 u0 = u.col(i);
-        Vec3 v = farDoubleLayer(mesh_.X.col(i), u0, nq, qx_.data(), qy_.data(), qz_.data(),
-                                qnx_.data(), qny_.data(), qnz_.data(), ux.data(), uy.data(), uz.data());
-        for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-            v += Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]) * u.col(corrCol_[p]);
-        out.col(i) = v - 4.0 * kPi * u0;
-    }
+    checkDensity(u, numVertices(), "double-layer density");
+    Eigen::Matrix3Xd out;
+    applyLayers<false, true>(nullptr, &u, nullptr, &out);
     return out;
+}
+
+void BoundaryIntegralOperators::layers(const Eigen::Matrix3Xd& f, const Eigen::Matrix3Xd& u, Eigen::Matrix3Xd& Sf,
+                                       Eigen::Matrix3Xd& Du) const {
+    checkDensity(f, numVertices(), "single-layer density");
+    checkDensity(u, numVertices(), "double-layer density");
+    applyLayers<true, true>(&f, &u, &Sf, &Du);
 }
 
 // Dense assembly, one target (block row) at a time: the kernel at every quadrature point,
@@ -454,20 +531,28 @@ struct KernelRow {
     explicit KernelRow(std::size_t n) : dx(n), dy(n), dz(n), a(n), b(n) {}
 };
 
-/// Row buffer of symmetric blocks: sum over the quadrature points of phi_m(q) (a I + b d d^T),
-/// components (xx, xy, xz, yy, yz, zz) per vertex.
-/// Faces with skip[f] set (if given) are left out.
-void scatterSymmetricBlocks(const KernelRow& k, const Eigen::MatrixX3d& bary, const Faces& F, std::vector<double>& buf,
-                            const std::vector<char>* skip = nullptr) {
-    std::fill(buf.begin(), buf.end(), 0.0);
+/// Row buffer of symmetric blocks (nv vertices): sum over the points of phi_m(q) (a I + b d d^T),
+/// components (xx, xy, xz, yy, yz, zz) per vertex. The first `corners` points sit on the vertices (phi = 1
+/// there); the rest are `bary.rows()` points per face, face-major. Faces with skip[f] set (if
+/// given; only without corner points) are left out.
+void scatterSymmetricBlocks(const KernelRow& k, Index corners, const Eigen::MatrixX3d& bary, const Faces& F,
+                            Index nv, double* buf, const std::vector<char>* skip = nullptr) {
+    std::fill(buf, buf + 6 * nv, 0.0);
+    const auto block = [&](std::size_t i, double (&c)[6]) {
+        const double dx = k.dx[i], dy = k.dy[i], dz = k.dz[i], a = k.a[i], b = k.b[i];
+        const double bx = b * dx, by = b * dy, bz = b * dz;
+        c[0] = a + bx * dx, c[1] = bx * dy, c[2] = bx * dz, c[3] = a + by * dy, c[4] = by * dz, c[5] = a + bz * dz;
+    };
+    double c[6];
+    for (Index j = 0; j < corners; ++j) {
+        block(static_cast<std::size_t>(j), c);
+        for (int e = 0; e < 6; ++e) buf[6 * static_cast<std::size_t>(j) + e] += c[e];
+    }
     const Index nf = F.cols(), nq = bary.rows();
     for (Index f = 0; f < nf; ++f) {
         if (skip && (*skip)[static_cast<std::size_t>(f)]) continue;
         for (Index q = 0; q < nq; ++q) {
-            const std::size_t i = static_cast<std::size_t>(f * nq + q);
-            const double dx = k.dx[i], dy = k.dy[i], dz = k.dz[i], a = k.a[i], b = k.b[i];
-            const double bx = b * dx, by = b * dy, bz = b * dz;
-            const double c[6] = {a + bx * dx, bx * dy, bx * dz, a + by * dy, by * dz, a + bz * dz};
+            block(static_cast<std::size_t>(corners + f * nq + q), c);
             for (int m = 0; m < 3; ++m) {
                 const double w = bary(q, m);
                 double* o = &buf[6 * static_cast<std::size_t>(F(m, f))];
@@ -477,15 +562,20 @@ void scatterSymmetricBlocks(const KernelRow& k, const Eigen::MatrixX3d& bary, co
     }
 }
 
-/// w G(y_q - x0) = a I + b d d^T at every quadrature point (a = w / r, b = w / r^3).
+/// w G(y_q - x0) = a I + b d d^T at every point (a = w / r, b = w / r^3; 0 at a point at x0).
 void singleLayerKernelRow(double x0, double y0, double z0, const std::vector<double>& qx, const std::vector<double>& qy,
                           const std::vector<double>& qz, const std::vector<double>& qw, KernelRow& k) {
     const std::size_t n = qx.size();
 #pragma omp simd
     for (std::size_t q = 0; q < n; ++q) {
         const double dx = qx[q] - x0, dy = qy[q] - y0, dz = qz[q] - z0;
-        const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
         k.dx[q] = dx, k.dy[q] = dy, k.dz[q] = dz;
+        k.b[q] = dx * dx + dy * dy + dz * dz;
+    }
+    inverseSqrt(k.b.data(), static_cast<Index>(n));
+#pragma omp simd
+    for (std::size_t q = 0; q < n; ++q) {
+        const double rinv = k.b[q];
         k.a[q] = qw[q] * rinv;
         k.b[q] = k.a[q] * rinv * rinv;
     }
@@ -516,54 +606,94 @@ void storeBlockRow(const std::vector<double>& buf, Index i, Eigen::MatrixXd& A) 
 
 }  // namespace
 
-Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayer() const {
+SymmetricBlockMatrix::SymmetricBlockMatrix(Index blocks)
+    : n_(blocks), a_(static_cast<std::size_t>(6 * blocks * blocks), 0.0) {}
+
+Eigen::Matrix3d SymmetricBlockMatrix::block(Index i, Index j) const {
+    const double* o = row(i) + 6 * j;
+    Mat3 b;
+    b << o[0], o[1], o[2], o[1], o[3], o[4], o[2], o[4], o[5];
+    return b;
+}
+
+void SymmetricBlockMatrix::addToBlock(Index i, Index j, const Mat3& b) {
+    double* o = row(i) + 6 * j;
+    o[0] += b(0, 0), o[1] += b(0, 1), o[2] += b(0, 2), o[3] += b(1, 1), o[4] += b(1, 2), o[5] += b(2, 2);
+}
+
+void SymmetricBlockMatrix::multiply(const double* x, double* y) const {
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < n_; ++i) {
+        const double* o = row(i);
+        double y0 = 0.0, y1 = 0.0, y2 = 0.0;
+#pragma omp simd reduction(+ : y0, y1, y2)
+        for (Index j = 0; j < n_; ++j) {
+            const double* b = o + 6 * j;
+            const double x0 = x[3 * j], x1 = x[3 * j + 1], x2 = x[3 * j + 2];
+            y0 += b[0] * x0 + b[1] * x1 + b[2] * x2;
+            y1 += b[1] * x0 + b[3] * x1 + b[4] * x2;
+            y2 += b[2] * x0 + b[4] * x1 + b[5] * x2;
+        }
+        y[3 * i] = y0, y[3 * i + 1] = y1, y[3 * i + 2] = y2;
+    }
+}
+
+Eigen::MatrixXd SymmetricBlockMatrix::toDense() const {
+    Eigen::MatrixXd A(3 * n_, 3 * n_);
+    for (Index j = 0; j < n_; ++j)
+        for (Index i = 0; i < n_; ++i) A.block<3, 3>(3 * i, 3 * j) = block(i, j);
+    return A;
+}
+
+SymmetricBlockMatrix BoundaryIntegralOperators::assembleSingleLayerBlocks() const {
     const Index nv = numVertices(), n = static_cast<Index>(qx_.size());
-    Eigen::MatrixXd A(3 * nv, 3 * nv);
+    SymmetricBlockMatrix A(nv);
 #pragma omp parallel
     {
         KernelRow k(static_cast<std::size_t>(n));
-        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
 #pragma omp for schedule(static)
         for (Index i = 0; i < nv; ++i) {
             singleLayerKernelRow(mesh_.X(0, i), mesh_.X(1, i), mesh_.X(2, i), qx_, qy_, qz_, qw_, k);
-            scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf);
-            storeBlockRow(buf, i, A);
+            scatterSymmetricBlocks(k, cornerPoints_, farBary_, mesh_.F, nv, A.row(i));
             for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-                A.block<3, 3>(3 * i, 3 * corrCol_[p]) += Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]);
+                A.addToBlock(i, corrCol_[p], Eigen::Map<const Mat3>(&corrS_[9 * static_cast<std::size_t>(p)]));
         }
     }
     return A;
 }
 
-Eigen::MatrixXd BoundaryIntegralOperators::assembleDoubleLayer() const {
+SymmetricBlockMatrix BoundaryIntegralOperators::assembleDoubleLayerBlocks() const {
     const Index nv = numVertices(), n = static_cast<Index>(qx_.size());
-    Eigen::MatrixXd A(3 * nv, 3 * nv);
+    SymmetricBlockMatrix A(nv);
 #pragma omp parallel
     {
         KernelRow k(static_cast<std::size_t>(n));
         std::fill(k.a.begin(), k.a.end(), 0.0);  // w K(d, n) = c d d^T: no identity part
-        std::vector<double> buf(6 * static_cast<std::size_t>(nv));
 #pragma omp for schedule(static)
         for (Index i = 0; i < nv; ++i) {
             const double x0 = mesh_.X(0, i), y0 = mesh_.X(1, i), z0 = mesh_.X(2, i);
             double s[6] = {0, 0, 0, 0, 0, 0};  // sum of w K over all points (singularity subtraction)
-#pragma omp simd reduction(+ : s[:6])
+#pragma omp simd
             for (Index q = 0; q < n; ++q) {
                 const double dx = qx_[q] - x0, dy = qy_[q] - y0, dz = qz_[q] - z0;
-                const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
-                const double c = stokes::doubleLayerCoefficient(dx, dy, dz, rinv, qnx_[q], qny_[q], qnz_[q]);
                 k.dx[q] = dx, k.dy[q] = dy, k.dz[q] = dz;
+                k.b[q] = dx * dx + dy * dy + dz * dz;
+            }
+            inverseSqrt(k.b.data(), n);
+#pragma omp simd reduction(+ : s[:6])
+            for (Index q = 0; q < n; ++q) {
+                const double dx = k.dx[q], dy = k.dy[q], dz = k.dz[q];
+                const double c = stokes::doubleLayerCoefficient(dx, dy, dz, k.b[q], qnx_[q], qny_[q], qnz_[q]);
                 k.b[q] = c;
                 s[0] += c * dx * dx, s[1] += c * dx * dy, s[2] += c * dx * dz;
                 s[3] += c * dy * dy, s[4] += c * dy * dz, s[5] += c * dz * dz;
             }
-            scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf);
-            storeBlockRow(buf, i, A);
+            scatterSymmetricBlocks(k, cornerPoints_, farBary_, mesh_.F, nv, A.row(i));
             Mat3 ksum;
             ksum << s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5];
-            A.block<3, 3>(3 * i, 3 * i) -= ksum + 4.0 * kPi * Mat3::Identity();
+            A.addToBlock(i, i, -(ksum + 4.0 * kPi * Mat3::Identity()));
             for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p)
-                A.block<3, 3>(3 * i, 3 * corrCol_[p]) += Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]);
+                A.addToBlock(i, corrCol_[p], Eigen::Map<const Mat3>(&corrD_[9 * static_cast<std::size_t>(p)]));
         }
     }
     return A;
@@ -577,7 +707,7 @@ void BoundaryIntegralOperators::offSurfaceBlocks(const Vec3& x0, Index f, int ma
         const Index nq = ruleWeight_.size();
         for (Index q = 0; q < nq; ++q) {
             const Index k = f * nq + q;
-            const Mat3 g = qw_[k] * stokes::stokeslet(Vec3(qx_[k], qy_[k], qz_[k]) - x0);
+            const Mat3 g = fw_[k] * stokes::stokeslet(Vec3(fx_[k], fy_[k], fz_[k]) - x0);
             for (int m = 0; m < 3; ++m) blocks[m] += ruleBary_(q, m) * g;
         }
         return;
@@ -612,22 +742,22 @@ void BoundaryIntegralOperators::offSurfaceBlocks(const Vec3& x0, Index f, int ma
 }
 
 Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, int maxDepth) const {
-    // As assembleSingleLayer for the far faces (the face's own rule, vectorised over all points);
+    // The far faces with the symmetric face rule (vectorised over all its points);
     // the near faces of a target by offSurfaceBlocks' subdivision.
     const Index nt = targets.cols(), nv = numVertices(), nf = mesh_.numFaces();
     Eigen::MatrixXd A(3 * nt, 3 * nv);
 #pragma omp parallel
     {
-        KernelRow k(qx_.size());
+        KernelRow k(fx_.size());
         std::vector<double> buf(6 * static_cast<std::size_t>(nv));
         std::vector<char> near(static_cast<std::size_t>(nf));
         Mat3 blocks[3];
 #pragma omp for schedule(dynamic, 8)
         for (Index t = 0; t < nt; ++t) {
             const Vec3 x0 = targets.col(t);
-            singleLayerKernelRow(x0.x(), x0.y(), x0.z(), qx_, qy_, qz_, qw_, k);
+            singleLayerKernelRow(x0.x(), x0.y(), x0.z(), fx_, fy_, fz_, fw_, k);
             for (Index f = 0; f < nf; ++f) near[static_cast<std::size_t>(f)] = isNearFace(x0, f);
-            scatterSymmetricBlocks(k, ruleBary_, mesh_.F, buf, &near);
+            scatterSymmetricBlocks(k, 0, ruleBary_, mesh_.F, nv, buf.data(), &near);
             for (Index f = 0; f < nf; ++f)
                 if (near[static_cast<std::size_t>(f)]) {
                     offSurfaceBlocks(x0, f, maxDepth, blocks);

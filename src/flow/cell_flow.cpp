@@ -167,8 +167,8 @@ public:
         dense_ = opt.operators == OperatorMode::Dense ||
                  (opt.operators == OperatorMode::Auto && 3 * nv <= opt.denseLimit);
         if (dense_) {
-            Sd_ = ops_.assembleSingleLayer();
-            if (k_ != 0.0) Dd_ = ops_.assembleDoubleLayer();
+            Sd_ = ops_.assembleSingleLayerBlocks();
+            if (k_ != 0.0) Dd_ = ops_.assembleDoubleLayerBlocks();
         }
         gp_.resize(3, nv);
         gm_.resize(3, nv);
@@ -231,8 +231,12 @@ public:
             y.resize(n + 2);
             const Eigen::Map<const Vertices> u(x.data(), 3, nv);
             Eigen::Map<Vertices> yu(y.data(), 3, nv);
-            yu = u - forceVelocity(implicitForce(u));
-            if (k_ != 0.0) yu -= k_ * doubleLayer(u);
+            const Vertices f = implicitForce(u) * invArea_.asDiagonal();
+            Vertices Sf, Du;
+            layers(f, u, Sf, Du);
+            if (wall_) Sf += wall_(f);
+            yu = u - c_ * Sf;
+            if (k_ != 0.0) yu -= k_ * Du;
             yu += (x[n] / wNorm_) * w_ - x[n + 1] * normals_;
             y[n] = (areaGradient_.array() * u.array()).sum() / gNorm_;
             y[n + 1] = (volumeGradient_.array() * u.array()).sum() / vNorm_;
@@ -264,14 +268,19 @@ private:
     Vertices single(const Vertices& f) const {
         if (!dense_) return ops_.singleLayer(f);
         Vertices y(3, f.cols());
-        Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Sd_ * Eigen::Map<const VectorXd>(f.data(), f.size());
+        Sd_.multiply(f.data(), y.data());
         return y;
     }
-    Vertices doubleLayer(const Vertices& u) const {
-        if (!dense_) return ops_.doubleLayer(u);
-        Vertices y(3, u.cols());
-        Eigen::Map<VectorXd>(y.data(), y.size()).noalias() = Dd_ * Eigen::Map<const VectorXd>(u.data(), u.size());
-        return y;
+    /// S f and, unless k = 0 (lambda = 1), D u: dense products or one fused matrix-free pass.
+    void layers(const Vertices& f, const Vertices& u, Vertices& Sf, Vertices& Du) const {
+        if (k_ == 0.0) {
+            Sf = single(f);
+            return;
+        }
+        if (!dense_) return ops_.layers(f, u, Sf, Du);
+        Sf = single(f);
+        Du.resize(3, u.cols());
+        Dd_.multiply(u.data(), Du.data());
     }
     /// Nodal force of the implicit terms, -(Gamma u + alpha H u).
     Vertices implicitForce(const Vertices& u) const {
@@ -289,7 +298,7 @@ private:
     /// Self-block of the single layer at vertex i: from the dense matrix, or the integral over a
     /// flat disc of the star's area with a hat density, pi rho (3/2 I - 1/2 n n^T).
     Eigen::Matrix3d selfBlock(Index i) const {
-        if (dense_) return Sd_.block<3, 3>(3 * i, 3 * i);
+        if (dense_) return Sd_.block(i, i);
         const double rho = std::sqrt(3.0 * ops_.vertexAreas()[i] / kPi);
         const Eigen::Vector3d nrm = ops_.vertexNormals().col(i);
         return kPi * rho * (1.5 * Eigen::Matrix3d::Identity() - 0.5 * nrm * nrm.transpose());
@@ -341,7 +350,7 @@ private:
     double c_ = 0.0, k_ = 0.0;
     VectorXd invArea_;
     bool dense_ = false;
-    Eigen::MatrixXd Sd_, Dd_;
+    SymmetricBlockMatrix Sd_, Dd_;
     mutable Vertices gp_, gm_;
     double area_ = 0.0, volume_ = 0.0, gNorm_ = 1.0, vNorm_ = 1.0, wNorm_ = 1.0;
     Vertices areaGradient_, volumeGradient_, w_, normals_;
@@ -405,8 +414,8 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
         d += fmt::format("{:a},", v);
     for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
                    long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),
-                   long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints), long(initial.cols()),
-                   long(model.faces().cols())})
+                   long(q.farRule), long(q.farPoints), long(q.nearSubdivisions), long(q.singularPoints),
+                   long(initial.cols()), long(model.faces().cols())})
         d += fmt::format("{},", v);
     std::uint64_t h = fnv1a(d);
     h = fnv1a(std::string_view(reinterpret_cast<const char*>(model.faces().data()),

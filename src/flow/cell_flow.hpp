@@ -157,7 +157,10 @@ struct CellFlowOptions {
     double gmresTolerance = 1e-6;    ///< relative true residual of the coupled system
     int gmresRestart = 100, gmresMaxIterations = 1000;
     OperatorMode operators = OperatorMode::Auto;  ///< dense when 3 Nv <= denseLimit
-    Eigen::Index denseLimit = 4000;
+    /// A step costs one dense assembly plus two block products per GMRES iteration, or one fused
+    /// far pass per iteration: the dense form wins at level 2 (3 Nv = 486; the fused pass is 5 %
+    /// slower per rotation), the fused pass from level 3 on (13 % faster; docs/FLOW.md).
+    Eigen::Index denseLimit = 1000;
     QuadratureOptions quadrature;
     double maxDrift = 0.05;          ///< |A/A0 - 1| or |V/V0 - 1| beyond this: diverged
     bool preconditioner = true;      ///< right preconditioner P = I + c B M^-1 Gamma (cell_flow.cpp)
