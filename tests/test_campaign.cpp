@@ -314,7 +314,7 @@ TEST(CampaignRunner, EquilibriumSymmetryIsASettingThatOldCampaignsResumeWith) {
     const auto settings = nlohmann::json::parse(std::ifstream(lowest / "campaign.json")).at("settings");
     EXPECT_EQ(settings.at("equilibrium_symmetry"), "lowest");
     EXPECT_EQ(settings.at("equilibrium_seed"), ExperimentOptions{}.kicks.seed);
-    EXPECT_EQ(settings.at("equilibrium_kicks"), 3);
+    EXPECT_EQ(settings.at("equilibrium_kicks"), ExperimentOptions{}.kicks.perRound);
     const CliRun otherSeed = runTrbc(base + "--resume --equilibrium-seed 1 --out " + shellQuote(lowest.string()), tmp.path());
     EXPECT_EQ(otherSeed.status, 2);
     EXPECT_NE(otherSeed.err.find("equilibrium_seed"), std::string::npos) << otherSeed.err;

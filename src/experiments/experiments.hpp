@@ -39,9 +39,10 @@ const char* equilibriumSymmetryName(EquilibriumSymmetry s);
 EquilibriumSymmetry equilibriumSymmetryFromName(const std::string& name, const std::string& option);
 
 /// The kicks of EquilibriumSymmetry::Lowest: in each round, `perRound` shapes = the lowest state so far plus
-/// the thermal l = 2, 3 undulation of stream (seed, round, kick) (experiments/thermal_undulations.hpp) at
-/// `temperatureK`, each minimised without restriction; a state lower by more than kT replaces it and
-/// starts the next round, and the search stops after a round without one (or after maxRounds).
+/// min(k, 3) times the thermal l = 2, 3 undulation of stream (seed, round, k), k = 1..perRound
+/// (experiments/thermal_undulations.hpp, at `temperatureK`), each minimised without restriction; a state
+/// lower by more than kT replaces it and starts the next round, and the search stops after a round
+/// without one (or after maxRounds).
 struct EquilibriumKicks {
     std::uint64_t seed = 20261127;
     int perRound = 3;
