@@ -91,7 +91,8 @@ def write_rows(path, rows):
 def plot(rows, figure, level):
     vs = sorted({k[0] for k in rows})
     fvks = sorted({k[1] for k in rows})
-    fig, axes = plt.subplots(1, 4, figsize=(19, 4.6))
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
+    axes = axes.ravel()
     cmap = plt.get_cmap("viridis")
     for i, fvk in enumerate(fvks):
         color = cmap(i / max(1, len(fvks) - 1))
