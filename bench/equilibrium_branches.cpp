@@ -29,10 +29,11 @@ int main(int argc, char** argv) {
                 p.b2 = b2;
                 ExperimentOptions opt;
                 opt.level = level;
+                opt.equilibriumSymmetry = EquilibriumSymmetry::Inversion;
                 const CellMeshes m = cellMeshes(stressFreeState(v, level, "", opt.sfs));
                 const EquilibriumResult sym = runEquilibrium(p, m, opt);
                 ExperimentOptions free = opt;
-                free.symmetricEquilibrium = false;
+                free.equilibriumSymmetry = EquilibriumSymmetry::None;
                 const EquilibriumResult unr = runEquilibrium(p, m, free);
                 const MembraneModel model(m.faces, m.reference.cols(), experimentMembrane(p), &m.reference);
                 std::mt19937 rng(1);

@@ -303,14 +303,32 @@ TEST(CampaignRunner, CellTimeLimitFailsRowsWithTheReason) {
 }
 
 // The equilibrium's symmetry (docs/FORWARD_MODEL.md "Two equilibria near v = 1") is part of the
-// settings: campaigns made before it (no key) resume only with --equilibrium-symmetry none, and a
-// campaign of one kind never continues with the other.
+// settings: the default (lowest) records its seed and kicks; campaigns of the symmetric disc resume
+// only with --equilibrium-symmetry inversion, those made before the option (no key) only with none,
+// and a campaign of one kind never continues with another.
 TEST(CampaignRunner, EquilibriumSymmetryIsASettingThatOldCampaignsResumeWith) {
     TempDir tmp;
     const std::string base = "campaign --samples 4 --forces-per-cell 2 --level 2 --seed 5 --no-cache ";
-    const fs::path sym = tmp.path() / "sym", old = tmp.path() / "old";
-    ASSERT_EQ(runTrbc(base + "--out " + shellQuote(sym.string()), tmp.path()).status, 0);
-    EXPECT_EQ(nlohmann::json::parse(std::ifstream(sym / "campaign.json")).at("settings").at("equilibrium_symmetry"), "inversion");
+    const fs::path lowest = tmp.path() / "lowest", sym = tmp.path() / "sym", old = tmp.path() / "old";
+    ASSERT_EQ(runTrbc(base + "--out " + shellQuote(lowest.string()), tmp.path()).status, 0);
+    const auto settings = nlohmann::json::parse(std::ifstream(lowest / "campaign.json")).at("settings");
+    EXPECT_EQ(settings.at("equilibrium_symmetry"), "lowest");
+    EXPECT_EQ(settings.at("equilibrium_seed"), ExperimentOptions{}.kicks.seed);
+    EXPECT_EQ(settings.at("equilibrium_kicks"), ExperimentOptions{}.kicks.perRound);
+    const CliRun otherSeed = runTrbc(base + "--resume --equilibrium-seed 1 --out " + shellQuote(lowest.string()), tmp.path());
+    EXPECT_EQ(otherSeed.status, 2);
+    EXPECT_NE(otherSeed.err.find("equilibrium_seed"), std::string::npos) << otherSeed.err;
+
+    ASSERT_EQ(runTrbc(base + "--equilibrium-symmetry inversion --out " + shellQuote(sym.string()), tmp.path()).status, 0);
+    const auto symSettings = nlohmann::json::parse(std::ifstream(sym / "campaign.json")).at("settings");
+    EXPECT_EQ(symSettings.at("equilibrium_symmetry"), "inversion");
+    EXPECT_FALSE(symSettings.contains("equilibrium_seed"));
+    const CliRun symRefused = runTrbc(base + "--resume --out " + shellQuote(sym.string()), tmp.path());
+    EXPECT_EQ(symRefused.status, 2);
+    EXPECT_NE(symRefused.err.find("equilibrium_symmetry"), std::string::npos) << symRefused.err;
+    const CliRun symResumed = runTrbc(base + "--resume --equilibrium-symmetry inversion --out " + shellQuote(sym.string()), tmp.path());
+    EXPECT_EQ(symResumed.status, 0) << symResumed.err;
+
     const CliRun none = runTrbc(base + "--equilibrium-symmetry none --out " + shellQuote(old.string()), tmp.path());
     ASSERT_EQ(none.status, 0) << none.err;
     EXPECT_FALSE(nlohmann::json::parse(std::ifstream(old / "campaign.json")).at("settings").contains("equilibrium_symmetry"));
@@ -321,6 +339,9 @@ TEST(CampaignRunner, EquilibriumSymmetryIsASettingThatOldCampaignsResumeWith) {
     const CliRun bad = runTrbc(base + "--equilibrium-symmetry mirror --out " + shellQuote((tmp.path() / "bad").string()), tmp.path());
     EXPECT_NE(bad.status, 0);
     EXPECT_NE(bad.err.find("--equilibrium-symmetry"), std::string::npos) << bad.err;
+    const CliRun badKicks = runTrbc(base + "--equilibrium-kicks 0 --out " + shellQuote((tmp.path() / "bad").string()), tmp.path());
+    EXPECT_EQ(badKicks.status, 2);
+    EXPECT_NE(badKicks.err.find("--equilibrium-kicks"), std::string::npos) << badKicks.err;
 }
 
 // A cell is taken whole from one part file: a run killed mid-write and resumed by other ranks can

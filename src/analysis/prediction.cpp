@@ -569,7 +569,7 @@ std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& pos
                 CellParameters p;
                 p.v = s.values(0, k), p.mu = s.values(1, k), p.FvK = fvkFromModuli(p.mu, s.values(2, k) / kJoulePerKbUnit), p.b2 = s.values(3, k);
                 const SampleResult r = runSample(p, 0.0, {true, false, false}, opt);
-                const CellMeshes meshes = cellMeshes(r.sfs, opt.symmetricEquilibrium);
+                const CellMeshes meshes = cellMeshes(r.sfs, usesSymmetricReference(opt.equilibriumSymmetry));
                 const std::vector<StretchPoint> pts = runStretching(p, meshes, r.equilibrium.shape, forces, opt);
                 for (std::size_t i = 0; i < pts.size() && i < forces.size(); ++i) {
                     rows[0].surrogate.push_back(f[i](0, k)), rows[0].direct.push_back(pts[i].observables.D0);

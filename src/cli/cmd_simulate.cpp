@@ -153,7 +153,8 @@ nlohmann::json simulateProvenance(const SimulateCommandOptions& o, const Experim
             {"vertices", 10 * (1 << (2 * o.level)) + 2}, {"sfs_model_version", kSfsModelVersion},
             {"threads", o.threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
             {"preconditioner", eo.multigrid ? "multigrid" : "none"},
-            {"equilibrium_symmetry", eo.symmetricEquilibrium ? "inversion" : "none"}};
+            {"equilibrium_symmetry", equilibriumSymmetryName(eo.equilibriumSymmetry)},
+            {"equilibrium_seed", eo.kicks.seed}, {"equilibrium_kicks", eo.kicks.perRound}};
 }
 
 void runSimulate(const SimulateCommandOptions& o) {

@@ -220,13 +220,24 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
         ->check(CLI::IsMember({"multigrid", "none"}))
         ->default_str("multigrid");
     cmd->add_option_function<std::string>(
-           "--equilibrium-symmetry", [&e](const std::string& a) { e.symmetricEquilibrium = a == "inversion"; },
-           "equilibrium shape: minimised within the centrally symmetric shapes of the biconcave start (inversion: "
-           "the disc that the equilibrium's dynamics reaches, also for a near-spherical SFS) or unrestricted (none: disc or "
-           "undimpled cup near v = 1 depending on the solver's path); "
-           "docs/FORWARD_MODEL.md")
-        ->check(CLI::IsMember({"inversion", "none"}))
-        ->default_str("inversion");
+           "--equilibrium-symmetry",
+           [&e](const std::string& a) { e.equilibriumSymmetry = equilibriumSymmetryFromName(a, "--equilibrium-symmetry"); },
+           "equilibrium shape: the lowest-energy state of the centrally symmetric disc and the unrestricted minima "
+           "reached from seeded thermal kicks of it (lowest), the disc alone, minimised within the centrally "
+           "symmetric shapes of the biconcave start (inversion), or one unrestricted minimisation (none: disc or "
+           "undimpled cup near v = 1 depending on the solver's path); docs/FORWARD_MODEL.md")
+        ->check(CLI::IsMember({equilibriumSymmetryName(EquilibriumSymmetry::Lowest),
+                               equilibriumSymmetryName(EquilibriumSymmetry::Inversion),
+                               equilibriumSymmetryName(EquilibriumSymmetry::None)}))
+        ->default_str(equilibriumSymmetryName(EquilibriumSymmetry::Lowest));
+    addNumber(cmd, "--equilibrium-seed", e.kicks.seed,
+              "seed of the thermal kicks of --equilibrium-symmetry lowest (kick k of round r draws stream (seed, r, k))",
+              NumberRange::nonNegative())
+        ->capture_default_str();
+    addNumber(cmd, "--equilibrium-kicks", e.kicks.perRound,
+              "kicks per round of --equilibrium-symmetry lowest (rounds continue while one reaches a state lower by > kT)",
+              NumberRange::closed(1, 100))
+        ->capture_default_str();
     cmd->add_option_function<std::string>(
            "--in-plane-axis",
            [&e](const std::string& a) {

@@ -9,6 +9,7 @@
 
 #include "core/clock.hpp"
 #include "core/error.hpp"
+#include "core/random.hpp"
 #include "membrane/model.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
@@ -102,20 +103,113 @@ Vertices largestVarianceOrientation(const Vertices& aligned) {
     return flipped;
 }
 
-// ExperimentOptions::symmetricEquilibrium restricts the minimisation to centrally symmetric shapes,
-// which is exact only for an energy invariant under the inversion, i.e. a symmetric Lim reference.
-const std::vector<Eigen::Index>* equilibriumSymmetry(const CellMeshes& m, const ExperimentOptions& opt) {
-    if (!opt.symmetricEquilibrium) return nullptr;
+// EquilibriumSymmetry::Inversion (and the symmetric start of Lowest) restricts the minimisation to
+// centrally symmetric shapes, which is exact only for an energy invariant under the inversion, i.e. a
+// symmetric Lim reference.
+const std::vector<Eigen::Index>& equilibriumSymmetry(const CellMeshes& m) {
     if (m.inversionPartners.size() != static_cast<size_t>(m.reference.cols()))
         throw NumericalError("symmetric equilibrium: the mesh is not centrally symmetric (no inversion partners)");
     const double asym = inversionAsymmetry(m.reference, m.inversionPartners);
     if (asym > 1e-12)
         throw NumericalError(fmt::format("symmetric equilibrium: the Lim reference is not centrally symmetric "
                                          "(|x_i + x_j| up to {:.3g} of its size)", asym));
-    return &m.inversionPartners;
+    return m.inversionPartners;
+}
+
+// The equilibrium's minimisations share the model, the stopping rule (from the biconcave start's
+// edge length) and the H0.
+struct EquilibriumProblem {
+    const CellMeshes& meshes;
+    const MembraneModel& model;
+    const MinimizeOptions& options;
+    const Preconditioner* h0;
+};
+
+EquilibriumCandidate minimizeCandidate(const EquilibriumProblem& e, Vertices& X, const std::vector<Eigen::Index>* symmetry,
+                                       MinimizeResult& r) {
+    const auto t0 = SteadyClock::now();
+    r = minimizeEnergy(e.model, X, e.options, nullptr, kCellConstraint, e.h0, symmetry);
+    EquilibriumCandidate c;
+    c.converged = r.converged;
+    c.energy = r.energy;
+    c.evaluations = r.evaluations;
+    c.hmin = equilibriumObservables(alignPrincipalAxes(X), e.meshes.faces).hmin;
+    if (e.meshes.inversionPartners.size() == static_cast<size_t>(X.cols()))
+        c.asymmetry = inversionAsymmetry(X, e.meshes.inversionPartners);
+    c.wallSeconds = secondsSince(t0);
+    return c;
+}
+
+struct EquilibriumState {
+    Vertices X;
+    MinimizeResult result;
+};
+
+constexpr int kMinKickIterations = 1000, kKickIterationFactor = 20;
+
+// Kick k of a round is min(k, 3) times the thermal field: near the switch to the cup the
+// field itself (1 sigma) returns to the disc where 2 and 3 sigma reach the cup (level 4, v 0.99, FvK 122:
+// 0 / 3 / 4 of 6 seeds), while 4 sigma of a soft membrane (FvK 1000, 0.6 um rms) crumples the shape
+// (40,737 evaluations without converging at level 3, v 0.96).
+double kickScale(int kick) { return std::min(kick, 3); }
+
+// EquilibriumSymmetry::Lowest after the symmetric minimum `best`: rounds of thermal kicks
+// (EquilibriumKicks). Only a state lower by more than kT counts as lower: states closer than kT are
+// equally populated, and the margin keeps a kick that returns to `best` within the solver's tolerance
+// from replacing it.
+EquilibriumState lowestAfterKicks(const CellParameters& p, const EquilibriumProblem& e, EquilibriumState best,
+                                  const ExperimentOptions& opt, EquilibriumResult& res) {
+    const double kT = thermalEnergy(opt.kicks.temperatureK);
+    const double radius = std::sqrt(cell::radiusSquared);
+    res.kickRms = undulationRms(radius, kT, p.kbPnUm());
+    // A kick gets kKickIterationFactor times the symmetric minimisation's iterations (at least
+    // kMinKickIterations): the large kicks of a soft membrane can crumple the shape into a state that
+    // takes tens of thousands of iterations to unfold; such a kick is dropped instead.
+    MinimizeOptions kickOptions = e.options;
+    kickOptions.maxIterations =
+        std::min(e.options.maxIterations, std::max(kMinKickIterations, kKickIterationFactor * best.result.iterations));
+    const EquilibriumProblem kicked{e.meshes, e.model, kickOptions, e.h0};
+    for (int round = 1; round <= opt.kicks.maxRounds; ++round) {
+        std::optional<EquilibriumState> lower;
+        for (int kick = 1; kick <= opt.kicks.perRound; ++kick) {
+            Rng rng(opt.kicks.seed, static_cast<std::uint64_t>(round), static_cast<std::uint64_t>(kick));
+            EquilibriumState s{best.X + kickScale(kick) * thermalUndulation(best.X, radius, kT, p.kbPnUm(), rng), {}};
+            EquilibriumCandidate c = minimizeCandidate(kicked, s.X, nullptr, s.result);
+            c.start = "kick";
+            c.round = round;
+            c.kick = kick;
+            res.candidates.push_back(c);
+            if (!s.result.converged) {
+                // A kick that exhausts the iterations is no candidate; one stopped by the deadline stops the sample.
+                if (deadlinePassed(opt.deadline)) requireConverged(staticDiagnostics(s.result, SteadyClock::now()), "equilibrium shape");
+                continue;
+            }
+            const double bar = lower ? lower->result.energy : best.result.energy - kT;
+            if (s.result.energy < bar) lower = std::move(s);
+        }
+        if (!lower) break;
+        best = std::move(*lower);
+        res.branch = "kicked";
+    }
+    return best;
 }
 
 }  // namespace
+
+const char* equilibriumSymmetryName(EquilibriumSymmetry s) {
+    switch (s) {
+        case EquilibriumSymmetry::Inversion: return "inversion";
+        case EquilibriumSymmetry::None: return "none";
+        case EquilibriumSymmetry::Lowest: break;
+    }
+    return "lowest";
+}
+
+EquilibriumSymmetry equilibriumSymmetryFromName(const std::string& name, const std::string& option) {
+    for (EquilibriumSymmetry s : {EquilibriumSymmetry::Lowest, EquilibriumSymmetry::Inversion, EquilibriumSymmetry::None})
+        if (name == equilibriumSymmetryName(s)) return s;
+    throw InputError(fmt::format("{}: '{}' is not one of lowest, inversion, none", option, name));
+}
 
 const char* inPlaneAxisName(InPlaneAxis a) {
     return a == InPlaneAxis::LargestVariance ? "largest-variance" : "farthest-vertex";
@@ -144,14 +238,26 @@ EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& mesh
     const auto t0 = SteadyClock::now();
     const MembraneModel model(meshes.faces, meshes.reference.cols(), experimentMembrane(p), &meshes.reference);
     EquilibriumResult res;
-    Vertices X = meshes.initial;
-    const auto mg = cellMultigrid(p, model, X, opt);
+    const auto mg = cellMultigrid(p, model, meshes.initial, opt);
     const Preconditioner pre = asPreconditioner(mg);
-    const MinimizeResult r = minimizeEnergy(model, X, staticOptions(p, model, X, opt), nullptr, kCellConstraint,
-                                            pre ? &pre : nullptr, equilibriumSymmetry(meshes, opt));
-    res.diagnostics = staticDiagnostics(r, t0);
-    requireConverged(res.diagnostics, "equilibrium shape");
-    const Vertices aligned = alignPrincipalAxes(X);
+    const MinimizeOptions mo = staticOptions(p, model, meshes.initial, opt);
+    const EquilibriumProblem problem{meshes, model, mo, pre ? &pre : nullptr};
+    const bool symmetric = opt.equilibriumSymmetry != EquilibriumSymmetry::None;
+    EquilibriumState state{meshes.initial, {}};
+    EquilibriumCandidate first = minimizeCandidate(problem, state.X, symmetric ? &equilibriumSymmetry(meshes) : nullptr, state.result);
+    first.start = "biconcave";
+    res.candidates.push_back(first);
+    requireConverged(staticDiagnostics(state.result, t0), "equilibrium shape");
+    res.branch = symmetric ? "symmetric" : "unrestricted";
+    const double symmetricEnergy = state.result.energy;
+    if (opt.equilibriumSymmetry == EquilibriumSymmetry::Lowest) {
+        state = lowestAfterKicks(p, problem, std::move(state), opt, res);
+        res.energyGap = symmetricEnergy - state.result.energy;
+    }
+    res.diagnostics = staticDiagnostics(state.result, t0);
+    res.diagnostics.evaluations = 0;
+    for (const EquilibriumCandidate& c : res.candidates) res.diagnostics.evaluations += c.evaluations;
+    const Vertices aligned = alignPrincipalAxes(state.X);
     res.shape = opt.inPlaneAxis == InPlaneAxis::LargestVariance ? largestVarianceOrientation(aligned)
                                                                 : canonicalInPlaneOrientation(aligned);
     res.observables = equilibriumObservables(res.shape, meshes.faces, &res.profile);
@@ -323,7 +429,7 @@ SampleResult runSample(const CellParameters& p, double fext, const ExperimentSet
     stage(fmt::format("stress-free state (v = {:g}, level {})", p.v, opt.level));
     s.sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
     if (!which.equilibrium && !which.stretching && !which.relaxation) return s;
-    const CellMeshes meshes = cellMeshes(s.sfs, opt.symmetricEquilibrium);
+    const CellMeshes meshes = cellMeshes(s.sfs, usesSymmetricReference(opt.equilibriumSymmetry));
     stage("equilibrium shape");
     s.equilibrium = runEquilibrium(p, meshes, opt);
     if (which.stretching) {

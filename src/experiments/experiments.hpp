@@ -6,6 +6,7 @@
 // membrane-viscous dynamics with adaptive variational BDF2 steps.
 #include <Eigen/Core>
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -15,6 +16,7 @@
 #include "experiments/observables.hpp"
 #include "experiments/parameters.hpp"
 #include "experiments/sfs.hpp"
+#include "experiments/thermal_undulations.hpp"
 #include "mesh/mesh.hpp"
 
 namespace trbc {
@@ -23,6 +25,30 @@ namespace trbc {
 /// docs/FORWARD_MODEL.md "In-plane orientation"): the axis through the vertex farthest from the
 /// symmetry axis (forward-model revision 2, the default), or the alignment's axis of largest in-plane variance.
 enum class InPlaneAxis { FarthestVertex, LargestVariance };
+
+/// How the equilibrium shape is found (docs/FORWARD_MODEL.md "Two equilibria near v = 1"):
+/// Lowest: the lowest-energy of the centrally symmetric minimum reached from the biconcave start and
+/// the unrestricted minima reached from seeded thermal kicks of it (EquilibriumKicks); Inversion: that
+/// symmetric minimum alone, the dimpled disc; None: one unrestricted minimisation from the biconcave
+/// start (near v = 1 disc or undimpled cup depending on the solver's path).
+enum class EquilibriumSymmetry { Lowest, Inversion, None };
+
+/// "lowest", "inversion", "none" (CLI, Python and campaign.json spelling).
+const char* equilibriumSymmetryName(EquilibriumSymmetry s);
+/// The mode of a name; throws InputError naming `option` and the valid names otherwise.
+EquilibriumSymmetry equilibriumSymmetryFromName(const std::string& name, const std::string& option);
+
+/// The kicks of EquilibriumSymmetry::Lowest: in each round, `perRound` shapes = the lowest state so far plus
+/// min(k, 3) times the thermal l = 2, 3 undulation of stream (seed, round, k), k = 1..perRound
+/// (experiments/thermal_undulations.hpp, at `temperatureK`), each minimised without restriction; a state
+/// lower by more than kT replaces it and starts the next round, and the search stops after a round
+/// without one (or after maxRounds).
+struct EquilibriumKicks {
+    std::uint64_t seed = 20261127;
+    int perRound = 3;
+    int maxRounds = 5;
+    double temperatureK = kBodyTemperatureK;
+};
 
 struct ExperimentOptions {
     int level = 4;                       ///< icosphere level of every mesh (Nv = 10 4^L + 2)
@@ -49,12 +75,11 @@ struct ExperimentOptions {
     /// stiffness 0.05 mu I + mu L + kb/l0^2 L^2 on the icosphere hierarchy (solvers/multigrid.hpp);
     /// false: the plain scaled-identity H0 (forward-model revision 2 and earlier).
     bool multigrid = true;
-    /// Equilibrium: minimise within the centrally symmetric shapes (x -> -x) of the biconcave
-    /// start, i.e. reach the disc that the equilibrium's dynamics from that start reaches, whatever the solver's
-    /// steps; false: unrestricted (a near-spherical SFS then ends in the disc or in an undimpled
-    /// cup depending on the solver's path). docs/FORWARD_MODEL.md
-    /// "Two equilibria near v = 1".
-    bool symmetricEquilibrium = true;
+    /// Equilibrium (docs/FORWARD_MODEL.md "Two equilibria near v = 1", "The lowest-energy equilibrium"):
+    /// the lowest-energy state found from the symmetric disc and seeded thermal kicks of it (default),
+    /// the disc alone (minimised within the centrally symmetric shapes), or one unrestricted minimisation.
+    EquilibriumSymmetry equilibriumSymmetry = EquilibriumSymmetry::Lowest;
+    EquilibriumKicks kicks;
     std::filesystem::path cacheDir;      ///< SFS cache (empty: no cache)
     SfsOptions sfs;
     /// Equilibrium, stretching and the relaxation's inner solves stop, not converged, after this
@@ -85,7 +110,7 @@ struct SolverDiagnostics {
 
 /// The experiments' mesh data for one sample: Lim reference (SFS rescaled to A0) and the
 /// equilibrium's initial shape (Evans-Fung map of the icosphere about the SFS material axis z).
-/// With `symmetricReference` (ExperimentOptions::symmetricEquilibrium) the reference is the SFS's
+/// With `symmetricReference` (every EquilibriumSymmetry but None) the reference is the SFS's
 /// centrally symmetric part (the SFS minimiser keeps the symmetry to its tolerance).
 struct CellMeshes {
     Faces faces;
@@ -94,12 +119,35 @@ struct CellMeshes {
     std::vector<Eigen::Index> inversionPartners;  ///< of the icosphere (inversionPartners)
 };
 CellMeshes cellMeshes(const StressFreeState& sfs, bool symmetricReference = true);
+/// Whether a mode uses the SFS's symmetric part as reference (all but None, which keeps the raw SFS).
+inline bool usesSymmetricReference(EquilibriumSymmetry s) { return s != EquilibriumSymmetry::None; }
+
+/// One minimisation of the equilibrium search (EquilibriumResult::candidates).
+struct EquilibriumCandidate {
+    /// "biconcave": from the Evans-Fung start (restricted to the centrally symmetric shapes unless
+    /// EquilibriumSymmetry::None); "kick": from the lowest state of the previous round plus a thermal kick.
+    std::string start;
+    int round = 0, kick = 0;   ///< the kick's stream (seed, round, kick); 0 for the biconcave start
+    bool converged = false;
+    double energy = 0.0;       ///< pN um
+    double hmin = 0.0;         ///< um
+    double asymmetry = 0.0;    ///< inversionAsymmetry of the minimised shape (0: centrally symmetric)
+    int evaluations = 0;
+    double wallSeconds = 0.0;
+};
 
 struct EquilibriumResult {
     EquilibriumObservables observables;  ///< um
     Vertices shape;                      ///< aligned (alignment), um
     ThicknessProfile profile;
+    /// force evaluations and wall time of all candidates together; the rest of the chosen one
     SolverDiagnostics diagnostics;
+    /// "symmetric" (the centrally symmetric disc), "kicked" (a lower state reached from a kick) or
+    /// "unrestricted" (EquilibriumSymmetry::None).
+    std::string branch;
+    double energyGap = 0.0;    ///< pN um: energy of the symmetric disc minus that of the chosen state
+    double kickRms = 0.0;      ///< um: radial rms of the kicks (undulationRms), 0 without kicks
+    std::vector<EquilibriumCandidate> candidates;
 };
 EquilibriumResult runEquilibrium(const CellParameters& p, const CellMeshes& meshes, const ExperimentOptions& opt);
 

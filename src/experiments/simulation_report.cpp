@@ -39,6 +39,19 @@ nlohmann::json staticSolverJson(const SolverDiagnostics& d) {
             {"message", d.message}};
 }
 
+nlohmann::json equilibriumBranchJson(const EquilibriumResult& e) {
+    nlohmann::json candidates = nlohmann::json::array();
+    for (const EquilibriumCandidate& c : e.candidates)
+        candidates.push_back({{"start", c.start}, {"round", c.round}, {"kick", c.kick}, {"converged", c.converged},
+                              {"energy_J", c.energy / cell::joule}, {"hmin_um", c.hmin}, {"inversion_asymmetry", c.asymmetry},
+                              {"force_evaluations", c.evaluations}, {"wall_s", c.wallSeconds}});
+    const bool kicked = e.kickRms > 0.0;
+    return {{"branch", e.branch},
+            {"energy_gap_J", kicked ? nlohmann::json(e.energyGap / cell::joule) : nlohmann::json(nullptr)},
+            {"kick_rms_um", kicked ? nlohmann::json(e.kickRms) : nlohmann::json(nullptr)},
+            {"candidates", candidates}};
+}
+
 ExperimentSet parseExperimentSet(const std::vector<std::string>& names, const std::string& option) {
     ExperimentSet s{false, false, false};
     for (const std::string& item : names) {
@@ -108,6 +121,7 @@ nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level,
     obs["hmin_um"] = s.equilibrium.observables.hmin;
     obs["hmax_um"] = s.equilibrium.observables.hmax;
     diag["equilibrium"] = staticSolverJson(s.equilibrium.diagnostics);
+    diag["equilibrium"].update(equilibriumBranchJson(s.equilibrium));
     diag["equilibrium"]["reference_protocol_steps"] = ref.equilibrium;
     evaluations += s.equilibrium.diagnostics.evaluations;
     refSteps += ref.equilibrium;

@@ -14,6 +14,9 @@ namespace trbc {
 nlohmann::json sfsJson(const StressFreeState& s);
 /// Diagnostics of a static state (equilibrium, stretching): pN, pN/um, Pa, J, s.
 nlohmann::json staticSolverJson(const SolverDiagnostics& d);
+/// How the equilibrium was chosen: branch, energy_gap_J (symmetric disc minus chosen; null without
+/// kicks), kick_rms_um and the candidates (start, round, kick, energy_J, hmin_um, ...).
+nlohmann::json equilibriumBranchJson(const EquilibriumResult& e);
 
 /// The experiments named in `names` (eq, stretch, relax); the equilibrium is always run because
 /// stretching and relaxation start from it. InputError "<option>: unknown experiment ..." otherwise.

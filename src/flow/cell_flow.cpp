@@ -707,6 +707,11 @@ ShearCell prepareShearCell(const CellParameters& p, int level, const std::filesy
     ExperimentOptions eo;
     eo.level = level;
     eo.cacheDir = cacheDir;
+    // The symmetric disc, as in the flow validations (docs/VALIDATION_RESULTS.md): on the 42-vertex
+    // mesh of level 1 (the flow tests) the kicks of the lowest-energy equilibrium find an asymmetric
+    // state of the coarse mesh (thickness 3.63 um against the disc's 2.92 um at the Table-1 cell), while at
+    // levels 2 and 3 that cell's lowest state is the disc itself, vertex for vertex.
+    eo.equilibriumSymmetry = EquilibriumSymmetry::Inversion;
     const EquilibriumResult eq = runEquilibrium(p, meshes, eo);
     c.faces = meshes.faces;
     c.reference = meshes.reference;

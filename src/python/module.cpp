@@ -249,7 +249,8 @@ Mesh meshOf(const Vertices& X, const Faces& F) { return Mesh{X, F}; }
 py::dict simulate(double v, double mu, std::optional<double> FvK, std::optional<double> kbJ, double b2, double etam, double fext,
                   int level, const std::vector<std::string>& experiments, const std::vector<double>& forceCurve,
                   bool allowOutside, int threads, bool cache, const std::optional<std::string>& cacheDir, bool overdamped,
-                  const std::string& inPlaneAxis) {
+                  const std::string& inPlaneAxis, const std::string& equilibriumSymmetry,
+                  std::optional<std::uint64_t> equilibriumSeed, std::optional<int> equilibriumKicks) {
     const CellParameters p = cellFromArguments(v, mu, FvK, kbJ, b2, etam, 0.0, 250.0);
     if (level < 2 || level > 6) throw InputError(fmt::format("level = {} is out of range [2, 6]", level));
     validateCellParameters(p, allowOutside);
@@ -264,6 +265,13 @@ py::dict simulate(double v, double mu, std::optional<double> FvK, std::optional<
         eo.inPlaneAxis = InPlaneAxis::LargestVariance;
     else if (inPlaneAxis != inPlaneAxisName(InPlaneAxis::FarthestVertex))
         throw InputError(fmt::format("in_plane_axis = '{}' is not one of farthest-vertex, largest-variance", inPlaneAxis));
+    eo.equilibriumSymmetry = equilibriumSymmetryFromName(equilibriumSymmetry, "equilibrium_symmetry");
+    if (equilibriumSeed) eo.kicks.seed = *equilibriumSeed;
+    if (equilibriumKicks) {
+        if (*equilibriumKicks < 1 || *equilibriumKicks > 100)
+            throw InputError(fmt::format("equilibrium_kicks = {} is out of range [1, 100]", *equilibriumKicks));
+        eo.kicks.perRound = *equilibriumKicks;
+    }
     eo.interruptCheck = interruptHook();
     eo.sfs.interruptCheck = eo.interruptCheck;
     if (threads < 1) throw InputError(fmt::format("threads = {} is out of range [1, 1024]", threads));
@@ -281,7 +289,8 @@ py::dict simulate(double v, double mu, std::optional<double> FvK, std::optional<
     j["provenance"] = {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"level", level},
                        {"vertices", 10 * (1 << (2 * level)) + 2}, {"sfs_model_version", kSfsModelVersion}, {"threads", threads},
                        {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)}, {"preconditioner", "multigrid"},
-                       {"equilibrium_symmetry", "inversion"}};
+                       {"equilibrium_symmetry", equilibriumSymmetryName(eo.equilibriumSymmetry)},
+                       {"equilibrium_seed", eo.kicks.seed}, {"equilibrium_kicks", eo.kicks.perRound}};
     py::dict out = jsonToPython(j).cast<py::dict>();
     // Shapes and curves (what `trbc simulate --save-shapes` writes), um and s.
     const Faces& F = s.sfs.mesh.F;
@@ -774,7 +783,7 @@ PYBIND11_MODULE(_core, m) {
           "A0"_a = py::none(), "kV"_a = 0.0, "V0"_a = py::none());
     m.def("simulate", &simulate, py::kw_only(), "v"_a, "mu_uN_per_m"_a, "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "Fext_pN"_a,
           "level"_a, "experiments"_a, "force_curve"_a, "allow_outside_prior"_a, "threads"_a, "cache"_a, "cache_dir"_a, "overdamped"_a,
-          "in_plane_axis"_a);
+          "in_plane_axis"_a, "equilibrium_symmetry"_a, "equilibrium_seed"_a, "equilibrium_kicks"_a);
     m.def("sfs", &stressFree, py::kw_only(), "v"_a, "level"_a, "tol"_a, "preconditioner"_a, "cache"_a, "cache_dir"_a);
 
     py::class_<Surrogate, std::shared_ptr<Surrogate>>(m, "Surrogate")

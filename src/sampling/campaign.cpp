@@ -52,8 +52,14 @@ nlohmann::json settingsJson(const CampaignOptions& o) {
     if (e.inPlaneAxis != InPlaneAxis::FarthestVertex) j["in_plane_axis"] = inPlaneAxisName(e.inPlaneAxis);
     // Campaigns made before the multigrid H0 existed have no key and resume with --preconditioner none.
     if (e.multigrid) j["preconditioner"] = "multigrid";
-    // Campaigns made before it existed have no key and resume with --equilibrium-symmetry none.
-    if (e.symmetricEquilibrium) j["equilibrium_symmetry"] = "inversion";
+    // Campaigns made before it existed have no key and resume with --equilibrium-symmetry none; those
+    // of the symmetric disc say "inversion" (and resume with --equilibrium-symmetry inversion).
+    if (e.equilibriumSymmetry != EquilibriumSymmetry::None)
+        j["equilibrium_symmetry"] = equilibriumSymmetryName(e.equilibriumSymmetry);
+    if (e.equilibriumSymmetry == EquilibriumSymmetry::Lowest) {
+        j["equilibrium_seed"] = e.kicks.seed;
+        j["equilibrium_kicks"] = e.kicks.perRound;
+    }
     // Decides which rows fail (and depends on the machine's speed), so a resume must keep it.
     if (o.cellTimeLimit > 0) j["cell_time_limit_s"] = o.cellTimeLimit;
     return j;
@@ -186,7 +192,7 @@ std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell,
     std::string stage = "stress-free state";
     try {
         const StressFreeState sfs = stressFreeState(p.v, opt.level, opt.cacheDir, opt.sfs);
-        const CellMeshes meshes = cellMeshes(sfs, opt.symmetricEquilibrium);
+        const CellMeshes meshes = cellMeshes(sfs, usesSymmetricReference(opt.equilibriumSymmetry));
         stage = "equilibrium";
         if (injectFailure) throw NumericalError("injected failure (--inject-failures)");
         const EquilibriumResult eq = runEquilibrium(p, meshes, opt);

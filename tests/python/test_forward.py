@@ -57,7 +57,8 @@ def test_sfs_gives_the_cli_mesh(tmp_path, run_cli, cache):
     (dict(v=1.2), "v"), (dict(mu_uN_per_m=-1.0), "mu_uN_per_m"), (dict(FvK=5.0), "FvK"), (dict(b2=9.0), "b2"),
     (dict(etam_Pa_s_um=3.0), "etam_Pa_s_um"), (dict(Fext_pN=500.0), "Fext_pN"), (dict(kb_J=-1e-19), "kb_J"),
     (dict(level=1), "level"), (dict(experiments=("eq", "shear")), "experiments"), (dict(FvK=200.0, kb_J=2e-19), "kb_J"),
-    (dict(in_plane_axis="diagonal"), "in_plane_axis"),
+    (dict(in_plane_axis="diagonal"), "in_plane_axis"), (dict(equilibrium_symmetry="mirror"), "equilibrium_symmetry"),
+    (dict(equilibrium_kicks=0), "equilibrium_kicks"),
 ])
 def test_simulate_bad_input_raises_value_error_naming_the_parameter(kwargs, name):
     with pytest.raises(ValueError, match=name):

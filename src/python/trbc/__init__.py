@@ -65,7 +65,8 @@ def simulate(v: float = 0.95, mu_uN_per_m: float = 4.0, FvK: Optional[float] = N
              experiments: Sequence[str] = ("eq", "stretch", "relax"), *, kb_J: Optional[float] = None,
              force_curve: Optional[Sequence[float]] = None, allow_outside_prior: bool = False, threads: int = 1,
              cache: bool = True, cache_dir: Optional[_PathLike] = None, overdamped: bool = False,
-             in_plane_axis: str = "farthest-vertex") -> dict:
+             in_plane_axis: str = "farthest-vertex", equilibrium_symmetry: str = "lowest",
+             equilibrium_seed: Optional[int] = None, equilibrium_kicks: Optional[int] = None) -> dict:
     """One forward-model sample, as `trbc simulate`: stress-free state, equilibrium shape,
     two-bead stretching at Fext_pN and relaxation (docs/FORWARD_MODEL.md).
 
@@ -74,7 +75,9 @@ def simulate(v: float = 0.95, mu_uN_per_m: float = 4.0, FvK: Optional[float] = N
     etam_Pa_s_um (Pa s um, [0.1, 1]), Fext_pN (pN per bead, [0, 200]); level: icosphere level of
     the meshes (2..6, Nv = 10 4^level + 2); experiments: subset of "eq", "stretch", "relax";
     force_curve: extra forces (pN) for a whole stretching curve. The SFS is cached on disk like the
-    CLI's ($TRBC_CACHE_DIR or ~/.cache/trbc; cache=False: none).
+    CLI's ($TRBC_CACHE_DIR or ~/.cache/trbc; cache=False: none). equilibrium_symmetry, equilibrium_seed,
+    equilibrium_kicks: as --equilibrium-symmetry (lowest, inversion, none), --equilibrium-seed and
+    --equilibrium-kicks of `trbc simulate` (None: the CLI's default).
 
     Returns the CLI's JSON object as a dict ("parameters", "observables" with D_um, hmin_um,
     hmax_um, D0_um, D1_um, tc_s (None for an experiment not run), "diagnostics",
@@ -91,7 +94,10 @@ def simulate(v: float = 0.95, mu_uN_per_m: float = 4.0, FvK: Optional[float] = N
                           Fext_pN=float(Fext_pN), level=int(level), experiments=list(experiments),
                           force_curve=[float(f) for f in (force_curve or [])], allow_outside_prior=bool(allow_outside_prior),
                           threads=int(threads), cache=bool(cache), cache_dir=None if cache_dir is None else str(cache_dir),
-                          overdamped=bool(overdamped), in_plane_axis=in_plane_axis)
+                          overdamped=bool(overdamped), in_plane_axis=in_plane_axis,
+                          equilibrium_symmetry=equilibrium_symmetry,
+                          equilibrium_seed=None if equilibrium_seed is None else int(equilibrium_seed),
+                          equilibrium_kicks=None if equilibrium_kicks is None else int(equilibrium_kicks))
 
 
 def sfs(v: float, level: int = 4, *, tol: float = 1e-5, preconditioner: str = "multigrid", cache: bool = True,
