@@ -21,11 +21,7 @@ using test::runShell;
 using test::runTrbc;
 using test::shellQuote;
 using test::TempDir;
-
-fs::path writeText(const fs::path& p, const std::string& text) {
-    std::ofstream(p) << text;
-    return p;
-}
+using test::writeText;
 
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 

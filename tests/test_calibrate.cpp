@@ -19,14 +19,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::TempDir;
+using test::writeText;
 
 const fs::path kExperiments = fs::path(TRBC_TEST_DATA) / ".." / ".." / "data" / "experiments";
-
-fs::path writeText(const fs::path& p, const std::string& text) {
-    fs::create_directories(p.parent_path());
-    std::ofstream(p) << text;
-    return p;
-}
 
 /// The InputError message of reading `toml` as a configuration ("" when it is accepted).
 std::string configError(const TempDir& dir, const std::string& toml) {

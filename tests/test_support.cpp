@@ -75,6 +75,12 @@ TempDir::~TempDir() {
     fs::remove_all(path_, ec);
 }
 
+fs::path writeText(const fs::path& p, const std::string& text) {
+    if (p.has_parent_path()) fs::create_directories(p.parent_path());
+    std::ofstream(p) << text;
+    return p;
+}
+
 std::string slurp(const fs::path& p) {
     std::ifstream in(p, std::ios::binary);
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};

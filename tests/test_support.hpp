@@ -43,6 +43,8 @@ private:
 };
 
 std::string slurp(const std::filesystem::path& p);
+/// Writes `text` to `p` (parent folders created) and returns `p`.
+std::filesystem::path writeText(const std::filesystem::path& p, const std::string& text);
 std::string shellQuote(const std::string& s);
 
 struct CliRun {

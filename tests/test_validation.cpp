@@ -24,15 +24,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::TempDir;
+using test::writeText;
 
 const fs::path kRepo = fs::path(TRBC_TEST_DATA) / ".." / "..";
 const fs::path kExperiments = kRepo / "data" / "experiments";
-
-fs::path writeText(const fs::path& p, const std::string& text) {
-    fs::create_directories(p.parent_path());
-    std::ofstream(p) << text;
-    return p;
-}
 
 std::string configError(const TempDir& dir, const std::string& toml) {
     const fs::path file = writeText(dir.path() / "v.toml", toml);

@@ -27,15 +27,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::TempDir;
+using test::writeText;
 
 const fs::path kRepo = fs::path(TRBC_TEST_DATA) / ".." / "..";
 const fs::path kExperiments = kRepo / "data" / "experiments";
-
-fs::path writeText(const fs::path& p, const std::string& text) {
-    fs::create_directories(p.parent_path());
-    std::ofstream(p) << text;
-    return p;
-}
 
 /// A theta_new samples.csv of `rows` samples inside the prior box, each row distinct.
 fs::path writeFakePosterior(const fs::path& dir, int rows) {
