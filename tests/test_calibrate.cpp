@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 using test::TempDir;
 using test::writeText;
 
-const fs::path kExperiments = fs::path(TRBC_TEST_DATA) / ".." / ".." / "data" / "experiments";
+const fs::path kExperiments = test::experimentsDir();
 
 /// The InputError message of reading `toml` as a configuration ("" when it is accepted).
 std::string configError(const TempDir& dir, const std::string& toml) {

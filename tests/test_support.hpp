@@ -12,6 +12,9 @@ namespace trbc::test {
 
 inline std::string dataPath(const std::string& rel) { return std::string(TRBC_TEST_DATA) + "/" + rel; }
 inline std::string meshPath(const std::string& name) { return dataPath("meshes/" + name); }
+/// The source tree and its shipped experimental data.
+inline std::filesystem::path sourceRoot() { return std::filesystem::path(TRBC_TEST_DATA) / ".." / ".."; }
+inline std::filesystem::path experimentsDir() { return sourceRoot() / "data" / "experiments"; }
 
 /// Icosphere with every vertex moved by a uniform random offset of relative size `amplitude`
 /// (times the mean edge length), fixed seed.

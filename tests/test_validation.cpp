@@ -26,8 +26,8 @@ namespace fs = std::filesystem;
 using test::TempDir;
 using test::writeText;
 
-const fs::path kRepo = fs::path(TRBC_TEST_DATA) / ".." / "..";
-const fs::path kExperiments = kRepo / "data" / "experiments";
+const fs::path kRepo = test::sourceRoot();
+const fs::path kExperiments = test::experimentsDir();
 
 std::string configError(const TempDir& dir, const std::string& toml) {
     const fs::path file = writeText(dir.path() / "v.toml", toml);

@@ -29,8 +29,8 @@ namespace fs = std::filesystem;
 using test::TempDir;
 using test::writeText;
 
-const fs::path kRepo = fs::path(TRBC_TEST_DATA) / ".." / "..";
-const fs::path kExperiments = kRepo / "data" / "experiments";
+const fs::path kRepo = test::sourceRoot();
+const fs::path kExperiments = test::experimentsDir();
 
 /// A theta_new samples.csv of `rows` samples inside the prior box, each row distinct.
 fs::path writeFakePosterior(const fs::path& dir, int rows) {
