@@ -12,6 +12,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <map>
+#include <sstream>
+#include <functional>
 #include <thread>
 
 #include "core/error.hpp"
@@ -342,6 +344,81 @@ TEST(CampaignRunner, EquilibriumSymmetryIsASettingThatOldCampaignsResumeWith) {
     const CliRun badKicks = runTrbc(base + "--equilibrium-kicks 0 --out " + shellQuote((tmp.path() / "bad").string()), tmp.path());
     EXPECT_EQ(badKicks.status, 2);
     EXPECT_NE(badKicks.err.find("--equilibrium-kicks"), std::string::npos) << badKicks.err;
+}
+
+/// Rewrites a finished campaign's samples.csv after `edit` changed its rows.
+void editSamples(const fs::path& dir, const std::function<void(std::vector<CampaignRow>&)>& edit) {
+    auto rows = readCampaignCsv(dir / "samples.csv");
+    edit(rows);
+    std::ofstream out(dir / "samples.csv");
+    out << campaignCsvHeader() << "\n";
+    for (const CampaignRow& r : rows) out << formatCampaignRow(r) << "\n";
+}
+
+// --reuse-from: a campaign of the lowest-energy equilibrium that takes the stretching and relaxation of
+// an earlier campaign of the symmetric disc gives the table of a run without it. At level 2 the kicks
+// find lower states in cells 6-8 of this design, which must be computed in full; a donor cell whose
+// equilibrium differs (tampered D) is computed in full too, and a donor cell that matches is really
+// taken over (its tampered D0 shows).
+TEST(CampaignRunner, ReuseFromASymmetricCampaignGivesTheTableOfAFullRun) {
+    TempDir tmp;
+    const std::string base = "campaign --samples 10 --forces-per-cell 1 --level 2 --seed 5 --no-cache --threads 2 ";
+    const fs::path sym = tmp.path() / "sym", fresh = tmp.path() / "fresh", reuse = tmp.path() / "reuse";
+    ASSERT_EQ(runTrbc(base + "--equilibrium-symmetry inversion --out " + shellQuote(sym.string()), tmp.path()).status, 0);
+    ASSERT_EQ(runTrbc(base + "--out " + shellQuote(fresh.string()), tmp.path()).status, 0);
+    editSamples(sym, [](std::vector<CampaignRow>& rows) { rows[0].D *= 1.0 + 1e-15; });
+    const CliRun run = runTrbc(base + "--reuse-from " + shellQuote(sym.string()) + " --out " + shellQuote(reuse.string()), tmp.path());
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_EQ(rowsWithoutWallTime(fresh / "samples.csv"), rowsWithoutWallTime(reuse / "samples.csv"));
+
+    // equilibria.csv: cell_id,v,FvK,branch,energy_gap_J,reused
+    std::ifstream in(reuse / "equilibria.csv");
+    std::string line;
+    ASSERT_TRUE(std::getline(in, line));
+    EXPECT_EQ(line, "cell_id,v,FvK,branch,energy_gap_J,reused");
+    long cells = 0, kicked = 0, reused = 0;
+    while (std::getline(in, line)) {
+        std::vector<std::string> f;
+        std::istringstream fields(line);
+        for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
+        ASSERT_EQ(f.size(), 6u) << line;
+        const bool isKicked = f[3] == "kicked", isReused = f[5] == "1";
+        ++cells;
+        kicked += isKicked;
+        reused += isReused;
+        EXPECT_TRUE(isKicked || f[3] == "symmetric") << line;
+        EXPECT_EQ(std::stod(f[4]) > 0.0, isKicked) << line;
+        EXPECT_EQ(isReused, !isKicked && f[0] != "0") << line;
+    }
+    EXPECT_EQ(cells, 10);
+    EXPECT_EQ(kicked, 3);
+    EXPECT_EQ(reused, 6);
+    const auto j = nlohmann::json::parse(std::ifstream(reuse / "campaign.json"));
+    EXPECT_EQ(j.at("cells_reused"), 6);
+    EXPECT_EQ(j.at("equilibrium_branches").at("kicked"), 3);
+    EXPECT_EQ(j.at("reuse_from"), sym.string());
+
+    // A reused cell carries the donor's outputs, not a recomputation.
+    editSamples(sym, [](std::vector<CampaignRow>& rows) { rows[1].D0 += 0.5; });
+    const fs::path again = tmp.path() / "again";
+    ASSERT_EQ(runTrbc(base + "--reuse-from " + shellQuote(sym.string()) + " --out " + shellQuote(again.string()), tmp.path()).status, 0);
+    const auto a = readCampaignCsv(again / "samples.csv"), f = readCampaignCsv(fresh / "samples.csv");
+    EXPECT_EQ(a[1].D0, f[1].D0 + 0.5);
+
+    // The donor must be this design with the symmetric disc.
+    const CliRun otherSeed = runTrbc("campaign --samples 10 --forces-per-cell 1 --level 2 --seed 6 --no-cache --reuse-from " +
+                                     shellQuote(sym.string()) + " --out " + shellQuote((tmp.path() / "x").string()), tmp.path());
+    EXPECT_EQ(otherSeed.status, 2);
+    EXPECT_NE(otherSeed.err.find("seed"), std::string::npos) << otherSeed.err;
+    EXPECT_FALSE(fs::exists(tmp.path() / "x" / "campaign.json"));
+    const CliRun lowestDonor = runTrbc(base + "--reuse-from " + shellQuote(fresh.string()) + " --out " +
+                                       shellQuote((tmp.path() / "y").string()), tmp.path());
+    EXPECT_EQ(lowestDonor.status, 2);
+    EXPECT_NE(lowestDonor.err.find("equilibrium_symmetry"), std::string::npos) << lowestDonor.err;
+    const CliRun notLowest = runTrbc(base + "--equilibrium-symmetry inversion --reuse-from " + shellQuote(sym.string()) +
+                                     " --out " + shellQuote((tmp.path() / "z").string()), tmp.path());
+    EXPECT_EQ(notLowest.status, 2);
+    EXPECT_NE(notLowest.err.find("--reuse-from"), std::string::npos) << notLowest.err;
 }
 
 // A cell is taken whole from one part file: a run killed mid-write and resumed by other ranks can

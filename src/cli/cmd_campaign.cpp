@@ -105,7 +105,7 @@ bool launchedByMpi() {
 
 struct CampaignCommandOptions {
     CampaignOptions c;
-    std::string design = "uniform", out, inject;
+    std::string design = "uniform", out, inject, reuseFrom;
     int level = 4;
     CacheOptions cache;
 };
@@ -132,6 +132,12 @@ void addCampaignOptions(CLI::App* cmd, CampaignCommandOptions& o) {
               NumberRange::closed(0.0, 1e6, "s"))
         ->capture_default_str();
     cmd->add_flag("--resume", o.c.resume, "continue the campaign in --out (same settings required; a uniform design ending on a whole cell grows: a larger --samples extends it)");
+    cmd->add_option("--reuse-from", o.reuseFrom,
+                    "an earlier campaign of the same design and settings with --equilibrium-symmetry inversion: each "
+                    "cell still searches its lowest-energy equilibrium; where that is the symmetric disc of the earlier "
+                    "rows (D, hmin, hmax equal bit for bit) their stretching and relaxation outputs are taken over, every "
+                    "other cell is computed in full. The rows equal those of a run without it (wall_s aside)")
+        ->check(CLI::ExistingDirectory);
     cmd->add_option("--inject-failures", o.inject,
                     "comma-separated sample ids whose cell fails on purpose (to test failure records)");
     addSolverOptions(cmd, o.c.experiment);
@@ -167,6 +173,7 @@ void runCampaign(const CampaignCommandOptions& o) {
     c.experiment.level = o.level;
     c.experiment.cacheDir = cacheDirectory(o.cache);
     if (!o.inject.empty()) c.injectFailures = parseIdList(o.inject);
+    c.reuseFrom = o.reuseFrom;
     const Ranks ranks = startRanks();
     c.ranks = ranks.size;
     ProgressReporter reporter(ranks.size);

@@ -12,6 +12,8 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
+#include <sstream>
 
 #include "core/clock.hpp"
 #include "core/error.hpp"
@@ -27,6 +29,8 @@ fs::path partsDir(const CampaignOptions& o) { return o.outDir / "parts"; }
 fs::path partPath(const CampaignOptions& o, int rank) { return partsDir(o) / fmt::format("rank{}.csv", rank); }
 fs::path provenancePath(const CampaignOptions& o) { return o.outDir / "campaign.json"; }
 fs::path samplesPath(const CampaignOptions& o) { return o.outDir / "samples.csv"; }
+fs::path equilibriaDir(const CampaignOptions& o) { return o.outDir / "equilibria"; }
+fs::path equilibriaPath(const CampaignOptions& o) { return o.outDir / "equilibria.csv"; }
 
 /// Everything that decides the rows; a resume must match it exactly.
 nlohmann::json settingsJson(const CampaignOptions& o) {
@@ -93,6 +97,52 @@ void validateOptions(const CampaignOptions& o) {
         throw InputError(fmt::format("--cell-time-limit {} is outside [0, 1e6] s (0: none)", o.cellTimeLimit));
 }
 
+/// The settings a campaign of the symmetric disc would have with otherwise the same settings as `o`.
+nlohmann::json donorSettings(const CampaignOptions& o) {
+    nlohmann::json j = settingsJson(o);
+    j["equilibrium_symmetry"] = equilibriumSymmetryName(EquilibriumSymmetry::Inversion);
+    j.erase("equilibrium_seed");
+    j.erase("equilibrium_kicks");
+    return j;
+}
+
+/// The rows of CampaignOptions::reuseFrom by sample id, after checking that it is a campaign of the
+/// symmetric disc with this campaign's other settings (its sample count aside).
+std::map<long, CampaignRow> donorRows(const CampaignOptions& o) {
+    std::map<long, CampaignRow> rows;
+    if (o.reuseFrom.empty()) return rows;
+    if (o.experiment.equilibriumSymmetry != EquilibriumSymmetry::Lowest)
+        throw InputError("--reuse-from: only a campaign of the lowest-energy equilibrium (--equilibrium-symmetry lowest) "
+                         "reuses one of the symmetric disc");
+    const fs::path json = o.reuseFrom / "campaign.json";
+    nlohmann::json donor;
+    try {
+        std::ifstream in(json);
+        if (!in) throw std::runtime_error("cannot open it");
+        donor = nlohmann::json::parse(in).at("settings");
+    } catch (const std::exception& e) {
+        throw InputError(fmt::format("--reuse-from: {}: not a campaign ({})", json.string(), e.what()));
+    }
+    nlohmann::json want = donorSettings(o);
+    want["samples"] = donor.value("samples", nlohmann::json());
+    if (donor != want) {
+        std::string diff;
+        for (auto& [k, v] : want.items())
+            if (!donor.contains(k) || donor[k] != v)
+                diff += fmt::format(" {} (is {}, needs {})", k, donor.value(k, nlohmann::json()).dump(), v.dump());
+        for (auto& [k, v] : donor.items())
+            if (!want.contains(k)) diff += fmt::format(" {} (is {}, needs not set)", k, v.dump());
+        throw InputError(fmt::format("--reuse-from: {} is not this campaign's design with the symmetric disc "
+                                     "(equilibrium_symmetry \"inversion\"):{}",
+                                     json.string(), diff));
+    }
+    for (CampaignRow& r : readCampaignRows(o.reuseFrom)) rows.emplace(r.point.sampleId, std::move(r));
+    return rows;
+}
+
+/// The donor rows of one cell in its order, or none when any is missing or holds other inputs.
+std::optional<std::vector<CampaignRow>> donorCell(const std::map<long, CampaignRow>& donor, const std::vector<CampaignPoint>& cell);
+
 /// Groups the design rows by cell (they are contiguous).
 std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>& pts) {
     std::vector<std::vector<CampaignPoint>> cells;
@@ -108,6 +158,56 @@ std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>
 bool sameInputs(const CampaignPoint& row, const CampaignPoint& design) {
     return row.cellId == design.cellId && row.p.v == design.p.v && row.p.mu == design.p.mu && row.p.FvK == design.p.FvK &&
            row.p.b2 == design.p.b2 && row.p.etam == design.p.etam && row.fext == design.fext;
+}
+
+std::optional<std::vector<CampaignRow>> donorCell(const std::map<long, CampaignRow>& donor, const std::vector<CampaignPoint>& cell) {
+    std::vector<CampaignRow> rows;
+    for (const CampaignPoint& q : cell) {
+        const auto it = donor.find(q.sampleId);
+        if (it == donor.end() || !sameInputs(it->second.point, q)) return std::nullopt;
+        rows.push_back(it->second);
+    }
+    return rows;
+}
+
+fs::path equilibriaPart(const CampaignOptions& o, int rank) { return equilibriaDir(o) / fmt::format("rank{}.csv", rank); }
+const char* kEquilibriaHeader = "cell_id,branch,energy_gap_J,reused";
+
+std::string formatCellRecord(const CampaignCellRecord& r) {
+    return fmt::format("{},{},{:.17g},{}", r.cellId, r.branch.empty() ? "none" : r.branch, r.energyGapJ, r.reused ? 1 : 0);
+}
+
+/// The last record of every cell in equilibria/*.csv (a killed run may have written the record of a
+/// cell whose rows never landed; that cell's later record replaces it).
+std::map<long, CampaignCellRecord> cellRecords(const CampaignOptions& o) {
+    std::map<long, CampaignCellRecord> out;
+    if (!fs::exists(equilibriaDir(o))) return out;
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::directory_iterator(equilibriaDir(o)))
+        if (entry.path().extension() == ".csv") files.push_back(entry.path());
+    std::sort(files.begin(), files.end());
+    for (const fs::path& f : files) {
+        std::ifstream in(f);
+        std::string line;
+        while (std::getline(in, line)) {
+            if (line.empty() || line == kEquilibriaHeader) continue;
+            std::istringstream ls(line);
+            std::string id, branch, gap, reused;
+            if (!std::getline(ls, id, ',') || !std::getline(ls, branch, ',') || !std::getline(ls, gap, ',') ||
+                !std::getline(ls, reused) || (reused != "0" && reused != "1"))
+                continue;  // a torn line of a killed run
+            try {
+                CampaignCellRecord r;
+                r.cellId = std::stol(id);
+                r.branch = branch == "none" ? "" : branch;
+                r.energyGapJ = gap == "nan" ? NAN : std::stod(gap);
+                r.reused = reused == "1";
+                out[r.cellId] = r;
+            } catch (const std::exception&) {
+            }
+        }
+    }
+    return out;
 }
 
 /// Rows of the finished cells found in the part files (torn tails and unfinished cells dropped),
@@ -178,10 +278,47 @@ void markFailed(std::vector<CampaignRow>& rows, const std::string& reason) {
         if (r.reason.empty()) r.reason = reason;
 }
 
+/// Wall time per row and the status: "ok" when all six outputs are finite.
+std::vector<CampaignRow> finishCellRows(std::vector<CampaignRow>& rows, SteadyClock::time_point t0) {
+    const double wall = secondsSince(t0) / double(rows.size());
+    for (CampaignRow& r : rows) {
+        r.wallSeconds = wall;
+        const double out[6] = {r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc};
+        const bool finite = std::all_of(out, out + 6, [](double x) { return std::isfinite(x); });
+        if (finite) {
+            r.status = "ok";
+            r.reason.clear();
+        } else {
+            r.status = "failed";
+            if (r.reason.empty()) r.reason = "non-finite output";
+        }
+    }
+    return std::move(rows);
+}
+
+/// The equilibrium observables of `rows` equal the donor's bit for bit. Together with the branch
+/// "symmetric" this identifies the donor's equilibrium shape: the symmetric minimisation is the same
+/// computation in both forward models, and a shape that differed in any vertex would move D, hmin
+/// or hmax in their last digits.
+bool sameEquilibrium(const std::vector<CampaignRow>& donor, const std::vector<CampaignRow>& rows) {
+    if (donor.size() != rows.size()) return false;
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        if (!(donor[i].D == rows[i].D && donor[i].hmin == rows[i].hmin && donor[i].hmax == rows[i].hmax)) return false;
+    return true;
+}
+
+void takeOverOutputs(const std::vector<CampaignRow>& donor, std::vector<CampaignRow>& rows) {
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        rows[i].D0 = donor[i].D0, rows[i].D1 = donor[i].D1, rows[i].tc = donor[i].tc;
+        rows[i].reason = donor[i].reason;
+    }
+}
+
 }  // namespace
 
 std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell, std::uint64_t seed,
-                                         const ExperimentOptions& opt, bool injectFailure) {
+                                         const ExperimentOptions& opt, bool injectFailure,
+                                         const std::vector<CampaignRow>* donor, CampaignCellRecord* record) {
     const auto t0 = SteadyClock::now();
     std::vector<CampaignRow> rows(cell.size());
     for (std::size_t i = 0; i < cell.size(); ++i) {
@@ -197,6 +334,12 @@ std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell,
         if (injectFailure) throw NumericalError("injected failure (--inject-failures)");
         const EquilibriumResult eq = runEquilibrium(p, meshes, opt);
         for (CampaignRow& r : rows) r.D = eq.observables.D, r.hmin = eq.observables.hmin, r.hmax = eq.observables.hmax;
+        if (record) record->branch = eq.branch, record->energyGapJ = eq.energyGap / cell::joule;
+        if (donor && eq.branch == "symmetric" && sameEquilibrium(*donor, rows)) {
+            takeOverOutputs(*donor, rows);
+            if (record) record->reused = true;
+            return finishCellRows(rows, t0);
+        }
 
         stage = "stretching";
         std::vector<double> forces;
@@ -230,24 +373,12 @@ std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell,
     } catch (const std::exception& e) {
         markFailed(rows, fmt::format("{}: {}", stage, e.what()));
     }
-    const double wall = secondsSince(t0) / double(rows.size());
-    for (CampaignRow& r : rows) {
-        r.wallSeconds = wall;
-        const double out[6] = {r.D, r.hmin, r.hmax, r.D0, r.D1, r.tc};
-        const bool finite = std::all_of(out, out + 6, [](double x) { return std::isfinite(x); });
-        if (finite) {
-            r.status = "ok";
-            r.reason.clear();
-        } else {
-            r.status = "failed";
-            if (r.reason.empty()) r.reason = "non-finite output";
-        }
-    }
-    return rows;
+    return finishCellRows(rows, t0);
 }
 
 void prepareCampaign(const CampaignOptions& o) {
     validateOptions(o);
+    if (!o.reuseFrom.empty()) donorRows(o);  // refuse a wrong donor before anything is written
     std::error_code ec;
     fs::create_directories(partsDir(o), ec);
     if (ec) throw InputError(fmt::format("--out: cannot create {}: {}", partsDir(o).string(), ec.message()));
@@ -281,6 +412,7 @@ void prepareCampaign(const CampaignOptions& o) {
         }
         nlohmann::json j = old;
         nlohmann::json entry = {{"command", o.command}, {"version", kVersion}, {"ranks", o.ranks}, {"threads", o.threads}};
+        if (!o.reuseFrom.empty()) entry["reuse_from"] = o.reuseFrom.string();
         if (grows && old["settings"]["samples"] != settings["samples"]) {
             entry["grown_from_samples"] = old["settings"]["samples"];
             j["settings"] = settings;
@@ -295,16 +427,23 @@ void prepareCampaign(const CampaignOptions& o) {
     if (fs::exists(samplesPath(o)) || !fs::is_empty(partsDir(o)))
         throw InputError(fmt::format("--out: {} holds campaign files but no campaign.json; choose another directory",
                                      o.outDir.string()));
-    writeJsonAtomically(provenancePath(o), {{"command", o.command},
-                                            {"version", kVersion},
-                                            {"ranks", o.ranks},
-                                            {"threads", o.threads},
-                                            {"status", "running"},
-                                            {"settings", settings},
-                                            {"columns", campaignCsvHeader()},
-                                            {"units", "um, pN, s; mu in uN/m, etam in Pa s um"},
-                                            {"note", "rows of one cell share (v, mu, FvK, b2, etam) and differ in Fext; "
-                                                     "wall_s is the row's share of its cell's wall time"}});
+    nlohmann::json j = {{"command", o.command},
+                        {"version", kVersion},
+                        {"ranks", o.ranks},
+                        {"threads", o.threads},
+                        {"status", "running"},
+                        {"settings", settings},
+                        {"columns", campaignCsvHeader()},
+                        {"units", "um, pN, s; mu in uN/m, etam in Pa s um"},
+                        {"note", "rows of one cell share (v, mu, FvK, b2, etam) and differ in Fext; "
+                                 "wall_s is the row's share of its cell's wall time"}};
+    if (!o.reuseFrom.empty()) {
+        j["reuse_from"] = o.reuseFrom.string();
+        j["reuse_note"] = "cells whose equilibrium is the symmetric disc of reuse_from (reused = 1 in equilibria.csv) "
+                          "carry its stretching and relaxation outputs and failure reasons; their wall_s is the "
+                          "equilibrium search's alone";
+    }
+    writeJsonAtomically(provenancePath(o), j);
 }
 
 CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) {
@@ -313,7 +452,12 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
     const auto t0 = SteadyClock::now();
     const auto cells = cellsOf(campaignDesign(o.design, o.samples, o.forcesPerCell, o.seed));
     const auto finished = finishedRows(o, cells);
+    const auto donor = donorRows(o);
     const int fd = openPartFile(o, rank, finished);
+    std::error_code ec;
+    fs::create_directories(equilibriaDir(o), ec);
+    std::ofstream records(equilibriaPart(o, rank), std::ios::app);
+    if (ec || !records) throw InputError(fmt::format("cannot append to {}", equilibriaPart(o, rank).string()));
 
     std::vector<std::size_t> pending;
     CampaignProgress prog;
@@ -340,12 +484,17 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
         if (o.cellTimeLimit > 0)
             experiment.deadline = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(
                                                      std::chrono::duration<double>(o.cellTimeLimit));
-        const auto rows = runCampaignCell(cell, o.seed, experiment, inject);
+        const auto donated = o.reuseFrom.empty() ? std::nullopt : donorCell(donor, cell);
+        CampaignCellRecord record;
+        record.cellId = cell.front().cellId;
+        const auto rows = runCampaignCell(cell, o.seed, experiment, inject, donated ? &*donated : nullptr, &record);
         std::string block;
         for (const CampaignRow& r : rows) block += formatCampaignRow(r) + "\n";
 #pragma omp critical(trbc_campaign_append)
         {
             try {
+                // The record first: a cell counts as done only once its rows are appended.
+                records << formatCellRecord(record) << std::endl;
                 appendBlock(fd, block, partPath(o, rank));
             } catch (const std::exception& e) {
                 error = e.what();
@@ -387,6 +536,26 @@ CampaignSummary finalizeCampaign(const CampaignOptions& o, double wallSeconds) {
         for (const auto& [id, r] : rows) csv += formatCampaignRow(r) + "\n";
         writeFileAtomically(samplesPath(o), csv);
         j["status"] = "complete";
+        // Per finished cell (of those with a record: campaigns made before the records have none).
+        const auto records = cellRecords(o);
+        std::string eq = "cell_id,v,FvK,branch,energy_gap_J,reused\n";
+        std::map<std::string, long> branches;
+        long reused = 0, lastCell = -1;
+        for (const auto& [id, r] : rows) {
+            if (r.point.cellId == lastCell) continue;  // rows are sorted, cells contiguous
+            lastCell = r.point.cellId;
+            const auto it = records.find(r.point.cellId);
+            if (it == records.end()) continue;
+            const CampaignCellRecord& c = it->second;
+            const std::string branch = c.branch.empty() ? "none" : c.branch;
+            eq += fmt::format("{},{:.17g},{:.17g},{},{:.17g},{}\n", c.cellId, r.point.p.v, r.point.p.FvK, branch,
+                              c.energyGapJ, c.reused ? 1 : 0);
+            ++branches[branch];
+            reused += c.reused;
+        }
+        writeFileAtomically(equilibriaPath(o), eq);
+        j["equilibrium_branches"] = branches;
+        j["cells_reused"] = reused;
     } else {
         j["status"] = "incomplete";
     }

@@ -6,6 +6,8 @@
 //   campaign.json      provenance: command, version, seed, design, sizes, options; final counts
 //   parts/rank<r>.csv  the checkpoint: rows appended cell by cell (one write + fsync per cell)
 //   samples.csv        the finished table, all rows sorted by sample_id (written once all cells are done)
+//   equilibria/rank<r>.csv, equilibria.csv  per cell: the chosen equilibrium branch, the energy gap to
+//                      the symmetric disc and whether the outputs were taken over (reuse_from)
 // A run killed at any moment (SIGKILL included) and restarted with resume loses no finished cell
 // and repeats none: a cell counts as done when all its rows are in a part file; a torn last line
 // or the rows of an unfinished cell are discarded on restart.
@@ -42,6 +44,12 @@ struct CampaignOptions {
     double cellTimeLimit = 0.0;
     std::filesystem::path outDir;
     bool resume = false;
+    /// An earlier campaign of the same design and settings but the symmetric disc as equilibrium
+    /// (equilibrium_symmetry "inversion"), for a campaign of the lowest-energy equilibrium. Every cell
+    /// still searches its equilibrium (disc and kicks). Where it keeps the disc, and D, hmin and hmax
+    /// equal the earlier rows' bit for bit, the equilibrium shape is the earlier one, so the stretching
+    /// and relaxation outputs (and failure reasons) are taken over; every other cell is computed in full.
+    std::filesystem::path reuseFrom;
     ExperimentOptions experiment;
     std::set<long> injectFailures;             ///< sample ids whose cell fails on purpose (tests)
     std::string command;                       ///< for provenance
@@ -55,11 +63,22 @@ struct CampaignSummary {
     bool complete = false;                     ///< samples.csv written
 };
 
+/// What a cell's equilibrium search chose (equilibria.csv).
+struct CampaignCellRecord {
+    long cellId = -1;
+    std::string branch;          ///< EquilibriumResult::branch; empty when the equilibrium failed
+    double energyGapJ = NAN;     ///< symmetric disc minus the chosen state, J
+    bool reused = false;         ///< stretching and relaxation taken from CampaignOptions::reuseFrom
+};
+
 /// Runs the forward model for the rows of one cell (all share SFS, equilibrium, the stretching
 /// continuation over their forces and one relaxation). Never throws for a numerical failure:
-/// the affected outputs stay nan and the rows say why.
+/// the affected outputs stay nan and the rows say why. `donor`: the cell's rows of an earlier
+/// campaign of the symmetric disc (CampaignOptions::reuseFrom), in the order of `cell`.
 std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell, std::uint64_t seed,
-                                         const ExperimentOptions& opt, bool injectFailure = false);
+                                         const ExperimentOptions& opt, bool injectFailure = false,
+                                         const std::vector<CampaignRow>* donor = nullptr,
+                                         CampaignCellRecord* record = nullptr);
 
 /// Creates the output directory and the provenance of a new campaign (refusing to overwrite one
 /// without resume), or checks that a resumed campaign was made with the same settings. Call once
