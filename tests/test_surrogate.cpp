@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "sampling/campaign_table.hpp"
 #include "sampling/design.hpp"
+#include "surrogate/network_io.hpp"
 #include "surrogate/surrogate.hpp"
 #include "test_support.hpp"
 
@@ -365,6 +366,95 @@ TEST(SurrogateTraining, CrossValidationPredictsEveryCellOnceWithoutIt) {
     EXPECT_THROW(crossValidateSurrogate(rows, opt, 1), InputError);
     opt.fold = 4;
     EXPECT_THROW(trainSurrogate(rows, opt), InputError);
+}
+
+// A campaign whose lowest-energy equilibrium jumps to another branch above a line in (v, FvK), as
+// near v = 1 (docs/FORWARD_MODEL.md): hmin jumps by 1.5 um, tc and D1 by 20 % and 0.5 um there.
+bool fakeKicked(const CellParameters& p) { return p.v > 0.93 + 0.04 * (p.FvK - 10.0) / 990.0; }
+
+std::vector<CampaignRow> fakeBranchedCampaign(long samples, int perCell, std::map<long, int>& branch) {
+    std::vector<CampaignRow> rows = fakeCampaign(samples, perCell);
+    for (CampaignRow& r : rows) {
+        const bool kicked = fakeKicked(r.point.p);
+        branch[r.point.cellId] = kicked;
+        if (!kicked) continue;
+        r.hmin += 1.5;
+        r.D1 += 0.5;
+        r.tc *= 0.8;
+    }
+    return rows;
+}
+
+// A smooth network smears the jump over the switch; the branched surrogate (classifier + branch input)
+// keeps it: near the switch its hmin error is a fraction of the single network's.
+TEST(SurrogateTraining, BranchedSurrogateFollowsAJumpAcrossTheSwitchLine) {
+    std::map<long, int> branch;
+    const auto rows = fakeBranchedCampaign(2400, 8, branch);
+    auto opt = quickOptions();
+    opt.restarts = 2;
+    const SurrogateTrainingReport single = trainSurrogate(rows, opt);
+    opt.cellBranch = branch;
+    const SurrogateTrainingReport rep = trainSurrogate(rows, opt);
+    EXPECT_FALSE(single.model.branched);
+    ASSERT_TRUE(rep.model.branched);
+    EXPECT_EQ(rep.model.equilibrium.inputNames.back(), kBranchInputName);
+
+    // Held-out cells near the switch (the same test cells for both; measured: 7 cells, 6 kicked, none
+    // misclassified, hmin RMSE 0.0021 um branched against 0.33 um for the single network).
+    const SwitchAccuracy a = switchAccuracy(rep.testCellIds, rep.testInputs, rep.testTruth, rep.testPredicted, branch, &rep.testBranch);
+    const SwitchAccuracy b = switchAccuracy(single.testCellIds, single.testInputs, single.testTruth, single.testPredicted, branch, nullptr);
+    ASSERT_GT(a.kickedCells, 2);
+    EXPECT_GT(a.cells, a.kickedCells);
+    EXPECT_EQ(b.misclassified, -1);
+    EXPECT_LE(a.misclassified, 1);
+    EXPECT_LT(a.nearSwitch[1].rmse, 0.4 * b.nearSwitch[1].rmse) << a.nearSwitch[1].rmse << " vs " << b.nearSwitch[1].rmse;
+    EXPECT_LT(a.kicked[1].rmse, 0.1);
+
+    // The classifier decides the branch input of all three networks.
+    Eigen::MatrixXd x(6, 2);
+    x.col(0) << 0.80, 4.0, 300.0, 1.0, 0.5, 50.0;   // disc
+    x.col(1) << 0.99, 4.0, 300.0, 1.0, 0.5, 50.0;   // kicked
+    const Eigen::RowVectorXd bx = rep.model.branchIndicator((Eigen::MatrixXd(2, 2) << 0.80, 0.99, 300.0, 300.0).finished());
+    EXPECT_EQ(bx(0), 0.0);
+    EXPECT_EQ(bx(1), 1.0);
+    const Eigen::MatrixXd y = rep.model.evaluate(x);
+    Eigen::MatrixXd eqIn(3, 2);
+    eqIn << x.row(0), x.row(2), bx;
+    EXPECT_EQ(y.topRows(3), rep.model.equilibrium.evaluate(eqIn));
+    EXPECT_EQ(y.topRows(3), rep.model.equilibriumOutputs(eqIn.topRows(2)));
+    EXPECT_NEAR(y(1, 1) - y(1, 0), 1.5 + 0.5 * (0.80 - 0.99), 0.1);
+
+    // Away from the switch the gradient is the branch network's: central differences in v and FvK.
+    Eigen::MatrixXd w = Eigen::MatrixXd::Zero(6, 1);
+    w(1, 0) = 1.0, w(5, 0) = 10.0;
+    const Eigen::MatrixXd x1 = x.col(1);
+    const Eigen::MatrixXd g = rep.model.inputGradient(x1, w);
+    for (int k : {0, 2}) {
+        const double h = k == 0 ? 1e-5 : 1e-2;
+        Eigen::MatrixXd xp = x1, xm = x1;
+        xp(k, 0) += h, xm(k, 0) -= h;
+        const double fd = (w.col(0).dot(rep.model.evaluate(xp).col(0)) - w.col(0).dot(rep.model.evaluate(xm).col(0))) / (2 * h);
+        EXPECT_NEAR(g(k, 0), fd, 1e-4 * std::max(1.0, std::abs(fd))) << "input " << k;
+    }
+
+    // Save and load keep the classifier; an unbranched model saved over it removes branch.json.
+    TempDir tmp;
+    rep.model.save(tmp.path() / "m");
+    ASSERT_TRUE(fs::exists(tmp.path() / "m" / "branch.json"));
+    const Surrogate loaded = Surrogate::load(tmp.path() / "m");
+    EXPECT_TRUE(loaded.branched);
+    EXPECT_EQ(loaded.evaluate(rep.testInputs), rep.model.evaluate(rep.testInputs));
+    single.model.save(tmp.path() / "m");
+    EXPECT_FALSE(fs::exists(tmp.path() / "m" / "branch.json"));
+    EXPECT_FALSE(Surrogate::load(tmp.path() / "m").branched);
+    // A branch.json beside networks without the branch input is refused, naming the file.
+    saveNetwork(rep.model.branch, (tmp.path() / "m" / "branch.json").string());
+    try {
+        Surrogate::load(tmp.path() / "m");
+        ADD_FAILURE() << "loaded networks without the branch input beside a branch classifier";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("branch input"), std::string::npos) << e.what();
+    }
 }
 
 TEST_F(TrainedFixture, EvalCliWritesOutputsAndFlagsExtrapolation) {

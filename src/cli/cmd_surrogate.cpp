@@ -71,6 +71,28 @@ std::string crossValidationMarkdown(const CrossValidationReport& cv, const std::
     return md;
 }
 
+/// The accuracy where the equilibrium branch switches (SwitchAccuracy), as JSON and as a section.
+nlohmann::json switchJson(const SwitchAccuracy& a) {
+    if (!std::isfinite(a.vSwitch)) return nullptr;
+    return {{"v_switch", a.vSwitch},           {"band_v", a.band},
+            {"cells_near_switch", a.cells},    {"kicked_cells", a.kickedCells},
+            {"misclassified_cells", a.misclassified < 0 ? nlohmann::json(nullptr) : nlohmann::json(a.misclassified)},
+            {"near_switch", accuracyJson(a.nearSwitch)}, {"kicked", accuracyJson(a.kicked)}};
+}
+
+std::string switchMarkdown(const SwitchAccuracy& a) {
+    if (!std::isfinite(a.vSwitch)) return "";
+    std::string md = fmt::format(
+        "\n## Near the switch of the equilibrium branch\n\nCells with v >= {:.4f} ({} below the smallest v of a cell "
+        "whose lowest-energy state is not the symmetric disc, so every cell within {} in v of the switch line): {} "
+        "cells, {} of them kicked. ",
+        a.vSwitch - a.band, a.band, a.band, a.cells, a.kickedCells);
+    md += a.misclassified < 0 ? std::string("The surrogate has no branch classifier.\n\n")
+                              : fmt::format("Branch misclassified by the surrogate: {} of these cells.\n\n", a.misclassified);
+    md += accuracyMarkdown(a.nearSwitch) + "\nThe kicked cells alone:\n\n" + accuracyMarkdown(a.kicked);
+    return md;
+}
+
 bool listed(const std::vector<std::string>& list, const std::string& name) {
     return std::find(list.begin(), list.end(), name) != list.end();
 }
@@ -91,6 +113,7 @@ struct TrainCommandOptions {
     std::string stretchingVariables = "sqrt-b2";
     std::vector<std::string> ensemble{"relaxation"};
     std::vector<std::string> distill{"relaxation"};
+    std::string branch = "auto";
 };
 
 void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
@@ -132,6 +155,11 @@ void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
     addNumber(cmd, "--distill-samples", o.t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
         ->capture_default_str();
+    cmd->add_option("--branch", o.branch,
+                    "auto: where the campaign's equilibria.csv holds cells of both equilibrium branches (the symmetric "
+                    "disc and a lower state reached by a kick, near v = 1), train a branch classifier on (v, FvK) and give "
+                    "the three networks the branch as one more input (branch.json); none: the three networks alone")
+        ->check(CLI::IsMember({"auto", "none"}))->capture_default_str();
     addNumber(cmd, "--cv-folds", o.cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
                     "writes cv.md, cv.json, cv_predictions.csv); 0: off",
@@ -160,6 +188,7 @@ void reconcileNetworkLists(TrainCommandOptions& o, bool distillGiven) {
 SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
     SurrogateTrainingOptions t = o.t;
     t.command = commandLine();
+    if (o.branch == "auto") t.cellBranch = readCampaignBranches(o.data);
     t.logRelaxation = o.relaxationVariables == "log";
     t.sqrtB2Stretching = o.stretchingVariables == "sqrt-b2";
     const auto& names = surrogateNetworkNames();
@@ -178,6 +207,11 @@ SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
                                      e.last ? "  (done)" : e.reduced ? "  (restored best, rate / 10)" : "");
     };
     return t;
+}
+
+SwitchAccuracy testSwitchAccuracy(const SurrogateTrainingReport& rep, const SurrogateTrainingOptions& t) {
+    return switchAccuracy(rep.testCellIds, rep.testInputs, rep.testTruth, rep.testPredicted, t.cellBranch,
+                          rep.model.branched ? &rep.testBranch : nullptr);
 }
 
 /// MODEL_DIR/accuracy.json: settings, data, per-network training records, held-out accuracy.
@@ -203,7 +237,10 @@ nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainin
                         {"wall_s", wall},
                         {"networks", nlohmann::json::object()},
                         {"dropped_where", rep.droppedWhere},
+                        {"branch", o.branch},
+                        {"branched", rep.model.branched},
                         {"test", accuracyJson(rep.test)},
+                        {"test_near_switch", switchJson(testSwitchAccuracy(rep, t))},
                         {"validation", accuracyJson(rep.validation)}};
     const auto& names = surrogateNetworkNames();
     const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
@@ -218,11 +255,19 @@ nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainin
                                    {"best_epoch", nets[k]->history.bestEpoch},
                                    {"best_validation_loss", nets[k]->history.bestValidationLoss},
                                    {"hit_epoch_cap", nets[k]->history.hitEpochCap}};
+    if (rep.model.branched)
+        j["networks"]["branch"] = {{"samples_used", rep.branchUsed},
+                                   {"wall_s", rep.branchWallSeconds},
+                                   {"epochs", rep.model.branch.history.passes()},
+                                   {"seed", rep.model.branch.options.seed},
+                                   {"best_epoch", rep.model.branch.history.bestEpoch},
+                                   {"best_validation_loss", rep.model.branch.history.bestValidationLoss},
+                                   {"hit_epoch_cap", rep.model.branch.history.hitEpochCap}};
     return j;
 }
 
 /// MODEL_DIR/accuracy.md: test and validation accuracy, the training of each network.
-std::string trainingMarkdown(const SurrogateTrainingReport& rep, bool complete) {
+std::string trainingMarkdown(const SurrogateTrainingReport& rep, const SurrogateTrainingOptions& t, bool complete) {
     std::string md = fmt::format("# Surrogate accuracy\n\nMade by `{}` (trbc {}), data hash {}: {} rows in {} cells{}; "
                                  "{} cells held out as the test set.\n\n## Test set (cells never seen in training or early stopping)\n\n",
                                  commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
@@ -234,6 +279,10 @@ std::string trainingMarkdown(const SurrogateTrainingReport& rep, bool complete) 
     for (int k = 0; k < 3; ++k)
         md += fmt::format("| {} | {} | {} | {} | {} | {:.1f} |\n", names[k], rep.used[k], rep.dropped[k], nets[k]->history.passes(),
                           1 + nets[k]->ensemble.size(), rep.wallSeconds[k]);
+    if (rep.model.branched)
+        md += fmt::format("| branch | {} | 0 | {} | 1 | {:.1f} |\n", rep.branchUsed, rep.model.branch.history.passes(),
+                          rep.branchWallSeconds);
+    md += switchMarkdown(testSwitchAccuracy(rep, t));
     if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
     return md;
 }
@@ -248,9 +297,12 @@ void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTraining
     nlohmann::json cj = {{"command", commandLine()}, {"version", kVersion},     {"data_hash", dataHash},
                          {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
                          {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
+    const SwitchAccuracy near = switchAccuracy(cv.cellIds, cv.inputs, cv.truth, cv.predicted, t.cellBranch,
+                                               cv.branched ? &cv.branch : nullptr);
+    cj["near_switch"] = switchJson(near);
     for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
     writeFileAtomically(dir / "cv.json", cj.dump(2) + "\n");
-    const std::string cvMd = crossValidationMarkdown(cv, dataHash, t.testSeed);
+    const std::string cvMd = crossValidationMarkdown(cv, dataHash, t.testSeed) + switchMarkdown(near);
     writeFileAtomically(dir / "cv.md", cvMd);
     writePredictionsCsv(dir / "cv_predictions.csv", cv.inputs, cv.truth, cv.predicted);
     std::cout << "\n" << cvMd;
@@ -271,7 +323,7 @@ void runTrain(TrainCommandOptions& o, bool distillGiven) {
     rep.model.save(o.out);
     const std::filesystem::path dir = o.out;
     writeFileAtomically(dir / "accuracy.json", trainingJson(o, t, rep, complete, wall).dump(2) + "\n");
-    const std::string md = trainingMarkdown(rep, complete);
+    const std::string md = trainingMarkdown(rep, t, complete);
     writeFileAtomically(dir / "accuracy.md", md);
     writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);
     std::cout << md;

@@ -594,6 +594,33 @@ std::vector<CampaignRow> readCampaignRows(const fs::path& path, bool* complete) 
     return rows;
 }
 
+std::map<long, int> readCampaignBranches(const fs::path& dirOrFile) {
+    std::map<long, int> out;
+    const fs::path path = dirOrFile / "equilibria.csv";
+    if (!fs::is_directory(dirOrFile) || !fs::exists(path)) return out;
+    std::ifstream in(path);
+    std::string line;
+    long lineNo = 1;
+    if (!std::getline(in, line) || line != "cell_id,v,FvK,branch,energy_gap_J,reused")
+        throw InputError(fmt::format("{}:1: expected the header cell_id,v,FvK,branch,energy_gap_J,reused", path.string()));
+    while (std::getline(in, line)) {
+        ++lineNo;
+        std::vector<std::string> f;
+        std::istringstream fields(line);
+        for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
+        long id = -1;
+        try {
+            std::size_t used = 0;
+            if (f.size() == 6) id = std::stol(f[0], &used);
+            if (used != f[0].size()) id = -1;
+        } catch (const std::exception&) {
+        }
+        if (id < 0) throw InputError(fmt::format("{}:{}: expected 6 fields starting with a cell id, got '{}'", path.string(), lineNo, line));
+        out[id] = f[3] == "kicked" ? 1 : 0;
+    }
+    return out;
+}
+
 CampaignSummary runCampaign(const CampaignOptions& o) {
     prepareCampaign(o);
     const CampaignSummary share = runCampaignShare(o, 0, 1);

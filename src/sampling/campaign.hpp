@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -96,6 +97,11 @@ CampaignSummary finalizeCampaign(const CampaignOptions& opt, double wallSeconds)
 /// The rows of a campaign directory: samples.csv when the campaign is complete, otherwise the
 /// finished cells of its part files (`complete` says which). A path to a CSV file reads that table.
 std::vector<CampaignRow> readCampaignRows(const std::filesystem::path& dirOrFile, bool* complete = nullptr);
+
+/// Equilibrium branch per cell id from DIR/equilibria.csv: 1 where the lowest-energy search kept a
+/// state reached by a kick, 0 otherwise. Empty when there is no such file (a table file, or a
+/// campaign made before the records). InputError naming the file and line for a malformed one.
+std::map<long, int> readCampaignBranches(const std::filesystem::path& dirOrFile);
 
 /// Convenience: prepareCampaign + runCampaignShare + finalizeCampaign in one process.
 CampaignSummary runCampaign(const CampaignOptions& opt);

@@ -36,6 +36,7 @@ nlohmann::json surrogateNetworksJson(const Surrogate& s) {
     const std::pair<const char*, const TrainedNetwork*> nets[3] = {
         {"equilibrium", &s.equilibrium}, {"stretching", &s.stretching}, {"relaxation", &s.relaxation}};
     for (const auto& [name, net] : nets) networks[name] = {{"data_hash", net->dataHash}, {"command", net->command}};
+    if (s.branched) networks["branch"] = {{"data_hash", s.branch.dataHash}, {"command", s.branch.command}};
     return networks;
 }
 
@@ -60,20 +61,63 @@ void expectRows(const Eigen::Ref<const Eigen::MatrixXd>& x, int rows, const char
     if (x.rows() != rows) throw InputError(fmt::format("{}: a batch needs {} input rows, got {}", what, rows, x.rows()));
 }
 
+const char* kBranchFile = "branch.json";
+
+/// (v, FvK) of a network's inputs: rows 0 and 2 of the stretching and relaxation inputs, the
+/// equilibrium's two rows.
+Eigen::MatrixXd vFvKOf(const Eigen::Ref<const Eigen::MatrixXd>& x) {
+    if (x.rows() == 2) return x;
+    Eigen::MatrixXd out(2, x.cols());
+    out.row(0) = x.row(0);
+    out.row(1) = x.row(2);
+    return out;
+}
+
+/// The network evaluated on x with b appended as its last input row (x itself when b is empty).
+Eigen::MatrixXd evaluateWithBranch(const TrainedNetwork& net, const Eigen::Ref<const Eigen::MatrixXd>& x,
+                                   const Eigen::RowVectorXd* b, Precision precision) {
+    if (!b) return net.evaluate(x, precision);
+    Eigen::MatrixXd xb(x.rows() + 1, x.cols());
+    xb.topRows(x.rows()) = x;
+    xb.row(x.rows()) = *b;
+    return net.evaluate(xb, precision);
+}
+
+/// Input gradient of a network on x with b appended; the row of b (piecewise constant) is dropped.
+Eigen::MatrixXd gradientWithBranch(const TrainedNetwork& net, const Eigen::Ref<const Eigen::MatrixXd>& x,
+                                   const Eigen::RowVectorXd* b, const Eigen::Ref<const Eigen::MatrixXd>& w) {
+    if (!b) return net.inputGradient(x, w);
+    Eigen::MatrixXd xb(x.rows() + 1, x.cols());
+    xb.topRows(x.rows()) = x;
+    xb.row(x.rows()) = *b;
+    return net.inputGradient(xb, w).topRows(x.rows());
+}
+
 }  // namespace
 
 Surrogate Surrogate::load(const fs::path& dir) {
     Surrogate s;
+    s.branched = fs::exists(dir / kBranchFile);
+    const int extra = s.branched ? 1 : 0;
+    if (s.branched) {
+        const fs::path p = dir / kBranchFile;
+        s.branch = loadNetwork(p.string());
+        if (s.branch.net.numInputs() != 2 || s.branch.net.numOutputs() != 1)
+            throw InputError(fmt::format("{}: the branch network must map 2 inputs (v, FvK) to 1 output, found {} -> {}", p.string(),
+                                         s.branch.net.numInputs(), s.branch.net.numOutputs()));
+    }
     TrainedNetwork* nets[3] = {&s.equilibrium, &s.stretching, &s.relaxation};
-    const int inputs[3] = {2, 5, 5}, outputs[3] = {3, 2, 1};
+    const int inputs[3] = {2 + extra, 5 + extra, 5 + extra}, outputs[3] = {3, 2, 1};
     for (int k = 0; k < 3; ++k) {
         const fs::path p = dir / networkFile(k);
         if (!fs::exists(p))
             throw InputError(fmt::format("surrogate model {}: missing {} (train one with trbc surrogate train)", dir.string(), p.string()));
         *nets[k] = loadNetwork(p.string());
         if (nets[k]->net.numInputs() != inputs[k] || nets[k]->net.numOutputs() != outputs[k])
-            throw InputError(fmt::format("{}: the {} network must map {} inputs to {} outputs, found {} -> {}", p.string(),
-                                         kNetworks[std::size_t(k)], inputs[k], outputs[k], nets[k]->net.numInputs(), nets[k]->net.numOutputs()));
+            throw InputError(fmt::format("{}: the {} network must map {} inputs to {} outputs{}, found {} -> {}", p.string(),
+                                         kNetworks[std::size_t(k)], inputs[k], outputs[k],
+                                         s.branched ? " (the branch input last, since branch.json is present)" : "",
+                                         nets[k]->net.numInputs(), nets[k]->net.numOutputs()));
     }
     return s;
 }
@@ -82,22 +126,50 @@ void Surrogate::save(const fs::path& dir) const {
     fs::create_directories(dir);
     const TrainedNetwork* nets[3] = {&equilibrium, &stretching, &relaxation};
     for (int k = 0; k < 3; ++k) saveNetwork(*nets[k], (dir / networkFile(k)).string());
+    if (branched)
+        saveNetwork(branch, (dir / kBranchFile).string());
+    else
+        fs::remove(dir / kBranchFile);
+}
+
+Eigen::RowVectorXd Surrogate::branchIndicator(const Eigen::Ref<const Eigen::MatrixXd>& vFvK) const {
+    expectRows(vFvK, 2, "branch classifier");
+    if (!branched) return Eigen::RowVectorXd::Zero(vFvK.cols());
+    return (branch.evaluate(vFvK, precision).row(0).array() > 0.5).cast<double>().matrix();
+}
+
+Eigen::MatrixXd Surrogate::equilibriumWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const {
+    Eigen::RowVectorXd own;
+    if (branched && !b) own = branchIndicator(x), b = &own;
+    return evaluateWithBranch(equilibrium, x, branched ? b : nullptr, precision);
+}
+
+Eigen::MatrixXd Surrogate::stretchingWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const {
+    Eigen::RowVectorXd own;
+    if (branched && !b) own = branchIndicator(vFvKOf(x)), b = &own;
+    return evaluateWithBranch(stretching, x, branched ? b : nullptr, precision);
+}
+
+Eigen::VectorXd Surrogate::relaxationWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const {
+    Eigen::RowVectorXd own;
+    if (branched && !b) own = branchIndicator(vFvKOf(x)), b = &own;
+    const Eigen::MatrixXd tcTilde = evaluateWithBranch(relaxation, x, branched ? b : nullptr, precision);
+    return (tcTilde.row(0).array() * x.row(4).array() / x.row(1).array()).transpose();
 }
 
 Eigen::MatrixXd Surrogate::equilibriumOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
     expectRows(x, 2, "equilibrium surrogate");
-    return equilibrium.evaluate(x, precision);
+    return equilibriumWith(x, nullptr);
 }
 
 Eigen::MatrixXd Surrogate::stretchingOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
     expectRows(x, 5, "stretching surrogate");
-    return stretching.evaluate(x, precision);
+    return stretchingWith(x, nullptr);
 }
 
 Eigen::VectorXd Surrogate::relaxationTime(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
     expectRows(x, 5, "relaxation surrogate");
-    const Eigen::MatrixXd tcTilde = relaxation.evaluate(x, precision);
-    return (tcTilde.row(0).array() * x.row(4).array() / x.row(1).array()).transpose();
+    return relaxationWith(x, nullptr);
 }
 
 Eigen::MatrixXd Surrogate::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
@@ -115,9 +187,11 @@ Eigen::MatrixXd Surrogate::evaluate(const Eigen::Ref<const Eigen::MatrixXd>& x) 
         const Eigen::Index c0 = c * kChunk, nc = std::min(kChunk, n - c0);
         const auto xc = x.middleCols(c0, nc);
         auto yc = y.middleCols(c0, nc);
-        yc.topRows(3) = equilibriumOutputs(pickRows(xc, kEqRows));
-        yc.middleRows(3, 2) = stretchingOutputs(pickRows(xc, kStretchRows));
-        yc.row(5) = relaxationTime(pickRows(xc, kRelaxRows)).transpose();
+        const Eigen::MatrixXd vFvK = pickRows(xc, kEqRows);
+        const Eigen::RowVectorXd b = branchIndicator(vFvK);  // once for the three networks
+        yc.topRows(3) = equilibriumWith(vFvK, &b);
+        yc.middleRows(3, 2) = stretchingWith(pickRows(xc, kStretchRows), &b);
+        yc.row(5) = relaxationWith(pickRows(xc, kRelaxRows), &b).transpose();
     }
     return y;
 }
@@ -127,21 +201,25 @@ Eigen::MatrixXd Surrogate::inputGradient(const Eigen::Ref<const Eigen::MatrixXd>
     if (w.rows() != 6 || w.cols() != x.cols())
         throw InputError(fmt::format("surrogate gradient: output weights are {} x {}, expected 6 x {}", w.rows(), w.cols(), x.cols()));
     Eigen::MatrixXd g = Eigen::MatrixXd::Zero(6, x.cols());
+    // The branch b is piecewise constant in (v, FvK): the gradient is that of the branch's networks
+    // (the jump across the switch line has no derivative).
+    const Eigen::RowVectorXd bRow = branchIndicator(pickRows(x, kEqRows));
+    const Eigen::RowVectorXd* b = branched ? &bRow : nullptr;
     if (!w.topRows(3).isZero(0.0)) {
-        const Eigen::MatrixXd ge = equilibrium.inputGradient(pickRows(x, kEqRows), w.topRows(3));
+        const Eigen::MatrixXd ge = gradientWithBranch(equilibrium, pickRows(x, kEqRows), b, w.topRows(3));
         for (int k = 0; k < 2; ++k) g.row(kEqRows[k]) += ge.row(k);
     }
     if (!w.middleRows(3, 2).isZero(0.0)) {
-        const Eigen::MatrixXd gs = stretching.inputGradient(pickRows(x, kStretchRows), w.middleRows(3, 2));
+        const Eigen::MatrixXd gs = gradientWithBranch(stretching, pickRows(x, kStretchRows), b, w.middleRows(3, 2));
         for (int k = 0; k < 5; ++k) g.row(kStretchRows[k]) += gs.row(k);
     }
     if (!w.row(5).isZero(0.0)) {
         // tc = h(x) etam / mu with h the relaxation network's output tc mu / etam.
         const Eigen::MatrixXd xr = pickRows(x, kRelaxRows);
-        const Eigen::ArrayXd h = relaxation.evaluate(xr).row(0).transpose().array();
+        const Eigen::ArrayXd h = evaluateWithBranch(relaxation, xr, b, Precision::Double).row(0).transpose().array();
         const Eigen::ArrayXd mu = x.row(1).transpose().array(), etam = x.row(4).transpose().array();
         const Eigen::ArrayXd w5 = w.row(5).transpose().array();
-        const Eigen::MatrixXd gr = relaxation.inputGradient(xr, (w5 * etam / mu).matrix().transpose());
+        const Eigen::MatrixXd gr = gradientWithBranch(relaxation, xr, b, (w5 * etam / mu).matrix().transpose());
         for (int k = 0; k < 5; ++k) g.row(kRelaxRows[k]) += gr.row(k);
         g.row(4).array() += (w5 * h / mu).transpose();
         g.row(1).array() -= (w5 * h * etam / mu.square()).transpose();
@@ -234,10 +312,16 @@ Eigen::MatrixXd uniformBoxPoints(const std::vector<PriorRange>& box, long n, std
 /// One network trained to reproduce an ensemble's predictions (the ensemble's mean in its
 /// transformed output space) on uniform points of the box, with the teacher's transforms and the
 /// training schedule `o` (its batch size and patience re-derived for the larger table).
+/// With a branch classifier the points carry its branch as the last input (the teacher's branch input).
 TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const std::vector<PriorRange>& box, long samples,
-                                std::uint64_t seed, TrainingOptions o) {
+                                std::uint64_t seed, TrainingOptions o, const TrainedNetwork* classifier) {
     if (samples < 1000) throw InputError(fmt::format("surrogate distillation: {} box samples; at least 1000 are needed", samples));
-    const Eigen::MatrixXd X = uniformBoxPoints(box, samples, seed);
+    Eigen::MatrixXd X = uniformBoxPoints(box, samples, seed);
+    if (classifier) {
+        const Eigen::MatrixXd vFvK = vFvKOf(X);
+        X.conservativeResize(X.rows() + 1, Eigen::NoChange);
+        X.row(X.rows() - 1) = (classifier->evaluate(vFvK).row(0).array() > 0.5).cast<double>().matrix();
+    }
     const Eigen::MatrixXd Y = teacher.evaluate(X);
     o.batchSize = 128;
     o.patience = std::max(10, int(std::ceil(3000.0 / (0.8 * double(samples) / o.batchSize))));
@@ -275,11 +359,33 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
         for (long k = 0; k < rep.testCells; ++k) isTest[perm[k]] = true;
     }
 
+    // Branched when the training cells hold both branches (the test cells play no part in the choice).
+    const auto branchOf = [&](long cellId) {
+        const auto it = opt.cellBranch.find(cellId);
+        if (it == opt.cellBranch.end())
+            throw InputError(fmt::format("surrogate training: cell {} has no equilibrium branch record (the campaign's "
+                                         "equilibria.csv lacks it)", cellId));
+        return it->second;
+    };
+    bool branched = false;
+    if (!opt.cellBranch.empty()) {
+        bool seen[2] = {false, false};
+        for (std::size_t c = 0; c < cellIds.size(); ++c)
+            if (!isTest[c]) seen[branchOf(cellIds[c]) != 0] = true;
+        branched = seen[0] && seen[1];
+    }
+    const auto withBranch = [&](Eigen::VectorXd x, long cellId) {
+        if (!branched) return x;
+        x.conservativeResize(x.size() + 1);
+        x(x.size() - 1) = branchOf(cellId);
+        return x;
+    };
+
     auto eqOk = [](const CampaignRow& r) { return std::isfinite(r.D) && std::isfinite(r.hmin) && std::isfinite(r.hmax); };
     auto stOk = [](const CampaignRow& r) { return std::isfinite(r.D0) && std::isfinite(r.D1); };
     auto rxOk = [](const CampaignRow& r) { return std::isfinite(r.tc) && r.tc > 0; };
 
-    std::vector<Eigen::VectorXd> xs[3], ys[3];
+    std::vector<Eigen::VectorXd> xs[4], ys[4];  // equilibrium, stretching, relaxation, branch
     std::vector<const CampaignRow*> droppedRows, testRows;
     for (std::size_t c = 0; c < cellIds.size(); ++c) {
         const auto& cell = byCell[cellIds[c]];
@@ -289,14 +395,19 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
         }
         const CampaignRow& first = *cell.front();
         const Eigen::VectorXd x0 = rowInputs(first);
+        const long id = cellIds[c];
         if (eqOk(first)) {
-            xs[0].push_back((Eigen::VectorXd(2) << x0(0), x0(2)).finished());
+            xs[0].push_back(withBranch((Eigen::VectorXd(2) << x0(0), x0(2)).finished(), id));
             ys[0].push_back((Eigen::VectorXd(3) << first.D, first.hmin, first.hmax).finished());
+            if (branched) {
+                xs[3].push_back((Eigen::VectorXd(2) << x0(0), x0(2)).finished());
+                ys[3].push_back(Eigen::VectorXd::Constant(1, branchOf(id)));
+            }
         } else {
             ++rep.dropped[0];
         }
         if (rxOk(first)) {
-            xs[2].push_back(x0.head(5));
+            xs[2].push_back(withBranch(x0.head(5), id));
             ys[2].push_back(Eigen::VectorXd::Constant(1, first.tc * first.point.p.mu / first.point.p.etam));
         } else {
             ++rep.dropped[2];
@@ -308,39 +419,47 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
                 continue;
             }
             const Eigen::VectorXd x = rowInputs(*r);
-            xs[1].push_back((Eigen::VectorXd(5) << x(0), x(1), x(2), x(3), x(5)).finished());
+            xs[1].push_back(withBranch((Eigen::VectorXd(5) << x(0), x(1), x(2), x(3), x(5)).finished(), id));
             ys[1].push_back((Eigen::VectorXd(2) << r->D0, r->D1).finished());
         }
     }
     rep.droppedWhere = describeDropped(droppedRows);
 
-    NetworkData data[3];
-    for (int k = 0; k < 3; ++k) {
-        rep.used[k] = long(xs[k].size());
+    const int networks = branched ? 4 : 3;
+    const auto networkName = [](int k) { return k == 3 ? std::string("branch") : kNetworks[std::size_t(k)]; };
+    NetworkData data[4];
+    for (int k = 0; k < networks; ++k) {
+        (k < 3 ? rep.used[k] : rep.branchUsed) = long(xs[k].size());
         if (xs[k].size() < 10)
-            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", xs[k].size(), kNetworks[std::size_t(k)]));
+            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", xs[k].size(), networkName(k)));
         data[k].X.resize(xs[k].front().size(), Eigen::Index(xs[k].size()));
         data[k].Y.resize(ys[k].front().size(), Eigen::Index(ys[k].size()));
         for (std::size_t j = 0; j < xs[k].size(); ++j) data[k].X.col(Eigen::Index(j)) = xs[k][j], data[k].Y.col(Eigen::Index(j)) = ys[k][j];
     }
 
-    const std::vector<std::string> inNames[3] = {{"v", "FvK"},
-                                                 {"v", "mu_uN_per_m", "FvK", "b2", "Fext_pN"},
-                                                 {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"}};
-    const std::vector<std::string> outNames[3] = {{"D_um", "hmin_um", "hmax_um"}, {"D0_um", "D1_um"}, {"tc_mu_over_etam"}};
-    TrainingResult results[3];
-    std::string errors[3];
-    // Largest first so that two threads finish together.
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(3, omp_get_max_threads()))
-    for (int i = 0; i < 3; ++i) {
-        const int k = (i + 1) % 3;  // stretching, relaxation, equilibrium
+    std::vector<std::string> inNames[4] = {{"v", "FvK"},
+                                           {"v", "mu_uN_per_m", "FvK", "b2", "Fext_pN"},
+                                           {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"},
+                                           {"v", "FvK"}};
+    if (branched)
+        for (int k = 0; k < 3; ++k) inNames[k].push_back(kBranchInputName);
+    const std::vector<std::string> outNames[4] = {
+        {"D_um", "hmin_um", "hmax_um"}, {"D0_um", "D1_um"}, {"tc_mu_over_etam"}, {kBranchInputName}};
+    TrainingResult results[4];
+    TrainingOptions distillOptions[4];
+    std::string errors[4];
+    // Largest first so that two threads finish together: stretching, relaxation, equilibrium, branch.
+    const int order[4] = {1, 2, 0, 3};
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(networks, omp_get_max_threads()))
+    for (int i = 0; i < networks; ++i) {
+        const int k = order[i];
         try {
             TrainingOptions o = opt.network;
             // SURROGATE 3.1 (256 / 128) for the paper's 50,000 rows. The schedule counts patience in
             // epochs, so a small table (one row per cell for the equilibrium and relaxation networks)
             // needs smaller batches to take enough optimiser steps per epoch: at least 50
             // mini-batches per epoch, batches of at least 8.
-            o.batchSize = std::clamp(int(0.8 * double(data[k].X.cols()) / 50.0), 8, k == 0 ? 256 : 128);
+            o.batchSize = std::clamp(int(0.8 * double(data[k].X.cols()) / 50.0), 8, k == 0 || k == 3 ? 256 : 128);
             // Likewise the patience: at least ~3000 optimiser steps without improvement before a
             // rate reduction (the paper's 11 epochs of 50,000 rows are ~3400 steps).
             const double batchesPerEpoch = std::max(1.0, 0.8 * double(data[k].X.cols()) / o.batchSize);
@@ -358,9 +477,11 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
                 o.inputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log};
                 o.outputTransforms = {T::Log};
             }
+            // The branch input (0 or 1) enters as it is.
+            if (branched && k < 3 && !o.inputTransforms.empty()) o.inputTransforms.push_back(VariableTransform::Identity);
             if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
 #pragma omp critical(trbc_surrogate_progress)
-                opt.progress(kNetworks[std::size_t(k)], e);
+                opt.progress(networkName(k), e);
             };
             const auto t0 = std::chrono::steady_clock::now();
             // Restarts from different initial weights (seeds seed, seed+1, ...); the one with the
@@ -374,19 +495,22 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
                 const double loss = t.network.history.bestValidationLoss, best = results[k].network.history.bestValidationLoss;
                 if (r == 0 || loss < best || (!std::isfinite(best) && std::isfinite(loss))) std::swap(results[k], t);
                 // a diverged restart (non-finite validation loss) is not averaged in
-                if (r > 0 && opt.ensemble[k] && std::isfinite(t.network.history.bestValidationLoss))
+                if (r > 0 && k < 3 && opt.ensemble[k] && std::isfinite(t.network.history.bestValidationLoss))
                     others.push_back({std::move(t.network.net), t.network.options.seed, t.network.history.bestValidationLoss});
             }
             std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
             results[k].network.ensemble = std::move(others);
-            if (opt.distill[k] && !results[k].network.ensemble.empty())
+            // A branched network is distilled once the classifier is trained (below).
+            if (!branched && k < 3 && opt.distill[k] && !results[k].network.ensemble.empty())
                 results[k].network = distilledNetwork(results[k].network, kNetworkBoxes[k], opt.distillSamples,
-                                                      opt.distillSeed, o);
-            rep.wallSeconds[k] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+                                                      opt.distillSeed, o, nullptr);
+            distillOptions[k] = o;
+            (k < 3 ? rep.wallSeconds[k] : rep.branchWallSeconds) =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             results[k].network.dataHash = rep.dataHash;
             results[k].network.command = opt.command;
         } catch (const std::exception& e) {
-            errors[k] = fmt::format("{} network: {}", kNetworks[std::size_t(k)], e.what());
+            errors[k] = fmt::format("{} network: {}", networkName(k), e.what());
         }
     }
     for (const std::string& e : errors)
@@ -394,6 +518,23 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     rep.model.equilibrium = results[0].network;
     rep.model.stretching = results[1].network;
     rep.model.relaxation = results[2].network;
+    if (branched) {
+        rep.model.branch = results[3].network;
+        rep.model.branched = true;
+        for (int k = 0; k < 3; ++k) {
+            if (!opt.distill[k] || results[k].network.ensemble.empty()) continue;
+            const auto t0 = std::chrono::steady_clock::now();
+            TrainedNetwork student = distilledNetwork(results[k].network, kNetworkBoxes[k], opt.distillSamples, opt.distillSeed,
+                                                      distillOptions[k], &rep.model.branch);
+            student.dataHash = rep.dataHash;
+            student.command = opt.command;
+            results[k].network = std::move(student);
+            rep.wallSeconds[k] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        }
+        rep.model.equilibrium = results[0].network;
+        rep.model.stretching = results[1].network;
+        rep.model.relaxation = results[2].network;
+    }
 
     // Validation split of each network (the rows its early stopping saw), physical units.
     const int firstOutput[3] = {0, 3, 5};
@@ -417,6 +558,7 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
         rep.testInputs = std::move(t.inputs);
         rep.testTruth = std::move(t.truth);
         rep.testPredicted = std::move(t.predicted);
+        rep.testBranch = std::move(t.branch);
         rep.testCellIds = std::move(t.cellIds);
         rep.test = std::move(t.accuracy);
     }
@@ -437,6 +579,7 @@ SurrogateTest testSurrogate(const Surrogate& s, std::vector<const CampaignRow*> 
         t.cellIds.push_back(r.point.cellId);
     }
     t.predicted = s.evaluate(t.inputs);
+    t.branch = s.branchIndicator((Eigen::MatrixXd(2, t.inputs.cols()) << t.inputs.row(0), t.inputs.row(2)).finished());
     t.accuracy = heldOutAccuracy(t.cellIds, t.truth, t.predicted);
     return t;
 }
@@ -468,31 +611,78 @@ std::vector<OutputAccuracy> heldOutAccuracy(const std::vector<long>& cellIds, co
     return acc;
 }
 
+SwitchAccuracy switchAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
+                              const Eigen::MatrixXd& predicted, const std::map<long, int>& cellBranch,
+                              const Eigen::RowVectorXd* predictedBranch, double band) {
+    SwitchAccuracy a;
+    a.band = band;
+    for (const auto& [id, b] : cellBranch)
+        if (b != 0)
+            for (std::size_t j = 0; j < cellIds.size(); ++j)
+                if (cellIds[j] == id) {
+                    a.vSwitch = std::isfinite(a.vSwitch) ? std::min(a.vSwitch, inputs(0, Eigen::Index(j))) : inputs(0, Eigen::Index(j));
+                    break;
+                }
+    if (!std::isfinite(a.vSwitch)) return a;  // no kicked cell among these rows
+    std::vector<Eigen::Index> near, kicked;
+    for (std::size_t j = 0; j < cellIds.size(); ++j) {
+        const auto it = cellBranch.find(cellIds[j]);
+        if (inputs(0, Eigen::Index(j)) >= a.vSwitch - band) near.push_back(Eigen::Index(j));
+        if (it != cellBranch.end() && it->second != 0) kicked.push_back(Eigen::Index(j));
+    }
+    const auto subset = [&](const std::vector<Eigen::Index>& cols, std::vector<OutputAccuracy>& out, long& cells) {
+        std::vector<long> ids;
+        Eigen::MatrixXd t(6, Eigen::Index(cols.size())), p(6, Eigen::Index(cols.size()));
+        for (std::size_t k = 0; k < cols.size(); ++k) {
+            ids.push_back(cellIds[std::size_t(cols[k])]);
+            t.col(Eigen::Index(k)) = truth.col(cols[k]);
+            p.col(Eigen::Index(k)) = predicted.col(cols[k]);
+        }
+        cells = 0;
+        for (std::size_t k = 0; k < ids.size(); ++k) cells += k == 0 || ids[k] != ids[k - 1];
+        out = heldOutAccuracy(ids, t, p);
+    };
+    subset(near, a.nearSwitch, a.cells);
+    subset(kicked, a.kicked, a.kickedCells);
+    if (predictedBranch) {
+        a.misclassified = 0;
+        for (std::size_t j = 0; j < cellIds.size(); ++j) {
+            if (j > 0 && cellIds[j] == cellIds[j - 1]) continue;
+            const auto it = cellBranch.find(cellIds[j]);
+            if (it != cellBranch.end() && (it->second != 0) != ((*predictedBranch)(Eigen::Index(j)) > 0.5)) ++a.misclassified;
+        }
+    }
+    return a;
+}
+
 CrossValidationReport crossValidateSurrogate(const std::vector<CampaignRow>& rows, SurrogateTrainingOptions opt, int folds) {
     if (folds < 2) throw InputError(fmt::format("surrogate cross-validation: {} folds; at least 2 are needed", folds));
     const auto t0 = std::chrono::steady_clock::now();
     CrossValidationReport cv;
     cv.folds = folds;
-    std::vector<Eigen::MatrixXd> in, truth, pred;
+    std::vector<Eigen::MatrixXd> in, truth, pred, branch;
     for (int f = 0; f < folds; ++f) {
         opt.folds = folds;
         opt.fold = f;
         SurrogateTrainingReport rep = trainSurrogate(rows, opt);
         cv.perFold.push_back(rep.test);
+        cv.branched = cv.branched || rep.model.branched;
         in.push_back(std::move(rep.testInputs));
         truth.push_back(std::move(rep.testTruth));
         pred.push_back(std::move(rep.testPredicted));
+        branch.push_back(rep.testBranch);
         cv.cellIds.insert(cv.cellIds.end(), rep.testCellIds.begin(), rep.testCellIds.end());
     }
     const auto stack = [](const std::vector<Eigen::MatrixXd>& parts) {
         Eigen::Index n = 0;
         for (const auto& m : parts) n += m.cols();
-        Eigen::MatrixXd out(6, n);
+        Eigen::MatrixXd out(parts.empty() ? 6 : parts.front().rows(), n);
         Eigen::Index c = 0;
         for (const auto& m : parts) out.middleCols(c, m.cols()) = m, c += m.cols();
         return out;
     };
     cv.inputs = stack(in);
+    cv.branch = stack(branch).row(0);
     cv.truth = stack(truth);
     cv.predicted = stack(pred);
     cv.pooled = heldOutAccuracy(cv.cellIds, cv.truth, cv.predicted);

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -19,15 +20,30 @@ const std::vector<std::string>& surrogateInputNames();   ///< v, mu_uN_per_m, Fv
 const std::vector<std::string>& surrogateOutputNames();  ///< D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s
 const std::vector<std::string>& surrogateNetworkNames(); ///< equilibrium, stretching, relaxation (file MODEL_DIR/<name>.json)
 
+/// Name of the branch input that the three networks of a branched surrogate take last.
+inline constexpr const char* kBranchInputName = "kicked_branch";
+
 struct Surrogate {
     TrainedNetwork equilibrium;  ///< (v, FvK) -> (D, hmin, hmax)
     TrainedNetwork stretching;   ///< (v, mu, FvK, b2, Fext) -> (D0, D1)
     TrainedNetwork relaxation;   ///< (v, mu, FvK, b2, etam) -> tc mu / etam (dimensionless)
+    /// Optional branch classifier (v, FvK) -> score (MODEL_DIR/branch.json). Where the lowest-energy
+    /// equilibrium jumps from the symmetric disc to another state (near v = 1, docs/FORWARD_MODEL.md),
+    /// the outputs jump with it; a smooth network cannot follow a jump, so a branched surrogate
+    /// classifies the branch, b = 1 if score > 0.5 (a state reached by a kick) else 0 (the disc), and
+    /// its three networks take b as one more, last input: each is smooth within a branch.
+    TrainedNetwork branch;
+    bool branched = false;
     Precision precision = Precision::Double;
 
-    /// Reads the three network files of `dir`; InputError naming the file when one is missing or bad.
+    /// Reads the network files of `dir` (branch.json when present); InputError naming the file when
+    /// one is missing or bad.
     static Surrogate load(const std::filesystem::path& dir);
+    /// Writes the network files (and removes a branch.json of an earlier model when not branched).
     void save(const std::filesystem::path& dir) const;
+
+    /// b per column of (v, FvK) (2 x n); zeros when not branched.
+    Eigen::RowVectorXd branchIndicator(const Eigen::Ref<const Eigen::MatrixXd>& vFvK) const;
 
     Eigen::MatrixXd equilibriumOutputs(const Eigen::Ref<const Eigen::MatrixXd>& vFvK) const;  ///< 2 x n -> 3 x n
     Eigen::MatrixXd stretchingOutputs(const Eigen::Ref<const Eigen::MatrixXd>& x) const;     ///< 5 x n -> 2 x n
@@ -45,6 +61,12 @@ struct Surrogate {
     /// Jacobians of the six outputs with respect to the six inputs, 36 x n: row 6 i + j of column k is
     /// dy_i/dx_j at column k of x (so each column is the row-major 6 x 6 Jacobian).
     Eigen::MatrixXd inputJacobian(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+
+private:
+    /// The networks' evaluation with b given (a row of n; nullptr: computed from x).
+    Eigen::MatrixXd equilibriumWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const;
+    Eigen::MatrixXd stretchingWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const;
+    Eigen::VectorXd relaxationWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const;
 };
 
 /// Provenance of the networks: {"<network>": {"data_hash", "command"}} for each of the three.
@@ -95,6 +117,10 @@ struct SurrogateTrainingOptions {
     /// cell permutation with p % folds == fold (testFraction is then not used).
     int folds = 0, fold = 0;
     std::string command;              ///< stored in every network file
+    /// Equilibrium branch per cell id (1: the campaign's lowest-energy search kept a state reached by
+    /// a kick, 0: the symmetric disc; readCampaignBranches). When the training cells hold both, the
+    /// surrogate is branched (Surrogate::branch); empty or one branch only: the three networks alone.
+    std::map<long, int> cellBranch;
     std::function<void(const std::string& network, const EpochRecord&)> progress;
 };
 
@@ -104,11 +130,14 @@ struct SurrogateTrainingReport {
     long rows = 0, cells = 0, testCells = 0;
     /// Rows (cells for equilibrium/relaxation) used per network and dropped for a non-finite output.
     long used[3] = {0, 0, 0}, dropped[3] = {0, 0, 0};
+    long branchUsed = 0;                        ///< cells of the branch classifier (0: not branched)
+    double branchWallSeconds = 0;
     std::vector<std::string> droppedWhere;      ///< where the dropped samples lie (one line per input)
     double wallSeconds[3] = {0, 0, 0};
     std::vector<OutputAccuracy> test;           ///< per output, on the held-out cells
     std::vector<OutputAccuracy> validation;     ///< per output, on each network's validation split
     Eigen::MatrixXd testInputs, testTruth, testPredicted;  ///< 6 x n_test rows of the stretching set
+    Eigen::RowVectorXd testBranch;              ///< the surrogate's b per test row
     std::vector<long> testCellIds;              ///< cell of each test row
 };
 
@@ -121,10 +150,27 @@ std::vector<OutputAccuracy> heldOutAccuracy(const std::vector<long>& cellIds, co
 /// cell and sample id) and the per-output accuracy of heldOutAccuracy.
 struct SurrogateTest {
     Eigen::MatrixXd inputs, truth, predicted;
+    Eigen::RowVectorXd branch;                  ///< the surrogate's b per row (zeros when not branched)
     std::vector<long> cellIds;
     std::vector<OutputAccuracy> accuracy;
 };
 SurrogateTest testSurrogate(const Surrogate& s, std::vector<const CampaignRow*> rows);
+
+/// Accuracy where the equilibrium branch switches (docs/CAMPAIGN_AND_SURROGATE.md): over held-out
+/// predictions (inputs, truth, predicted 6 x rows in cell order, as SurrogateTest), for the cells with
+/// v >= vSwitch - band (vSwitch: the smallest v of a kicked cell among these rows; every cell within
+/// `band` in v of the switch line lies there) and for the kicked cells alone, plus how often the
+/// surrogate's branch differs from the campaign's.
+struct SwitchAccuracy {
+    double vSwitch = NAN, band = 0.02;
+    long cells = 0, kickedCells = 0;
+    long misclassified = -1;                  ///< cells whose predicted branch differs (-1: not branched)
+    std::vector<OutputAccuracy> nearSwitch, kicked;
+};
+/// `predictedBranch`: the surrogate's b per row (nullptr for a surrogate without a branch classifier).
+SwitchAccuracy switchAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
+                              const Eigen::MatrixXd& predicted, const std::map<long, int>& cellBranch,
+                              const Eigen::RowVectorXd* predictedBranch, double band = 0.02);
 
 /// FNV-1a over the rows as written by the campaign, without wall_s ("fnv1a:<16 hex digits>"); the
 /// training data hash stored in every network file.
@@ -137,6 +183,8 @@ struct CrossValidationReport {
     std::vector<OutputAccuracy> pooled;                 ///< over all out-of-fold predictions
     std::vector<std::vector<OutputAccuracy>> perFold;
     Eigen::MatrixXd inputs, truth, predicted;           ///< 6 x rows, every row predicted by the fold that held it out
+    Eigen::RowVectorXd branch;                          ///< that fold's b per row
+    bool branched = false;                              ///< the folds' surrogates have a branch classifier
     std::vector<long> cellIds;
     double wallSeconds = 0;
 };
