@@ -108,6 +108,8 @@ void addSurrogateSteps(std::vector<CalibrateStep>& steps, const CalibrateConfig&
         model.push_back(Part::bytesOf(modelDir / (name + ".json"),
                                       fmt::format("surrogate directory {} lacks {}.json (make one with `trbc surrogate train`)",
                                                   modelDir.string(), name)));
+    // A branched model's classifier decides its outputs as much as the networks do.
+    if (fs::exists(modelDir / "branch.json")) model.push_back(Part::bytesOf(modelDir / "branch.json", ""));
     steps.push_back(fingerprintStep("model", model));
 }
 

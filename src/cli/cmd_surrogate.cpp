@@ -155,6 +155,11 @@ void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
     addNumber(cmd, "--distill-samples", o.t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
         ->capture_default_str();
+    addNumber(cmd, "--cup-hmin-um", o.t.cupHminUm,
+              "with --branch auto, a kicked cell counts as the cup (the branch the classifier separates) when its hmin "
+              "is at least this; the other kicked states stay close to the disc",
+              NumberRange::closed(0.0, 10.0, "um"))
+        ->capture_default_str();
     cmd->add_option("--branch", o.branch,
                     "auto: where the campaign's equilibria.csv holds cells of both equilibrium branches (the symmetric "
                     "disc and a lower state reached by a kick, near v = 1), train a branch classifier on (v, FvK) and give "
@@ -211,7 +216,7 @@ SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
 
 SwitchAccuracy testSwitchAccuracy(const SurrogateTrainingReport& rep, const SurrogateTrainingOptions& t) {
     return switchAccuracy(rep.testCellIds, rep.testInputs, rep.testTruth, rep.testPredicted, t.cellBranch,
-                          rep.model.branched ? &rep.testBranch : nullptr);
+                          rep.model.branched ? &rep.testBranch : nullptr, &rep.cellLabel);
 }
 
 /// MODEL_DIR/accuracy.json: settings, data, per-network training records, held-out accuracy.
@@ -239,6 +244,7 @@ nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainin
                         {"dropped_where", rep.droppedWhere},
                         {"branch", o.branch},
                         {"branched", rep.model.branched},
+                        {"cup_hmin_um", t.cupHminUm},
                         {"test", accuracyJson(rep.test)},
                         {"test_near_switch", switchJson(testSwitchAccuracy(rep, t))},
                         {"validation", accuracyJson(rep.validation)}};
@@ -297,8 +303,9 @@ void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTraining
     nlohmann::json cj = {{"command", commandLine()}, {"version", kVersion},     {"data_hash", dataHash},
                          {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
                          {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
+    const auto labels = cupLabels(rows, t.cellBranch, t.cupHminUm);
     const SwitchAccuracy near = switchAccuracy(cv.cellIds, cv.inputs, cv.truth, cv.predicted, t.cellBranch,
-                                               cv.branched ? &cv.branch : nullptr);
+                                               cv.branched ? &cv.branch : nullptr, &labels);
     cj["near_switch"] = switchJson(near);
     for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
     writeFileAtomically(dir / "cv.json", cj.dump(2) + "\n");

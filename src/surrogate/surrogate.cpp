@@ -134,8 +134,19 @@ void Surrogate::save(const fs::path& dir) const {
 
 Eigen::RowVectorXd Surrogate::branchIndicator(const Eigen::Ref<const Eigen::MatrixXd>& vFvK) const {
     expectRows(vFvK, 2, "branch classifier");
-    if (!branched) return Eigen::RowVectorXd::Zero(vFvK.cols());
-    return (branch.evaluate(vFvK, precision).row(0).array() > 0.5).cast<double>().matrix();
+    Eigen::RowVectorXd b = Eigen::RowVectorXd::Zero(vFvK.cols());
+    if (!branched) return b;
+    // Only the columns that can be cups are classified: the rest cost nothing (about 86 % of the
+    // prior box's v range), and a classifier that said "cup" there would be wrong.
+    std::vector<Eigen::Index> cols;
+    for (Eigen::Index j = 0; j < vFvK.cols(); ++j)
+        if (vFvK(0, j) >= kCupMinV) cols.push_back(j);
+    if (cols.empty()) return b;
+    Eigen::MatrixXd x(2, Eigen::Index(cols.size()));
+    for (std::size_t k = 0; k < cols.size(); ++k) x.col(Eigen::Index(k)) = vFvK.col(cols[k]);
+    const Eigen::MatrixXd score = branch.evaluate(x, precision);
+    for (std::size_t k = 0; k < cols.size(); ++k) b(cols[k]) = score(0, Eigen::Index(k)) > 0.5 ? 1.0 : 0.0;
+    return b;
 }
 
 Eigen::MatrixXd Surrogate::equilibriumWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const {
@@ -360,12 +371,13 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     }
 
     // Branched when the training cells hold both branches (the test cells play no part in the choice).
+    rep.cellLabel = cupLabels(rows, opt.cellBranch, opt.cupHminUm);
+    const std::map<long, int>& labels = rep.cellLabel;
     const auto branchOf = [&](long cellId) {
-        const auto it = opt.cellBranch.find(cellId);
-        if (it == opt.cellBranch.end())
+        if (!opt.cellBranch.count(cellId))
             throw InputError(fmt::format("surrogate training: cell {} has no equilibrium branch record (the campaign's "
                                          "equilibria.csv lacks it)", cellId));
-        return it->second;
+        return labels.at(cellId);
     };
     bool branched = false;
     if (!opt.cellBranch.empty()) {
@@ -399,9 +411,12 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
         if (eqOk(first)) {
             xs[0].push_back(withBranch((Eigen::VectorXd(2) << x0(0), x0(2)).finished(), id));
             ys[0].push_back((Eigen::VectorXd(3) << first.D, first.hmin, first.hmax).finished());
-            if (branched) {
+            if (branched && x0(0) >= kCupMinV) {
                 xs[3].push_back((Eigen::VectorXd(2) << x0(0), x0(2)).finished());
                 ys[3].push_back(Eigen::VectorXd::Constant(1, branchOf(id)));
+            } else if (branched && branchOf(id) != 0) {
+                throw InputError(fmt::format("surrogate training: cell {} is a cup at v {} < {}, where a branched "
+                                             "surrogate takes the disc (kCupMinV)", id, x0(0), kCupMinV));
             }
         } else {
             ++rep.dropped[0];
@@ -611,9 +626,19 @@ std::vector<OutputAccuracy> heldOutAccuracy(const std::vector<long>& cellIds, co
     return acc;
 }
 
+std::map<long, int> cupLabels(const std::vector<CampaignRow>& rows, const std::map<long, int>& cellBranch, double cupHminUm) {
+    std::map<long, int> labels;
+    for (const CampaignRow& r : rows) {
+        if (labels.count(r.point.cellId)) continue;
+        const auto it = cellBranch.find(r.point.cellId);
+        labels[r.point.cellId] = it != cellBranch.end() && it->second != 0 && r.hmin >= cupHminUm ? 1 : 0;
+    }
+    return labels;
+}
+
 SwitchAccuracy switchAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
                               const Eigen::MatrixXd& predicted, const std::map<long, int>& cellBranch,
-                              const Eigen::RowVectorXd* predictedBranch, double band) {
+                              const Eigen::RowVectorXd* predictedBranch, const std::map<long, int>* labels, double band) {
     SwitchAccuracy a;
     a.band = band;
     for (const auto& [id, b] : cellBranch)
@@ -644,12 +669,12 @@ SwitchAccuracy switchAccuracy(const std::vector<long>& cellIds, const Eigen::Mat
     };
     subset(near, a.nearSwitch, a.cells);
     subset(kicked, a.kicked, a.kickedCells);
-    if (predictedBranch) {
+    if (predictedBranch && labels) {
         a.misclassified = 0;
         for (std::size_t j = 0; j < cellIds.size(); ++j) {
-            if (j > 0 && cellIds[j] == cellIds[j - 1]) continue;
-            const auto it = cellBranch.find(cellIds[j]);
-            if (it != cellBranch.end() && (it->second != 0) != ((*predictedBranch)(Eigen::Index(j)) > 0.5)) ++a.misclassified;
+            if ((j > 0 && cellIds[j] == cellIds[j - 1]) || inputs(0, Eigen::Index(j)) < a.vSwitch - band) continue;
+            const auto it = labels->find(cellIds[j]);
+            if (it != labels->end() && (it->second != 0) != ((*predictedBranch)(Eigen::Index(j)) > 0.5)) ++a.misclassified;
         }
     }
     return a;

@@ -20,18 +20,24 @@ const std::vector<std::string>& surrogateInputNames();   ///< v, mu_uN_per_m, Fv
 const std::vector<std::string>& surrogateOutputNames();  ///< D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s
 const std::vector<std::string>& surrogateNetworkNames(); ///< equilibrium, stretching, relaxation (file MODEL_DIR/<name>.json)
 
+/// Below this reduced volume the lowest-energy equilibrium is the disc at every FvK (branch map of
+/// docs/FORWARD_MODEL.md: the disc is the lowest state for v <= 0.97 at levels 3 and 4; the first
+/// state reached by a kick in the shipped campaign is at v 0.977): a branched surrogate gives b = 0
+/// there without evaluating its classifier, and trains it on cells above it only.
+inline constexpr double kCupMinV = 0.95;
+
 /// Name of the branch input that the three networks of a branched surrogate take last.
-inline constexpr const char* kBranchInputName = "kicked_branch";
+inline constexpr const char* kBranchInputName = "cup_branch";
 
 struct Surrogate {
     TrainedNetwork equilibrium;  ///< (v, FvK) -> (D, hmin, hmax)
     TrainedNetwork stretching;   ///< (v, mu, FvK, b2, Fext) -> (D0, D1)
     TrainedNetwork relaxation;   ///< (v, mu, FvK, b2, etam) -> tc mu / etam (dimensionless)
     /// Optional branch classifier (v, FvK) -> score (MODEL_DIR/branch.json). Where the lowest-energy
-    /// equilibrium jumps from the symmetric disc to another state (near v = 1, docs/FORWARD_MODEL.md),
-    /// the outputs jump with it; a smooth network cannot follow a jump, so a branched surrogate
-    /// classifies the branch, b = 1 if score > 0.5 (a state reached by a kick) else 0 (the disc), and
-    /// its three networks take b as one more, last input: each is smooth within a branch.
+    /// equilibrium jumps from the biconcave disc to the cup (near v = 1, docs/FORWARD_MODEL.md), hmin
+    /// jumps by 1-2 um and the other outputs with it; a smooth network cannot follow a jump, so a
+    /// branched surrogate classifies the branch, b = 1 if score > 0.5 (the cup) else 0 (the disc
+    /// family), and its three networks take b as one more, last input: each is smooth within a branch.
     TrainedNetwork branch;
     bool branched = false;
     Precision precision = Precision::Double;
@@ -118,9 +124,15 @@ struct SurrogateTrainingOptions {
     int folds = 0, fold = 0;
     std::string command;              ///< stored in every network file
     /// Equilibrium branch per cell id (1: the campaign's lowest-energy search kept a state reached by
-    /// a kick, 0: the symmetric disc; readCampaignBranches). When the training cells hold both, the
-    /// surrogate is branched (Surrogate::branch); empty or one branch only: the three networks alone.
+    /// a kick, 0: the symmetric disc; readCampaignBranches). When the training cells hold cups
+    /// (cupLabels) and discs, the surrogate is branched (Surrogate::branch); empty or one branch only:
+    /// the three networks alone.
     std::map<long, int> cellBranch;
+    /// A kicked cell is a cup when its hmin is at least this (um). On the shipped level-4 campaign the
+    /// kicked states fall in two groups: asymmetric near-discs 1-25 kT below the disc whose hmin lies
+    /// within ~0.3 um of the disc's (at most 0.97 um above FvK 160), and cups with hmin 1.25-2.6 um;
+    /// only the cups jump. They belong with the disc family, whose network absorbs them.
+    double cupHminUm = 1.2;
     std::function<void(const std::string& network, const EpochRecord&)> progress;
 };
 
@@ -131,6 +143,7 @@ struct SurrogateTrainingReport {
     /// Rows (cells for equilibrium/relaxation) used per network and dropped for a non-finite output.
     long used[3] = {0, 0, 0}, dropped[3] = {0, 0, 0};
     long branchUsed = 0;                        ///< cells of the branch classifier (0: not branched)
+    std::map<long, int> cellLabel;              ///< the classifier's label per cell (cupLabels)
     double branchWallSeconds = 0;
     std::vector<std::string> droppedWhere;      ///< where the dropped samples lie (one line per input)
     double wallSeconds[3] = {0, 0, 0};
@@ -164,13 +177,19 @@ SurrogateTest testSurrogate(const Surrogate& s, std::vector<const CampaignRow*> 
 struct SwitchAccuracy {
     double vSwitch = NAN, band = 0.02;
     long cells = 0, kickedCells = 0;
-    long misclassified = -1;                  ///< cells whose predicted branch differs (-1: not branched)
+    long misclassified = -1;                  ///< cells whose predicted branch differs from the label (-1: not branched)
     std::vector<OutputAccuracy> nearSwitch, kicked;
 };
-/// `predictedBranch`: the surrogate's b per row (nullptr for a surrogate without a branch classifier).
+/// `predictedBranch`: the surrogate's b per row, compared with `labels` (cupLabels; nullptr for a
+/// surrogate without a branch classifier).
 SwitchAccuracy switchAccuracy(const std::vector<long>& cellIds, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
                               const Eigen::MatrixXd& predicted, const std::map<long, int>& cellBranch,
-                              const Eigen::RowVectorXd* predictedBranch, double band = 0.02);
+                              const Eigen::RowVectorXd* predictedBranch, const std::map<long, int>* labels,
+                              double band = 0.02);
+
+/// The branch classifier's labels per cell: 1 (cup) where cellBranch is 1 and the cell's hmin >=
+/// cupHminUm, else 0.
+std::map<long, int> cupLabels(const std::vector<CampaignRow>& rows, const std::map<long, int>& cellBranch, double cupHminUm);
 
 /// FNV-1a over the rows as written by the campaign, without wall_s ("fnv1a:<16 hex digits>"); the
 /// training data hash stored in every network file.
