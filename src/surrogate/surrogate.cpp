@@ -73,6 +73,23 @@ Eigen::MatrixXd vFvKOf(const Eigen::Ref<const Eigen::MatrixXd>& x) {
     return out;
 }
 
+/// b = [score > 0.5] of a branch classifier for the columns of (v, FvK) with v >= kCupMinV, 0 for the
+/// others. Only the columns that can be cups are classified: the rest cost nothing (86 % of the
+/// prior box's v range), and a classifier that said "cup" there would be wrong.
+Eigen::RowVectorXd classifyBranch(const TrainedNetwork& classifier, const Eigen::Ref<const Eigen::MatrixXd>& vFvK,
+                                  Precision precision) {
+    Eigen::RowVectorXd b = Eigen::RowVectorXd::Zero(vFvK.cols());
+    std::vector<Eigen::Index> cols;
+    for (Eigen::Index j = 0; j < vFvK.cols(); ++j)
+        if (vFvK(0, j) >= kCupMinV) cols.push_back(j);
+    if (cols.empty()) return b;
+    Eigen::MatrixXd x(2, Eigen::Index(cols.size()));
+    for (std::size_t k = 0; k < cols.size(); ++k) x.col(Eigen::Index(k)) = vFvK.col(cols[k]);
+    const Eigen::MatrixXd score = classifier.evaluate(x, precision);
+    for (std::size_t k = 0; k < cols.size(); ++k) b(cols[k]) = score(0, Eigen::Index(k)) > 0.5 ? 1.0 : 0.0;
+    return b;
+}
+
 /// The network evaluated on x with b appended as its last input row (x itself when b is empty).
 Eigen::MatrixXd evaluateWithBranch(const TrainedNetwork& net, const Eigen::Ref<const Eigen::MatrixXd>& x,
                                    const Eigen::RowVectorXd* b, Precision precision) {
@@ -134,19 +151,7 @@ void Surrogate::save(const fs::path& dir) const {
 
 Eigen::RowVectorXd Surrogate::branchIndicator(const Eigen::Ref<const Eigen::MatrixXd>& vFvK) const {
     expectRows(vFvK, 2, "branch classifier");
-    Eigen::RowVectorXd b = Eigen::RowVectorXd::Zero(vFvK.cols());
-    if (!branched) return b;
-    // Only the columns that can be cups are classified: the rest cost nothing (about 86 % of the
-    // prior box's v range), and a classifier that said "cup" there would be wrong.
-    std::vector<Eigen::Index> cols;
-    for (Eigen::Index j = 0; j < vFvK.cols(); ++j)
-        if (vFvK(0, j) >= kCupMinV) cols.push_back(j);
-    if (cols.empty()) return b;
-    Eigen::MatrixXd x(2, Eigen::Index(cols.size()));
-    for (std::size_t k = 0; k < cols.size(); ++k) x.col(Eigen::Index(k)) = vFvK.col(cols[k]);
-    const Eigen::MatrixXd score = branch.evaluate(x, precision);
-    for (std::size_t k = 0; k < cols.size(); ++k) b(cols[k]) = score(0, Eigen::Index(k)) > 0.5 ? 1.0 : 0.0;
-    return b;
+    return branched ? classifyBranch(branch, vFvK, precision) : Eigen::RowVectorXd::Zero(vFvK.cols());
 }
 
 Eigen::MatrixXd Surrogate::equilibriumWith(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd* b) const {
@@ -331,7 +336,7 @@ TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const std::vector
     if (classifier) {
         const Eigen::MatrixXd vFvK = vFvKOf(X);
         X.conservativeResize(X.rows() + 1, Eigen::NoChange);
-        X.row(X.rows() - 1) = (classifier->evaluate(vFvK).row(0).array() > 0.5).cast<double>().matrix();
+        X.row(X.rows() - 1) = classifyBranch(*classifier, vFvK, Precision::Double);
     }
     const Eigen::MatrixXd Y = teacher.evaluate(X);
     o.batchSize = 128;
