@@ -394,10 +394,15 @@ TEST(SurrogateTraining, BranchedSurrogateFollowsAJumpAcrossTheSwitchLine) {
     opt.restarts = 2;
     const SurrogateTrainingReport single = trainSurrogate(rows, opt);
     opt.cellBranch = branch;
+    opt.distill[2] = true;  // as the CLI's default: the relaxation ensemble distilled on classified box points
+    opt.distillSamples = 2000;
     const SurrogateTrainingReport rep = trainSurrogate(rows, opt);
     EXPECT_FALSE(single.model.branched);
     ASSERT_TRUE(rep.model.branched);
     EXPECT_EQ(rep.model.equilibrium.inputNames.back(), kBranchInputName);
+    EXPECT_EQ(rep.model.relaxation.distillation.members, 2);
+    EXPECT_EQ(rep.model.relaxation.inputNames.back(), kBranchInputName);
+    EXPECT_EQ(rep.model.relaxation.net.numInputs(), 6);
 
     // Held-out cells near the switch (the same test cells for both; measured: 11 cells, 6 kicked, none
     // misclassified, hmin RMSE 0.0010 um branched against 0.22 um for the single network).
