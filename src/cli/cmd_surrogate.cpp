@@ -113,7 +113,8 @@ struct TrainCommandOptions {
     std::string stretchingVariables = "sqrt-b2";
     std::vector<std::string> ensemble{"relaxation"};
     std::vector<std::string> distill{"relaxation"};
-    std::string branch = "auto";
+    std::string branch = "none";
+    std::map<long, int> kicked;  ///< the campaign's equilibrium branches (for the accuracy near the switch)
 };
 
 void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
@@ -161,9 +162,10 @@ void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
               NumberRange::closed(0.0, 10.0, "um"))
         ->capture_default_str();
     cmd->add_option("--branch", o.branch,
-                    "auto: where the campaign's equilibria.csv holds cells of both equilibrium branches (the symmetric "
-                    "disc and a lower state reached by a kick, near v = 1), train a branch classifier on (v, FvK) and give "
-                    "the three networks the branch as one more input (branch.json); none: the three networks alone")
+                    "none: the three networks alone; auto: where the campaign's equilibria.csv holds cups (near v = 1), "
+                    "also train a branch classifier on (v, FvK) and give the three networks the branch as one more input "
+                    "(branch.json). Cross-validated on the shipped campaign, auto is more accurate away from the switch "
+                    "to the cup and less accurate near it (docs/CAMPAIGN_AND_SURROGATE.md)")
         ->check(CLI::IsMember({"auto", "none"}))->capture_default_str();
     addNumber(cmd, "--cv-folds", o.cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
@@ -193,7 +195,7 @@ void reconcileNetworkLists(TrainCommandOptions& o, bool distillGiven) {
 SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
     SurrogateTrainingOptions t = o.t;
     t.command = commandLine();
-    if (o.branch == "auto") t.cellBranch = readCampaignBranches(o.data);
+    if (o.branch == "auto") t.cellBranch = o.kicked;
     t.logRelaxation = o.relaxationVariables == "log";
     t.sqrtB2Stretching = o.stretchingVariables == "sqrt-b2";
     const auto& names = surrogateNetworkNames();
@@ -214,8 +216,8 @@ SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
     return t;
 }
 
-SwitchAccuracy testSwitchAccuracy(const SurrogateTrainingReport& rep, const SurrogateTrainingOptions& t) {
-    return switchAccuracy(rep.testCellIds, rep.testInputs, rep.testTruth, rep.testPredicted, t.cellBranch,
+SwitchAccuracy testSwitchAccuracy(const SurrogateTrainingReport& rep, const std::map<long, int>& kicked) {
+    return switchAccuracy(rep.testCellIds, rep.testInputs, rep.testTruth, rep.testPredicted, kicked,
                           rep.model.branched ? &rep.testBranch : nullptr, &rep.cellLabel);
 }
 
@@ -246,7 +248,7 @@ nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainin
                         {"branched", rep.model.branched},
                         {"cup_hmin_um", t.cupHminUm},
                         {"test", accuracyJson(rep.test)},
-                        {"test_near_switch", switchJson(testSwitchAccuracy(rep, t))},
+                        {"test_near_switch", switchJson(testSwitchAccuracy(rep, o.kicked))},
                         {"validation", accuracyJson(rep.validation)}};
     const auto& names = surrogateNetworkNames();
     const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
@@ -273,7 +275,7 @@ nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainin
 }
 
 /// MODEL_DIR/accuracy.md: test and validation accuracy, the training of each network.
-std::string trainingMarkdown(const SurrogateTrainingReport& rep, const SurrogateTrainingOptions& t, bool complete) {
+std::string trainingMarkdown(const SurrogateTrainingReport& rep, const std::map<long, int>& kicked, bool complete) {
     std::string md = fmt::format("# Surrogate accuracy\n\nMade by `{}` (trbc {}), data hash {}: {} rows in {} cells{}; "
                                  "{} cells held out as the test set.\n\n## Test set (cells never seen in training or early stopping)\n\n",
                                  commandLine(), kVersion, rep.dataHash, rep.rows, rep.cells,
@@ -288,14 +290,14 @@ std::string trainingMarkdown(const SurrogateTrainingReport& rep, const Surrogate
     if (rep.model.branched)
         md += fmt::format("| branch | {} | 0 | {} | 1 | {:.1f} |\n", rep.branchUsed, rep.model.branch.history.passes(),
                           rep.branchWallSeconds);
-    md += switchMarkdown(testSwitchAccuracy(rep, t));
+    md += switchMarkdown(testSwitchAccuracy(rep, kicked));
     if (!rep.droppedWhere.empty()) md += "\nFailed samples by input:\n\n- " + fmt::format("{}", fmt::join(rep.droppedWhere, "\n- ")) + "\n";
     return md;
 }
 
 /// K-fold cross-validation over whole cells: cv.json, cv.md and cv_predictions.csv in `dir`.
-void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& t, int folds, const std::string& dataHash,
-                   const std::filesystem::path& dir) {
+void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& t, const std::map<long, int>& kicked,
+                   int folds, const std::string& dataHash, const std::filesystem::path& dir) {
     std::cerr << fmt::format("surrogate train: {}-fold cross-validation ({} more trainings)\n", folds, folds);
     SurrogateTrainingOptions c = t;
     c.progress = nullptr;
@@ -304,7 +306,7 @@ void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTraining
                          {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
                          {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
     const auto labels = cupLabels(rows, t.cellBranch, t.cupHminUm);
-    const SwitchAccuracy near = switchAccuracy(cv.cellIds, cv.inputs, cv.truth, cv.predicted, t.cellBranch,
+    const SwitchAccuracy near = switchAccuracy(cv.cellIds, cv.inputs, cv.truth, cv.predicted, kicked,
                                                cv.branched ? &cv.branch : nullptr, &labels);
     cj["near_switch"] = switchJson(near);
     for (const auto& f : cv.perFold) cj["per_fold"].push_back(accuracyJson(f));
@@ -322,6 +324,7 @@ void runTrain(TrainCommandOptions& o, bool distillGiven) {
     const auto rows = readCampaignRows(o.data, &complete);
     if (!complete)
         std::cerr << fmt::format("surrogate train: {} is an unfinished campaign; training on its {} finished rows\n", o.data, rows.size());
+    o.kicked = readCampaignBranches(o.data);
     const SurrogateTrainingOptions t = trainingOptions(o);
     omp_set_num_threads(o.threads);
     const auto t0 = SteadyClock::now();
@@ -330,11 +333,11 @@ void runTrain(TrainCommandOptions& o, bool distillGiven) {
     rep.model.save(o.out);
     const std::filesystem::path dir = o.out;
     writeFileAtomically(dir / "accuracy.json", trainingJson(o, t, rep, complete, wall).dump(2) + "\n");
-    const std::string md = trainingMarkdown(rep, t, complete);
+    const std::string md = trainingMarkdown(rep, o.kicked, complete);
     writeFileAtomically(dir / "accuracy.md", md);
     writePredictionsCsv(dir / "test_predictions.csv", rep.testInputs, rep.testTruth, rep.testPredicted);
     std::cout << md;
-    if (o.cvFolds >= 2) crossValidate(rows, t, o.cvFolds, rep.dataHash, dir);
+    if (o.cvFolds >= 2) crossValidate(rows, t, o.kicked, o.cvFolds, rep.dataHash, dir);
     std::cout << fmt::format("\nmodel: {}\n", dir.string());
 }
 
