@@ -172,7 +172,9 @@ TEST(ReaderFuzz, SurrogateJson) {
     const fs::path shipped = fs::path(TRBC_SOURCE_DIR) / "data" / "surrogates";
     const fs::path model = tmp.path() / "model";
     fs::create_directories(model);
-    const char* files[] = {"equilibrium.json", "stretching.json", "relaxation.json"};
+    // The shipped model is branched: its classifier is read like the networks.
+    const char* files[] = {"equilibrium.json", "stretching.json", "relaxation.json", "branch.json"};
+    ASSERT_TRUE(fs::exists(shipped / "branch.json"));
     for (const char* f : files) fs::copy_file(shipped / f, model / f);
     Eigen::MatrixXd x(6, 2);
     x << 0.99, 0.7, 4.0, 9.0, 250.0, 20.0, 1.5, 0.1, 0.7, 0.2, 100.0, 10.0;
@@ -186,7 +188,7 @@ TEST(ReaderFuzz, SurrogateJson) {
             EXPECT_TRUE(s.evaluate(x).allFinite()) << f;
         });
     }
-    EXPECT_GT(errors, 30);
+    EXPECT_GT(errors, 40);
 }
 
 TEST(ReaderFuzz, TomlConfigs) {

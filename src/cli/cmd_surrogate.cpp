@@ -113,7 +113,7 @@ struct TrainCommandOptions {
     std::string stretchingVariables = "sqrt-b2";
     std::vector<std::string> ensemble{"relaxation"};
     std::vector<std::string> distill{"relaxation"};
-    std::string branch = "none";
+    std::string branch = "auto";
     std::map<long, int> kicked;  ///< the campaign's equilibrium branches (for the accuracy near the switch)
 };
 
@@ -162,10 +162,10 @@ void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
               NumberRange::closed(0.0, 10.0, "um"))
         ->capture_default_str();
     cmd->add_option("--branch", o.branch,
-                    "none: the three networks alone; auto: where the campaign's equilibria.csv holds cups (near v = 1), "
-                    "also train a branch classifier on (v, FvK) and give the three networks the branch as one more input "
-                    "(branch.json). Cross-validated on the shipped campaign, auto is more accurate away from the switch "
-                    "to the cup and less accurate near it (docs/CAMPAIGN_AND_SURROGATE.md)")
+                    "auto: where the campaign's equilibria.csv holds cups (near v = 1), also train a branch classifier "
+                    "on (v, FvK) and give the three networks the branch as one more input (branch.json); none: the three "
+                    "networks alone, which smear the jump to the cup over both sides of the switch "
+                    "(docs/CAMPAIGN_AND_SURROGATE.md)")
         ->check(CLI::IsMember({"auto", "none"}))->capture_default_str();
     addNumber(cmd, "--cv-folds", o.cvFolds,
                     "also estimate the held-out error by K-fold cross-validation over whole cells (K more trainings; "
