@@ -18,7 +18,8 @@ ROOT = Path(__file__).resolve().parent
 BUILD = Path(os.environ.get("TRBC_BUILD_DIR", ROOT / "build")).resolve()
 BUILD.mkdir(parents=True, exist_ok=True)
 DATA = [
-    ("surrogates", ["equilibrium.json", "stretching.json", "relaxation.json", "accuracy.json", "cv.json"]),
+    # branch.json: the branch classifier of a branched model (copied when present)
+    ("surrogates", ["equilibrium.json", "stretching.json", "relaxation.json", "branch.json", "accuracy.json", "cv.json"]),
     ("experiments", None),  # the whole tree
     ("examples", None),
 ]
@@ -63,6 +64,8 @@ class BuildWithData(build_py):
             else:
                 (dest / sub).mkdir(parents=True, exist_ok=True)
                 for f in files:
+                    if f == "branch.json" and not (src / f).exists():
+                        continue
                     shutil.copy2(src / f, dest / sub / f)
 
 
