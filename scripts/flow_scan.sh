@@ -8,33 +8,43 @@
 #              0.7401, 1 1/s: the level-3 bracket of the Table 1 cell is [0.74, 1.41] 1/s, the largest
 #              measured critical stress is at 0.59 1/s) for eta_m in {0.3, 0.42, 0.55, 0.69},
 #              v in {0.90, 0.94, 0.97} and a start tilted 7 deg out of the shear plane
-# Usage: scripts/flow_scan.sh TRBC OUT [JOBS] [SET]; SET etam (default) or threshold. Writes OUT/<case>/
+#   theta_new  the three diagnostic cases (23.9 mPa s / 55 1/s, 10.7 mPa s / 39 1/s, 100 mPa s / 0.7401
+#              1/s) for the theta_new means of the shipped calibration (results/calibration:
+#              v 0.9296, mu 4.667 uN/m, kb 2.258e-19 J, b2 1.998, eta_m 0.699 Pa s um)
+# Usage: scripts/flow_scan.sh TRBC OUT [JOBS] [SET]; SET etam (default), threshold or theta_new. Writes OUT/<case>/
 # (flow.json, frames.csv, shapes) and OUT/summary.csv; the shipped copies keep flow.json and frames.csv.
 set -euo pipefail
 trbc="$1"; out="$2"; jobs="${3:-2}"; set="${4:-etam}"
 mkdir -p "$out"
-common="--mu 4.99 --kb 2.10e-19 --b2 1.84 --level 3 --rotations 10 --threads 1"
+table1="--mu 4.99 --kb 2.10e-19 --b2 1.84"
+own="--v 0.9296 --mu 4.667 --kb 2.258e-19 --b2 1.998 --etam 0.699"
+common="--level 3 --rotations 10 --threads 1"
 cases=()
 case "$set" in
   etam)
     for etam in 0.3 0.42 0.55 0.69; do
-      cases+=("angle239_etam${etam}|--v 0.94 --eta-out 23.9 --shear-rate 55 --etam ${etam}")
-      cases+=("regime107_etam${etam}|--v 0.94 --eta-out 10.7 --shear-rate 39 --etam ${etam}")
+      cases+=("angle239_etam${etam}|$table1 --v 0.94 --eta-out 23.9 --shear-rate 55 --etam ${etam}")
+      cases+=("regime107_etam${etam}|$table1 --v 0.94 --eta-out 10.7 --shear-rate 39 --etam ${etam}")
     done
-    cases+=("regime107_etam0.69_tilt7|--v 0.94 --eta-out 10.7 --shear-rate 39 --etam 0.69 --tilt-deg 7")
+    cases+=("regime107_etam0.69_tilt7|$table1 --v 0.94 --eta-out 10.7 --shear-rate 39 --etam 0.69 --tilt-deg 7")
     ;;
   threshold)
     for rate in 0.5477 0.7401 1; do
       for etam in 0.3 0.42 0.55 0.69; do
-        cases+=("eta100_rate${rate}_etam${etam}|--v 0.94 --eta-out 100 --shear-rate ${rate} --etam ${etam}")
+        cases+=("eta100_rate${rate}_etam${etam}|$table1 --v 0.94 --eta-out 100 --shear-rate ${rate} --etam ${etam}")
       done
       for v in 0.90 0.97; do
-        cases+=("eta100_rate${rate}_v${v}|--v ${v} --eta-out 100 --shear-rate ${rate} --etam 0.69")
+        cases+=("eta100_rate${rate}_v${v}|$table1 --v ${v} --eta-out 100 --shear-rate ${rate} --etam 0.69")
       done
-      cases+=("eta100_rate${rate}_tilt7|--v 0.94 --eta-out 100 --shear-rate ${rate} --etam 0.69 --tilt-deg 7")
+      cases+=("eta100_rate${rate}_tilt7|$table1 --v 0.94 --eta-out 100 --shear-rate ${rate} --etam 0.69 --tilt-deg 7")
     done
     ;;
-  *) echo "flow_scan.sh: SET must be etam or threshold, not '$set'" >&2; exit 2 ;;
+  theta_new)
+    cases+=("own_angle239|$own --eta-out 23.9 --shear-rate 55")
+    cases+=("own_regime107|$own --eta-out 10.7 --shear-rate 39")
+    cases+=("own_eta100_rate0.7401|$own --eta-out 100 --shear-rate 0.7401")
+    ;;
+  *) echo "flow_scan.sh: SET must be etam, threshold or theta_new, not '$set'" >&2; exit 2 ;;
 esac
 printf '%s\n' "${cases[@]}" | xargs -P "$jobs" -I{} bash -c '
   id="${1%%|*}"; args="${1#*|}"
