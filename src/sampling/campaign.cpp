@@ -97,6 +97,17 @@ void validateOptions(const CampaignOptions& o) {
         throw InputError(fmt::format("--cell-time-limit {} is outside [0, 1e6] s (0: none)", o.cellTimeLimit));
 }
 
+/// " key (<haveWord> X, <wantWord> Y)" for every setting that differs between `have` and `want`.
+std::string settingsDiff(const nlohmann::json& have, const nlohmann::json& want, const char* haveWord, const char* wantWord) {
+    std::string diff;
+    for (auto& [k, v] : want.items())
+        if (!have.contains(k) || have[k] != v)
+            diff += fmt::format(" {} ({} {}, {} {})", k, haveWord, have.value(k, nlohmann::json()).dump(), wantWord, v.dump());
+    for (auto& [k, v] : have.items())
+        if (!want.contains(k)) diff += fmt::format(" {} ({} {}, {} not set)", k, haveWord, v.dump(), wantWord);
+    return diff;
+}
+
 /// The settings a campaign of the symmetric disc would have with otherwise the same settings as `o`.
 nlohmann::json donorSettings(const CampaignOptions& o) {
     nlohmann::json j = settingsJson(o);
@@ -106,11 +117,9 @@ nlohmann::json donorSettings(const CampaignOptions& o) {
     return j;
 }
 
-/// The rows of CampaignOptions::reuseFrom by sample id, after checking that it is a campaign of the
-/// symmetric disc with this campaign's other settings (its sample count aside).
-std::map<long, CampaignRow> donorRows(const CampaignOptions& o) {
-    std::map<long, CampaignRow> rows;
-    if (o.reuseFrom.empty()) return rows;
+/// Refuses a CampaignOptions::reuseFrom that is not a campaign of the symmetric disc with this
+/// campaign's other settings (its sample count aside).
+void checkDonor(const CampaignOptions& o) {
     if (o.experiment.equilibriumSymmetry != EquilibriumSymmetry::Lowest)
         throw InputError("--reuse-from: only a campaign of the lowest-energy equilibrium (--equilibrium-symmetry lowest) "
                          "reuses one of the symmetric disc");
@@ -125,23 +134,20 @@ std::map<long, CampaignRow> donorRows(const CampaignOptions& o) {
     }
     nlohmann::json want = donorSettings(o);
     want["samples"] = donor.value("samples", nlohmann::json());
-    if (donor != want) {
-        std::string diff;
-        for (auto& [k, v] : want.items())
-            if (!donor.contains(k) || donor[k] != v)
-                diff += fmt::format(" {} (is {}, needs {})", k, donor.value(k, nlohmann::json()).dump(), v.dump());
-        for (auto& [k, v] : donor.items())
-            if (!want.contains(k)) diff += fmt::format(" {} (is {}, needs not set)", k, v.dump());
+    if (donor != want)
         throw InputError(fmt::format("--reuse-from: {} is not this campaign's design with the symmetric disc "
                                      "(equilibrium_symmetry \"inversion\"):{}",
-                                     json.string(), diff));
-    }
+                                     json.string(), settingsDiff(donor, want, "is", "needs")));
+}
+
+/// The rows of CampaignOptions::reuseFrom by sample id (none without it), after checkDonor.
+std::map<long, CampaignRow> donorRows(const CampaignOptions& o) {
+    std::map<long, CampaignRow> rows;
+    if (o.reuseFrom.empty()) return rows;
+    checkDonor(o);
     for (CampaignRow& r : readCampaignRows(o.reuseFrom)) rows.emplace(r.point.sampleId, std::move(r));
     return rows;
 }
-
-/// The donor rows of one cell in its order, or none when any is missing or holds other inputs.
-std::optional<std::vector<CampaignRow>> donorCell(const std::map<long, CampaignRow>& donor, const std::vector<CampaignPoint>& cell);
 
 /// Groups the design rows by cell (they are contiguous).
 std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>& pts) {
@@ -160,6 +166,7 @@ bool sameInputs(const CampaignPoint& row, const CampaignPoint& design) {
            row.p.b2 == design.p.b2 && row.p.etam == design.p.etam && row.fext == design.fext;
 }
 
+/// The donor rows of one cell in its order, or none when any is missing or holds other inputs.
 std::optional<std::vector<CampaignRow>> donorCell(const std::map<long, CampaignRow>& donor, const std::vector<CampaignPoint>& cell) {
     std::vector<CampaignRow> rows;
     for (const CampaignPoint& q : cell) {
@@ -279,7 +286,7 @@ void markFailed(std::vector<CampaignRow>& rows, const std::string& reason) {
 }
 
 /// Wall time per row and the status: "ok" when all six outputs are finite.
-std::vector<CampaignRow> finishCellRows(std::vector<CampaignRow>& rows, SteadyClock::time_point t0) {
+std::vector<CampaignRow> finishCellRows(std::vector<CampaignRow> rows, SteadyClock::time_point t0) {
     const double wall = secondsSince(t0) / double(rows.size());
     for (CampaignRow& r : rows) {
         r.wallSeconds = wall;
@@ -293,7 +300,7 @@ std::vector<CampaignRow> finishCellRows(std::vector<CampaignRow>& rows, SteadyCl
             if (r.reason.empty()) r.reason = "non-finite output";
         }
     }
-    return std::move(rows);
+    return rows;
 }
 
 /// The equilibrium observables of `rows` equal the donor's bit for bit. Together with the branch
@@ -338,7 +345,7 @@ std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell,
         if (donor && eq.branch == "symmetric" && sameEquilibrium(*donor, rows)) {
             takeOverOutputs(*donor, rows);
             if (record) record->reused = true;
-            return finishCellRows(rows, t0);
+            return finishCellRows(std::move(rows), t0);
         }
 
         stage = "stretching";
@@ -373,12 +380,12 @@ std::vector<CampaignRow> runCampaignCell(const std::vector<CampaignPoint>& cell,
     } catch (const std::exception& e) {
         markFailed(rows, fmt::format("{}: {}", stage, e.what()));
     }
-    return finishCellRows(rows, t0);
+    return finishCellRows(std::move(rows), t0);
 }
 
 void prepareCampaign(const CampaignOptions& o) {
     validateOptions(o);
-    if (!o.reuseFrom.empty()) donorRows(o);  // refuse a wrong donor before anything is written
+    if (!o.reuseFrom.empty()) checkDonor(o);  // refuse a wrong donor before anything is written
     std::error_code ec;
     fs::create_directories(partsDir(o), ec);
     if (ec) throw InputError(fmt::format("--out: cannot create {}: {}", partsDir(o).string(), ec.message()));
@@ -397,14 +404,9 @@ void prepareCampaign(const CampaignOptions& o) {
         }
         const bool grows = old.contains("settings") && canGrow(old["settings"], settings);
         if (!grows && (!old.contains("settings") || old["settings"] != settings)) {
-            std::string diff;
             const nlohmann::json before = old.contains("settings") && old["settings"].is_object() ? old["settings"]
                                                                                                   : nlohmann::json::object();
-            for (auto& [k, v] : settings.items())
-                if (!before.contains(k) || before[k] != v)
-                    diff += fmt::format(" {} (was {}, now {})", k, before.value(k, nlohmann::json()).dump(), v.dump());
-            for (auto& [k, v] : before.items())
-                if (!settings.contains(k)) diff += fmt::format(" {} (was {}, now not set)", k, v.dump());
+            std::string diff = settingsDiff(before, settings, "was", "now");
             if (before.contains("samples") && before["samples"] != settings["samples"])
                 diff += fmt::format("; only a uniform design whose samples fill whole cells grows (a larger --samples "
                                     "extends it), an lhs design or a smaller --samples cannot");

@@ -90,24 +90,24 @@ Eigen::RowVectorXd classifyBranch(const TrainedNetwork& classifier, const Eigen:
     return b;
 }
 
+/// x with the row b appended.
+Eigen::MatrixXd withBranchRow(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd& b) {
+    Eigen::MatrixXd xb(x.rows() + 1, x.cols());
+    xb.topRows(x.rows()) = x;
+    xb.row(x.rows()) = b;
+    return xb;
+}
+
 /// The network evaluated on x with b appended as its last input row (x itself when b is empty).
 Eigen::MatrixXd evaluateWithBranch(const TrainedNetwork& net, const Eigen::Ref<const Eigen::MatrixXd>& x,
                                    const Eigen::RowVectorXd* b, Precision precision) {
-    if (!b) return net.evaluate(x, precision);
-    Eigen::MatrixXd xb(x.rows() + 1, x.cols());
-    xb.topRows(x.rows()) = x;
-    xb.row(x.rows()) = *b;
-    return net.evaluate(xb, precision);
+    return b ? net.evaluate(withBranchRow(x, *b), precision) : net.evaluate(x, precision);
 }
 
 /// Input gradient of a network on x with b appended; the row of b (piecewise constant) is dropped.
 Eigen::MatrixXd gradientWithBranch(const TrainedNetwork& net, const Eigen::Ref<const Eigen::MatrixXd>& x,
                                    const Eigen::RowVectorXd* b, const Eigen::Ref<const Eigen::MatrixXd>& w) {
-    if (!b) return net.inputGradient(x, w);
-    Eigen::MatrixXd xb(x.rows() + 1, x.cols());
-    xb.topRows(x.rows()) = x;
-    xb.row(x.rows()) = *b;
-    return net.inputGradient(xb, w).topRows(x.rows());
+    return b ? Eigen::MatrixXd(net.inputGradient(withBranchRow(x, *b), w).topRows(x.rows())) : net.inputGradient(x, w);
 }
 
 }  // namespace
@@ -335,8 +335,7 @@ TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const std::vector
     Eigen::MatrixXd X = uniformBoxPoints(box, samples, seed);
     if (classifier) {
         const Eigen::MatrixXd vFvK = vFvKOf(X);
-        X.conservativeResize(X.rows() + 1, Eigen::NoChange);
-        X.row(X.rows() - 1) = classifyBranch(*classifier, vFvK, Precision::Double);
+        X = withBranchRow(X, classifyBranch(*classifier, vFvK, Precision::Double));
     }
     const Eigen::MatrixXd Y = teacher.evaluate(X);
     o.batchSize = 128;
@@ -535,9 +534,6 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     }
     for (const std::string& e : errors)
         if (!e.empty()) throw InputError(e);
-    rep.model.equilibrium = results[0].network;
-    rep.model.stretching = results[1].network;
-    rep.model.relaxation = results[2].network;
     if (branched) {
         rep.model.branch = results[3].network;
         rep.model.branched = true;
@@ -551,10 +547,10 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             results[k].network = std::move(student);
             rep.wallSeconds[k] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         }
-        rep.model.equilibrium = results[0].network;
-        rep.model.stretching = results[1].network;
-        rep.model.relaxation = results[2].network;
     }
+    rep.model.equilibrium = results[0].network;
+    rep.model.stretching = results[1].network;
+    rep.model.relaxation = results[2].network;
 
     // Validation split of each network (the rows its early stopping saw), physical units.
     const int firstOutput[3] = {0, 3, 5};
