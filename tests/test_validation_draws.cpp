@@ -34,9 +34,10 @@ const fs::path kExperiments = test::experimentsDir();
 
 /// A theta_new samples.csv of `rows` samples inside the prior box, each row distinct.
 fs::path writeFakePosterior(const fs::path& dir, int rows) {
+    // b2 runs past the single-cell prior's [0, 4] from the fourth row on, as a population's draws do.
     std::string csv = "v,mu_uN_per_m,kb_J,b2,etam_Pa_s_um\n";
     for (int k = 0; k < rows; ++k)
-        csv += fmt::format("{},{},{},{},{}\n", 0.92 + 0.004 * k, 4.5 + 0.1 * k, 2.0e-19 + 1e-21 * k, 1.6 + 0.05 * k, 0.5 + 0.02 * k);
+        csv += fmt::format("{},{},{},{},{}\n", 0.92 + 0.004 * k, 4.5 + 0.1 * k, 2.0e-19 + 1e-21 * k, 2.9 + 0.4 * k, 0.5 + 0.02 * k);
     writeText(dir / "samples.csv", csv);
     return dir;
 }
@@ -235,6 +236,8 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
         EXPECT_TRUE(fs::exists(out / "figures" / "angle_vs_shear_rate.png")) << plotLog;
     }
     const std::vector<PosteriorDraw> draws = selectPosteriorDraws(readNumericTable(post / "samples.csv"), 2, 5);
+    // A draw outside the single-cell prior box runs all the same.
+    EXPECT_TRUE(std::any_of(draws.begin(), draws.end(), [](const PosteriorDraw& d) { return d.b2 > 4.0; }));
     const nlohmann::json j = nlohmann::json::parse(test::slurp(out / "validation.json"));
     EXPECT_EQ(j["draws"]["seed"].get<int>(), 5);
     EXPECT_EQ(j["draws"]["samples"], nlohmann::json({draws[0].sample, draws[1].sample}));
