@@ -464,6 +464,31 @@ TEST(SurrogateTraining, BranchedSurrogateFollowsAJumpAcrossTheSwitchLine) {
     }
 }
 
+TEST(SurrogateTraining, SwitchAccuracySeparatesTheMisclassifiedCells) {
+    // Four cells, one row each: a disc far from the switch, a disc and two cups near it (the switch
+    // at v 0.985, the smaller cup v), one cup classified as a disc. hmin is output 1.
+    const std::vector<long> ids{1, 2, 3, 4};
+    Eigen::MatrixXd in = Eigen::MatrixXd::Zero(6, 4), truth = Eigen::MatrixXd::Constant(6, 4, 1.0), pred = truth;
+    in.row(0) << 0.80, 0.97, 0.99, 0.985;
+    truth.row(1) << 0.9, 0.6, 2.0, 2.0;
+    pred.row(1) << 0.9, 0.62, 1.97, 0.8;
+    const std::map<long, int> branch{{1, 0}, {2, 0}, {3, 1}, {4, 1}}, labels = branch;
+    const Eigen::RowVectorXd predicted = (Eigen::RowVectorXd(4) << 0, 0, 1, 0).finished();
+    const SwitchAccuracy a = switchAccuracy(ids, in, truth, pred, branch, &predicted, &labels);
+    EXPECT_DOUBLE_EQ(a.vSwitch, 0.985);
+    EXPECT_EQ(a.cells, 3);
+    EXPECT_EQ(a.misclassified, 1);
+    EXPECT_EQ(a.rightBranchCells, 2);
+    EXPECT_NEAR(a.rightBranch[1].rmse, std::sqrt((0.02 * 0.02 + 0.03 * 0.03) / 2), 1e-12);
+    EXPECT_NEAR(a.nearSwitch[1].rmse, std::sqrt((0.02 * 0.02 + 0.03 * 0.03 + 1.2 * 1.2) / 3), 1e-12);
+    // The jump bound of one misclassified cell: RMSE >= 1.2 / sqrt(3).
+    EXPECT_GE(a.nearSwitch[1].rmse, 1.2 / std::sqrt(3.0));
+    // Without a classifier nothing is split off.
+    const SwitchAccuracy b = switchAccuracy(ids, in, truth, pred, branch, nullptr, nullptr);
+    EXPECT_EQ(b.misclassified, -1);
+    EXPECT_TRUE(b.rightBranch.empty());
+}
+
 TEST_F(TrainedFixture, EvalCliWritesOutputsAndFlagsExtrapolation) {
     TempDir tmp;
     report->model.save(tmp.path() / "m");

@@ -77,7 +77,9 @@ nlohmann::json switchJson(const SwitchAccuracy& a) {
     return {{"v_switch", a.vSwitch},           {"band_v", a.band},
             {"cells_near_switch", a.cells},    {"kicked_cells", a.kickedCells},
             {"misclassified_cells", a.misclassified < 0 ? nlohmann::json(nullptr) : nlohmann::json(a.misclassified)},
-            {"near_switch", accuracyJson(a.nearSwitch)}, {"kicked", accuracyJson(a.kicked)}};
+            {"near_switch", accuracyJson(a.nearSwitch)}, {"kicked", accuracyJson(a.kicked)},
+            {"right_branch_cells", a.misclassified < 0 ? nlohmann::json(nullptr) : nlohmann::json(a.rightBranchCells)},
+            {"right_branch", a.misclassified < 0 ? nlohmann::json(nullptr) : accuracyJson(a.rightBranch)}};
 }
 
 std::string switchMarkdown(const SwitchAccuracy& a) {
@@ -90,6 +92,12 @@ std::string switchMarkdown(const SwitchAccuracy& a) {
     md += a.misclassified < 0 ? std::string("The surrogate has no branch classifier.\n\n")
                               : fmt::format("Branch misclassified by the surrogate: {} of these cells.\n\n", a.misclassified);
     md += accuracyMarkdown(a.nearSwitch) + "\nThe kicked cells alone:\n\n" + accuracyMarkdown(a.kicked);
+    if (a.misclassified >= 0)
+        md += fmt::format("\nThe {} near cells whose branch the classifier got right (the regressors' own error; each "
+                          "misclassified cell adds the whole jump, so one alone among {} cells makes hmin's RMSE at "
+                          "least jump / sqrt({})):\n\n",
+                          a.rightBranchCells, a.cells, a.cells) +
+              accuracyMarkdown(a.rightBranch);
     return md;
 }
 

@@ -672,11 +672,15 @@ SwitchAccuracy switchAccuracy(const std::vector<long>& cellIds, const Eigen::Mat
     subset(kicked, a.kicked, a.kickedCells);
     if (predictedBranch && labels) {
         a.misclassified = 0;
-        for (std::size_t j = 0; j < cellIds.size(); ++j) {
-            if ((j > 0 && cellIds[j] == cellIds[j - 1]) || inputs(0, Eigen::Index(j)) < a.vSwitch - band) continue;
-            const auto it = labels->find(cellIds[j]);
-            if (it != labels->end() && (it->second != 0) != ((*predictedBranch)(Eigen::Index(j)) > 0.5)) ++a.misclassified;
+        std::vector<Eigen::Index> right;
+        for (const Eigen::Index j : near) {
+            const auto it = labels->find(cellIds[std::size_t(j)]);
+            const bool wrong = it != labels->end() && (it->second != 0) != ((*predictedBranch)(j) > 0.5);
+            const bool first = j == 0 || cellIds[std::size_t(j)] != cellIds[std::size_t(j - 1)];
+            if (wrong && first) ++a.misclassified;
+            if (!wrong) right.push_back(j);
         }
+        subset(right, a.rightBranch, a.rightBranchCells);
     }
     return a;
 }

@@ -178,7 +178,12 @@ struct SwitchAccuracy {
     double vSwitch = NAN, band = 0.02;
     long cells = 0, kickedCells = 0;
     long misclassified = -1;                  ///< cells whose predicted branch differs from the label (-1: not branched)
+    long rightBranchCells = 0;                ///< near cells whose predicted branch is the label's
     std::vector<OutputAccuracy> nearSwitch, kicked;
+    /// The near cells whose branch the classifier got right (empty when not branched): what the
+    /// regressors reach once the branch is known. A misclassified cell costs the whole jump, so the
+    /// near-switch RMSE of a discontinuous output is bounded below by jump * sqrt(misclassified / cells).
+    std::vector<OutputAccuracy> rightBranch;
 };
 /// `predictedBranch`: the surrogate's b per row, compared with `labels` (cupLabels; nullptr for a
 /// surrogate without a branch classifier).
