@@ -214,22 +214,63 @@ TEST(StokesOperators, CornerCentroidAndFaceRulesAgreeToTheQuadratureError) {
     EXPECT_GT((Sa - Sb).cwiseAbs().maxCoeff(), 1e-9 * Sb.cwiseAbs().maxCoeff());
 }
 
+TEST(StokesOperators, SinglePrecisionFarSumAgreesWithDoubleToItsRounding) {
+    // A flattened, off-centre cell (8 x 2.4 x 8 in R_A-like units) at the production level, smooth
+    // densities: the float far sum moves S f and D u by 7e-8 and 4e-8 of their largest value
+    // (measured), far below the flat-face error (~4e-3, docs/flow_verification.md).
+    Mesh m = icosphere(kProductionLevel);
+    m.X.row(1) *= 0.3;
+    m.X.row(0).array() += 5.0;
+    QuadratureOptions single;
+    single.singlePrecisionFar = true;
+    const BoundaryIntegralOperators a(m), b(m, single);
+    const Eigen::Index nv = a.numVertices();
+    Eigen::Matrix3Xd f(3, nv), u(3, nv), rot(3, nv);
+    const Eigen::Vector3d w(0.3, -1.0, 0.5), e(0.2, -0.6, 1.0);
+    for (Eigen::Index i = 0; i < nv; ++i) {
+        const Eigen::Vector3d x = m.X.col(i);
+        f.col(i) = Eigen::Vector3d(x.y() * x.z(), 1.0 + x.x(), x.x() * x.y());
+        u.col(i) = Eigen::Vector3d(std::sin(x.z()), x.x() * x.x() - 2.0, std::cos(x.y()));
+        rot.col(i) = w.cross(x);
+    }
+    Eigen::Matrix3Xd Sa, Da, Sb, Db;
+    a.layers(f, u, Sa, Da);
+    b.layers(f, u, Sb, Db);
+    const double sErr = (Sa - Sb).cwiseAbs().maxCoeff() / Sa.cwiseAbs().maxCoeff();
+    const double dErr = (Da - Db).cwiseAbs().maxCoeff() / Da.cwiseAbs().maxCoeff();
+    EXPECT_LT(sErr, 5e-7);
+    EXPECT_LT(dErr, 5e-7);
+    EXPECT_GT(sErr, 1e-12);  // the float path did run
+    // Rigid-body motions keep D = -4 pi: exact for translations (u_q - u0 vanishes in float too),
+    // to the rounding for rotations.
+    EXPECT_LT((b.doubleLayer(e.replicate(1, nv)) + 4.0 * kPi * e.replicate(1, nv)).norm(), 1e-10 * 4.0 * kPi * e.norm() * nv);
+    const Eigen::Matrix3Xd Dr = b.doubleLayer(rot);
+    EXPECT_LT((Dr + 4.0 * kPi * rot).cwiseAbs().maxCoeff(), 5e-7 * (4.0 * kPi * rot).cwiseAbs().maxCoeff());  // 4e-8
+    // Linear to the rounding (9e-8): S(f + 2u) = S f + 2 S u, which GMRES at 1e-6 relies on.
+    const Eigen::Matrix3Xd lin = b.singleLayer(f + 2.0 * u) - b.singleLayer(f) - 2.0 * b.singleLayer(u);
+    EXPECT_LT(lin.cwiseAbs().maxCoeff(), 5e-7 * b.singleLayer(f + 2.0 * u).cwiseAbs().maxCoeff());
+}
+
 TEST(StokesOperators, ResultDoesNotDependOnThreads) {
-    const BoundaryIntegralOperators ops(icosphere(2));
-    const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, ops.numVertices());
-    const int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const Eigen::Matrix3Xd S1 = ops.singleLayer(f), D1 = ops.doubleLayer(f);
-    Eigen::Matrix3Xd L1s, L1d, L2s, L2d;
-    ops.layers(f, f, L1s, L1d);
-    omp_set_num_threads(2);
-    const Eigen::Matrix3Xd S2 = ops.singleLayer(f), D2 = ops.doubleLayer(f);
-    ops.layers(f, f, L2s, L2d);
-    omp_set_num_threads(saved);
-    EXPECT_EQ(S1, S2);
-    EXPECT_EQ(D1, D2);
-    EXPECT_EQ(L1s, L2s);
-    EXPECT_EQ(L1d, L2d);
+    for (const bool single : {false, true}) {
+        QuadratureOptions q;
+        q.singlePrecisionFar = single;
+        const BoundaryIntegralOperators ops(icosphere(2), q);
+        const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, ops.numVertices());
+        const int saved = omp_get_max_threads();
+        omp_set_num_threads(1);
+        const Eigen::Matrix3Xd S1 = ops.singleLayer(f), D1 = ops.doubleLayer(f);
+        Eigen::Matrix3Xd L1s, L1d, L2s, L2d;
+        ops.layers(f, f, L1s, L1d);
+        omp_set_num_threads(2);
+        const Eigen::Matrix3Xd S2 = ops.singleLayer(f), D2 = ops.doubleLayer(f);
+        ops.layers(f, f, L2s, L2d);
+        omp_set_num_threads(saved);
+        EXPECT_EQ(S1, S2) << single;
+        EXPECT_EQ(D1, D2) << single;
+        EXPECT_EQ(L1s, L2s) << single;
+        EXPECT_EQ(L1d, L2d) << single;
+    }
 }
 
 // ---- Verification at the production level.
@@ -363,3 +404,4 @@ TEST(StokesConvergence, DISABLED_Table) {
 
 }  // namespace
 }  // namespace trbc
+

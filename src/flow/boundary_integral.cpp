@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <type_traits>
 
 #include "core/error.hpp"
 #include "flow/stokes_kernels.hpp"
@@ -54,6 +55,29 @@ void inverseSqrt(double* r, Index n) {
     }
 #endif
     for (; k < n; ++k) r[k] = r[k] > 0.0 ? 1.0 / std::sqrt(r[k]) : 0.0;
+}
+
+/// The same in single precision: the estimate and one Newton step (relative error ~2e-7, the
+/// float rounding). Lanes outside the normal float range take the exact formula.
+void inverseSqrt(float* r, Index n) {
+    Index k = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256 half = _mm256_set1_ps(0.5f), three = _mm256_set1_ps(3.0f);
+    const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
+    const __m256 hi = _mm256_set1_ps(std::numeric_limits<float>::max());
+    for (; k + 8 <= n; k += 8) {
+        const __m256 x = _mm256_loadu_ps(r + k);
+        const __m256 inRange = _mm256_and_ps(_mm256_cmp_ps(x, lo, _CMP_GE_OQ), _mm256_cmp_ps(x, hi, _CMP_LE_OQ));
+        if (_mm256_movemask_ps(inRange) != 0xFF) {
+            for (Index j = k; j < k + 8; ++j) r[j] = r[j] > 0.0f ? 1.0f / std::sqrt(r[j]) : 0.0f;
+            continue;
+        }
+        const __m256 y = _mm256_rsqrt_ps(x);
+        const __m256 xy2 = _mm256_mul_ps(_mm256_mul_ps(x, y), y);
+        _mm256_storeu_ps(r + k, _mm256_mul_ps(_mm256_mul_ps(half, y), _mm256_sub_ps(three, xy2)));
+    }
+#endif
+    for (; k < n; ++k) r[k] = r[k] > 0.0f ? 1.0f / std::sqrt(r[k]) : 0.0f;
 }
 
 /// A rule on the reference triangle: barycentric coordinates (points x 3), weights summing to 1.
@@ -168,38 +192,42 @@ struct CorrectionRow {
     }
 };
 
-/// The far-rule points and a density on them (structure of arrays).
+/// The far-rule points and a density on them (structure of arrays), in T = double or float.
+template <class T>
 struct FarPoints {
-    const double *x, *y, *z, *w, *wnx, *wny, *wnz;  ///< position, weight, weighted normal
+    const T *x, *y, *z, *w, *wnx, *wny, *wnz;  ///< position, weight, weighted normal
     Index n;
 };
+template <class T>
 struct PointDensity {
-    const double *x, *y, *z;
+    const T *x, *y, *z;
 };
 
 /// Far parts at the target x0, in one pass over the points:
 ///   single layer  s = sum_q w_q G(y_q - x0) g_q,
 ///   double layer  v = sum_q w_q K(y_q - x0, n_q) (u_q - u0)   (singularity subtracted),
-/// either or both (template flags). A point at x0 contributes nothing (1/r set to 0).
-template <bool kSingle, bool kDouble>
-void farSum(const Vec3& x0, const FarPoints& p, const PointDensity& g, const PointDensity& u, const Vec3& u0,
-            Vec3& s, Vec3& v) {
-    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
-    const double* __restrict px = p.x;
-    const double* __restrict py = p.y;
-    const double* __restrict pz = p.z;
-    const double* __restrict pw = p.w;
-    const double* __restrict nx = p.wnx;
-    const double* __restrict ny = p.wny;
-    const double* __restrict nz = p.wnz;
-    const double* __restrict gx = g.x;
-    const double* __restrict gy = g.y;
-    const double* __restrict gz = g.z;
-    const double* __restrict ux = u.x;
-    const double* __restrict uy = u.y;
-    const double* __restrict uz = u.z;
-    const double x00 = x0.x(), x01 = x0.y(), x02 = x0.z(), u00 = u0.x(), u01 = u0.y(), u02 = u0.z();
-    double sx = 0.0, sy = 0.0, sz = 0.0, vx = 0.0, vy = 0.0, vz = 0.0;
+/// either or both (template flags). A point at x0 contributes nothing (1/r set to 0). Each block
+/// of kBlock points is summed in T, the block sums in double.
+template <class T, bool kSingle, bool kDouble>
+void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, const PointDensity<T>& u,
+            const T (&u0)[3], Vec3& s, Vec3& v) {
+    alignas(64) T dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
+    const T* __restrict px = p.x;
+    const T* __restrict py = p.y;
+    const T* __restrict pz = p.z;
+    const T* __restrict pw = p.w;
+    const T* __restrict nx = p.wnx;
+    const T* __restrict ny = p.wny;
+    const T* __restrict nz = p.wnz;
+    const T* __restrict gx = g.x;
+    const T* __restrict gy = g.y;
+    const T* __restrict gz = g.z;
+    const T* __restrict ux = u.x;
+    const T* __restrict uy = u.y;
+    const T* __restrict uz = u.z;
+    const T x00 = x0[0], x01 = x0[1], x02 = x0[2], u00 = u0[0], u01 = u0[1], u02 = u0[2];
+    s.setZero();
+    v.setZero();
     for (Index b0 = 0; b0 < p.n; b0 += kBlock) {
         const int m = static_cast<int>(std::min<Index>(kBlock, p.n - b0));
 #pragma omp simd
@@ -210,23 +238,24 @@ void farSum(const Vec3& x0, const FarPoints& p, const PointDensity& g, const Poi
             rinv[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
         }
         inverseSqrt(rinv, m);
+        T sx = 0, sy = 0, sz = 0, vx = 0, vy = 0, vz = 0;
 #pragma omp simd reduction(+ : sx, sy, sz, vx, vy, vz)
         for (int k = 0; k < m; ++k) {
             const Index q = b0 + k;
             if constexpr (kSingle)
                 stokes::addStokeslet(dx[k], dy[k], dz[k], rinv[k], pw[q], gx[q], gy[q], gz[q], sx, sy, sz);
             if constexpr (kDouble) {
-                const double c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k], nx[q], ny[q], nz[q]);
+                const T c = stokes::doubleLayerCoefficient(dx[k], dy[k], dz[k], rinv[k], nx[q], ny[q], nz[q]);
                 // K (u_q - u0) = c d (d . (u_q - u0))
-                const double du = c * (dx[k] * (ux[q] - u00) + dy[k] * (uy[q] - u01) + dz[k] * (uz[q] - u02));
+                const T du = c * (dx[k] * (ux[q] - u00) + dy[k] * (uy[q] - u01) + dz[k] * (uz[q] - u02));
                 vx += du * dx[k];
                 vy += du * dy[k];
                 vz += du * dz[k];
             }
         }
+        s += Vec3(double(sx), double(sy), double(sz));
+        v += Vec3(double(vx), double(vy), double(vz));
     }
-    s = {sx, sy, sz};
-    v = {vx, vy, vz};
 }
 
 Eigen::Matrix3d faceCorners(const Mesh& m, Index f) {
@@ -320,6 +349,21 @@ void BoundaryIntegralOperators::buildQuadrature() {
         for (Index q = 0; q < nqf; ++q)
             addPoint(static_cast<std::size_t>(cornerPoints_ + f * nqf + q), c * farBary_.row(q).transpose(),
                      faceArea_[f] * farWeight_[q], n);
+    }
+    if (options_.singlePrecisionFar) {
+        // Relative to the centroid: float keeps ~1e-7 of the cell's extent in the separations.
+        farCentre_ = mesh_.X.rowwise().mean();
+        const auto toFloat = [](const std::vector<double>& a, std::vector<float>& b, double shift) {
+            b.resize(a.size());
+            for (std::size_t k = 0; k < a.size(); ++k) b[k] = static_cast<float>(a[k] - shift);
+        };
+        toFloat(qx_, qxf_, farCentre_.x());
+        toFloat(qy_, qyf_, farCentre_.y());
+        toFloat(qz_, qzf_, farCentre_.z());
+        toFloat(qw_, qwf_, 0.0);
+        toFloat(qnx_, qnxf_, 0.0);
+        toFloat(qny_, qnyf_, 0.0);
+        toFloat(qnz_, qnzf_, 0.0);
     }
 }
 
@@ -415,7 +459,8 @@ void BoundaryIntegralOperators::buildCorrections() {
                 P(q, 6) = k * dx * dx, P(q, 7) = k * dx * dy, P(q, 8) = k * dx * dz;
                 P(q, 9) = k * dy * dy, P(q, 10) = k * dy * dz, P(q, 11) = k * dz * dz;
             }
-            const Eigen::Matrix<double, 12, 3> corners = P.transpose() * nearRule.bary;
+            // (lazy: a coefficient loop; the blocked product's packing costs more at 12 x 48 x 3)
+            const Eigen::Matrix<double, 12, 3> corners = P.transpose().lazyProduct(nearRule.bary);
             const Eigen::Matrix<double, 12, 1> total = P.colwise().sum().transpose();
             const auto block = [](const auto& v, int o) {
                 Mat3 m;
@@ -450,17 +495,18 @@ double BoundaryIntegralOperators::meanCorrectionsPerTarget() const {
     return static_cast<double>(corrCol_.size()) / static_cast<double>(numVertices());
 }
 
-void BoundaryIntegralOperators::interpolate(const Eigen::Matrix3Xd& v, std::vector<double>& vx,
-                                            std::vector<double>& vy, std::vector<double>& vz) const {
+template <class T>
+void BoundaryIntegralOperators::interpolate(const Eigen::Matrix3Xd& v, std::vector<T>& vx, std::vector<T>& vy,
+                                            std::vector<T>& vz) const {
     const Index nf = mesh_.numFaces(), nq = farWeight_.size(), n0 = cornerPoints_;
     for (auto* p : {&vx, &vy, &vz}) p->resize(static_cast<std::size_t>(n0 + nf * nq));
-    for (Index j = 0; j < n0; ++j) vx[j] = v(0, j), vy[j] = v(1, j), vz[j] = v(2, j);
+    for (Index j = 0; j < n0; ++j) vx[j] = T(v(0, j)), vy[j] = T(v(1, j)), vz[j] = T(v(2, j));
     for (Index f = 0; f < nf; ++f) {
         const Vec3 a = v.col(mesh_.F(0, f)), b = v.col(mesh_.F(1, f)), c = v.col(mesh_.F(2, f));
         for (Index q = 0; q < nq; ++q) {
             const Vec3 y = farBary_(q, 0) * a + farBary_(q, 1) * b + farBary_(q, 2) * c;
             const Index k = n0 + f * nq + q;
-            vx[k] = y.x(), vy[k] = y.y(), vz[k] = y.z();
+            vx[k] = T(y.x()), vy[k] = T(y.y()), vz[k] = T(y.z());
         }
     }
 }
@@ -475,18 +521,37 @@ void checkDensity(const Eigen::Matrix3Xd& v, Index nv, const char* name) {
 template <bool kSingle, bool kDouble>
 void BoundaryIntegralOperators::applyLayers(const Eigen::Matrix3Xd* f, const Eigen::Matrix3Xd* u,
                                             Eigen::Matrix3Xd* Sf, Eigen::Matrix3Xd* Du) const {
+    if (options_.singlePrecisionFar)
+        applyLayersIn<float, kSingle, kDouble>(f, u, Sf, Du);
+    else
+        applyLayersIn<double, kSingle, kDouble>(f, u, Sf, Du);
+}
+
+template <class T, bool kSingle, bool kDouble>
+void BoundaryIntegralOperators::applyLayersIn(const Eigen::Matrix3Xd* f, const Eigen::Matrix3Xd* u,
+                                              Eigen::Matrix3Xd* Sf, Eigen::Matrix3Xd* Du) const {
+    constexpr bool kFloat = std::is_same_v<T, float>;
     const Index nv = numVertices();
-    std::vector<double> gx, gy, gz, ux, uy, uz;
+    std::vector<T> gx, gy, gz, ux, uy, uz;
     if constexpr (kSingle) interpolate(*f, gx, gy, gz), Sf->resize(3, nv);
     if constexpr (kDouble) interpolate(*u, ux, uy, uz), Du->resize(3, nv);
-    const FarPoints pts{qx_.data(), qy_.data(), qz_.data(), qw_.data(), qnx_.data(), qny_.data(), qnz_.data(),
-                        numQuadraturePoints()};
-    const PointDensity g{gx.data(), gy.data(), gz.data()}, ud{ux.data(), uy.data(), uz.data()};
+    const FarPoints<T> pts = [&] {
+        if constexpr (kFloat)
+            return FarPoints<T>{qxf_.data(), qyf_.data(), qzf_.data(), qwf_.data(), qnxf_.data(), qnyf_.data(), qnzf_.data(),
+                                numQuadraturePoints()};
+        else
+            return FarPoints<T>{qx_.data(), qy_.data(), qz_.data(), qw_.data(), qnx_.data(), qny_.data(), qnz_.data(),
+                                numQuadraturePoints()};
+    }();
+    const Vec3 centre = kFloat ? farCentre_ : Vec3::Zero();
+    const PointDensity<T> g{gx.data(), gy.data(), gz.data()}, ud{ux.data(), uy.data(), uz.data()};
 #pragma omp parallel for schedule(static)
     for (Index i = 0; i < nv; ++i) {
         const Vec3 u0 = kDouble ? Vec3(u->col(i)) : Vec3::Zero();
+        const T x0[3] = {T(mesh_.X(0, i) - centre.x()), T(mesh_.X(1, i) - centre.y()), T(mesh_.X(2, i) - centre.z())};
+        const T u0t[3] = {T(u0.x()), T(u0.y()), T(u0.z())};
         Vec3 s, v;
-        farSum<kSingle, kDouble>(mesh_.X.col(i), pts, g, ud, u0, s, v);
+        farSum<T, kSingle, kDouble>(x0, pts, g, ud, u0t, s, v);
         for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p) {
             const std::size_t o = 9 * static_cast<std::size_t>(p);
             if constexpr (kSingle) s += Eigen::Map<const Mat3>(&corrS_[o]) * f->col(corrCol_[p]);

@@ -42,14 +42,14 @@ inline double stresslet(const Vec3& d, int i, int j, int k) {
     return -6.0 * d[i] * d[j] * d[k] / (r2 * r2 * std::sqrt(r2));
 }
 
-// ---- Scalar forms for the vectorised loops (plain doubles; rinv = 1/r supplied by the caller,
-// who batches the square roots).
+// ---- Scalar forms for the vectorised loops (plain T = double or float; rinv = 1/r supplied by
+// the caller, who batches the square roots).
 
 /// u += w G(d) g = w (g / r + d (d . g) / r^3).
-inline void addStokeslet(double dx, double dy, double dz, double rinv, double w, double gx, double gy,
-                         double gz, double& ux, double& uy, double& uz) {
-    const double a = w * rinv;
-    const double b = a * rinv * rinv * (dx * gx + dy * gy + dz * gz);
+template <class T>
+inline void addStokeslet(T dx, T dy, T dz, T rinv, T w, T gx, T gy, T gz, T& ux, T& uy, T& uz) {
+    const T a = w * rinv;
+    const T b = a * rinv * rinv * (dx * gx + dy * gy + dz * gz);
     ux += a * gx + b * dx;
     uy += a * gy + b * dy;
     uz += a * gz + b * dz;
@@ -57,10 +57,10 @@ inline void addStokeslet(double dx, double dy, double dz, double rinv, double w,
 
 /// Coefficient c of the double-layer kernel w K(d, n) = c d d^T with the weighted normal
 /// wn = w n: c = -6 (d . wn) / r^5.
-inline double doubleLayerCoefficient(double dx, double dy, double dz, double rinv, double wnx,
-                                     double wny, double wnz) {
-    const double r2inv = rinv * rinv;
-    return -6.0 * (dx * wnx + dy * wny + dz * wnz) * r2inv * r2inv * rinv;
+template <class T>
+inline T doubleLayerCoefficient(T dx, T dy, T dz, T rinv, T wnx, T wny, T wnz) {
+    const T r2inv = rinv * rinv;
+    return T(-6) * (dx * wnx + dy * wny + dz * wnz) * r2inv * r2inv * rinv;
 }
 
 }  // namespace trbc::stokes
