@@ -354,6 +354,7 @@ TEST(CellFlow, TurningTheInitialCellByPiAboutTheVorticityAxisIsAnExactSymmetry) 
     const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
     CellFlowOptions o;
     o.tEnd = 2.0 * kPi;
+    o.gmresTolerance = 1e-6;  // the symmetry to what a tight solve leaves (the automatic 1e-4 leaves ~1e-7 rad)
     const Vertices X0 = m.toInternal(rotateAboutVorticity(c.initial, 0.4));
     const CellFlowResult a = integrateCellFlow(m, X0, o);
     const CellFlowResult b = integrateCellFlow(m, rotateAboutVorticity(X0, kPi), o);
@@ -364,6 +365,34 @@ TEST(CellFlow, TurningTheInitialCellByPiAboutTheVorticityAxisIsAnExactSymmetry) 
     // Positions: equal up to what GMRES leaves (relative residual 1e-6 per step, accumulated over
     // the run): 5.1e-6 with the multigrid-relaxed initial cell, below 1e-6 before it.
     EXPECT_LT((rotateAboutVorticity(a.final, kPi) - b.final).cwiseAbs().maxCoeff(), 2e-5);
+}
+
+TEST(CellFlow, AutomaticGmresToleranceIsATenthOfTheStepToleranceAndChangesTheRunLittle) {
+    CellFlowOptions o;
+    EXPECT_DOUBLE_EQ(effectiveGmresTolerance(o), 1e-4);  // step tolerance 1e-3
+    o.errorTolerance = 2.5e-4;
+    EXPECT_DOUBLE_EQ(effectiveGmresTolerance(o), 2.5e-5);
+    o.errorTolerance = 1e-2;
+    EXPECT_DOUBLE_EQ(effectiveGmresTolerance(o), 1e-4);  // capped
+    o.adaptive = false;
+    EXPECT_DOUBLE_EQ(effectiveGmresTolerance(o), 1e-6);
+    o.gmresTolerance = 3e-5;
+    EXPECT_DOUBLE_EQ(effectiveGmresTolerance(o), 3e-5);
+
+    // Half a rigid-sphere turn at level 2: the automatic tolerance against 1e-6, same steps.
+    const ShearCell& c = cellL2();
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    CellFlowOptions tight, automatic;
+    tight.tEnd = automatic.tEnd = kPi;
+    tight.gmresTolerance = 1e-6;
+    const Vertices X0 = m.toInternal(c.initial);
+    const CellFlowResult a = integrateCellFlow(m, X0, automatic), b = integrateCellFlow(m, X0, tight);
+    ASSERT_TRUE(a.completed && b.completed);
+    EXPECT_EQ(a.steps, b.steps);
+    EXPECT_LT(a.gmresIterations, 0.85 * double(b.gmresIterations)) << a.gmresIterations << " vs " << b.gmresIterations;
+    EXPECT_LT((a.final - b.final).cwiseAbs().maxCoeff(), 1e-4);  // R_A; the step tolerance is 1e-3 per step
+    for (std::size_t k = 0; k < a.times.size(); ++k)
+        EXPECT_NEAR(inclinationAngle(a.frames[k]), inclinationAngle(b.frames[k]), 1e-4) << k;
 }
 
 TEST(CellFlow, TurningTheInitialCellChangesTheTankTreadingStateLittle) {

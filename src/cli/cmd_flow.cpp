@@ -245,7 +245,9 @@ nlohmann::json stepDiagnostics(const FlowScales& scales, const CellFlowResult& r
 nlohmann::json stepControlJson(const CellFlowOptions& opt, double fixedDt, const char* fixedDtName) {
     return {{"scheme", "linearly implicit variable-step BDF2, error vs quadratic predictor"},
             {"local_error_tolerance_R_A", opt.adaptive ? nlohmann::json(opt.errorTolerance) : nlohmann::json(nullptr)},
-            {fixedDtName, opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(fixedDt)}};
+            {fixedDtName, opt.adaptive ? nlohmann::json(nullptr) : nlohmann::json(fixedDt)},
+            {"gmres_tolerance", effectiveGmresTolerance(opt)},
+            {"far_sum", opt.quadrature.singlePrecisionFar ? "single precision" : "double precision"}};
 }
 
 /// reference_sfs.vtk, initial.vtk, shape_NNNNN.vtk (every vtkEvery-th frame) + shapes.pvd, steps.csv.

@@ -438,6 +438,7 @@ void BoundaryIntegralOperators::buildCorrections() {
         // product with the rule's barycentric weights.
         const Index nn = nearRule.weight.size();
         Eigen::Matrix<double, Eigen::Dynamic, 12> P(nn, 12);
+        Eigen::Matrix<double, Eigen::Dynamic, 4> d(nn, 4);  // separation and 1 / r per point
         for (Index f = 0; f < nf; ++f) {
             if (mesh_.F(0, f) == i || mesh_.F(1, f) == i || mesh_.F(2, f) == i) continue;
             if (!isNearFace(x0, f)) continue;
@@ -450,7 +451,12 @@ void BoundaryIntegralOperators::buildCorrections() {
                 const double dx = c(0, 0) * b0 + c(0, 1) * b1 + c(0, 2) * b2 - x0.x();
                 const double dy = c(1, 0) * b0 + c(1, 1) * b1 + c(1, 2) * b2 - x0.y();
                 const double dz = c(2, 0) * b0 + c(2, 1) * b1 + c(2, 2) * b2 - x0.z();
-                const double rinv = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
+                d(q, 0) = dx, d(q, 1) = dy, d(q, 2) = dz, d(q, 3) = dx * dx + dy * dy + dz * dz;
+            }
+            inverseSqrt(&d(0, 3), nn);
+#pragma omp simd
+            for (Index q = 0; q < nn; ++q) {
+                const double dx = d(q, 0), dy = d(q, 1), dz = d(q, 2), rinv = d(q, 3);
                 const double w = area * nearRule.weight[q];
                 const double a = w * rinv, b = a * rinv * rinv;
                 const double k = stokes::doubleLayerCoefficient(dx, dy, dz, rinv, w * n.x(), w * n.y(), w * n.z());

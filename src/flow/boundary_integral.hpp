@@ -156,7 +156,8 @@ private:
     // Face f is near x0: its centroid closer than nearFactor x its longest edge (the far rule does
     // not resolve the kernel there).
     bool isNearFace(const Eigen::Vector3d& x0, Eigen::Index f) const {
-        return !((faceCentroid_.col(f) - x0).norm() >= options_.nearFactor * faceLongestEdge_[f]);
+        const double reach = options_.nearFactor * faceLongestEdge_[f];
+        return !((faceCentroid_.col(f) - x0).squaredNorm() >= reach * reach);
     }
     // S f and / or D u (far sum plus corrections); the far loop shares 1 / r between the two.
     template <bool kSingle, bool kDouble>

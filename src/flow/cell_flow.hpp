@@ -154,7 +154,9 @@ struct CellFlowOptions {
     bool adaptive = true;            ///< false: fixed steps dtInitial
     double dtInitial = 1e-2, dtMin = 1e-8, dtMax = 1.0;  ///< internal time
     int maxSteps = 200000;
-    double gmresTolerance = 1e-6;    ///< relative true residual of the coupled system
+    /// Relative true residual of the coupled system; 0: a tenth of errorTolerance, at most 1e-4
+    /// (1e-6 with fixed steps).
+    double gmresTolerance = 0.0;
     int gmresRestart = 100, gmresMaxIterations = 1000;
     OperatorMode operators = OperatorMode::Auto;  ///< dense when 3 Nv <= denseLimit
     /// A step costs one dense assembly plus two block products per GMRES iteration, or one fused
@@ -172,6 +174,10 @@ struct CellFlowOptions {
     std::function<bool(const CellFlowResult& sofar)> stopWhen;
     CellFlowCheckpoint checkpoint;
 };
+
+/// The GMRES tolerance a step uses: CellFlowOptions::gmresTolerance, or (0) a tenth of the step's
+/// local error tolerance, at most 1e-4; 1e-6 with fixed steps.
+double effectiveGmresTolerance(const CellFlowOptions& o);
 
 struct CellFlowStepRecord {
     double t = 0.0, dt = 0.0, error = 0.0;  ///< internal units (t after the step)
