@@ -132,6 +132,7 @@ TEST(ShearCase, BadOptionsThrowInputErrorNamingTheOption) {
         {[](ShearCaseOptions& o) { o.rotations = 0.0; }, "rotations"},
         {[](ShearCaseOptions& o) { o.step.frameInterval = -0.1; }, "frame_interval = -0.1 1/rate"},
         {[](ShearCaseOptions& o) { o.step.stepTolerance = 2.0; }, "step_tol = 2 R_A"},
+        {[](ShearCaseOptions& o) { o.step.gmresTolerance = 1.0; }, "gmres_tol = 1: out of range (valid: [0, 1), 0: automatic)"},
         {[](ShearCaseOptions& o) { o.step.dt = 200.0; }, "dt = 200 1/rate: out of range (valid: (0, 100] 1/rate)"},
         {[](ShearCaseOptions& o) { o.step.maxSteps = 0; }, "max_steps"},
         {[](ShearCaseOptions& o) { o.step.resume = true; }, "resume"},

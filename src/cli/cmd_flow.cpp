@@ -39,7 +39,7 @@ std::string cliOptionName(const std::string& name) {
         {"duration_R_over_V", "--duration"}, {"settle_R_over_V", "--settle"}, {"settle_relax_R_over_V", "--settle-relax"},
         {"settle_etam_Pa_s_um", "--settle-etam"}, {"settle_tol", "--settle-tol"}, {"wall_points", "--wall-points"},
         {"tube_length_um", "--tube-length"}, {"repulsion_range_um", "--repulsion-range"},
-        {"repulsion_pressure", "--repulsion-pressure"}, {"frame_interval", "--frame-interval"}, {"step_tol", "--step-tol"},
+        {"repulsion_pressure", "--repulsion-pressure"}, {"frame_interval", "--frame-interval"}, {"step_tol", "--step-tol"}, {"gmres_tol", "--gmres-tol"},
         {"dt", "--dt"}, {"max_steps", "--max-steps"}, {"checkpoint_interval", "--checkpoint-interval"},
         {"resume", "--resume"}};
     const auto it = names.find(name);
@@ -126,6 +126,10 @@ void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& un
         ->capture_default_str();
     addNumber(cmd, "--step-tol", s.step.stepTolerance, "local error per time step, largest vertex displacement",
               NumberRange::leftOpen(0.0, 1.0, "R_A"))
+        ->capture_default_str();
+    addNumber(cmd, "--gmres-tol", s.step.gmresTolerance,
+              "relative residual of each step's linear solve; 0: a tenth of --step-tol, at most 1e-4 (1e-6 with --dt)",
+              NumberRange::closed(0.0, 0.5))
         ->capture_default_str();
     addNumber(cmd, "--dt", s.step.dt, "fixed time step (disables the adaptive step control)", NumberRange::leftOpen(0.0, 100.0, unit));
     addNumber(cmd, "--max-steps", s.step.maxSteps, "limit on time-step attempts (the run fails beyond it)", NumberRange::closed(1, 1e8))

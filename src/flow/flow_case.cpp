@@ -23,6 +23,9 @@ void validateStepping(const FlowCaseStepping& s, std::string_view timeUnit) {
     const OptionNamer& n = s.optionName;
     requireOptionRange(n, "frame_interval", s.frameInterval, {0.0, 1e6, true, timeUnit});
     requireOptionRange(n, "step_tol", s.stepTolerance, {0.0, 1.0, true, "R_A"});
+    if (!(s.gmresTolerance >= 0.0 && s.gmresTolerance < 1.0))
+        throw InputError(fmt::format("parameter {} = {}: out of range (valid: [0, 1), 0: automatic)",
+                                     optionName(n, "gmres_tol"), s.gmresTolerance));
     if (s.dt != 0.0) requireOptionRange(n, "dt", s.dt, {0.0, 100.0, true, timeUnit});
     requireOptionRange(n, "max_steps", s.maxSteps, {1.0, 1e8, false, ""});
     requireOptionRange(n, "checkpoint_interval", s.checkpointInterval, {0.0, 1e7, false, "s"});
@@ -36,6 +39,7 @@ CellFlowOptions stageOptions(const FlowCaseStepping& s, double tEnd, double dtMa
     opt.tEnd = tEnd;
     opt.frameInterval = s.frameInterval;
     opt.errorTolerance = s.stepTolerance;
+    opt.gmresTolerance = s.gmresTolerance;
     opt.maxSteps = s.maxSteps;
     if (dtMax > 0.0) opt.dtMax = dtMax;
     if (s.dt > 0.0) {

@@ -29,6 +29,7 @@ using OptionNamer = std::function<std::string(const std::string& name)>;
 struct FlowCaseStepping {
     double frameInterval = 0.1;   ///< frames at k frameInterval (interpolated)
     double stepTolerance = 1e-3;  ///< local error per step, largest vertex displacement, R_A
+    double gmresTolerance = 0.0;  ///< relative residual of each step's solve; 0: automatic (effectiveGmresTolerance)
     double dt = 0.0;              ///< > 0: fixed steps of dt, no step control
     int maxSteps = 200000;        ///< time-step attempts per stage; the stage fails beyond it
     /// Snapshots of each stage in checkpointDirectory/STAGE.bin (docs/FLOW.md "Checkpoints");
