@@ -3,7 +3,8 @@
 // inner loop of GMRES in a flow step), the set-up (quadrature points and near-field corrections;
 // once per geometry, i.e. per time step) and the dense assembly of both operators.
 // Arguments: icosphere level, OpenMP threads, far rule (0 = corners and centroids, the default;
-// 1 = the 3-point face rule).
+// 1 = the 3-point face rule); the fused pass also the far sum's precision (0 = double, 1 = single,
+// as the flow steps use it).
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
@@ -12,10 +13,11 @@
 
 namespace {
 
-trbc::BoundaryIntegralOperators makeOperators(const benchmark::State& state) {
+trbc::BoundaryIntegralOperators makeOperators(const benchmark::State& state, bool single = false) {
     omp_set_num_threads(static_cast<int>(state.range(1)));
     trbc::QuadratureOptions q;
     q.farRule = state.range(2) == 0 ? trbc::FarRule::VerticesAndCentroids : trbc::FarRule::FacePoints;
+    q.singlePrecisionFar = single;
     return trbc::BoundaryIntegralOperators(trbc::icosphere(static_cast<int>(state.range(0))), q);
 }
 
@@ -50,7 +52,7 @@ void BM_DoubleLayerApply(benchmark::State& state) {
 }
 
 void BM_LayersApply(benchmark::State& state) {
-    const trbc::BoundaryIntegralOperators ops = makeOperators(state);
+    const trbc::BoundaryIntegralOperators ops = makeOperators(state, state.range(3) == 1);
     const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Random(3, ops.numVertices());
     const Eigen::Matrix3Xd u = Eigen::Matrix3Xd::Random(3, ops.numVertices());
     Eigen::Matrix3Xd Sf, Du;
@@ -114,8 +116,8 @@ BENCHMARK(BM_DoubleLayerApply)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_LayersApply)
-    ->ArgsProduct({{2, 3, 4}, {1, 2}, {0, 1}})
-    ->ArgNames({"level", "threads", "rule"})
+    ->ArgsProduct({{2, 3, 4}, {1, 2}, {0, 1}, {0, 1}})
+    ->ArgNames({"level", "threads", "rule", "single"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_OperatorSetup)
