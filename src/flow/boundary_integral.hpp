@@ -52,9 +52,9 @@ struct QuadratureOptions {
     int singularPoints = 8;     ///< Gauss-Legendre points in the Duffy angle on adjacent faces
     /// The far all-pairs sum of the matrix-free products in single precision: positions relative
     /// to the centroid, kernel and block sums of 256 points in float, the block sums added in
-    /// double. Relative error ~1e-7 (docs/flow_verification.md, "Single-precision far sum"), four
-    /// hundred times below the flat-face error, for 2.7x fewer cycles per target-point pair (eight
-    /// float lanes per AVX2 instruction instead of four). The dense assembly stays in double.
+    /// double. Relative error 4e-8 to 1e-7 (docs/flow_verification.md, "Single-precision far
+    /// sum"), far below the flat-face error (~4e-3), for 2.6x fewer cycles per target-point pair
+    /// (eight float lanes per AVX2 instruction instead of four). The dense assembly stays in double.
     bool singlePrecisionFar = false;
 };
 

@@ -164,7 +164,7 @@ struct CellFlowOptions {
     /// slower per rotation), the fused pass from level 3 on (13 % faster; docs/FLOW.md).
     Eigen::Index denseLimit = 1000;
     /// The far sum in single precision (QuadratureOptions::singlePrecisionFar): the matrix-free
-    /// products from level 3 on cost 0.4x, the solution changes by ~1e-6 of its size.
+    /// products from level 3 on cost 0.39x, the operators change by ~1e-7 of their size.
     QuadratureOptions quadrature{.singlePrecisionFar = true};
     double maxDrift = 0.05;          ///< |A/A0 - 1| or |V/V0 - 1| beyond this: diverged
     bool preconditioner = true;      ///< right preconditioner P = I + c B M^-1 Gamma (cell_flow.cpp)
