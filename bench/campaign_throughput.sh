@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Campaign throughput at the training level : one campaign of CELLS cells of 20 forces at
 # level 4, run with 1 and with 2 threads (cells concurrently) and, when trbc was built with MPI,
-# as 2 MPI ranks of one thread each; timed by farm-bench (median of RUNS).
+# as 2 MPI ranks of one thread each; whole-process wall, user and system seconds of each of RUNS
+# runs (bash's time), then their median wall time.
 # Usage: bench/campaign_throughput.sh [CELLS=4] [RUNS=3] [SEED=7]
-# Prints wall seconds per run; samples per core-hour = 20 CELLS * 3600 / (wall * cores).
+# Samples per core-hour = 20 CELLS * 3600 / (wall * cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cells=${1:-4}
@@ -13,16 +14,28 @@ samples=$((20 * cells))
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 args="campaign --samples $samples --forces-per-cell 20 --level 4 --design uniform --seed $seed --no-cache"
+
+# timed CMD...: RUNS runs of CMD (its output discarded), one line "wall user sys" each, then the median wall.
+timed() {
+  local walls=() line
+  for ((k = 1; k <= runs; ++k)); do
+    rm -rf "$tmp/c"
+    TIMEFORMAT='%R %U %S'
+    line=$( { time "$@" >/dev/null 2>&1; } 2>&1 )
+    echo "run $k: wall user sys = $line s"
+    walls+=("${line%% *}")
+  done
+  printf '%s\n' "${walls[@]}" | sort -n | awk '{w[NR] = $1} END {print "median wall", w[int((NR + 1) / 2)], "s"}'
+}
+
 for threads in 1 2; do
   echo "== $samples samples ($cells cells x 20 forces), level 4, seed $seed, --threads $threads"
-  OMP_NUM_THREADS=1 farm-bench -n "$runs" --warmup 0 --timeout 3600 -- \
-    sh -c "rm -rf $tmp/c && exec ./build/trbc $args --threads $threads --out $tmp/c"
+  OMP_NUM_THREADS=1 timed ./build/trbc $args --threads "$threads" --out "$tmp/c"
 done
 if command -v mpirun >/dev/null && ldd ./build/trbc | grep libmpi >/dev/null; then
   echo "== the same, mpirun -n 2 (one thread per rank)"
   OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_NUM_THREADS=1 \
-    farm-bench -n "$runs" --warmup 0 --timeout 3600 -- \
-    sh -c "rm -rf $tmp/c && exec mpirun -n 2 ./build/trbc $args --threads 1 --out $tmp/c"
+    timed mpirun -n 2 ./build/trbc $args --threads 1 --out "$tmp/c"
 else
   echo "== mpirun -n 2: skipped (trbc built without MPI)"
 fi
