@@ -84,8 +84,12 @@ GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd&
     }
     if (x.size() != n || !x.allFinite()) x = VectorXd::Zero(n);
     VectorXd r(n), w(n), z(n);
-    A(x, r);
-    r = b - r;
+    if (x.isZero(0.0)) {  // the flow steps' start: no product needed
+        r = b;
+    } else {
+        A(x, r);
+        r = b - r;
+    }
     double beta = r.norm();
     st.residual = beta / bn;
     Eigen::MatrixXd V, H;
@@ -222,10 +226,8 @@ public:
     };
 
     /// Solves for u and tau with the explicit nodal force Fexp and the prescribed rate of
-    /// area change g . u = areaRate and volume change dV/dx . u = volumeRate; (uGuess, tauGuess)
-    /// start GMRES.
-    Solution solve(const Vertices& Fexp, double areaRate, double volumeRate, const Vertices& uGuess,
-                   double tauGuess) const {
+    /// area change g . u = areaRate and volume change dV/dx . u = volumeRate; GMRES starts from zero.
+    Solution solve(const Vertices& Fexp, double areaRate, double volumeRate) const {
         const Index nv = Xs_.cols(), n = 3 * nv;
         VectorXd b(n + 2);
         Eigen::Map<Vertices>(b.data(), 3, nv) =
@@ -262,10 +264,7 @@ public:
             y.head(n) -= precB_ * ys;
             y.tail<2>() = ys;
         };
-        VectorXd x(n + 2);
-        Eigen::Map<Vertices>(x.data(), 3, nv) = uGuess;
-        x[n] = tauGuess * wNorm_;
-        x[n + 1] = 0.0;
+        VectorXd x = VectorXd::Zero(n + 2);
         Solution sol;
         sol.gmres = gmresSolve(A, Minv, b, x, effectiveGmresTolerance(opt_), opt_.gmresRestart, opt_.gmresMaxIterations);
         sol.u = Eigen::Map<const Vertices>(x.data(), 3, nv);
@@ -468,7 +467,7 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
 /// restore against a colliding or hand-made file all the same.
 bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* env) {
     const CellFlowState& st = s.state;
-    for (const Vertices* M : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2, &st.U})
+    for (const Vertices* M : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2})
         if (M->cols() != nv) return false;
     if (s.result.final.cols() != 0 && s.result.final.cols() != nv) return false;  // set only when finished
     for (const Vertices& f : s.result.frames)
@@ -537,7 +536,7 @@ VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& 
     const CoupledSystem sys(model, X, 0.0, opt, env);
     Vertices g(3, X.cols());
     sys.gradient(X, g);
-    const CoupledSystem::Solution s = sys.solve(-g, 0.0, 0.0, Vertices::Zero(3, X.cols()), 0.0);
+    const CoupledSystem::Solution s = sys.solve(-g, 0.0, 0.0);
     if (!s.gmres.converged)
         throw NumericalError(fmt::format("cell flow: GMRES did not converge (relative residual {:.3e} after {} iterations)",
                                          s.gmres.residual, s.gmres.iterations));
@@ -564,9 +563,9 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         if (opt.keepFrames) res.frames.push_back(X);
         if (observer) observer(t, X);
     };
-    CellFlowState state{.steps = bdf2::History(initial), .U = Vertices::Zero(3, nv),
+    CellFlowState state{.steps = bdf2::History(initial),
                         .dt = std::min(opt.dtInitial, opt.dtMax), .nextFrame = 1, .framesChecked = 1};
-    auto& [history, U, tension, t, dt, nextFrame, framesChecked] = state;
+    auto& [history, tension, t, dt, nextFrame, framesChecked] = state;
     const bdf2::StepControl control = stepControl(opt);
     Vertices Xnew(3, nv);
     const auto frameTime = [&](std::size_t k) { return static_cast<double>(k) * opt.frameInterval; };
@@ -650,12 +649,14 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
                 (A0 - sys.area() - (sys.areaGradient().array() * (Y - Xpred).array()).sum()) / alpha;
             const double volumeRate =
                 (V0 - sys.volume() - (sys.volumeGradient().array() * (Y - Xpred).array()).sum()) / alpha;
-            const Vertices guess = history.accepted >= 1 ? Vertices((Xpred - Y) / alpha) : U;
-            const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate, guess, tension);
+            // GMRES starts from zero: the BDF2-predicted velocity (Xpred - Y) / alpha and the last
+            // step's velocity leave residuals in the grid-scale modes that cost more iterations
+            // than they save (level 3: 14.4 iterations per step from zero, 15.5 from the predicted
+            // velocity, plus its operator application; docs/FLOW.md, "Preconditioner").
+            const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate);
             iterations = s.gmres.iterations;
             if (s.gmres.converged && s.u.allFinite() && std::isfinite(s.tension)) {
                 Xnew = Y + alpha * s.u;
-                U = s.u;
                 stepTension = s.tension;
                 stepFlux = s.fluxCorrection;
                 solved = Xnew.allFinite();

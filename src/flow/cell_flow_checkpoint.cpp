@@ -149,7 +149,7 @@ CellFlowResult readResult(Reader& rd) {
 void writeCellFlowSnapshot(const std::filesystem::path& file, const CellFlowSnapshot& s, std::uint64_t fingerprint) {
     Writer w;
     const CellFlowState& st = s.state;
-    for (const Vertices* X : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2, &st.U}) w.matrix(*X);
+    for (const Vertices* X : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2}) w.matrix(*X);
     for (double v : {st.tension, st.steps.hPrev, st.steps.hPrev2, st.t, st.dt}) w.pod(v);
     w.pod(st.steps.accepted);
     w.pod(st.nextFrame);
@@ -196,7 +196,7 @@ std::optional<CellFlowSnapshot> readCellFlowSnapshot(const std::filesystem::path
         Reader rd(payload);
         CellFlowSnapshot s;
         CellFlowState& st = s.state;
-        for (Vertices* X : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2, &st.U}) *X = rd.matrix();
+        for (Vertices* X : {&st.steps.X, &st.steps.Xprev, &st.steps.Xprev2}) *X = rd.matrix();
         for (double* v : {&st.tension, &st.steps.hPrev, &st.steps.hPrev2, &st.t, &st.dt}) *v = rd.pod<double>();
         st.steps.accepted = rd.pod<int>();
         st.nextFrame = rd.pod<std::uint64_t>();

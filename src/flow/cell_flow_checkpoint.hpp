@@ -20,7 +20,6 @@ namespace trbc {
 /// snapshot holds it whole.
 struct CellFlowState {
     bdf2::History steps;            ///< the last three states and the steps between them
-    Vertices U;                     ///< last velocity
     double tension = 0.0;           ///< area multiplier of the last accepted step
     double t = 0.0;                 ///< time of steps.X
     double dt = 0.0;                ///< the step to ask for next
