@@ -851,10 +851,17 @@ void BoundaryIntegralOperators::offSurfaceBlocks(const Vec3& x0, Index f, int ma
 }
 
 Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, int maxDepth) const {
+    Eigen::MatrixXd A;
+    assembleSingleLayerAt(targets, A, maxDepth);
+    return A;
+}
+
+void BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, Eigen::MatrixXd& A,
+                                                      int maxDepth) const {
     // The far faces with the symmetric face rule (vectorised over all its points);
-    // the near faces of a target by offSurfaceBlocks' subdivision.
+    // the near faces of a target by offSurfaceBlocks' subdivision. Every entry is written.
     const Index nt = targets.cols(), nv = numVertices(), nf = mesh_.numFaces();
-    Eigen::MatrixXd A(3 * nt, 3 * nv);
+    A.resize(3 * nt, 3 * nv);
 #pragma omp parallel
     {
         KernelRow k(fx_.size());
@@ -875,7 +882,6 @@ Eigen::MatrixXd BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Ma
             storeBlockRow(buf, t, A);
         }
     }
-    return A;
 }
 
 Eigen::Matrix3Xd BoundaryIntegralOperators::singleLayerAt(const Eigen::Matrix3Xd& targets, const Eigen::Matrix3Xd& f,

@@ -118,6 +118,8 @@ public:
     /// distances of ~ edge / 2^maxDepth. A target on the surface itself is not allowed (use
     /// assembleSingleLayer). For the couplings between two surfaces (cell and tube wall).
     Eigen::MatrixXd assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, int maxDepth = 7) const;
+    /// The same into A, resized to 3 Nt x 3 Nv (its storage kept when the size is unchanged).
+    void assembleSingleLayerAt(const Eigen::Matrix3Xd& targets, Eigen::MatrixXd& A, int maxDepth = 7) const;
     /// The same operator applied to a density f (3 x Nv), matrix-free.
     Eigen::Matrix3Xd singleLayerAt(const Eigen::Matrix3Xd& targets, const Eigen::Matrix3Xd& f,
                                    int maxDepth = 7) const;

@@ -203,13 +203,29 @@ Vertices TubeWall::solveWall(const Vertices& v) const { return unflat(lu_.solve(
 
 std::shared_ptr<const TubeWall::Coupling> TubeWall::couple(const BoundaryIntegralOperators& surface,
                                                             double centre) const {
-    auto c = std::make_shared<Coupling>();
+    const std::shared_ptr<SparePool> pool = spare_;
+    const std::shared_ptr<Coupling> c(new Coupling, [pool](Coupling* p) {
+        {
+            const std::lock_guard<std::mutex> lock(pool->mutex);
+            for (Eigen::MatrixXd* m : {&p->Scw, &p->Swc})
+                if (pool->matrices.size() < 2) pool->matrices.push_back(std::move(*m));
+        }
+        delete p;
+    });
     c->wall = this;
     c->centre = centre;
+    {
+        const std::lock_guard<std::mutex> lock(pool->mutex);
+        for (Eigen::MatrixXd* m : {&c->Scw, &c->Swc})
+            if (!pool->matrices.empty()) {
+                *m = std::move(pool->matrices.back());
+                pool->matrices.pop_back();
+            }
+    }
     Vertices targets = surface.mesh().X;  // the surface's vertices in the frame of the wall at x = 0
     targets.row(0).array() -= centre;
-    c->Scw = ops_->assembleSingleLayerAt(targets);
-    c->Swc = surface.assembleSingleLayerAt(vertices(centre));
+    ops_->assembleSingleLayerAt(targets, c->Scw);
+    surface.assembleSingleLayerAt(vertices(centre), c->Swc);
     return c;
 }
 

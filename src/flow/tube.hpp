@@ -59,7 +59,9 @@
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <vector>
 
 #include "flow/boundary_integral.hpp"
 #include "flow/cell_flow.hpp"
@@ -126,6 +128,14 @@ private:
     std::unique_ptr<BoundaryIntegralOperators> ops_;
     Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
     double setupSeconds_ = 0.0;
+    /// The matrices of released couplings, reused by the next: a flow step's pair (80 MB each at
+    /// level 3) would otherwise be mapped and zeroed afresh every step (15 % of a tube run in
+    /// system time).
+    struct SparePool {
+        std::mutex mutex;
+        std::vector<Eigen::MatrixXd> matrices;
+    };
+    std::shared_ptr<SparePool> spare_ = std::make_shared<SparePool>();
 };
 
 /// Poiseuille flow U_c (1 - (y^2 + z^2) / R^2) e_x at the points X.
