@@ -128,7 +128,7 @@ private:
     std::unique_ptr<BoundaryIntegralOperators> ops_;
     Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
     double setupSeconds_ = 0.0;
-    /// The matrices of released couplings, reused by the next: a flow step's pair (80 MB each at
+    /// The matrices of released couplings, reused by the next: a flow step's pair (59 MB each at
     /// level 3) would otherwise be mapped and zeroed afresh every step (15 % of a tube run in
     /// system time).
     struct SparePool {
