@@ -482,8 +482,8 @@ bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* en
 
 /// A tenth of the step tolerance: the linear solve then adds far less to a step's error
 /// than the step control allows: at the shear's 1e-3 R_A (tolerance 1e-4 instead of 1e-6) the
-/// observables of 4 level-3 rotations move by 5e-4 deg and 1e-5 of the TTF, 300 times less than
-/// the level 3 -> 4 change, with 26 % fewer iterations (docs/FLOW.md, "GMRES tolerance").
+/// observables of 4 level-3 rotations move by 4e-5 deg and 1.4e-5 of the TTF, hundreds of times
+/// less than the level 3 -> 4 change, with 37 % fewer iterations (docs/FLOW.md, "GMRES tolerance").
 double effectiveGmresTolerance(const CellFlowOptions& o) {
     if (o.gmresTolerance > 0.0) return o.gmresTolerance;
     return o.adaptive ? std::min(1e-4, 0.1 * o.errorTolerance) : 1e-6;
