@@ -15,17 +15,28 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 args="campaign --samples $samples --forces-per-cell 20 --level 4 --design uniform --seed $seed --no-cache"
 
-# timed CMD...: RUNS runs of CMD (its output discarded), one line "wall user sys" each, then the median wall.
+if ! [[ "$runs" =~ ^[1-9][0-9]*$ ]]; then
+  echo "campaign_throughput.sh: RUNS = '$runs' must be an integer >= 1" >&2
+  exit 2
+fi
+
+# timed CMD...: RUNS runs of CMD (its output in $tmp/log), one line "wall user sys" each, then the
+# median wall; a failing run stops the script with its log.
 timed() {
   local walls=() line
   for ((k = 1; k <= runs; ++k)); do
     rm -rf "$tmp/c"
     TIMEFORMAT='%R %U %S'
-    line=$( { time "$@" >/dev/null 2>&1; } 2>&1 )
+    if ! line=$( { time "$@" >"$tmp/log" 2>&1; } 2>&1 ); then
+      echo "run $k failed: $*" >&2
+      tail -n 20 "$tmp/log" >&2
+      exit 1
+    fi
     echo "run $k: wall user sys = $line s"
     walls+=("${line%% *}")
   done
-  printf '%s\n' "${walls[@]}" | sort -n | awk '{w[NR] = $1} END {print "median wall", w[int((NR + 1) / 2)], "s"}'
+  printf '%s\n' "${walls[@]}" | sort -n |
+    awk '{w[NR] = $1} END {m = NR % 2 ? w[(NR + 1) / 2] : (w[NR / 2] + w[NR / 2 + 1]) / 2; print "median wall", m, "s"}'
 }
 
 for threads in 1 2; do

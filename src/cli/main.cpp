@@ -65,11 +65,12 @@ void checkCommandWords(CLI::App& app, int argc, char** argv) {
     }
 }
 
-/// Freed memory up to 32 MB stays in the heap. The flow steps allocate and free the same few MB
-/// every step (operators, factorisation, Krylov basis); with glibc's defaults (blocks above 128 kB
-/// mapped, freed space above 128 kB returned) each step's memory arrives as fresh zeroed pages:
-/// 0.26 s of system time in a 4 s level-3 shear rotation, 0.01 s with these settings
-/// (docs/PERFORMANCE.md).
+/// Freed memory stays in the heap. The flow steps allocate and free the same few MB every step
+/// (operators, factorisation, Krylov basis); glibc's defaults (a dynamic mapping threshold from
+/// 128 kB, freed heap tops above twice it returned) hand much of it back and map it again as
+/// fresh zeroed pages: 0.27 s of system time per level-3 shear rotation, 0.01 s with the fixed
+/// thresholds below (docs/PERFORMANCE.md). Every subcommand gets them: the peak memory is that of
+/// the same allocations; what is freed is kept for reuse instead of returned.
 void keepFreedMemory() {
 #if defined(__GLIBC__)
     mallopt(M_MMAP_THRESHOLD, 32 << 20);

@@ -162,7 +162,7 @@ GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd&
 ///   y_m = (C P^-1 B)^-1 (C P^-1 r_u - r_m),  y_u = P^-1 r_u - P^-1 B y_m
 /// (P^-1 B and the 2 x 2 Schur complement once per step). Eliminating the multipliers removes
 /// the eigenvalues near zero and off the real axis that the block-diagonal form diag(P^-1, I)
-/// leaves: 38 % fewer iterations at level 3 (docs/FLOW.md, "Preconditioner").
+/// leaves: 37 % fewer iterations at level 3 (docs/FLOW.md, "Preconditioner").
 class CoupledSystem {
 public:
     CoupledSystem(const CellFlowModel& model, const Vertices& Xs, double alpha, const CellFlowOptions& opt,
@@ -482,7 +482,7 @@ bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* en
 
 /// A tenth of the step tolerance: the linear solve then adds far less to a step's error
 /// than the step control allows: at the shear's 1e-3 R_A (tolerance 1e-4 instead of 1e-6) the
-/// observables of 4 level-3 rotations move by 4e-5 deg and 1.4e-5 of the TTF, hundreds of times
+/// observables of 4 level-3 rotations move by 4e-5 deg and 3.6e-5 of the TTF, hundreds of times
 /// less than the level 3 -> 4 change, with 37 % fewer iterations (docs/FLOW.md, "GMRES tolerance").
 double effectiveGmresTolerance(const CellFlowOptions& o) {
     if (o.gmresTolerance > 0.0) return o.gmresTolerance;

@@ -15,7 +15,7 @@
 namespace trbc {
 namespace {
 
-constexpr std::string_view kMagic = "trbc-cell-flow-snapshot 1\n";
+constexpr std::string_view kMagic = "trbc-cell-flow-snapshot 2\n";
 
 class Writer {
 public:

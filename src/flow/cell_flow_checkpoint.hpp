@@ -1,6 +1,6 @@
 #pragma once
 // Snapshots of the BDF2 integrator of flow/cell_flow.cpp (CellFlowOptions::checkpoint): the state
-// the next step reads (the last three states, the last velocity and tension, the step history)
+// the next step reads (the last three states, the tension, the step history)
 // and the result so far. Binary with native doubles, so a resumed run continues bit for bit (a
 // snapshot is read back by the same build on the same machine); written whole by
 // writeFileAtomically with an FNV-1a checksum of the payload, so a kill at any moment leaves the
