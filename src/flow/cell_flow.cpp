@@ -63,7 +63,7 @@ Vertices checkedReference(const Faces& faces, const Vertices& ref, double length
 }
 
 // ---- GMRES (restarted, modified Gram-Schmidt with one re-orthogonalisation, Givens rotations,
-// right preconditioning), stopping on the true relative residual |b - A x| / |b|.
+// right preconditioning) from x = 0, stopping on the true relative residual |b - A x| / |b|.
 struct GmresStats {
     int iterations = 0;
     double residual = 0.0;
@@ -77,19 +77,12 @@ GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd&
     GmresStats st;
     const Index n = b.size();
     const double bn = b.norm();
+    x = VectorXd::Zero(n);
     if (bn == 0.0) {
-        x.setZero();
         st.converged = true;
         return st;
     }
-    if (x.size() != n || !x.allFinite()) x = VectorXd::Zero(n);
-    VectorXd r(n), w(n), z(n);
-    if (x.isZero(0.0)) {  // the flow steps' start: no product needed
-        r = b;
-    } else {
-        A(x, r);
-        r = b - r;
-    }
+    VectorXd r = b, w(n), z(n);
     double beta = r.norm();
     st.residual = beta / bn;
     Eigen::MatrixXd V, H;
@@ -264,7 +257,7 @@ public:
             y.head(n) -= precB_ * ys;
             y.tail<2>() = ys;
         };
-        VectorXd x = VectorXd::Zero(n + 2);
+        VectorXd x;
         Solution sol;
         sol.gmres = gmresSolve(A, Minv, b, x, effectiveGmresTolerance(opt_), opt_.gmresRestart, opt_.gmresMaxIterations);
         sol.u = Eigen::Map<const Vertices>(x.data(), 3, nv);
