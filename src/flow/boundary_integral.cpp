@@ -262,6 +262,94 @@ void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, c
     }
 }
 
+/// farSum<float> for two targets at once (AVX2 + FMA), with the weighted single-layer density
+/// wg_q = w_q g_q: one pass per 8 points, each point's position, normal and densities loaded once
+/// for both targets, 1 / r kept in registers (estimate and one Newton step, as
+/// inverseSqrt<float>), twelve independent accumulators, the double layer's factor -6 applied to
+/// the block sums. The multiplies set the pace (about 31 per pair for both layers), so the
+/// gain over two farSum calls is modest (docs/PERFORMANCE.md, "Flow solver: the far sum").
+template <bool kSingle, bool kDouble>
+void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
+                      const PointDensity<float>& u, const float (&u0)[2][3], Vec3 (&s)[2], Vec3 (&v)[2]) {
+#if defined(__AVX2__) && defined(__FMA__)
+    alignas(32) static constexpr int kLanes[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
+    const __m256 half = _mm256_set1_ps(0.5f), three = _mm256_set1_ps(3.0f);
+    const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
+    const __m256 hi = _mm256_set1_ps(std::numeric_limits<float>::max());
+    __m256 X[2][3], U[2][3];
+    for (int t = 0; t < 2; ++t)
+        for (int c = 0; c < 3; ++c) X[t][c] = _mm256_set1_ps(x0[t][c]), U[t][c] = _mm256_set1_ps(u0[t][c]);
+    for (int t = 0; t < 2; ++t) s[t].setZero(), v[t].setZero();
+    const auto hsum = [](__m256 a) {
+        const __m128 q = _mm_add_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps(a, 1));
+        const __m128 d = _mm_add_ps(q, _mm_movehl_ps(q, q));
+        return double(_mm_cvtss_f32(_mm_add_ss(d, _mm_movehdup_ps(d))));
+    };
+    for (Index b0 = 0; b0 < p.n; b0 += kBlock) {
+        const Index bend = std::min<Index>(p.n, b0 + kBlock);
+        __m256 acc[2][6];
+        for (auto& a : acc)
+            for (auto& c : a) c = _mm256_setzero_ps();
+        for (Index k = b0; k < bend; k += 8) {
+            // A partial last chunk reads zeros beyond the end: weight 0, no contribution.
+            const bool full = bend - k >= 8;
+            const __m256i mask = _mm256_loadu_si256(
+                reinterpret_cast<const __m256i*>(kLanes + 8 - static_cast<int>(std::min<Index>(8, bend - k))));
+            const auto load = [&](const float* a) {
+                return full ? _mm256_loadu_ps(a + k) : _mm256_maskload_ps(a + k, mask);
+            };
+            const __m256 px = load(p.x), py = load(p.y), pz = load(p.z);
+            __m256 gx{}, gy{}, gz{}, nx{}, ny{}, nz{}, ux{}, uy{}, uz{};
+            if constexpr (kSingle) gx = load(wg.x), gy = load(wg.y), gz = load(wg.z);
+            if constexpr (kDouble)
+                nx = load(p.wnx), ny = load(p.wny), nz = load(p.wnz), ux = load(u.x), uy = load(u.y), uz = load(u.z);
+            for (int t = 0; t < 2; ++t) {
+                const __m256 dx = _mm256_sub_ps(px, X[t][0]), dy = _mm256_sub_ps(py, X[t][1]),
+                             dz = _mm256_sub_ps(pz, X[t][2]);
+                const __m256 r2 = _mm256_fmadd_ps(dz, dz, _mm256_fmadd_ps(dy, dy, _mm256_mul_ps(dx, dx)));
+                __m256 rinv;
+                const __m256 inRange = _mm256_and_ps(_mm256_cmp_ps(r2, lo, _CMP_GE_OQ), _mm256_cmp_ps(r2, hi, _CMP_LE_OQ));
+                if (_mm256_movemask_ps(inRange) == 0xFF) {
+                    const __m256 y = _mm256_rsqrt_ps(r2);
+                    const __m256 xy2 = _mm256_mul_ps(_mm256_mul_ps(r2, y), y);
+                    rinv = _mm256_mul_ps(_mm256_mul_ps(half, y), _mm256_sub_ps(three, xy2));
+                } else {  // a point at the target (1 / r = 0) or outside the normal float range
+                    alignas(32) float r[8];
+                    _mm256_store_ps(r, r2);
+                    for (float& x : r) x = x > 0.0f ? 1.0f / std::sqrt(x) : 0.0f;
+                    rinv = _mm256_load_ps(r);
+                }
+                const __m256 r2inv = _mm256_mul_ps(rinv, rinv), r3inv = _mm256_mul_ps(r2inv, rinv);
+                if constexpr (kSingle) {  // w G g = (w g) / r + (d . w g) d / r^3
+                    const __m256 dg = _mm256_fmadd_ps(dz, gz, _mm256_fmadd_ps(dy, gy, _mm256_mul_ps(dx, gx)));
+                    const __m256 b = _mm256_mul_ps(r3inv, dg);
+                    acc[t][0] = _mm256_add_ps(acc[t][0], _mm256_fmadd_ps(rinv, gx, _mm256_mul_ps(b, dx)));
+                    acc[t][1] = _mm256_add_ps(acc[t][1], _mm256_fmadd_ps(rinv, gy, _mm256_mul_ps(b, dy)));
+                    acc[t][2] = _mm256_add_ps(acc[t][2], _mm256_fmadd_ps(rinv, gz, _mm256_mul_ps(b, dz)));
+                }
+                if constexpr (kDouble) {  // c / -6 = (d . w n) / r^5
+                    const __m256 dn = _mm256_fmadd_ps(dz, nz, _mm256_fmadd_ps(dy, ny, _mm256_mul_ps(dx, nx)));
+                    const __m256 c = _mm256_mul_ps(dn, _mm256_mul_ps(r3inv, r2inv));
+                    const __m256 ddu = _mm256_fmadd_ps(
+                        dz, _mm256_sub_ps(uz, U[t][2]),
+                        _mm256_fmadd_ps(dy, _mm256_sub_ps(uy, U[t][1]), _mm256_mul_ps(dx, _mm256_sub_ps(ux, U[t][0]))));
+                    const __m256 du = _mm256_mul_ps(c, ddu);
+                    acc[t][3] = _mm256_fmadd_ps(du, dx, acc[t][3]);
+                    acc[t][4] = _mm256_fmadd_ps(du, dy, acc[t][4]);
+                    acc[t][5] = _mm256_fmadd_ps(du, dz, acc[t][5]);
+                }
+            }
+        }
+        for (int t = 0; t < 2; ++t) {
+            if constexpr (kSingle) s[t] += Vec3(hsum(acc[t][0]), hsum(acc[t][1]), hsum(acc[t][2]));
+            if constexpr (kDouble) v[t] += -6.0 * Vec3(hsum(acc[t][3]), hsum(acc[t][4]), hsum(acc[t][5]));
+        }
+    }
+#else
+    (void)x0, (void)p, (void)wg, (void)u, (void)u0, (void)s, (void)v;
+#endif
+}
+
 Eigen::Matrix3d faceCorners(const Mesh& m, Index f) {
     Eigen::Matrix3d c;
     for (int k = 0; k < 3; ++k) c.col(k) = m.X.col(m.F(k, f));
@@ -589,20 +677,51 @@ void BoundaryIntegralOperators::applyLayersIn(const Eigen::Matrix3Xd* f, const E
     }();
     const Vec3 centre = kFloat ? farCentre_ : Vec3::Zero();
     const PointDensity<T> g{gx.data(), gy.data(), gz.data()}, ud{ux.data(), uy.data(), uz.data()};
-#pragma omp parallel for schedule(static)
-    for (Index i = 0; i < nv; ++i) {
-        const Vec3 u0 = kDouble ? Vec3(u->col(i)) : Vec3::Zero();
-        const T x0[3] = {T(mesh_.X(0, i) - centre.x()), T(mesh_.X(1, i) - centre.y()), T(mesh_.X(2, i) - centre.z())};
-        const T u0t[3] = {T(u0.x()), T(u0.y()), T(u0.z())};
-        Vec3 s, v;
-        farSum<T, kSingle, kDouble>(x0, pts, g, ud, u0t, s, v);
+    const auto target = [&](Index i, T (&x0)[3], T (&u0t)[3]) {
+        for (int c = 0; c < 3; ++c) {
+            x0[c] = T(mesh_.X(c, i) - centre[c]);
+            u0t[c] = kDouble ? T((*u)(c, i)) : T(0);
+        }
+    };
+    const auto finish = [&](Index i, Vec3 s, Vec3 v) {
         for (int p = corrStart_[i]; p < corrStart_[i + 1]; ++p) {
             const std::size_t o = 9 * static_cast<std::size_t>(p);
             if constexpr (kSingle) s += Eigen::Map<const Mat3>(&corrS_[o]) * f->col(corrCol_[p]);
             if constexpr (kDouble) v += Eigen::Map<const Mat3>(&corrD_[o]) * u->col(corrCol_[p]);
         }
         if constexpr (kSingle) Sf->col(i) = s;
-        if constexpr (kDouble) Du->col(i) = v - 4.0 * kPi * u0;
+        if constexpr (kDouble) Du->col(i) = v - 4.0 * kPi * u->col(i);
+    };
+    // Targets two at a time in float with AVX2 (farSumTwoTargets), else one at a time.
+#if defined(__AVX2__) && defined(__FMA__)
+    constexpr Index kTargets = kFloat ? 2 : 1;
+#else
+    constexpr Index kTargets = 1;
+#endif
+    std::vector<T> wgx, wgy, wgz;
+    if constexpr (kFloat && kSingle && kTargets == 2) {
+        const Index np = numQuadraturePoints();
+        wgx.resize(static_cast<std::size_t>(np)), wgy.resize(wgx.size()), wgz.resize(wgx.size());
+        for (Index k = 0; k < np; ++k) wgx[k] = qwf_[k] * gx[k], wgy[k] = qwf_[k] * gy[k], wgz[k] = qwf_[k] * gz[k];
+    }
+    const PointDensity<T> wg{wgx.data(), wgy.data(), wgz.data()};
+#pragma omp parallel for schedule(static)
+    for (Index i0 = 0; i0 < nv; i0 += kTargets) {
+        if (kTargets == 2 && i0 + 1 < nv) {
+            T x0[2][3], u0t[2][3];
+            Vec3 s[2], v[2];
+            target(i0, x0[0], u0t[0]);
+            target(i0 + 1, x0[1], u0t[1]);
+            if constexpr (kFloat) farSumTwoTargets<kSingle, kDouble>(x0, pts, wg, ud, u0t, s, v);
+            finish(i0, s[0], v[0]);
+            finish(i0 + 1, s[1], v[1]);
+        } else {
+            T x0[3], u0t[3];
+            Vec3 s, v;
+            target(i0, x0, u0t);
+            farSum<T, kSingle, kDouble>(x0, pts, g, ud, u0t, s, v);
+            finish(i0, s, v);
+        }
     }
 }
 
