@@ -251,6 +251,47 @@ TEST(StokesOperators, SinglePrecisionFarSumAgreesWithDoubleToItsRounding) {
     EXPECT_LT(lin.cwiseAbs().maxCoeff(), 5e-7 * b.singleLayer(f + 2.0 * u).cwiseAbs().maxCoeff());
 }
 
+TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
+    // With AVX2 the float far sum takes the targets two at a time and the odd last one alone; an
+    // icosphere has an even vertex count, so one face is split at its centroid (lifted onto the
+    // sphere): 163 vertices, the last one on the one-target path, the last points in a partial
+    // chunk of eight.
+    Mesh m = icosphere(2);
+    const Eigen::Index nv0 = m.X.cols(), nf0 = m.F.cols();
+    const Eigen::Vector3i f0 = m.F.col(0);
+    m.X.conservativeResize(3, nv0 + 1);
+    m.X.col(nv0) = (m.X.col(f0[0]) + m.X.col(f0[1]) + m.X.col(f0[2])).normalized();
+    m.F.conservativeResize(3, nf0 + 2);
+    m.F.col(0) = Eigen::Vector3i(f0[0], f0[1], int(nv0));
+    m.F.col(nf0) = Eigen::Vector3i(f0[1], f0[2], int(nv0));
+    m.F.col(nf0 + 1) = Eigen::Vector3i(f0[2], f0[0], int(nv0));
+    m.X.row(1) *= 0.3;
+    m.X.row(0).array() += 5.0;
+    QuadratureOptions single;
+    single.singlePrecisionFar = true;
+    const BoundaryIntegralOperators a(m), b(m, single);
+    const Eigen::Index nv = a.numVertices();
+    ASSERT_EQ(nv % 2, 1);
+    ASSERT_NE(a.numQuadraturePoints() % 8, 0);
+    Eigen::Matrix3Xd f(3, nv), u(3, nv);
+    for (Eigen::Index i = 0; i < nv; ++i) {
+        const Eigen::Vector3d x = m.X.col(i);
+        f.col(i) = Eigen::Vector3d(x.y() * x.z(), 1.0 + x.x(), x.x() * x.y());
+        u.col(i) = Eigen::Vector3d(std::sin(x.z()), x.x() * x.x() - 2.0, std::cos(x.y()));
+    }
+    Eigen::Matrix3Xd Sa, Da, Sb, Db;
+    a.layers(f, u, Sa, Da);
+    b.layers(f, u, Sb, Db);
+    EXPECT_LT((Sa - Sb).cwiseAbs().maxCoeff(), 5e-7 * Sa.cwiseAbs().maxCoeff());
+    EXPECT_LT((Da - Db).cwiseAbs().maxCoeff(), 5e-7 * Da.cwiseAbs().maxCoeff());
+    // The last target (alone) and its neighbour in index (in a pair) to the same precision.
+    for (const Eigen::Index i : {nv - 2, nv - 1}) {
+        EXPECT_LT((Sa.col(i) - Sb.col(i)).norm(), 5e-7 * Sa.cwiseAbs().maxCoeff()) << i;
+        EXPECT_LT((Da.col(i) - Db.col(i)).norm(), 5e-7 * Da.cwiseAbs().maxCoeff()) << i;
+    }
+    EXPECT_TRUE(Sb.allFinite() && Db.allFinite());
+}
+
 TEST(StokesOperators, ResultDoesNotDependOnThreads) {
     for (const bool single : {false, true}) {
         QuadratureOptions q;

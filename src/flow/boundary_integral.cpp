@@ -262,16 +262,18 @@ void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, c
     }
 }
 
+#if defined(__AVX2__) && defined(__FMA__)
+constexpr bool kTwoTargetFarSum = true;
 /// farSum<float> for two targets at once (AVX2 + FMA), with the weighted single-layer density
 /// wg_q = w_q g_q: one pass per 8 points, each point's position, normal and densities loaded once
 /// for both targets, 1 / r kept in registers (estimate and one Newton step, as
 /// inverseSqrt<float>), twelve independent accumulators, the double layer's factor -6 applied to
 /// the block sums. The multiplies set the pace (about 31 per pair for both layers), so the
-/// gain over two farSum calls is modest (docs/PERFORMANCE.md, "Flow solver: the far sum").
+/// gain over two farSum calls is modest (docs/PERFORMANCE.md, "Flow solver: the far sum two
+/// targets at a time, the factor ordered by METIS").
 template <bool kSingle, bool kDouble>
 void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
                       const PointDensity<float>& u, const float (&u0)[2][3], Vec3 (&s)[2], Vec3 (&v)[2]) {
-#if defined(__AVX2__) && defined(__FMA__)
     alignas(32) static constexpr int kLanes[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
     const __m256 half = _mm256_set1_ps(0.5f), three = _mm256_set1_ps(3.0f);
     const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
@@ -291,7 +293,8 @@ void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const 
         for (auto& a : acc)
             for (auto& c : a) c = _mm256_setzero_ps();
         for (Index k = b0; k < bend; k += 8) {
-            // A partial last chunk reads zeros beyond the end: weight 0, no contribution.
+            // A partial last chunk reads zeros beyond the end, and its 1 / r is zeroed there (a
+            // zero point near the target would overflow r^-5): those lanes add exactly nothing.
             const bool full = bend - k >= 8;
             const __m256i mask = _mm256_loadu_si256(
                 reinterpret_cast<const __m256i*>(kLanes + 8 - static_cast<int>(std::min<Index>(8, bend - k))));
@@ -319,6 +322,7 @@ void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const 
                     for (float& x : r) x = x > 0.0f ? 1.0f / std::sqrt(x) : 0.0f;
                     rinv = _mm256_load_ps(r);
                 }
+                if (!full) rinv = _mm256_and_ps(rinv, _mm256_castsi256_ps(mask));
                 const __m256 r2inv = _mm256_mul_ps(rinv, rinv), r3inv = _mm256_mul_ps(r2inv, rinv);
                 if constexpr (kSingle) {  // w G g = (w g) / r + (d . w g) d / r^3
                     const __m256 dg = _mm256_fmadd_ps(dz, gz, _mm256_fmadd_ps(dy, gy, _mm256_mul_ps(dx, gx)));
@@ -345,10 +349,10 @@ void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const 
             if constexpr (kDouble) v[t] += -6.0 * Vec3(hsum(acc[t][3]), hsum(acc[t][4]), hsum(acc[t][5]));
         }
     }
-#else
-    (void)x0, (void)p, (void)wg, (void)u, (void)u0, (void)s, (void)v;
-#endif
 }
+#else
+constexpr bool kTwoTargetFarSum = false;
+#endif
 
 Eigen::Matrix3d faceCorners(const Mesh& m, Index f) {
     Eigen::Matrix3d c;
@@ -692,14 +696,12 @@ void BoundaryIntegralOperators::applyLayersIn(const Eigen::Matrix3Xd* f, const E
         if constexpr (kSingle) Sf->col(i) = s;
         if constexpr (kDouble) Du->col(i) = v - 4.0 * kPi * u->col(i);
     };
-    // Targets two at a time in float with AVX2 (farSumTwoTargets), else one at a time.
-#if defined(__AVX2__) && defined(__FMA__)
-    constexpr Index kTargets = kFloat ? 2 : 1;
-#else
-    constexpr Index kTargets = 1;
-#endif
+    // Targets two at a time in float with AVX2 + FMA (farSumTwoTargets; an odd last target alone),
+    // else one at a time.
+    constexpr bool kTwo = kFloat && kTwoTargetFarSum;
+    constexpr Index kTargets = kTwo ? 2 : 1;
     std::vector<T> wgx, wgy, wgz;
-    if constexpr (kFloat && kSingle && kTargets == 2) {
+    if constexpr (kTwo && kSingle) {
         const Index np = numQuadraturePoints();
         wgx.resize(static_cast<std::size_t>(np)), wgy.resize(wgx.size()), wgz.resize(wgx.size());
         for (Index k = 0; k < np; ++k) wgx[k] = qwf_[k] * gx[k], wgy[k] = qwf_[k] * gy[k], wgz[k] = qwf_[k] * gz[k];
@@ -707,15 +709,19 @@ void BoundaryIntegralOperators::applyLayersIn(const Eigen::Matrix3Xd* f, const E
     const PointDensity<T> wg{wgx.data(), wgy.data(), wgz.data()};
 #pragma omp parallel for schedule(static)
     for (Index i0 = 0; i0 < nv; i0 += kTargets) {
-        if (kTargets == 2 && i0 + 1 < nv) {
-            T x0[2][3], u0t[2][3];
-            Vec3 s[2], v[2];
-            target(i0, x0[0], u0t[0]);
-            target(i0 + 1, x0[1], u0t[1]);
-            if constexpr (kFloat) farSumTwoTargets<kSingle, kDouble>(x0, pts, wg, ud, u0t, s, v);
-            finish(i0, s[0], v[0]);
-            finish(i0 + 1, s[1], v[1]);
-        } else {
+        if constexpr (kTwo) {
+            if (i0 + 1 < nv) {
+                T x0[2][3], u0t[2][3];
+                Vec3 s[2], v[2];
+                target(i0, x0[0], u0t[0]);
+                target(i0 + 1, x0[1], u0t[1]);
+                farSumTwoTargets<kSingle, kDouble>(x0, pts, wg, ud, u0t, s, v);
+                finish(i0, s[0], v[0]);
+                finish(i0 + 1, s[1], v[1]);
+                continue;
+            }
+        }
+        {
             T x0[3], u0t[3];
             Vec3 s, v;
             target(i0, x0, u0t);
