@@ -214,25 +214,37 @@ TEST(StokesOperators, CornerCentroidAndFaceRulesAgreeToTheQuadratureError) {
     EXPECT_GT((Sa - Sb).cwiseAbs().maxCoeff(), 1e-9 * Sb.cwiseAbs().maxCoeff());
 }
 
+/// The cell-like test geometry of the single-precision tests: flattened to 0.3 in y, moved off
+/// the origin by 5 in x (8 x 2.4 x 8 for the unit sphere).
+void flattenOffCentre(Mesh& m) {
+    m.X.row(1) *= 0.3;
+    m.X.row(0).array() += 5.0;
+}
+/// Smooth densities on the vertices: f for the single layer, u for the double layer.
+void smoothDensities(const Eigen::Matrix3Xd& X, Eigen::Matrix3Xd& f, Eigen::Matrix3Xd& u) {
+    f.resize(3, X.cols());
+    u.resize(3, X.cols());
+    for (Eigen::Index i = 0; i < X.cols(); ++i) {
+        const Eigen::Vector3d x = X.col(i);
+        f.col(i) = Eigen::Vector3d(x.y() * x.z(), 1.0 + x.x(), x.x() * x.y());
+        u.col(i) = Eigen::Vector3d(std::sin(x.z()), x.x() * x.x() - 2.0, std::cos(x.y()));
+    }
+}
+
 TEST(StokesOperators, SinglePrecisionFarSumAgreesWithDoubleToItsRounding) {
     // A flattened, off-centre cell (8 x 2.4 x 8 in R_A-like units) at the production level, smooth
     // densities: the float far sum moves S f and D u by 8e-8 and 5e-8 of their largest value
     // (measured), far below the flat-face error (~4e-3, docs/flow_verification.md).
     Mesh m = icosphere(kProductionLevel);
-    m.X.row(1) *= 0.3;
-    m.X.row(0).array() += 5.0;
+    flattenOffCentre(m);
     QuadratureOptions single;
     single.singlePrecisionFar = true;
     const BoundaryIntegralOperators a(m), b(m, single);
     const Eigen::Index nv = a.numVertices();
-    Eigen::Matrix3Xd f(3, nv), u(3, nv), rot(3, nv);
+    Eigen::Matrix3Xd f, u, rot(3, nv);
+    smoothDensities(m.X, f, u);
     const Eigen::Vector3d w(0.3, -1.0, 0.5), e(0.2, -0.6, 1.0);
-    for (Eigen::Index i = 0; i < nv; ++i) {
-        const Eigen::Vector3d x = m.X.col(i);
-        f.col(i) = Eigen::Vector3d(x.y() * x.z(), 1.0 + x.x(), x.x() * x.y());
-        u.col(i) = Eigen::Vector3d(std::sin(x.z()), x.x() * x.x() - 2.0, std::cos(x.y()));
-        rot.col(i) = w.cross(x);
-    }
+    for (Eigen::Index i = 0; i < nv; ++i) rot.col(i) = w.cross(Eigen::Vector3d(m.X.col(i)));
     Eigen::Matrix3Xd Sa, Da, Sb, Db;
     a.layers(f, u, Sa, Da);
     b.layers(f, u, Sb, Db);
@@ -252,7 +264,7 @@ TEST(StokesOperators, SinglePrecisionFarSumAgreesWithDoubleToItsRounding) {
 }
 
 TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
-    // With AVX2 the float far sum takes the targets two at a time and the odd last one alone; an
+    // With AVX2 + FMA the float far sum takes the targets two at a time and the odd last one alone; an
     // icosphere has an even vertex count, so one face is split at its centroid (lifted onto the
     // sphere): 163 vertices, the last one on the one-target path, the last points in a partial
     // chunk of eight.
@@ -265,20 +277,15 @@ TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
     m.F.col(0) = Eigen::Vector3i(f0[0], f0[1], int(nv0));
     m.F.col(nf0) = Eigen::Vector3i(f0[1], f0[2], int(nv0));
     m.F.col(nf0 + 1) = Eigen::Vector3i(f0[2], f0[0], int(nv0));
-    m.X.row(1) *= 0.3;
-    m.X.row(0).array() += 5.0;
+    flattenOffCentre(m);
     QuadratureOptions single;
     single.singlePrecisionFar = true;
     const BoundaryIntegralOperators a(m), b(m, single);
     const Eigen::Index nv = a.numVertices();
     ASSERT_EQ(nv % 2, 1);
     ASSERT_NE(a.numQuadraturePoints() % 8, 0);
-    Eigen::Matrix3Xd f(3, nv), u(3, nv);
-    for (Eigen::Index i = 0; i < nv; ++i) {
-        const Eigen::Vector3d x = m.X.col(i);
-        f.col(i) = Eigen::Vector3d(x.y() * x.z(), 1.0 + x.x(), x.x() * x.y());
-        u.col(i) = Eigen::Vector3d(std::sin(x.z()), x.x() * x.x() - 2.0, std::cos(x.y()));
-    }
+    Eigen::Matrix3Xd f, u;
+    smoothDensities(m.X, f, u);
     Eigen::Matrix3Xd Sa, Da, Sb, Db;
     a.layers(f, u, Sa, Da);
     b.layers(f, u, Sb, Db);

@@ -57,25 +57,31 @@ void inverseSqrt(double* r, Index n) {
     for (; k < n; ++k) r[k] = r[k] > 0.0 ? 1.0 / std::sqrt(r[k]) : 0.0;
 }
 
-/// The same in single precision: the estimate and one Newton step (relative error ~2e-7, the
-/// float rounding). Lanes outside the normal float range take the exact formula.
+#if defined(__AVX2__) && defined(__FMA__)
+/// 1 / sqrt(x) for eight floats: the estimate and one Newton step y (3 - x y^2) / 2 (relative
+/// error ~2e-7, the float rounding); lanes outside the normal float range take the exact formula,
+/// 0 where x = 0.
+inline __m256 inverseSqrt8(__m256 x) {
+    const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
+    const __m256 hi = _mm256_set1_ps(std::numeric_limits<float>::max());
+    const __m256 inRange = _mm256_and_ps(_mm256_cmp_ps(x, lo, _CMP_GE_OQ), _mm256_cmp_ps(x, hi, _CMP_LE_OQ));
+    if (_mm256_movemask_ps(inRange) != 0xFF) {
+        alignas(32) float r[8];
+        _mm256_store_ps(r, x);
+        for (float& v : r) v = v > 0.0f ? 1.0f / std::sqrt(v) : 0.0f;
+        return _mm256_load_ps(r);
+    }
+    const __m256 y = _mm256_rsqrt_ps(x);
+    const __m256 xy2 = _mm256_mul_ps(_mm256_mul_ps(x, y), y);
+    return _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.5f), y), _mm256_sub_ps(_mm256_set1_ps(3.0f), xy2));
+}
+#endif
+
+/// The same in single precision (inverseSqrt8 with AVX2 + FMA).
 void inverseSqrt(float* r, Index n) {
     Index k = 0;
 #if defined(__AVX2__) && defined(__FMA__)
-    const __m256 half = _mm256_set1_ps(0.5f), three = _mm256_set1_ps(3.0f);
-    const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
-    const __m256 hi = _mm256_set1_ps(std::numeric_limits<float>::max());
-    for (; k + 8 <= n; k += 8) {
-        const __m256 x = _mm256_loadu_ps(r + k);
-        const __m256 inRange = _mm256_and_ps(_mm256_cmp_ps(x, lo, _CMP_GE_OQ), _mm256_cmp_ps(x, hi, _CMP_LE_OQ));
-        if (_mm256_movemask_ps(inRange) != 0xFF) {
-            for (Index j = k; j < k + 8; ++j) r[j] = r[j] > 0.0f ? 1.0f / std::sqrt(r[j]) : 0.0f;
-            continue;
-        }
-        const __m256 y = _mm256_rsqrt_ps(x);
-        const __m256 xy2 = _mm256_mul_ps(_mm256_mul_ps(x, y), y);
-        _mm256_storeu_ps(r + k, _mm256_mul_ps(_mm256_mul_ps(half, y), _mm256_sub_ps(three, xy2)));
-    }
+    for (; k + 8 <= n; k += 8) _mm256_storeu_ps(r + k, inverseSqrt8(_mm256_loadu_ps(r + k)));
 #endif
     for (; k < n; ++k) r[k] = r[k] > 0.0f ? 1.0f / std::sqrt(r[k]) : 0.0f;
 }
@@ -266,18 +272,14 @@ void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, c
 constexpr bool kTwoTargetFarSum = true;
 /// farSum<float> for two targets at once (AVX2 + FMA), with the weighted single-layer density
 /// wg_q = w_q g_q: one pass per 8 points, each point's position, normal and densities loaded once
-/// for both targets, 1 / r kept in registers (estimate and one Newton step, as
-/// inverseSqrt<float>), twelve independent accumulators, the double layer's factor -6 applied to
-/// the block sums. The multiplies set the pace (about 31 per pair for both layers), so the
-/// gain over two farSum calls is modest (docs/PERFORMANCE.md, "Flow solver: the far sum two
-/// targets at a time, the factor ordered by METIS").
+/// for both targets, 1 / r kept in registers (inverseSqrt8), twelve independent accumulators, the
+/// double layer's factor -6 applied to the block sums. The multiplies set the pace (about 31 per
+/// pair for both layers), so the gain over two farSum calls is modest (docs/PERFORMANCE.md,
+/// "Flow solver: the far sum two targets at a time, the factor ordered by METIS").
 template <bool kSingle, bool kDouble>
 void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
                       const PointDensity<float>& u, const float (&u0)[2][3], Vec3 (&s)[2], Vec3 (&v)[2]) {
     alignas(32) static constexpr int kLanes[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
-    const __m256 half = _mm256_set1_ps(0.5f), three = _mm256_set1_ps(3.0f);
-    const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
-    const __m256 hi = _mm256_set1_ps(std::numeric_limits<float>::max());
     __m256 X[2][3], U[2][3];
     for (int t = 0; t < 2; ++t)
         for (int c = 0; c < 3; ++c) X[t][c] = _mm256_set1_ps(x0[t][c]), U[t][c] = _mm256_set1_ps(u0[t][c]);
@@ -310,18 +312,7 @@ void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const 
                 const __m256 dx = _mm256_sub_ps(px, X[t][0]), dy = _mm256_sub_ps(py, X[t][1]),
                              dz = _mm256_sub_ps(pz, X[t][2]);
                 const __m256 r2 = _mm256_fmadd_ps(dz, dz, _mm256_fmadd_ps(dy, dy, _mm256_mul_ps(dx, dx)));
-                __m256 rinv;
-                const __m256 inRange = _mm256_and_ps(_mm256_cmp_ps(r2, lo, _CMP_GE_OQ), _mm256_cmp_ps(r2, hi, _CMP_LE_OQ));
-                if (_mm256_movemask_ps(inRange) == 0xFF) {
-                    const __m256 y = _mm256_rsqrt_ps(r2);
-                    const __m256 xy2 = _mm256_mul_ps(_mm256_mul_ps(r2, y), y);
-                    rinv = _mm256_mul_ps(_mm256_mul_ps(half, y), _mm256_sub_ps(three, xy2));
-                } else {  // a point at the target (1 / r = 0) or outside the normal float range
-                    alignas(32) float r[8];
-                    _mm256_store_ps(r, r2);
-                    for (float& x : r) x = x > 0.0f ? 1.0f / std::sqrt(x) : 0.0f;
-                    rinv = _mm256_load_ps(r);
-                }
+                __m256 rinv = inverseSqrt8(r2);  // 0 for a point at the target
                 if (!full) rinv = _mm256_and_ps(rinv, _mm256_castsi256_ps(mask));
                 const __m256 r2inv = _mm256_mul_ps(rinv, rinv), r3inv = _mm256_mul_ps(r2inv, rinv);
                 if constexpr (kSingle) {  // w G g = (w g) / r + (d . w g) d / r^3

@@ -146,10 +146,10 @@ GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd&
 /// The sparse LDL^T factor of the velocity preconditioner's matrix M B_s^-1 / (s c) + Gamma
 /// (s = CellFlowOptions::preconditionerScale), kept over the steps of a run. Its pattern (the
 /// vertex-edge graph of the mesh in 3x3 blocks) is the same at every step, so the fill-reducing
-/// ordering and the symbolic analysis are done once and each step refactorises the values only. The ordering is METIS's nested dissection: on a closed surface
-/// mesh it leaves less fill than AMD (level 4: 647k against 733k entries in L, 0.70x the
-/// factorisation time and 0.82x a solve; docs/PERFORMANCE.md). A different pattern (another
-/// mesh) is analysed afresh.
+/// ordering and the symbolic analysis are done once and each step refactorises the values only.
+/// The ordering is METIS's nested dissection: on a closed surface mesh it leaves less fill than
+/// AMD (level 4: 647k against 733k entries in L, 0.70x the factorisation time and 0.82x a solve;
+/// docs/PERFORMANCE.md). A different pattern (another mesh) is analysed afresh.
 class PreconditionerFactor {
 public:
     void factorize(const Eigen::SparseMatrix<double>& K) {
