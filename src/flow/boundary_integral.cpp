@@ -381,16 +381,24 @@ BoundaryIntegralOperators::BoundaryIntegralOperators(const Mesh& mesh, const Qua
     vertexArea_ = trbc::vertexAreas(mesh_.X, mesh_.F);
     area_ = faceArea_.sum();
     volume_ = enclosedVolume(mesh_.X, mesh_.F);
-    faceCentroid_.resize(3, nf);
-    faceLongestEdge_.resize(nf);
+    for (auto* a : {&faceCentroidX_, &faceCentroidY_, &faceCentroidZ_, &faceNearReach2_}) a->resize(static_cast<std::size_t>(nf));
     for (Index f = 0; f < nf; ++f) {
         const Eigen::Matrix3d c = faceCorners(mesh_, f);
-        faceCentroid_.col(f) = c.rowwise().mean();
-        faceLongestEdge_[f] = std::max({(c.col(1) - c.col(0)).norm(), (c.col(2) - c.col(1)).norm(),
-                                        (c.col(0) - c.col(2)).norm()});
+        const Vec3 centroid = c.rowwise().mean();
+        faceCentroidX_[f] = centroid.x(), faceCentroidY_[f] = centroid.y(), faceCentroidZ_[f] = centroid.z();
+        const double reach = options_.nearFactor * std::max({(c.col(1) - c.col(0)).norm(), (c.col(2) - c.col(1)).norm(),
+                                                             (c.col(0) - c.col(2)).norm()});
+        faceNearReach2_[f] = reach * reach;
     }
     buildQuadrature();
     buildCorrections();
+}
+
+void BoundaryIntegralOperators::markNearFaces(const Vec3& x0, std::vector<char>& near) const {
+    const Index nf = static_cast<Index>(faceNearReach2_.size());
+    near.resize(static_cast<std::size_t>(nf));
+#pragma omp simd
+    for (Index f = 0; f < nf; ++f) near[static_cast<std::size_t>(f)] = isNearFace(x0, f);
 }
 
 void BoundaryIntegralOperators::buildQuadrature() {
@@ -483,14 +491,6 @@ void BoundaryIntegralOperators::buildCorrections() {
         batchBary.row(nb) = farBary_.row(q);
         batchWeight[nb] = -farWeight_[q];
     }
-    // Face centroids and squared reaches (isNearFace) as arrays, for a vectorised near test.
-    std::vector<double> cx(nf), cy(nf), cz(nf), reach2(nf);
-    for (Index f = 0; f < nf; ++f) {
-        cx[f] = faceCentroid_(0, f), cy[f] = faceCentroid_(1, f), cz[f] = faceCentroid_(2, f);
-        const double reach = options_.nearFactor * faceLongestEdge_[f];
-        reach2[f] = reach * reach;
-    }
-
     std::vector<CorrectionRow> rows(nv);
 #pragma omp parallel
     {
@@ -553,11 +553,7 @@ void BoundaryIntegralOperators::buildCorrections() {
             // one small product with the batch's barycentric weights, and the target's own column takes
             // minus the sum of the double-layer blocks. No point of a near face lies at the target.
             const double px = x0.x(), py = x0.y(), pz = x0.z();
-#pragma omp simd
-            for (Index f = 0; f < nf; ++f) {
-                const double ex = cx[f] - px, ey = cy[f] - py, ez = cz[f] - pz;
-                near[f] = !(ex * ex + ey * ey + ez * ez >= reach2[f]);
-            }
+            markNearFaces(x0, near);
             for (const int f : vertexFaces[i]) near[f] = 0;
             const Index nq = nn + nFar;
             for (Index f = 0; f < nf; ++f) {
@@ -988,7 +984,7 @@ void BoundaryIntegralOperators::assembleSingleLayerAt(const Eigen::Matrix3Xd& ta
         for (Index t = 0; t < nt; ++t) {
             const Vec3 x0 = targets.col(t);
             singleLayerKernelRow(x0.x(), x0.y(), x0.z(), fx_, fy_, fz_, fw_, k);
-            for (Index f = 0; f < nf; ++f) near[static_cast<std::size_t>(f)] = isNearFace(x0, f);
+            markNearFaces(x0, near);
             scatterSymmetricBlocks(k, 0, ruleBary_, mesh_.F, nv, buf.data(), &near);
             for (Index f = 0; f < nf; ++f)
                 if (near[static_cast<std::size_t>(f)]) {

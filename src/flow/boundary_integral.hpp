@@ -156,11 +156,14 @@ private:
     void offSurfaceBlocks(const Eigen::Vector3d& x0, Eigen::Index f, int maxDepth,
                           Eigen::Matrix3d (&blocks)[3]) const;
     // Face f is near x0: its centroid closer than nearFactor x its longest edge (the far rule does
-    // not resolve the kernel there).
+    // not resolve the kernel there). A NaN distance counts as near.
     bool isNearFace(const Eigen::Vector3d& x0, Eigen::Index f) const {
-        const double reach = options_.nearFactor * faceLongestEdge_[f];
-        return !((faceCentroid_.col(f) - x0).squaredNorm() >= reach * reach);
+        const auto i = static_cast<std::size_t>(f);
+        const double ex = faceCentroidX_[i] - x0.x(), ey = faceCentroidY_[i] - x0.y(), ez = faceCentroidZ_[i] - x0.z();
+        return !(ex * ex + ey * ey + ez * ez >= faceNearReach2_[i]);
     }
+    // near[f] = isNearFace(x0, f) for every face, vectorised.
+    void markNearFaces(const Eigen::Vector3d& x0, std::vector<char>& near) const;
     // S f and / or D u (far sum plus corrections); the far loop shares 1 / r between the two.
     template <bool kSingle, bool kDouble>
     void applyLayers(const Eigen::Matrix3Xd* f, const Eigen::Matrix3Xd* u, Eigen::Matrix3Xd* Sf,
@@ -179,8 +182,8 @@ private:
     double area_ = 0.0, volume_ = 0.0;
     Eigen::VectorXd faceArea_, vertexArea_;
     Eigen::Matrix3Xd faceNormal_, vertexNormal_;
-    Eigen::Matrix3Xd faceCentroid_;
-    Eigen::VectorXd faceLongestEdge_;
+    // Face centroids and squared near reaches (nearFactor x longest edge)^2, structure of arrays.
+    std::vector<double> faceCentroidX_, faceCentroidY_, faceCentroidZ_, faceNearReach2_;
     // Symmetric face rule (farPoints): barycentric coordinates (points x 3), weights summing to 1;
     // base of the near faces and of the off-surface operator. Its points on every face, structure
     // of arrays (face-major; position and weight A_t w_q).
