@@ -8,11 +8,13 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
 #include <filesystem>
 #include <fstream>
+#include <random>
 
 #include "analysis/validation.hpp"
 #include "analysis/validation_draws.hpp"
@@ -120,7 +122,74 @@ TEST(ValidationDraws, MedianBandAndBandVerdictOnHandMadeNumbers) {
     const DrawBand one = drawBand({{true, 3.0, ""}});
     EXPECT_DOUBLE_EQ(one.lo, 3.0);
     EXPECT_DOUBLE_EQ(one.hi, 3.0);
+    EXPECT_DOUBLE_EQ(one.loMcse, 0.0);
     EXPECT_TRUE(std::isnan(drawBand({}).median));
+    EXPECT_TRUE(std::isnan(drawBand({}).medianMcse));
+}
+
+TEST(ValidationDraws, QuantileMcseOnHandMadeNumbers) {
+    // Values 1..21: the type-7 quantile is 1 + 20 p inside [0, 1], so the MCSE is
+    // 20 sqrt(p (1 - p) / 21) while p -+ that spread stays inside [0, 1].
+    std::vector<DrawOutcome> o;
+    for (int k = 1; k <= 21; ++k) o.push_back({true, static_cast<double>(k), ""});
+    const DrawBand b = drawBand(o);
+    const auto spread = [](double p) { return 20.0 * std::sqrt(p * (1.0 - p) / 21.0); };
+    EXPECT_NEAR(b.medianMcse, spread(0.5), 1e-12);
+    EXPECT_NEAR(b.loMcse, spread(0.05), 1e-12);
+    EXPECT_NEAR(b.hiMcse, spread(0.95), 1e-12);
+    // Three draws: 0.05 -+ 0.126 is clamped at 0, so the lower end's spread is one-sided.
+    const DrawBand three = drawBand({{true, 0.0, ""}, {true, 1.0, ""}, {true, 2.0, ""}});
+    const double se = std::sqrt(0.05 * 0.95 / 3.0);
+    EXPECT_NEAR(three.loMcse, 0.5 * 2.0 * (0.05 + se), 1e-12);
+}
+
+TEST(ValidationDraws, QuantileMcseMatchesTheSpreadOfRepeatedBands) {
+    // 2000 bands of 32 independent standard-normal draws: the root-mean-square MCSE against the
+    // actual SD of the estimates over the repeats (seeded). For n = 32 the estimate is 1.07x at the
+    // median and 1.13x at the 5 and 95 % ends (the SD itself to 1.6 % with 2000 repeats); the
+    // bounds catch a factor of sqrt(2) either way.
+    std::mt19937_64 rng(20261128);
+    std::normal_distribution<double> normal;
+    const int repeats = 2000, n = 32;
+    std::array<double, 3> sum{}, sumSq{}, mcseSq{};
+    for (int r = 0; r < repeats; ++r) {
+        std::vector<DrawOutcome> o;
+        for (int k = 0; k < n; ++k) o.push_back({true, normal(rng), ""});
+        const DrawBand b = drawBand(o);
+        const std::array<double, 3> est{b.median, b.lo, b.hi}, err{b.medianMcse, b.loMcse, b.hiMcse};
+        for (int i = 0; i < 3; ++i) sum[i] += est[i], sumSq[i] += est[i] * est[i], mcseSq[i] += err[i] * err[i];
+    }
+    for (int i = 0; i < 3; ++i) {
+        const double mean = sum[i] / repeats, sd = std::sqrt(sumSq[i] / repeats - mean * mean);
+        const double ratio = std::sqrt(mcseSq[i] / repeats) / sd;
+        EXPECT_GT(ratio, 0.8) << "quantile " << i;
+        EXPECT_LT(ratio, 1.4) << "quantile " << i;
+    }
+}
+
+TEST(ValidationDraws, BandVerdictWithinMcseOnHandMadeNumbers) {
+    DrawBand b;
+    b.withValue = 20, b.finished = 20, b.draws = 20;
+    b.lo = 2.0, b.hi = 10.0, b.loMcse = 0.5, b.hiMcse = 1.0;
+    ScatterComparison s;
+    s.points = 3, s.lo = 9.5, s.hi = 12.0;  // overlap by 0.5 at the top, hi's MCSE 1.0
+    EXPECT_EQ(bandVerdict(b, s), "overlap");
+    EXPECT_TRUE(bandVerdictWithinMcse(b, s));
+    s.lo = 8.0;  // overlap by 2.0
+    EXPECT_FALSE(bandVerdictWithinMcse(b, s));
+    s.lo = 10.8;  // no overlap, gap 0.8 below hi's MCSE
+    EXPECT_EQ(bandVerdict(b, s), "no overlap");
+    EXPECT_TRUE(bandVerdictWithinMcse(b, s));
+    s.lo = 11.5;  // gap 1.5
+    EXPECT_FALSE(bandVerdictWithinMcse(b, s));
+    s.lo = -3.0, s.hi = 1.6;  // band above the scatter, gap 0.4 below lo's MCSE
+    EXPECT_TRUE(bandVerdictWithinMcse(b, s));
+    s.hi = 1.0;  // gap 1.0
+    EXPECT_FALSE(bandVerdictWithinMcse(b, s));
+    s.lo = 0.0, s.hi = 20.0;  // the scatter holds the band
+    EXPECT_FALSE(bandVerdictWithinMcse(b, s));
+    s.points = 0;
+    EXPECT_FALSE(bandVerdictWithinMcse(b, s));
 }
 
 TEST(ValidationDraws, CriticalStressOfADrawIsTheBracketsLogCentre) {
@@ -251,7 +320,8 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     EXPECT_NE(bands.find("angle_eta23.9_rate40,angle,inclination [deg],"), std::string::npos) << bands;
     EXPECT_NE(bands.find("threshold_eta23.9,threshold,critical stress [Pa],"), std::string::npos) << bands;
     EXPECT_NE(md.find("## Posterior draws"), std::string::npos) << md;
-    EXPECT_NE(md.find("| kind | compared | mean cell inside | band overlaps |"), std::string::npos) << md;
+    EXPECT_NE(md.find("| kind | compared | mean cell inside | band overlaps | band verdicts within MC error |"), std::string::npos)
+        << md;
     EXPECT_NE(test::slurp(out / "draws.csv").find(id + ",angle_eta23.9_rate40,angle,"), std::string::npos);
     // The angle's band is that of the two draws' records (both tank-tread at 40/s).
     std::vector<DrawOutcome> angles;
@@ -267,12 +337,14 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     EXPECT_DOUBLE_EQ(angleRow["median"].get<double>(), expected.median);
     EXPECT_DOUBLE_EQ(angleRow["q05"].get<double>(), expected.lo);
     EXPECT_DOUBLE_EQ(angleRow["q95"].get<double>(), expected.hi);
+    EXPECT_DOUBLE_EQ(angleRow["q05_mcse"].get<double>(), expected.loMcse);
     EXPECT_LT(expected.lo, expected.hi);  // two different cells
     ScatterComparison scatter;
     scatter.lo = angleRow["scatter_lo"].get<double>(), scatter.hi = angleRow["scatter_hi"].get<double>();
     scatter.points = angleRow["points"].get<int>();
     EXPECT_GT(scatter.points, 0);
     EXPECT_EQ(angleRow["band_verdict"], bandVerdict(expected, scatter));
+    EXPECT_EQ(angleRow["band_verdict_within_mcse"].get<bool>(), bandVerdictWithinMcse(expected, scatter));
 
     // Without --draws: the configured cell's outputs as before, the same as the banded run's.
     r = test::runTrbc(base + " --out " + plain.string(), dir.path());

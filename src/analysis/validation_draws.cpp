@@ -56,6 +56,10 @@ DrawBand drawBand(const std::vector<DrawOutcome>& outcomes) {
     b.median = quantileSorted(values, 0.5);
     b.lo = quantileSorted(values, 0.05);
     b.hi = quantileSorted(values, 0.95);
+    const double ess = static_cast<double>(values.size());
+    b.medianMcse = quantileMcseSorted(values, 0.5, ess);
+    b.loMcse = quantileMcseSorted(values, 0.05, ess);
+    b.hiMcse = quantileMcseSorted(values, 0.95, ess);
     return b;
 }
 
@@ -70,6 +74,15 @@ std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, 
     if (band.finished == 0) return "no prediction";
     if (band.withValue == 0) return noValueDisagrees ? "no overlap" : "no prediction";
     return band.lo <= scatter.hi && band.hi >= scatter.lo ? "overlap" : "no overlap";
+}
+
+bool bandVerdictWithinMcse(const DrawBand& band, const ScatterComparison& scatter) {
+    if (scatter.points == 0 || band.withValue == 0) return false;
+    // Overlap: it ends when lo passes above the scatter's top or hi below its bottom; no overlap:
+    // the band lies above (lo against the top) or below (hi against the bottom).
+    const double upGap = band.lo - scatter.hi, downGap = scatter.lo - band.hi;
+    if (upGap <= 0.0 && downGap <= 0.0) return -upGap <= band.loMcse || -downGap <= band.hiMcse;
+    return upGap > 0.0 ? upGap <= band.loMcse : downGap <= band.hiMcse;
 }
 
 DrawOutcome criticalStressOutcome(const std::vector<RegimePoint>& points, double etaOut) {

@@ -46,6 +46,9 @@ struct DrawBand {
     /// Type-7 quantiles 0.5, 0.05, 0.95 (inference/statistics.hpp, quantileSorted) of the finished
     /// draws' values; NaN without any.
     double median = std::numeric_limits<double>::quiet_NaN(), lo = median, hi = median;
+    /// Their Monte Carlo standard errors (quantileMcseSorted; the draws are independent, so the
+    /// effective sample size is their number); NaN without a value.
+    double medianMcse = median, loMcse = median, hiMcse = median;
     std::map<std::string, int> reasons;  ///< why draws failed or gave no value, with their counts
 };
 DrawBand drawBand(const std::vector<DrawOutcome>& outcomes);
@@ -59,6 +62,11 @@ std::string drawReasonsText(const DrawBand& band);
 /// tank-tread, as in the mean-cell verdict), else "no prediction" (no threshold bracketed);
 /// "no overlap" otherwise.
 std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, bool noValueDisagrees = true);
+
+/// Whether the band verdict could flip within the Monte Carlo error of the band's ends: the end
+/// that decides it (for an overlap the one nearer to leaving the scatter, else the one facing it)
+/// lies within its MCSE of the scatter's edge. False without a band or without scatter.
+bool bandVerdictWithinMcse(const DrawBand& band, const ScatterComparison& scatter);
 
 /// A draw's critical shear stress [Pa] from its threshold cases at outer viscosity etaOut (mPa s):
 /// sqrt(tau_lo tau_hi) of criticalStressInterval, the bracket's centre on the log scale on which

@@ -414,11 +414,14 @@ DrawOutcome drawOutcome(const json& rec, const std::string& key) {
 /// bands.csv, validation.md and validation.json, and the agreeing count per kind under each verdict.
 struct BandTable {
     json rows = json::array();
-    std::map<std::string, std::array<int, 3>> tally;  ///< kind -> compared, configured cell inside, band overlap
+    /// kind -> compared, configured cell inside, band overlap, band verdict within the MC error
+    std::map<std::string, std::array<int, 4>> tally;
     std::string csv = "case,kind,observable,eta_out_mPa_s,shear_rate_per_s,pg_mmHg_per_mm,mean_cell,mean_cell_verdict,median,q05,q95,"
-                      "draws,finished,failed,with_value,scatter_lo,scatter_hi,points,band_verdict,reasons\n";
-    std::string md = "| case | observable | mean cell | median [5 – 95 %] | finished / failed / with a value | experimental scatter | "
-                     "mean-cell verdict | band verdict | draws without a value |\n|---|---|---|---|---|---|---|---|---|\n";
+                      "median_mcse,q05_mcse,q95_mcse,draws,finished,failed,with_value,scatter_lo,scatter_hi,points,band_verdict,"
+                      "band_verdict_within_mcse,reasons\n";
+    std::string md = "| case | observable | mean cell | median [5 – 95 %] | MC error (median / 5 % / 95 %) | finished / failed / "
+                     "with a value | experimental scatter | mean-cell verdict | band verdict | draws without a value |\n"
+                     "|---|---|---|---|---|---|---|---|---|---|\n";
 
     /// One observable of case c (a threshold viscosity: the id threshold_eta<eta>, no rate) with
     /// the configured cell's value: `meanValue`, or the prediction of its comparison when NaN.
@@ -431,29 +434,35 @@ struct BandTable {
         if (std::isnan(meanValue) && kind != "threshold" && m != mean.rows.end()) meanValue = numberOr(*m, "predicted");
         const std::string meanVerdict = m == mean.rows.end() ? "not compared" : (*m)["verdict"].get<std::string>();
         const std::string verdict = bandVerdict(b, s, kind != "threshold");
+        const bool marginal = bandVerdictWithinMcse(b, s);
         std::string reasons = drawReasonsText(b), quoted;  // a failure's text: '"' doubled in the CSV, no '|' in the markdown
         for (char& ch : reasons) {
             quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
             if (ch == '|') ch = '/';
         }
-        std::array<int, 3>& t = tally[kind];
-        ++t[0], t[1] += meanVerdict == "inside", t[2] += verdict == "overlap";
+        std::array<int, 4>& t = tally[kind];
+        ++t[0], t[1] += meanVerdict == "inside", t[2] += verdict == "overlap", t[3] += marginal;
         rows.push_back({{"case", id}, {"kind", kind}, {"observable", observable}, {"mean_cell", meanValue},
                         {"mean_cell_verdict", meanVerdict}, {"median", b.median}, {"q05", b.lo}, {"q95", b.hi},
+                        {"median_mcse", b.medianMcse}, {"q05_mcse", b.loMcse}, {"q95_mcse", b.hiMcse},
                         {"draws", b.draws}, {"finished", b.finished}, {"failed", b.failed}, {"with_value", b.withValue},
                         {"scatter_lo", s.lo}, {"scatter_hi", s.hi}, {"points", s.points}, {"band_verdict", verdict},
+                        {"band_verdict_within_mcse", marginal},
                         {"reasons", b.reasons}});
         const auto g = [](double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : std::string(); };
-        csv += fmt::format("{},{},{},{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", id, kind, observable, c.etaOut,
+        csv += fmt::format("{},{},{},{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", id, kind, observable, c.etaOut,
                            c.rate > 0.0 ? fmt::format("{:.6g}", c.rate) : "", kind == "tube" ? fmt::format("{:g}", c.pressureGradient) : "",
                            g(meanValue), meanVerdict,
-                           g(b.median), g(b.lo), g(b.hi), b.draws, b.finished, b.failed, b.withValue, g(s.lo), g(s.hi), s.points,
-                           verdict, quoted);
-        md += fmt::format("| {} | {} | {} | {} | {} / {} / {} | {} | {} | {} | {} |\n", id, observable,
+                           g(b.median), g(b.lo), g(b.hi), g(b.medianMcse), g(b.loMcse), g(b.hiMcse), b.draws, b.finished, b.failed,
+                           b.withValue, g(s.lo), g(s.hi), s.points, verdict, marginal ? "yes" : "no", quoted);
+        md += fmt::format("| {} | {} | {} | {} | {} | {} / {} / {} | {} | {} | {}{} | {} |\n", id, observable,
                           std::isfinite(meanValue) ? fmt::format("{:.3g}", meanValue) : "–",
-                          b.withValue > 0 ? fmt::format("{:.3g} [{:.3g} – {:.3g}]", b.median, b.lo, b.hi) : "–", b.finished,
-                          b.failed, b.withValue, s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g}", s.lo, s.hi),
-                          meanVerdict, verdict == "no overlap" ? "**no overlap**" : verdict, reasons.empty() ? "–" : reasons);
+                          b.withValue > 0 ? fmt::format("{:.3g} [{:.3g} – {:.3g}]", b.median, b.lo, b.hi) : "–",
+                          b.withValue > 0 ? fmt::format("{:.2g} / {:.2g} / {:.2g}", b.medianMcse, b.loMcse, b.hiMcse) : "–",
+                          b.finished, b.failed, b.withValue,
+                          s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g}", s.lo, s.hi), meanVerdict,
+                          verdict == "no overlap" ? "**no overlap**" : verdict, marginal ? " (within MC error)" : "",
+                          reasons.empty() ? "–" : reasons);
     }
 
     /// Per kind: observables compared and agreeing under each verdict; the draw runs and their failures.
@@ -462,7 +471,8 @@ struct BandTable {
         for (const ValidationCase& c : R.cases)
             if (c.sample >= 0) ++runs, failed += R.resultOf(c.id).value("status", "failed") != "ok";
         json kinds = json::object();
-        for (const auto& [kind, t] : tally) kinds[kind] = {{"compared", t[0]}, {"mean_cell_inside", t[1]}, {"band_overlap", t[2]}};
+        for (const auto& [kind, t] : tally)
+            kinds[kind] = {{"compared", t[0]}, {"mean_cell_inside", t[1]}, {"band_overlap", t[2]}, {"band_verdict_within_mcse", t[3]}};
         return {{"runs", runs}, {"runs_failed", failed}, {"kinds", kinds}};
     }
 
@@ -474,10 +484,14 @@ struct BandTable {
             "cell above. Per case and observable: the median and the 5 – 95 % band (type-7 quantiles) over the draws that "
             "gave a value (a tumbling cell has no angle); the critical stress of a draw is sqrt(tau_lo tau_hi) of its "
             "bracket. Band verdict: overlap when the band meets the experimental scatter of the window above, taken at the "
-            "median (the length's band at the median velocity).\n\n| kind | compared | mean cell inside | band overlaps |\n"
-            "|---|---|---|---|\n",
+            "median (the length's band at the median velocity). Monte Carlo error of each quantile: half the distance "
+            "between the quantiles at p -+ sqrt(p (1 - p) / n) over the n draws with a value (independent draws); a band "
+            "verdict is *within MC error* when the band's deciding end lies within its MC error of the scatter's edge, so "
+            "that more draws could flip it. An MC error of 0 means tied neighbours: a critical stress takes the few values "
+            "of its bisection grid, whose spacing is then its resolution.\n\n| kind | compared | mean cell inside | band overlaps | band verdicts within "
+            "MC error |\n|---|---|---|---|---|\n",
             R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, samples);
-        for (const auto& [kind, t] : tally) md += fmt::format("| {} | {} | {} | {} |\n", kind, t[0], t[1], t[2]);
+        for (const auto& [kind, t] : tally) md += fmt::format("| {} | {} | {} | {} | {} |\n", kind, t[0], t[1], t[2], t[3]);
         const json runs = summary(R);
         return md + fmt::format("\n{} draw runs, {} failed.\n\n", runs["runs"].get<int>(), runs["runs_failed"].get<int>()) + this->md;
     }

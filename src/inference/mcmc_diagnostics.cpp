@@ -194,13 +194,13 @@ McEstimate chainQuantile(const Chains& chains, double p) {
     checkChains(chains);
     if (!(p > 0.0 && p < 1.0)) throw InputError(fmt::format("MCMC diagnostics: quantile level {} is not in (0, 1)", p));
     const Eigen::VectorXd all = pooledDraws(chains);
+    std::vector<double> sorted(all.data(), all.data() + all.size());
+    std::sort(sorted.begin(), sorted.end());
     McEstimate e;
-    e.value = quantile(all, p);
+    e.value = quantileSorted(sorted, p);
     const double q = e.value;
     const double ess = essOfSplit(splitChains(mapChains(chains, [q](double v) { return v <= q ? 1.0 : 0.0; })));
-    const double se = std::sqrt(p * (1.0 - p) / std::max(ess, 1.0));
-    const double lo = std::max(p - se, 0.0), hi = std::min(p + se, 1.0);
-    e.mcse = 0.5 * (quantile(all, hi) - quantile(all, lo));
+    e.mcse = quantileMcseSorted(sorted, p, ess);
     return e;
 }
 

@@ -46,6 +46,13 @@ double quantileSorted(const std::vector<double>& sorted, double p) {
     return sorted[i] + (h - static_cast<double>(i)) * (sorted[i + 1] - sorted[i]);
 }
 
+double quantileMcseSorted(const std::vector<double>& sorted, double p, double ess) {
+    requireProbability("quantile", p);
+    requireNonEmpty("quantile", static_cast<Eigen::Index>(sorted.size()));
+    const double se = std::sqrt(p * (1.0 - p) / std::max(ess, 1.0));
+    return 0.5 * (quantileSorted(sorted, std::min(p + se, 1.0)) - quantileSorted(sorted, std::max(p - se, 0.0)));
+}
+
 double quantile(const Eigen::VectorXd& values, double p) {
     std::vector<double> v(values.data(), values.data() + values.size());
     std::sort(v.begin(), v.end());

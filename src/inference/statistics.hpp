@@ -57,6 +57,12 @@ PosteriorSummary posteriorStatistics(const TmcmcResult& result, const std::vecto
 double quantile(const Eigen::VectorXd& values, double p);
 /// The same on already sorted values.
 double quantileSorted(const std::vector<double>& sorted, double p);
+/// Monte Carlo standard error of quantileSorted(sorted, p) for draws of effective sample size
+/// `ess`: the fraction of draws below the true quantile has SD sqrt(p (1 - p) / ess), mapped
+/// through the empirical quantile function, i.e. half the distance between the quantiles at
+/// p -+ sqrt(p (1 - p) / ess) (levels clamped to [0, 1], so an extreme quantile of few draws gets
+/// the one-sided spread; a lower bound there). 0 for a single draw.
+double quantileMcseSorted(const std::vector<double>& sorted, double p, double ess);
 /// Weighted quantile: sorted values at the rescaled mid-point cumulative weights
 /// p_i = (C_i - w_i/2 - w_1/2) / (1 - w_1/2 - w_N/2) (C_i = cumulative normalised weight),
 /// linear interpolation between them; equal weights reduce it exactly to type 7. Zero weights
