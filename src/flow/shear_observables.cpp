@@ -224,7 +224,7 @@ ShearObservables analyzeShearFrames(const std::vector<double>& t, const std::vec
     // Tank-treading frequency.
     o.ttf = tankTreadingFrequency(tw, fw);
 
-    // The fit from VALIDATION's start (frequency rate / 4 pi) and, because the least-squares
+    // The fit from the rigid-sphere start (frequency rate / 4 pi) and, because the least-squares
     // problem has local minima in the frequency, also from the periodogram peak of theta and from
     // twice the tank-treading frequency (the shape swings twice per membrane turn); the sane fit
     // (amplitude within the range of theta, at least half a period in the window) with the
