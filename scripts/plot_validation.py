@@ -372,7 +372,8 @@ def tkw(run, tr):
 
 
 def band_points(s, kind, observable, xcol, eta=None):
-    """(x, median, q05, q95) of the bands.csv rows of series s with a band (--draws)."""
+    """(x, median, q05, q95, q05 MC error, q95 MC error) of the bands.csv rows of series s with a
+    band (--draws); the errors are None in tables without them."""
     out = []
     for r in s.bands:
         if r.get("kind") != kind or r.get("observable") != observable:
@@ -381,12 +382,13 @@ def band_points(s, kind, observable, xcol, eta=None):
             continue
         x, m, lo, hi = (fnum(r.get(c)) for c in (xcol, "median", "q05", "q95"))
         if None not in (x, m, lo, hi):
-            out.append((x, m, lo, hi))
+            out.append((x, m, lo, hi, fnum(r.get("q05_mcse")), fnum(r.get("q95_mcse"))))
     return sorted(out)
 
 
 def draw_bands(ax, run, s, ctx, pts, colour, what="draws"):
-    """The 5-95 % band of each case over the posterior draws (pale bar) and its median."""
+    """The 5-95 % band of each case over the posterior draws (pale bar), its median, and the
+    Monte Carlo error of the band's ends (thin whiskers) where bands.csv has it."""
     if not pts:
         return
     x = np.array([p[0] for p in pts])
@@ -401,6 +403,14 @@ def draw_bands(ax, run, s, ctx, pts, colour, what="draws"):
                                 f": posterior {what}, median and 5-95 % band", 3),
                 transform=tr)
     ax.plot(np.r_[x, x], np.r_[lo, hi], ls="none", marker="none")  # the band inside the limits
+    ends = [(p[0], end, err) for p in pts if len(p) > 5 for end, err in ((p[2], p[4]), (p[3], p[5]))
+            if err is not None and err > 0]
+    if ends:
+        ex, ey, ee = (np.array(c) for c in zip(*ends))
+        ax.errorbar(ex, ey, yerr=ee, ls="none", marker="none", ecolor=colour, elinewidth=0.8, capsize=2,
+                    alpha=0.8, zorder=3, transform=tr,
+                    label=ctx.label(s, f"Monte Carlo error of the band's ends ({what})",
+                                    ": MC error of the band's ends", 4))
 
 
 def legend_below(fig, ctx, sub):
@@ -980,7 +990,8 @@ def plot_tube_l_v(run):
     for s in run.series:  # at the median velocity of the case's draws
         velocity = {r.get("case"): fnum(r.get("median")) for r in s.bands
                     if r.get("observable") == "velocity [cm/s]"}
-        pts = [(velocity[r.get("case")], fnum(r.get("median")), fnum(r.get("q05")), fnum(r.get("q95")))
+        pts = [(velocity[r.get("case")], fnum(r.get("median")), fnum(r.get("q05")), fnum(r.get("q95")),
+                fnum(r.get("q05_mcse")), fnum(r.get("q95_mcse")))
                for r in s.bands if r.get("observable") == "length [um]"
                and velocity.get(r.get("case")) is not None and fnum(r.get("median")) is not None]
         draw_bands(ax, run, s, ctx, sorted(pts), s.colour if run.multi else C_SIM)
