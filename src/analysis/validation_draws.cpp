@@ -60,6 +60,7 @@ DrawBand drawBand(const std::vector<DrawOutcome>& outcomes) {
     b.medianMcse = quantileMcseSorted(values, 0.5, ess);
     b.loMcse = quantileMcseSorted(values, 0.05, ess);
     b.hiMcse = quantileMcseSorted(values, 0.95, ess);
+    b.endsMcseIsLowerBound = 0.05 - std::sqrt(0.05 * 0.95 / ess) < 0.0;
     return b;
 }
 
@@ -78,6 +79,7 @@ std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, 
 
 bool bandVerdictWithinMcse(const DrawBand& band, const ScatterComparison& scatter) {
     if (scatter.points == 0 || band.withValue == 0) return false;
+    if (band.endsMcseIsLowerBound) return true;
     // Overlap: it ends when lo passes above the scatter's top or hi below its bottom; no overlap:
     // the band lies above (lo against the top) or below (hi against the bottom).
     const double upGap = band.lo - scatter.hi, downGap = scatter.lo - band.hi;

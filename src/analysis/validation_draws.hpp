@@ -49,6 +49,9 @@ struct DrawBand {
     /// Their Monte Carlo standard errors (quantileMcseSorted; the draws are independent, so the
     /// effective sample size is their number); NaN without a value.
     double medianMcse = median, loMcse = median, hiMcse = median;
+    /// Fewer than 19 draws with a value: 0.05 - sqrt(0.05 0.95 / n) < 0 clamps the level, so
+    /// loMcse and hiMcse are lower bounds (0.2-0.75x the true spread for 2-10 draws).
+    bool endsMcseIsLowerBound = false;
     std::map<std::string, int> reasons;  ///< why draws failed or gave no value, with their counts
 };
 DrawBand drawBand(const std::vector<DrawOutcome>& outcomes);
@@ -65,7 +68,8 @@ std::string bandVerdict(const DrawBand& band, const ScatterComparison& scatter, 
 
 /// Whether the band verdict could flip within the Monte Carlo error of the band's ends: the end
 /// that decides it (for an overlap the one nearer to leaving the scatter, else the one facing it)
-/// lies within its MCSE of the scatter's edge. False without a band or without scatter.
+/// lies within its MCSE of the scatter's edge, or the ends' MCSEs are only lower bounds
+/// (endsMcseIsLowerBound). False without a band or without scatter.
 bool bandVerdictWithinMcse(const DrawBand& band, const ScatterComparison& scatter);
 
 /// A draw's critical shear stress [Pa] from its threshold cases at outer viscosity etaOut (mPa s):

@@ -458,7 +458,9 @@ struct BandTable {
         md += fmt::format("| {} | {} | {} | {} | {} | {} / {} / {} | {} | {} | {}{} | {} |\n", id, observable,
                           std::isfinite(meanValue) ? fmt::format("{:.3g}", meanValue) : "–",
                           b.withValue > 0 ? fmt::format("{:.3g} [{:.3g} – {:.3g}]", b.median, b.lo, b.hi) : "–",
-                          b.withValue > 0 ? fmt::format("{:.2g} / {:.2g} / {:.2g}", b.medianMcse, b.loMcse, b.hiMcse) : "–",
+                          b.withValue > 0 ? fmt::format("{:.2g} / {}{:.2g} / {}{:.2g}", b.medianMcse, b.endsMcseIsLowerBound ? "≥ " : "",
+                                                        b.loMcse, b.endsMcseIsLowerBound ? "≥ " : "", b.hiMcse)
+                                          : "–",
                           b.finished, b.failed, b.withValue,
                           s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g}", s.lo, s.hi), meanVerdict,
                           verdict == "no overlap" ? "**no overlap**" : verdict, marginal ? " (within MC error)" : "",
@@ -487,7 +489,8 @@ struct BandTable {
             "median (the length's band at the median velocity). Monte Carlo error of each quantile: half the distance "
             "between the quantiles at p -+ sqrt(p (1 - p) / n) over the n draws with a value (independent draws); a band "
             "verdict is *within MC error* when the band's deciding end lies within its MC error of the scatter's edge, so "
-            "that more draws could flip it. An MC error of 0 means tied neighbours: a critical stress takes the few values "
+            "that more draws could flip it. With fewer than 19 draws with a value the ends' errors are lower bounds (the "
+            "level p - sqrt(p (1 - p) / n) falls below 0; shown with ≥), and the verdict counts as within MC error. An MC error of 0 means tied neighbours: a critical stress takes the few values "
             "of its bisection grid, whose spacing is then its resolution.\n\n| kind | compared | mean cell inside | band overlaps | band verdicts within "
             "MC error |\n|---|---|---|---|---|\n",
             R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, samples);

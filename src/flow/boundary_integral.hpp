@@ -162,7 +162,8 @@ private:
         const double ex = faceCentroidX_[i] - x0.x(), ey = faceCentroidY_[i] - x0.y(), ez = faceCentroidZ_[i] - x0.z();
         return !(ex * ex + ey * ey + ez * ez >= faceNearReach2_[i]);
     }
-    // near[f] = isNearFace(x0, f) for every face, vectorised.
+    // isNearFace for every face: the centroids are kept as structure of arrays so that this loop
+    // over all faces of each target vectorises.
     void markNearFaces(const Eigen::Vector3d& x0, std::vector<char>& near) const;
     // S f and / or D u (far sum plus corrections); the far loop shares 1 / r between the two.
     template <bool kSingle, bool kDouble>
