@@ -33,6 +33,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import plot_style  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -49,17 +50,7 @@ C_D1 = "#c0392b"       # axial diameter
 C_D0 = "#2471a3"       # transverse diameter
 C_CELLS = ["#d35400", "#27ae60", "#8e44ad", "#7f8c8d"]  # Hochmuth cells 1-4
 
-plt.rcParams.update({
-    "font.size": 9,
-    "axes.titlesize": 10,
-    "axes.labelsize": 9,
-    "legend.fontsize": 8,
-    "xtick.labelsize": 8,
-    "ytick.labelsize": 8,
-    "axes.spines.top": False,
-    "axes.spines.right": False,
-    "savefig.dpi": DPI,
-})
+plot_style.apply(**{"savefig.dpi": DPI})
 
 
 # --------------------------------------------------------------------------- I/O

@@ -29,6 +29,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import plot_style  # noqa: E402
 
 DPI = 150
 SCALAR_OUTPUTS = [("D_um", r"$D$"), ("hmin_um", r"$h_{\min}$"), ("hmax_um", r"$h_{\max}$"), ("tc_s", r"$t_c$")]
@@ -41,16 +42,7 @@ C_S1 = "#2471a3"
 C_ST = "#c0392b"
 INPUT_COLORS = ["#1f3b73", "#c0392b", "#27ae60", "#d35400", "#8e44ad", "#7f8c8d", "#17a589", "#b7950b"]
 
-plt.rcParams.update({
-    "font.size": 9,
-    "axes.titlesize": 10,
-    "axes.labelsize": 9,
-    "legend.fontsize": 8,
-    "xtick.labelsize": 8,
-    "ytick.labelsize": 8,
-    "axes.spines.top": False,
-    "axes.spines.right": False,
-})
+plot_style.apply()
 
 COLUMNS = ["output", "input", "S1", "S1_ci", "ST", "ST_ci"]
 

@@ -70,6 +70,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import plot_style  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.transforms import offset_copy  # noqa: E402
@@ -97,16 +98,7 @@ SERIES_SPREAD_PT = 4.5     # horizontal distance (points) between neighbouring s
 BAND_OFFSET_PT = 6.0       # horizontal distance (points) of a posterior band from its case
 SRC = "\x00dir"            # key added to the rows in --series mode: their directory
 
-plt.rcParams.update({
-    "font.size": 9,
-    "axes.titlesize": 10,
-    "axes.labelsize": 9,
-    "legend.fontsize": 7.5,
-    "xtick.labelsize": 8,
-    "ytick.labelsize": 8,
-    "axes.spines.top": False,
-    "axes.spines.right": False,
-})
+plot_style.apply(legend_fontsize=7.5)
 
 
 def note(msg):
