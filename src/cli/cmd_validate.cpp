@@ -782,13 +782,15 @@ void printValidationSummary(const Runner& R, const json& summary, std::size_t se
                              summary["other"].get<int>(),
                              R.out.string(), (R.out / "validation.md").string(), (R.out / "figures").string());
     if (!summary.contains("draws")) return;
-    int compared = 0, inside = 0, overlap = 0;
+    int compared = 0, inside = 0, overlap = 0, marginal = 0;
     for (const auto& [kind, t] : summary["draws"]["kinds"].items())
-        compared += t["compared"].get<int>(), inside += t["mean_cell_inside"].get<int>(), overlap += t["band_overlap"].get<int>();
+        compared += t["compared"].get<int>(), inside += t["mean_cell_inside"].get<int>(), overlap += t["band_overlap"].get<int>(),
+            marginal += t["band_verdict_within_mcse"].get<int>();
     std::cout << fmt::format("  posterior draws: {} (seed {}), {} runs ({} failed); of {} observables compared, the 5-95 % band "
-                             "overlaps the scatter in {} (the configured cell is inside in {}); tables: {}/{{draws,bands}}.csv\n",
+                             "overlaps the scatter in {} (the configured cell is inside in {}); {} band verdicts within the "
+                             "bands' Monte Carlo error; tables: {}/{{draws,bands}}.csv\n",
                              R.draws.size(), R.seed, summary["draws"]["runs"].get<int>(), summary["draws"]["runs_failed"].get<int>(),
-                             compared, overlap, inside, R.out.string());
+                             compared, overlap, inside, marginal, R.out.string());
 }
 
 void runValidate(const ValidateCommandOptions& o) {
