@@ -1,4 +1,6 @@
 """trbc.flow_shear and trbc.flow_tube against `trbc flow shear` and `trbc flow tube`; bad input."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -81,3 +83,28 @@ def test_flow_tube_bad_input(kwargs, name, cache):
 def test_flow_tube_failure_raises_numerical_error(cache):
     with pytest.raises(trbc.NumericalError, match="settling stage"):
         trbc.flow_tube(**{**TUBE, "max_steps": 2}, cache_dir=cache)
+
+
+def test_load_validation_reads_the_shipped_bands():
+    d = Path(__file__).resolve().parents[2] / "results" / "validation" / "theta_new_level2_bands"
+    v = trbc.load_validation(d)
+    bands = v["bands"]
+    n = len(bands["case"])
+    assert n == len(v["summary"]["draws"]["bands"])
+    with_value = bands["with_value"] > 0
+    assert np.all(bands["q05"][with_value] <= bands["median"][with_value])
+    assert np.all(bands["median"][with_value] <= bands["q95"][with_value])
+    assert np.all(bands["q05_mcse"][with_value] >= 0)
+    assert np.all(np.isnan(bands["median"][~with_value]))
+    # the per-kind counts of the summary are those of the rows
+    for kind, t in v["summary"]["summary"]["draws"]["kinds"].items():
+        rows = [k for k in range(n) if bands["kind"][k] == kind]
+        assert len(rows) == t["compared"]
+        assert sum(bands["band_verdict"][k] == "overlap" for k in rows) == t["band_overlap"]
+        assert sum(bands["band_verdict_within_mcse"][k] == "yes" for k in rows) == t["band_verdict_within_mcse"]
+    assert len(v["draws"]["case_id"]) == v["summary"]["summary"]["draws"]["runs"]
+
+
+def test_load_validation_names_a_directory_without_results(tmp_path):
+    with pytest.raises(ValueError, match="no validation.json"):
+        trbc.load_validation(tmp_path)

@@ -11,6 +11,8 @@ See docs/PYTHON.md for the whole API.
 """
 from __future__ import annotations
 
+import csv
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -26,7 +28,7 @@ __version__ = _core.__version__
 __all__ = [
     "Mesh", "NumericalError", "DataSet", "Surrogate", "Posterior", "membrane_energy", "simulate", "sfs",
     "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
-    "load_inference", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
+    "load_inference", "load_validation", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
 ]
 
 INPUT_NAMES = tuple(_core.surrogate_input_names)    #: v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN
@@ -272,6 +274,35 @@ def load_inference(out: _PathLike) -> dict:
             posts = {p.parent.name: Posterior(p) for p in sorted(d.glob("*/samples.csv"))}
             if posts:
                 result[phase] = posts
+    return result
+
+
+def _read_table(path: Path) -> dict:
+    """A CSV as {column: array}: numbers as float arrays (empty cells NaN), other columns as lists."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    table = {}
+    for name in (rows[0].keys() if rows else []):
+        cells = [r[name] for r in rows]
+        try:
+            table[name] = np.array([float(c) if c != "" else np.nan for c in cells])
+        except ValueError:
+            table[name] = cells
+    return table
+
+
+def load_validation(out: _PathLike) -> dict:
+    """The tables of a `trbc validate` output directory: "summary" (validation.json: command,
+    configuration, summary, draws) and, where present, "comparison", "shear", "threshold", "tube",
+    "bands" (median, q05, q95, their MC errors median_mcse, q05_mcse, q95_mcse, band verdicts) and
+    "draws" (one row per draw run), each as {column: numpy array or list of strings}."""
+    out = Path(out)
+    if not (out / "validation.json").is_file():
+        raise ValueError(f"load_validation: {out} has no validation.json (not a `trbc validate` output directory)")
+    result = {"summary": json.loads((out / "validation.json").read_text())}
+    for name in ("comparison", "shear", "threshold", "tube", "bands", "draws"):
+        if (out / f"{name}.csv").is_file():
+            result[name] = _read_table(out / f"{name}.csv")
     return result
 
 
