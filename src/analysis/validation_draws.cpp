@@ -60,7 +60,7 @@ DrawBand drawBand(const std::vector<DrawOutcome>& outcomes) {
     b.medianMcse = quantileMcseSorted(values, 0.5, ess);
     b.loMcse = quantileMcseSorted(values, 0.05, ess);
     b.hiMcse = quantileMcseSorted(values, 0.95, ess);
-    b.endsMcseIsLowerBound = 0.05 - std::sqrt(0.05 * 0.95 / ess) < 0.0;
+    b.endsMcseIsLowerBound = quantileMcseIsLowerBound(0.05, ess) || quantileMcseIsLowerBound(0.95, ess);
     return b;
 }
 

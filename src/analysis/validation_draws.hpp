@@ -49,8 +49,8 @@ struct DrawBand {
     /// Their Monte Carlo standard errors (quantileMcseSorted; the draws are independent, so the
     /// effective sample size is their number); NaN without a value.
     double medianMcse = median, loMcse = median, hiMcse = median;
-    /// Fewer than 19 draws with a value: 0.05 - sqrt(0.05 0.95 / n) < 0 clamps the level, so
-    /// loMcse and hiMcse are lower bounds (0.2-0.75x the true spread for 2-10 draws).
+    /// quantileMcseIsLowerBound at 0.05 or 0.95 (fewer than 19 draws with a value): loMcse and
+    /// hiMcse are lower bounds (0.2-0.75x the true spread for 2-10 draws).
     bool endsMcseIsLowerBound = false;
     std::map<std::string, int> reasons;  ///< why draws failed or gave no value, with their counts
 };

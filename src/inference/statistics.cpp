@@ -46,10 +46,19 @@ double quantileSorted(const std::vector<double>& sorted, double p) {
     return sorted[i] + (h - static_cast<double>(i)) * (sorted[i + 1] - sorted[i]);
 }
 
+namespace {
+double quantileLevelSpread(double p, double ess) { return std::sqrt(p * (1.0 - p) / std::max(ess, 1.0)); }
+}  // namespace
+
+bool quantileMcseIsLowerBound(double p, double ess) {
+    const double se = quantileLevelSpread(p, ess);
+    return p - se < 0.0 || p + se > 1.0;
+}
+
 double quantileMcseSorted(const std::vector<double>& sorted, double p, double ess) {
     requireProbability("quantile", p);
     requireNonEmpty("quantile", static_cast<Eigen::Index>(sorted.size()));
-    const double se = std::sqrt(p * (1.0 - p) / std::max(ess, 1.0));
+    const double se = quantileLevelSpread(p, ess);
     return 0.5 * (quantileSorted(sorted, std::min(p + se, 1.0)) - quantileSorted(sorted, std::max(p - se, 0.0)));
 }
 

@@ -63,6 +63,8 @@ double quantileSorted(const std::vector<double>& sorted, double p);
 /// p -+ sqrt(p (1 - p) / ess) (levels clamped to [0, 1], so an extreme quantile of few draws gets
 /// the one-sided spread; a lower bound there). 0 for a single draw.
 double quantileMcseSorted(const std::vector<double>& sorted, double p, double ess);
+/// Whether quantileMcseSorted(., p, ess) clamps a level, so that it is a lower bound.
+bool quantileMcseIsLowerBound(double p, double ess);
 /// Weighted quantile: sorted values at the rescaled mid-point cumulative weights
 /// p_i = (C_i - w_i/2 - w_1/2) / (1 - w_1/2 - w_N/2) (C_i = cumulative normalised weight),
 /// linear interpolation between them; equal weights reduce it exactly to type 7. Zero weights
