@@ -21,6 +21,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "flow/shear_case.hpp"
+#include "inference/statistics.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
 
@@ -143,6 +144,11 @@ TEST(ValidationDraws, QuantileMcseOnHandMadeNumbers) {
     EXPECT_NEAR(three.loMcse, 0.5 * 2.0 * (0.05 + se), 1e-12);
     EXPECT_TRUE(three.endsMcseIsLowerBound);
     EXPECT_FALSE(b.endsMcseIsLowerBound);  // 21 draws: the levels stay inside [0, 1]
+    // The edge: sqrt(0.05 0.95 / 19) = 0.05 exactly, so 19 draws reach level 0 without clamping.
+    for (const double p : {0.05, 0.95}) {
+        EXPECT_TRUE(quantileMcseIsLowerBound(p, 18.0)) << p;
+        EXPECT_FALSE(quantileMcseIsLowerBound(p, 19.0)) << p;
+    }
 }
 
 TEST(ValidationDraws, QuantileMcseMatchesTheSpreadOfRepeatedBands) {
