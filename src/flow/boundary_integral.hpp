@@ -152,6 +152,8 @@ public:
     double meanCorrectionsPerTarget() const;
 
 private:
+    /// Throws InputError naming `name` unless v has one column per vertex.
+    void checkDensity(const Eigen::Matrix3Xd& v, const char* name) const;
     // Single-layer blocks (per corner vertex) of face f at an off-surface target, adaptive.
     void offSurfaceBlocks(const Eigen::Vector3d& x0, Eigen::Index f, int maxDepth,
                           Eigen::Matrix3d (&blocks)[3]) const;

@@ -22,6 +22,7 @@
 #include "mesh/geometry.hpp"
 #include "mesh/validate.hpp"
 #include "solvers/bdf2.hpp"
+#include "solvers/gmres.hpp"
 
 namespace trbc {
 namespace {
@@ -62,85 +63,6 @@ Vertices checkedReference(const Faces& faces, const Vertices& ref, double length
     if (!ref.allFinite()) throw InputError("cell flow: reference positions must be finite");
     validateClosedManifold(Mesh{ref, faces});
     return ref / length;
-}
-
-// ---- GMRES (restarted, modified Gram-Schmidt with one re-orthogonalisation, Givens rotations,
-// right preconditioning) from x = 0, stopping on the true relative residual |b - A x| / |b|.
-struct GmresStats {
-    int iterations = 0;
-    double residual = 0.0;
-    bool converged = false;
-};
-
-using LinearMap = std::function<void(const VectorXd&, VectorXd&)>;
-
-GmresStats gmresSolve(const LinearMap& A, const LinearMap& Minv, const VectorXd& b, VectorXd& x, double tol,
-                      int restart, int maxIt) {
-    GmresStats st;
-    const Index n = b.size();
-    const double bn = b.norm();
-    x = VectorXd::Zero(n);
-    if (bn == 0.0) {
-        st.converged = true;
-        return st;
-    }
-    VectorXd r = b, w(n), z(n);
-    double beta = r.norm();
-    st.residual = beta / bn;
-    Eigen::MatrixXd V, H;
-    VectorXd cs, sn, g;
-    while (st.residual > tol && st.iterations < maxIt) {
-        const int m = std::min(restart, maxIt - st.iterations);
-        V.resize(n, m + 1);
-        H = Eigen::MatrixXd::Zero(m + 1, m);
-        cs.resize(m);
-        sn.resize(m);
-        g = VectorXd::Zero(m + 1);
-        V.col(0) = r / beta;
-        g[0] = beta;
-        int j = 0;
-        while (j < m) {
-            Minv(V.col(j), z);
-            A(z, w);
-            for (int pass = 0; pass < 2; ++pass)
-                for (int i = 0; i <= j; ++i) {
-                    const double h = w.dot(V.col(i));
-                    H(i, j) += h;
-                    w -= h * V.col(i);
-                }
-            const double hn = w.norm();
-            H(j + 1, j) = hn;
-            if (hn > 0.0) V.col(j + 1) = w / hn;
-            for (int i = 0; i < j; ++i) {
-                const double t = cs[i] * H(i, j) + sn[i] * H(i + 1, j);
-                H(i + 1, j) = -sn[i] * H(i, j) + cs[i] * H(i + 1, j);
-                H(i, j) = t;
-            }
-            const double den = std::hypot(H(j, j), H(j + 1, j));
-            if (den == 0.0) break;
-            cs[j] = H(j, j) / den;
-            sn[j] = H(j + 1, j) / den;
-            H(j, j) = den;
-            H(j + 1, j) = 0.0;
-            g[j + 1] = -sn[j] * g[j];
-            g[j] = cs[j] * g[j];
-            ++j;
-            ++st.iterations;
-            if (std::abs(g[j]) <= 0.5 * tol * bn || hn <= 1e-14 * den) break;
-        }
-        if (j == 0) break;
-        const VectorXd y = H.topLeftCorner(j, j).triangularView<Eigen::Upper>().solve(g.head(j));
-        Minv(V.leftCols(j) * y, z);
-        x += z;
-        A(x, r);
-        r = b - r;
-        beta = r.norm();
-        const double previous = st.residual;
-        st.residual = beta / bn;
-        if (!std::isfinite(st.residual) || st.residual >= previous) break;
-    }
-    st.converged = st.residual <= tol;
-    return st;
 }
 
 /// The sparse LDL^T factor of the velocity preconditioner's matrix M B_s^-1 / (s c) + Gamma
@@ -247,7 +169,7 @@ public:
         Vertices u;
         double tension = 0.0;
         double fluxCorrection = 0.0;  ///< uniform normal velocity added to conserve the volume
-        GmresStats gmres;
+        GmresResult gmres;
     };
 
     /// Solves for u and tau with the explicit nodal force Fexp and the prescribed rate of
@@ -291,7 +213,7 @@ public:
         };
         VectorXd x;
         Solution sol;
-        sol.gmres = gmresSolve(A, Minv, b, x, effectiveGmresTolerance(opt_), opt_.gmresRestart, opt_.gmresMaxIterations);
+        sol.gmres = trbc::gmres(A, Minv, b, x, {effectiveGmresTolerance(opt_), opt_.gmresRestart, opt_.gmresMaxIterations});
         sol.u = Eigen::Map<const Vertices>(x.data(), 3, nv);
         sol.tension = x[n] / wNorm_;
         sol.fluxCorrection = x[n + 1] / ops_.vertexNormals().norm();

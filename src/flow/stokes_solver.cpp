@@ -7,9 +7,9 @@
 #include <memory>
 #include <numbers>
 #include <string>
-#include <unsupported/Eigen/IterativeSolvers>
 
 #include "core/error.hpp"
+#include "solvers/gmres.hpp"
 
 namespace trbc {
 namespace {
@@ -20,67 +20,6 @@ using Eigen::Vector3d;
 using Eigen::VectorXd;
 
 constexpr double kPi = std::numbers::pi;
-
-class MatrixFreeOperator;
-
-}  // namespace
-}  // namespace trbc
-
-namespace Eigen::internal {
-template <>
-struct traits<trbc::MatrixFreeOperator> : public traits<Eigen::SparseMatrix<double>> {};
-}  // namespace Eigen::internal
-
-namespace trbc {
-namespace {
-
-/// A linear operator known only through y = A x, in the form Eigen's iterative solvers accept
-/// (Eigen documentation, "Matrix-free solvers").
-class MatrixFreeOperator : public Eigen::EigenBase<MatrixFreeOperator> {
-public:
-    using Scalar = double;
-    using RealScalar = double;
-    using StorageIndex = int;
-    enum { ColsAtCompileTime = Eigen::Dynamic, MaxColsAtCompileTime = Eigen::Dynamic, IsRowMajor = false };
-    using Apply = std::function<void(const VectorXd&, VectorXd&)>;
-
-    MatrixFreeOperator(Index n, Apply apply) : n_(n), apply_(std::move(apply)) {}
-    Index rows() const { return n_; }
-    Index cols() const { return n_; }
-    void apply(const VectorXd& x, VectorXd& y) const { apply_(x, y); }
-
-    template <typename Rhs>
-    Eigen::Product<MatrixFreeOperator, Rhs, Eigen::AliasFreeProduct> operator*(
-        const Eigen::MatrixBase<Rhs>& x) const {
-        return Eigen::Product<MatrixFreeOperator, Rhs, Eigen::AliasFreeProduct>(*this, x.derived());
-    }
-
-private:
-    Index n_;
-    Apply apply_;
-};
-
-}  // namespace
-}  // namespace trbc
-
-namespace Eigen::internal {
-template <typename Rhs>
-struct generic_product_impl<trbc::MatrixFreeOperator, Rhs, SparseShape, DenseShape, GemvProduct>
-    : generic_product_impl_base<trbc::MatrixFreeOperator, Rhs,
-                                generic_product_impl<trbc::MatrixFreeOperator, Rhs>> {
-    template <typename Dest>
-    static void scaleAndAddTo(Dest& dst, const trbc::MatrixFreeOperator& lhs, const Rhs& rhs,
-                              const double& alpha) {
-        const Eigen::VectorXd x = rhs;
-        Eigen::VectorXd y(lhs.rows());
-        lhs.apply(x, y);
-        dst += alpha * y;
-    }
-};
-}  // namespace Eigen::internal
-
-namespace trbc {
-namespace {
 
 void checkViscosity(double mu) {
     if (!(mu > 0.0) || !std::isfinite(mu))
@@ -99,42 +38,17 @@ bool useDense(const GmresOptions& o, Index nv) {
     return o.mode == OperatorMode::Dense || (o.mode == OperatorMode::Auto && 3 * nv <= o.denseLimit);
 }
 
-/// Restarted GMRES: each restart cycle is one call of Eigen's GMRES (its stopping test is
-/// relative to the residual at the start of the cycle, so the cycle tolerance is rescaled); the
-/// outer loop stops on the true relative residual |b - A x| / |b|.
-GmresReport gmres(const MatrixFreeOperator& A, const VectorXd& b, VectorXd& x, const GmresOptions& o,
-                  const std::string& what) {
-    GmresReport rep;
-    const double bn = b.norm();
-    if (bn == 0.0) {
-        x.setZero();
-        return rep;
-    }
-    if (x.size() != b.size()) x = VectorXd::Zero(b.size());
-    Eigen::GMRES<MatrixFreeOperator, Eigen::IdentityPreconditioner> solver;
-    solver.compute(A);
-    solver.set_restart(o.restart);
-    VectorXd r(b.size());
-    A.apply(x, r);
-    r = b - r;
-    rep.residual = r.norm() / bn;
-    while (rep.residual > o.tolerance && rep.iterations < o.maxIterations) {
-        solver.setMaxIterations(std::min(o.restart, o.maxIterations - rep.iterations));
-        solver.setTolerance(std::min(0.5, o.tolerance / rep.residual));
-        x = solver.solveWithGuess(b, x);
-        rep.iterations += static_cast<int>(solver.iterations());
-        A.apply(x, r);
-        r = b - r;
-        const double previous = rep.residual;
-        rep.residual = r.norm() / bn;
-        if (!std::isfinite(rep.residual) || solver.iterations() == 0 || rep.residual >= previous) break;
-    }
-    if (!(rep.residual <= o.tolerance))
+/// Solves A x = b by trbc's GMRES (no preconditioner); throws NumericalError naming `what` when
+/// the tolerance is not reached.
+GmresReport solveOrThrow(const LinearMap& A, const VectorXd& b, VectorXd& x, const GmresOptions& o,
+                         const std::string& what, const VectorXd* initialGuess = nullptr) {
+    const GmresResult r = gmres(A, LinearMap{}, b, x, {o.tolerance, o.restart, o.maxIterations}, initialGuess);
+    if (!r.converged)
         throw NumericalError(fmt::format(
             "GMRES ({}) did not converge: relative residual {:.3e} after {} iterations (tolerance "
             "{:.1e}, restart {}, maxIterations {})",
-            what, rep.residual, rep.iterations, o.tolerance, o.restart, o.maxIterations));
-    return rep;
+            what, r.residual, r.iterations, o.tolerance, o.restart, o.maxIterations));
+    return {r.iterations, r.residual};
 }
 
 Eigen::Map<const Matrix3Xd> asField(const VectorXd& v, Index nv) { return {v.data(), 3, nv}; }
@@ -225,12 +139,13 @@ RigidBodyResult solveRigidBodyResistance(const BoundaryIntegralOperators& ops, d
 
     Matrix3Xd rhs = background.at(X);
     for (Index i = 0; i < nv; ++i) rhs.col(i) -= velocity + angularPart(angularVelocity, X.col(i), center);
-    const MatrixFreeOperator A(3 * nv, [&](const VectorXd& x, VectorXd& y) {
+    const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
+        y.resize(3 * nv);
         Eigen::Map<Matrix3Xd>(y.data(), 3, nv) = sys.apply(asField(x, nv));
-    });
+    };
     VectorXd sol = VectorXd::Zero(3 * nv);
     RigidBodyResult res;
-    res.gmres = gmres(A, Eigen::Map<const VectorXd>(rhs.data(), 3 * nv), sol, opts, "rigid-body resistance");
+    res.gmres = solveOrThrow(A, Eigen::Map<const VectorXd>(rhs.data(), 3 * nv), sol, opts, "rigid-body resistance");
     res.traction = asField(sol, nv);
     res.force = ops.integrate(res.traction);
     res.torque = ops.moment(res.traction, center);
@@ -257,7 +172,8 @@ RigidBodyResult solveRigidBodyMobility(const BoundaryIntegralOperators& ops, dou
     const double L = std::sqrt(ops.area() / (4.0 * kPi));
     const double sF = 1.0 / (viscosity * L), sT = 1.0 / (viscosity * L * L);
 
-    const MatrixFreeOperator A(n, [&](const VectorXd& x, VectorXd& y) {
+    const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
+        y.resize(n);
         const auto f = asField(x, nv);
         const Vector3d U = x.segment<3>(3 * nv), Omega = x.segment<3>(3 * nv + 3) / L;
         Eigen::Map<Matrix3Xd> v(y.data(), 3, nv);
@@ -265,14 +181,14 @@ RigidBodyResult solveRigidBodyMobility(const BoundaryIntegralOperators& ops, dou
         for (Index i = 0; i < nv; ++i) v.col(i) += U + angularPart(Omega, X.col(i), center);
         y.segment<3>(3 * nv) = sF * ops.integrate(f);
         y.segment<3>(3 * nv + 3) = sT * ops.moment(f, center);
-    });
+    };
     VectorXd b(n);
     Eigen::Map<Matrix3Xd>(b.data(), 3, nv) = background.at(X);
     b.segment<3>(3 * nv) = -sF * externalForce;
     b.segment<3>(3 * nv + 3) = -sT * externalTorque;
     VectorXd sol = VectorXd::Zero(n);
     RigidBodyResult res;
-    res.gmres = gmres(A, b, sol, opts, "rigid-body mobility");
+    res.gmres = solveOrThrow(A, b, sol, opts, "rigid-body mobility");
     res.traction = asField(sol, nv);
     res.velocity = sol.segment<3>(3 * nv);
     res.angularVelocity = sol.segment<3>(3 * nv + 3) / L;
@@ -313,13 +229,16 @@ InterfaceResult solveInterfaceVelocity(const BoundaryIntegralOperators& ops, dou
     }
     const LayerApply D = layerApply(ops, useDense(opts, nv), true);
     // (I - kappa D) u = rhs.
-    const MatrixFreeOperator A(3 * nv, [&](const VectorXd& x, VectorXd& y) {
+    const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
+        y.resize(3 * nv);
         const auto u = asField(x, nv);
         Eigen::Map<Matrix3Xd>(y.data(), 3, nv) = u - kappa * D(u);
-    });
-    VectorXd sol = initialGuess ? VectorXd(Eigen::Map<const VectorXd>(initialGuess->data(), 3 * nv))
-                                : VectorXd(Eigen::Map<const VectorXd>(rhs.data(), 3 * nv));
-    res.gmres = gmres(A, Eigen::Map<const VectorXd>(rhs.data(), 3 * nv), sol, opts, "interface velocity");
+    };
+    // Start from the given guess, or from the right-hand side (the solution without the double layer).
+    const VectorXd start = initialGuess ? VectorXd(Eigen::Map<const VectorXd>(initialGuess->data(), 3 * nv))
+                                        : VectorXd(Eigen::Map<const VectorXd>(rhs.data(), 3 * nv));
+    VectorXd sol;
+    res.gmres = solveOrThrow(A, Eigen::Map<const VectorXd>(rhs.data(), 3 * nv), sol, opts, "interface velocity", &start);
     res.velocity = asField(sol, nv);
     return res;
 }

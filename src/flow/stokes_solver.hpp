@@ -2,8 +2,8 @@
 // Boundary-integral Stokes solvers for one closed surface in unbounded flow (Pozrikidis 1992):
 // (a) a rigid body, first-kind single-layer equation for the traction (resistance and mobility
 //     problems); (b) a drop / capsule interface with viscosity ratio lambda, second-kind equation
-//     for the interface velocity given the traction jump. GMRES: Eigen's unsupported GMRES (one
-//     restart cycle per call) driven by an outer loop that measures the true residual.
+//     for the interface velocity given the traction jump. The linear systems are solved by
+//     trbc's GMRES (solvers/gmres.hpp), without a preconditioner.
 //
 // Sign conventions: n is the outward normal of the closed surface; the traction f = sigma . n on
 // a rigid body is the force per area exerted by the outside fluid on the body; the traction jump
