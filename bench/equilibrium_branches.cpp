@@ -1,4 +1,4 @@
-// The equilibrium's two branches near a spherical SFS (docs/FORWARD_MODEL.md "Two equilibria near
+// The equilibrium's two branches near a spherical SFS (docs/EQUILIBRIUM.md "Two equilibria near
 // v = 1"): for a grid of (v, FvK, b2), the symmetric equilibrium (the default), the unrestricted one
 // (--equilibrium-symmetry none, multigrid H0) and the symmetric one kicked by a random vertex
 // displacement of rms KICK um and relaxed without the restriction (plain L-BFGS): a kicked disc that

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The equilibrium's two branches near v = 1 (docs/FORWARD_MODEL.md "The lowest-energy equilibrium").
+"""The equilibrium's two branches near v = 1 (docs/EQUILIBRIUM.md "The lowest-energy equilibrium").
 
 For a grid of (v, FvK) at the other parameters of the reference point (mu 4, b2 1.5), runs
 ``trbc simulate --experiments eq`` twice: with ``--equilibrium-symmetry inversion`` (the dimpled

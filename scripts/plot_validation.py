@@ -2,7 +2,7 @@
 """Plot the output of ``trbc validate`` against the flow-validation experiments.
 
 Reads the CSV files written by ``trbc validate`` into DIR (see
-docs/FLOW.md) and overlays the simulated observables
+docs/VALIDATE.md) and overlays the simulated observables
 on the experimental data of data/experiments/validation:
 
   angle_vs_shear_rate.png      mean inclination angle (error bar = swinging
@@ -1011,7 +1011,7 @@ def parse_args(argv):
     ap = argparse.ArgumentParser(
         usage=USAGE,
         description="Plot `trbc validate` outputs (shear.csv, threshold.csv, tube.csv) against "
-                    "the flow-validation experiments (docs/FLOW.md); with "
+                    "the flow-validation experiments (docs/VALIDATE.md); with "
                     "--series, several labelled result sets on the same figures.")
     ap.add_argument("dir", metavar="DIR", nargs="?", default=None,
                     help="output directory of `trbc validate` (single-directory form)")

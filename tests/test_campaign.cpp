@@ -304,7 +304,7 @@ TEST(CampaignRunner, CellTimeLimitFailsRowsWithTheReason) {
     EXPECT_NE(again.err.find("cell_time_limit_s"), std::string::npos) << again.err;
 }
 
-// The equilibrium's symmetry (docs/FORWARD_MODEL.md "Two equilibria near v = 1") is part of the
+// The equilibrium's symmetry (docs/EQUILIBRIUM.md "Two equilibria near v = 1") is part of the
 // settings: the default (lowest) records its seed and kicks; campaigns of the symmetric disc resume
 // only with --equilibrium-symmetry inversion, those made before the option (no key) only with none,
 // and a campaign of one kind never continues with another.

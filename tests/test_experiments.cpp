@@ -227,7 +227,7 @@ double relaxationTime(const CellParameters& p, const ExperimentOptions& opt) {
 // scales with it too), so the shape path is the same and only the fixed protocol window (Hochmuth
 // fit over 1 s, 100 samples, which covers fewer relaxation times at higher eta_m) and the step
 // control differ: tc proportional to eta_m within 3 %. Halving eps must not change tc (exact constraints).
-// docs/FORWARD_MODEL.md "Two equilibria near v = 1": with a near-spherical SFS the cell has a
+// docs/EQUILIBRIUM.md "Two equilibria near v = 1": with a near-spherical SFS the cell has a
 // dimpled disc and, lower in energy, an undimpled cup. the equilibrium's dynamics from the centrally symmetric
 // biconcave start keeps that symmetry and ends in the disc; so does the symmetric minimisation,
 // whatever the solver's steps, and the disc it returns is a minimum of the unrestricted problem.
@@ -278,7 +278,7 @@ TEST(Equilibrium, NearASphericalSfsTheSymmetricEquilibriumIsTheDiscALocalMinimum
     EXPECT_NEAR(disc.observables.D, 7.289, 0.01);
 }
 
-// docs/FORWARD_MODEL.md "The lowest-energy equilibrium": the equilibrium of `trbc simulate` (runSample,
+// docs/EQUILIBRIUM.md "The lowest-energy equilibrium": the equilibrium of `trbc simulate` (runSample,
 // EquilibriumSymmetry::Lowest) near v = 1 is the lowest state against both branches: the
 // inversion-restricted disc and unrestricted minimisations from randomly perturbed discs. It is a
 // minimum of the unrestricted problem (thermal kicks of other seeds return to it), and the search is

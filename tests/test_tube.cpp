@@ -1,4 +1,4 @@
-// One cell in a straight circular microtube (flow/tube.hpp, docs/FLOW.md, tube): the wall
+// One cell in a straight circular microtube (flow/tube.hpp, docs/FLOW_TUBE.md): the wall
 // discretisation against exact and classical results, a short coupled run, bad input.
 //  * rigid sphere translating along the axis of a tube in fluid at rest: drag
 //    F = 6 pi mu a U K(beta), beta = a / R, Haberman & Sayre (1958) wall correction
@@ -261,7 +261,7 @@ TEST(TubeFlow, ShortCoupledRunMovesAlongTheAxisAndKeepsAreaAndVolume) {
     }
 }
 
-// docs/FLOW.md, tube post-processing on synthetic frames with known answers: a spheroid (semi-axes
+// docs/FLOW_TUBE.md post-processing on synthetic frames with known answers: a spheroid (semi-axes
 // a along the axis x, b across) translating at speed U, first rigidly, then with its membrane
 // turning about the axis at rate w (the shape, hence length and width, unchanged): the
 // co-moving-frame path of the fastest vertex over the second half is the number of frame
@@ -379,7 +379,7 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
                 settling.at("etam_Pa_s_um").get<double>() / (1.003e-3 * std::sqrt(135.0 / (4.0 * M_PI))), 1e-9);
     EXPECT_EQ(settling.at("capped_at_cell_etam"), false);
     EXPECT_NEAR(settling.at("relaxation_time_R_over_V").get<double>(), 1.5, 1e-12);
-    // The tube's default step tolerance (docs/FLOW.md, "Step tolerance in the tube"); the shear's stays 1e-3.
+    // The tube's default step tolerance (docs/FLOW_TUBE.md, "Step tolerance"); the shear's stays 1e-3.
     const std::string tubeHelp = test::runTrbc("flow tube --help", dir.path()).out;
     EXPECT_NE(tubeHelp.find("--step-tol FLOAT:(0, 1] R_A=6.25e-05"), std::string::npos) << tubeHelp;
     const std::string shearHelp = test::runTrbc("flow shear --help", dir.path()).out;

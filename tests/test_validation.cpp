@@ -1,4 +1,4 @@
-// trbc validate: configuration, the cases of docs/FLOW.md, the
+// trbc validate: configuration, the cases of docs/VALIDATE.md, the
 // tumbling/tank-treading bracket and its refinement, the comparison with the experimental scatter,
 // and the resumable runner on a tiny set.
 #include <gtest/gtest.h>
@@ -60,7 +60,7 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
     EXPECT_DOUBLE_EQ(c.tubeRadius, 3.3);
     EXPECT_EQ(c.cellSource, "table1");
     EXPECT_DOUBLE_EQ(c.stepTol, 1e-3);       // the shear's
-    EXPECT_DOUBLE_EQ(c.tubeStepTol, 6.25e-5);  // the tube's (docs/FLOW.md, "Step tolerance in the tube")
+    EXPECT_DOUBLE_EQ(c.tubeStepTol, 6.25e-5);  // the tube's (docs/FLOW_TUBE.md, "Step tolerance")
 }
 
 TEST(ValidationConfig, ErrorsNameFileLineKeyAndRange) {

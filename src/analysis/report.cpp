@@ -379,7 +379,7 @@ void transferabilitySection(ReportDocument& doc, const fs::path& out) {
         return;
     }
     const nlohmann::json& s = v["summary"];
-    doc.paragraph(fmt::format("`trbc validate` (docs/FLOW.md) with the θ_new posterior means, level {}: {} cases "
+    doc.paragraph(fmt::format("`trbc validate` (docs/VALIDATE.md) with the θ_new posterior means, level {}: {} cases "
                               "({} failed); {} predictions inside the experimental scatter, {} outside, {} without data nearby, {} "
                               "neither (threshold not bracketed). Nothing was tuned to these data. Tables in `validation/`.",
                               v.value("level", 0), s.value("cases", 0), s.value("failed", 0), s.value("inside", 0),

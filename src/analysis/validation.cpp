@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 namespace {
 
 
-/// The default shear sweeps (docs/FLOW.md): angles at 10.7 and 23.9 mPa s (14 rates in [1, 200]),
+/// The default shear sweeps (docs/VALIDATE.md): angles at 10.7 and 23.9 mPa s (14 rates in [1, 200]),
 /// TTF at 28.9 mPa s (6 rates in [8, 264]) and the scripted threshold sweeps.
 std::vector<ShearSweep> defaultSweeps() {
     std::vector<ShearSweep> s = {{"angle", 10.7, 1.0, 200.0, 14}, {"angle", 23.9, 1.0, 200.0, 14}, {"ttf", 28.9, 8.0, 264.0, 6}};

@@ -1,5 +1,5 @@
 #pragma once
-// The flow-validation set of docs/FLOW.md: its configuration
+// The flow-validation set of docs/VALIDATE.md: its configuration
 // (configs/validation.toml), the cases it expands to, the tumbling/tank-treading bracket and its
 // refinement, and the comparison of each prediction with the experimental scatter.
 // The cases themselves are `trbc flow shear|tube` runs driven by `trbc validate` (cli/cmd_validate.cpp).
@@ -36,7 +36,7 @@ struct ValidationConfig {
     double v = table1::v, mu = table1::mu, kbJ = table1::kbJ, b2 = table1::b2, etam = table1::etam;
     double etaIn = 10.0, rotations = 10.0;  ///< shear flow: cytosol (mPa s), duration in rigid-sphere turns
     double tiltDeg = 0.0;                   ///< shear start turned about the flow axis (`flow shear --tilt-deg`)
-    std::vector<ShearSweep> sweeps;         ///< the defaults of docs/FLOW.md unless the file gives any [[shear.*]]
+    std::vector<ShearSweep> sweeps;         ///< the defaults of docs/VALIDATE.md unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
@@ -82,7 +82,7 @@ struct RegimePoint {
     std::string regime;  ///< tank-treading | tumbling | intermittent | "" (failed)
 };
 
-/// Threshold bracket (docs/FLOW.md): gammaLo = highest rate with tumbling, gammaHi = lowest rate with tank-treading.
+/// Threshold bracket (docs/VALIDATE.md): gammaLo = highest rate with tumbling, gammaHi = lowest rate with tank-treading.
 struct ThresholdBracket {
     std::optional<double> gammaLo, gammaHi;
     bool monotone = true;                 ///< gammaLo < gammaHi (false: tumbling above tank-treading)
@@ -132,7 +132,7 @@ ScatterComparison compareWithBand(double x, double predicted, const Experimental
 std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(const ThresholdBracket& b, double etaOut);
 
 /// The experimental scatter of the flow validations (DATA/shear_flow, DATA/microtube of the
-/// validation data directory; docs/FLOW.md) and the comparison of each predicted observable with
+/// validation data directory; docs/VALIDATE.md) and the comparison of each predicted observable with
 /// it. A table is read when a case first needs it; the critical stresses at once.
 class ValidationEvidence {
 public:

@@ -1,6 +1,6 @@
 #pragma once
-// The flow validations over draws of a theta_new posterior (docs/VALIDATION_RESULTS.md,
-// "Posterior bands"): the seeded choice of the draws, the cases of each draw, the median and the
+// The flow validations over draws of a theta_new posterior (docs/VALIDATE.md and docs/VALIDATION_BANDS.md,
+// "Posterior draws"): the seeded choice of the draws, the cases of each draw, the median and the
 // 5-95 % band of an observable over the draws, and the band verdict against the experimental
 // scatter.
 #include <cstdint>

@@ -735,11 +735,11 @@ void registerTube(CLI::App* flow) {
     auto o = std::make_shared<TubeCli>();
     CLI::App* cmd = flow->add_subcommand(
         "tube",
-        "One red cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md, tube): Poiseuille "
+        "One red cell in a straight circular microtube driven by a pressure gradient (docs/FLOW_TUBE.md): Poiseuille "
         "flow plus the disturbance of the cell in the infinite tube, boundary-integral method with a no-slip wall "
         "(viscosity ratio 1), membrane forces of docs/MEMBRANE_MODEL.md with membrane viscosity, semi-implicit adaptive BDF2. "
         "Prints the cell velocity, length and width as JSON. Time unit R/V with V = (pressure gradient / 45) cm/s "
-        "(docs/FLOW.md, tube). Without cell options the cell is the paper's Table 1 posterior means");
+        "(docs/FLOW_TUBE.md). Without cell options the cell is the paper's Table 1 posterior means");
     addTubeFlowOptions(cmd, *o);
     addSettlingOptions(cmd, *o);
     addWallOptions(cmd, *o);

@@ -1,4 +1,4 @@
-// trbc validate: the flow-validation set of docs/FLOW.md and docs/VALIDATION_RESULTS.md. Every
+// trbc validate: the flow-validation set of docs/VALIDATE.md and docs/VALIDATION_RESULTS.md. Every
 // case is a `trbc flow shear|tube` child process whose JSON is kept in OUT/cases/<id>.json with a
 // key of its command; a killed run loses no finished case (resume = run again). The tumbling /
 // tank-treading brackets are refined by bisection; the results are tabulated against the
@@ -822,7 +822,7 @@ void runValidate(const ValidateCommandOptions& o) {
 void registerValidate(CLI::App& app) {
     auto o = std::make_shared<ValidateCommandOptions>();
     CLI::App* cmd = app.add_subcommand(
-        "validate", "Run the flow-validation set of docs/FLOW.md (inclination angle, tank-treading frequency, "
+        "validate", "Run the flow-validation set of docs/VALIDATE.md (inclination angle, tank-treading frequency, "
                     "tumbling/tank-treading threshold in shear flow; velocity and length in a microtube) with `trbc flow`, "
                     "compare every case with the experimental scatter and draw the paper's figures. Resumable: run the same "
                     "command again after an interruption and only unfinished cases run. With --draws N, every case also "

@@ -26,7 +26,7 @@ namespace trbc {
 /// symmetry axis (forward-model revision 2, the default), or the alignment's axis of largest in-plane variance.
 enum class InPlaneAxis { FarthestVertex, LargestVariance };
 
-/// How the equilibrium shape is found (docs/FORWARD_MODEL.md "Two equilibria near v = 1"):
+/// How the equilibrium shape is found (docs/EQUILIBRIUM.md "Two equilibria near v = 1"):
 /// Lowest: the lowest-energy of the centrally symmetric minimum reached from the biconcave start and
 /// the unrestricted minima reached from seeded thermal kicks of it (EquilibriumKicks); Inversion: that
 /// symmetric minimum alone, the dimpled disc; None: one unrestricted minimisation from the biconcave
@@ -75,7 +75,7 @@ struct ExperimentOptions {
     /// stiffness 0.05 mu I + mu L + kb/l0^2 L^2 on the icosphere hierarchy (solvers/multigrid.hpp);
     /// false: the plain scaled-identity H0 (forward-model revision 2 and earlier).
     bool multigrid = true;
-    /// Equilibrium (docs/FORWARD_MODEL.md "Two equilibria near v = 1", "The lowest-energy equilibrium"):
+    /// Equilibrium (docs/EQUILIBRIUM.md "Two equilibria near v = 1", "The lowest-energy equilibrium"):
     /// the lowest-energy state found from the symmetric disc and seeded thermal kicks of it (default),
     /// the disc alone (minimised within the centrally symmetric shapes), or one unrestricted minimisation.
     EquilibriumSymmetry equilibriumSymmetry = EquilibriumSymmetry::Lowest;

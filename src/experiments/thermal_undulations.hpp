@@ -1,6 +1,6 @@
 #pragma once
 // Thermal shape fluctuations of the resting cell, the scale of the symmetry-breaking kicks of the
-// lowest-energy equilibrium (docs/FORWARD_MODEL.md "The lowest-energy equilibrium").
+// lowest-energy equilibrium (docs/EQUILIBRIUM.md "The lowest-energy equilibrium").
 //
 // A quasi-spherical membrane of radius R, r(Omega) = R (1 + sum_lm u_lm Y_lm(Omega)), bending
 // rigidity kb and negligible tension has the mode energy (kb / 2) (l - 1)(l + 2) l (l + 1) |u_lm|^2

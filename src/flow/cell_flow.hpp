@@ -1,6 +1,6 @@
 #pragma once
 // One deformable red cell in unbounded Stokes flow (docs/FLOW.md, simple shear) -- or, through
-// the FlowEnvironment hooks below, in a tube (flow/tube.hpp, docs/FLOW.md, tube) -- solved with
+// the FlowEnvironment hooks below, in a tube (flow/tube.hpp, docs/FLOW_TUBE.md) -- solved with
 // the boundary-integral method of flow/stokes_solver.hpp, coupled to the membrane model of
 // docs/MEMBRANE_MODEL.md (Juelicher bending, Lim against the SFS, global area and volume held exactly, as
 // the experiments do, instead of the stiff global penalties) and the membrane viscosity (docs/MEMBRANE_MODEL.md).

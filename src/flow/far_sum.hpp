@@ -153,7 +153,7 @@ constexpr bool kTwoTargetFarSum = true;
 /// for both targets, 1 / r kept in registers (inverseSqrt8), twelve independent accumulators, the
 /// double layer's factor -6 applied to the block sums. The multiplies set the pace (about 31 per
 /// pair for both layers), so the gain over two farSum calls is modest (docs/PERFORMANCE.md,
-/// "Flow solver: the far sum two targets at a time, the factor ordered by METIS").
+/// "Flow solver").
 template <bool kSingle, bool kDouble>
 void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
                       const PointDensity<float>& u, const float (&u0)[2][3], Vec3 (&s)[2], Vec3 (&v)[2]) {

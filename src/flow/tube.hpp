@@ -1,8 +1,8 @@
 #pragma once
-// One cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md, tube),
+// One cell in a straight circular microtube driven by a pressure gradient (docs/FLOW_TUBE.md),
 // boundary-integral method with a rigid no-slip wall.
 //
-// Formulation (viscosity ratio lambda = 1, as in the paper's production runs, docs/FLOW.md, tube).
+// Formulation (viscosity ratio lambda = 1, as in the paper's production runs, docs/FLOW_TUBE.md).
 // The total flow is Poiseuille flow in the infinite tube of radius R plus a disturbance,
 //   u = u_P + u',   u_P(x) = U_c (1 - (y^2 + z^2) / R^2) e_x,   U_c = G R^2 / (4 eta),
 // G = -dp/dx the pressure gradient (equivalently a uniform body force density on all the fluid,
@@ -36,7 +36,7 @@
 // assembled. Periodicity along the tube (the reference's 50 um box at fixed body force) is
 // replaced by the infinite tube at the Poiseuille flux of G.
 //
-// Wall repulsion (docs/FLOW.md, tube: the reference adds a short-range repulsive wall force on the
+// Wall repulsion (docs/FLOW_TUBE.md: the reference adds a short-range repulsive wall force on the
 // membrane vertices). Potential E = sum_i w psi(d_i), d_i = R - sqrt(y_i^2 + z_i^2) the distance of
 // vertex i from the wall, w = A0 / Nv, and for d < delta
 //   psi(d) = p0 [ delta^2 (1/d - 1/delta) - 2 delta ln(delta/d) + delta - d ],
@@ -71,8 +71,8 @@
 namespace trbc {
 
 /// Default local error per step (R_A) of a tube run: at 1e-3 the main run drifts off the steady
-/// shape (-1.1 % in length at 40 mmHg/mm), at 6.25e-5 it keeps it to 1e-5 (docs/FLOW.md, "Step
-/// tolerance in the tube").
+/// shape (-1.1 % in length at 40 mmHg/mm), at 6.25e-5 it keeps it to 1e-5 (docs/FLOW_TUBE.md, "Step
+/// tolerance").
 inline constexpr double kTubeStepTolerance = 6.25e-5;
 
 /// Largest volume a closed surface of area A encloses inside a cylinder of radius R: the capsule
@@ -203,7 +203,7 @@ double wallClearance(const Vertices& X, double radius);
 /// with area A0 and volume V0 (lengths in um). Throws NumericalError when no such shape is found.
 Vertices fitIntoTube(const Vertices& X, const Faces& F, double radius, double clearance, double A0, double V0);
 
-/// Observables of docs/FLOW.md, tube from frames at times t (any consistent units).
+/// Observables of docs/FLOW_TUBE.md from frames at times t (any consistent units).
 struct TubeObservables {
     double length = 0.0;      ///< extent along x, mean over the second half of the frames
     double widthY = 0.0;      ///< extent along y, same window

@@ -22,7 +22,7 @@ int defaultWallPoints(double radiusUm, const Vertices& cellUm, const Faces& face
     return std::max(16, static_cast<int>(std::ceil(2.0 * kPi * radiusUm / (1.5 * edge))));
 }
 
-/// V = pg / 45 cm/s (docs/FLOW.md, tube), time unit R / V; Poiseuille centre-line velocity
+/// V = pg / 45 cm/s (docs/FLOW_TUBE.md), time unit R / V; Poiseuille centre-line velocity
 /// U_c = G R^2 / (4 eta) with G = pg x 1.33322e5 Pa/m.
 TubeUnits tubeUnits(const TubeCaseOptions& o, const FlowConditions& fc) {
     TubeUnits u;

@@ -1,12 +1,12 @@
 #pragma once
-// One red cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md,
-// tube) as one call: the units (V = (pressure gradient / 45) cm/s, time unit R/V, Poiseuille
+// One red cell in a straight circular microtube driven by a pressure gradient (docs/FLOW_TUBE.md)
+// as one call: the units (V = (pressure gradient / 45) cm/s, time unit R/V, Poiseuille
 // centre-line velocity), the cell of the parameters fitted into the tube, the wall, the settling
 // stage with a small membrane viscosity, the main stage with the cell's own, snapshots of both,
 // the observables and the per-frame series in physical units. `trbc flow tube` writes its
 // outputs from the result; trbc.flow_tube returns it.
 //
-// Settling stage (docs/FLOW.md, tube): the same cell with the membrane viscosity eta_m = settleRelax
+// Settling stage (docs/FLOW_TUBE.md): the same cell with the membrane viscosity eta_m = settleRelax
 // mu R / V (at most the cell's own; or settleEtam as given) reaches the steady shape in a number of
 // R/V independent of the capillary number instead of eta_m / mu (~280 R/V for the Table 1 cell at
 // 30 mmHg/mm). A cell at rest in the co-moving frame feels no membrane-viscosity force, so the
@@ -28,7 +28,7 @@ namespace trbc {
 /// The settling stage ends when the cell's extents along x, y and z have varied by less than the
 /// settling tolerance (relative) over the last kTubeSettleSpan R/V.
 inline constexpr double kTubeSettleSpan = 10.0;
-/// 1 mmHg/mm = 133.322 Pa/mm (docs/FLOW.md, tube), in Pa/m.
+/// 1 mmHg/mm = 133.322 Pa/mm (docs/FLOW_TUBE.md), in Pa/m.
 inline constexpr double kPaPerMPerMmHgPerMm = 1.33322e5;
 
 struct TubeCaseOptions {
@@ -64,7 +64,7 @@ struct TubeCaseOptions {
 /// repulsion_pressure in [0, 1e6], the stepping options (validateStepping).
 void validateTubeCaseOptions(const TubeCaseOptions& o);
 
-/// Units of docs/FLOW.md, tube.
+/// Units of docs/FLOW_TUBE.md.
 struct TubeUnits {
     double velocityScale = 0.0;           ///< V = (pressure gradient / 45) cm/s, um/s
     double timeUnit = 0.0;                ///< R / V, s
@@ -81,7 +81,7 @@ struct TubeSettlingViscosity {
     double etamPerTimeUnit = 0.0;  ///< the eta_m whose relaxation time eta_m / mu is one R / V
 };
 
-/// Dimensionless groups of the tube (docs/FLOW.md, tube).
+/// Dimensionless groups of the tube (docs/FLOW_TUBE.md).
 struct TubeGroups {
     double capillary = 0.0;          ///< eta_out (V / R) R_A / mu
     double viscosityRatio = 0.0;

@@ -99,7 +99,7 @@ double loadedEnergy(const MembraneModel& model, const Vertices& X, const Vertice
 /// partners i, j): X is replaced by its symmetric part first (moved to the origin), and so are every
 /// gradient and every preconditioned direction. The energy (its reference shape, any external
 /// forces) must be invariant under the inversion; the result is then a stationary point of the
-/// unrestricted problem too (docs/FORWARD_MODEL.md "Two equilibria near v = 1").
+/// unrestricted problem too (docs/EQUILIBRIUM.md "Two equilibria near v = 1").
 MinimizeResult minimizeEnergy(const MembraneModel& model, Vertices& X, const MinimizeOptions& options,
                               const Vertices* externalForces = nullptr, const AreaVolumeConstraint& constraint = {},
                               const Preconditioner* preconditioner = nullptr,

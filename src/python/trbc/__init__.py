@@ -399,7 +399,7 @@ def flow_tube(radius_um: float, pressure_gradient_mmHg_per_mm: float, eta_out_mP
               repulsion_pressure: float = 10.0, frame_interval: float = 1.0, step_tol: Optional[float] = None,
               dt: Optional[float] = None, max_steps: int = 200000, threads: int = 0, cache: bool = True,
               cache_dir: Optional[_PathLike] = None) -> dict:
-    """One cell in a straight circular microtube driven by a pressure gradient (docs/FLOW.md, tube),
+    """One cell in a straight circular microtube driven by a pressure gradient (docs/FLOW_TUBE.md),
     as `trbc flow tube`: the cell fitted into the tube, a settling stage with a small membrane
     viscosity, then the main stage with the cell's own, which gives the observables.
 
