@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -197,6 +198,7 @@ void runInfer(const InferCommandOptions& o) {
     const std::filesystem::path dataDir = experimentDirectory(o.dataDir);
     std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
     for (RbcDataSet& d : data) d.prior = box;
+    const OutputDirectory outDir(o.out, "infer", "--out", {"infer.json", kPhase1PriorBoxFile});
     ensureWritableDirectory(o.out);
     const nlohmann::json boxJson = priorBoxJson(box);
     checkPhase1PriorBox(o, opt, boxJson);

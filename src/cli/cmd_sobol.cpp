@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -71,6 +72,7 @@ void drawFigures(const std::filesystem::path& dir) {
 void runSobol(const SobolCommandOptions& o) {
     const std::filesystem::path modelDir = surrogateModelDirectory(o.model);
     const Surrogate s = Surrogate::load(modelDir);
+    const OutputDirectory outDir(o.out, "sobol", "--out", {"sobol.json", "sobol_indices.csv"});
     ensureWritableDirectory(o.out);
     omp_set_num_threads(o.threads);
     const std::vector<double> forces = sobolForces(o.forces);
