@@ -13,10 +13,13 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <sys/stat.h>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "analysis/calibrate_config.hpp"
+#include "analysis/validation.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/output_dir.hpp"
@@ -246,6 +249,117 @@ TEST(FullDisk, CampaignStopsAtTheFirstFailedWriteWithTheSystemMessage) {
     int lines = 0;
     for (std::string l; std::getline(records, l);) lines += !l.empty();
     EXPECT_LE(lines, 2) << "cells went on after the disk was full";
+}
+
+// ---- names that cannot break files ----------------------------------------------------------
+
+TEST(HostileNames, DataSetNamesAreCheckedOnce) {
+    TempDir tmp;
+    const auto error = [&](const std::string& name) {
+        const fs::path file = writeText(tmp.path() / "c.toml", "[[data]]\nname = \"" + name +
+                                                                 "\"\nexperiment = \"stretching\"\nfile = "
+                                                                 "\"@experiments/stretching/mills_2004.csv\"\n");
+        try {
+            readCalibrateConfig(file, test::experimentsDir());
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    for (const std::string& bad : {std::string("a,b"), std::string("a\\nb"), std::string("."), std::string(".."),
+                                   std::string(253, 'x'), std::string("a|b"), std::string("a b")}) {
+        const std::string e = error(bad);
+        EXPECT_TRUE(contains(e, "data name")) << bad << ": " << e;
+        EXPECT_TRUE(contains(e, "A-Z a-z 0-9 _ . -") || contains(e, "'.' and '..'")) << e;
+    }
+    EXPECT_EQ(error("mills_2004-copy.2"), "");
+    EXPECT_NO_THROW(checkFileName(std::string(100, 'a'), "name"));
+    EXPECT_THROW(checkFileName(std::string(101, 'a'), "name"), InputError);
+}
+
+TEST(HostileNames, CaseIdsAreUniqueForDistinctInputs) {
+    const std::vector<ValidationCase> none;
+    EXPECT_EQ(uniqueShearCaseId("angle", 23.9, 20.0, none), "angle_eta23.9_rate20");  // short where it can be
+    std::vector<ValidationCase> cases = {{uniqueShearCaseId("angle", 23.9, 20.001, none), "angle", 23.9, 20.001}};
+    const std::string close = uniqueShearCaseId("angle", 23.9, 20.002, cases);
+    EXPECT_NE(close, cases[0].id);
+    EXPECT_EQ(uniqueShearCaseId("angle", 23.9, 20.001, cases), cases[0].id);  // the same input keeps its id
+    // Two sweeps whose rates agree to four digits give two cases.
+    ValidationConfig c;
+    c.tubeEnabled = false;
+    c.sweeps = {{.kind = "angle", .etaOut = 23.9, .rateMin = 20.001, .rateMax = 20.001, .count = 1},
+                {.kind = "angle", .etaOut = 23.9, .rateMin = 20.002, .rateMax = 20.002, .count = 1}};
+    const std::vector<ValidationCase> all = initialValidationCases(c);
+    ASSERT_EQ(all.size(), 2u);
+    EXPECT_NE(all[0].id, all[1].id);
+}
+
+// ---- corrupted caches -----------------------------------------------------------------------
+
+TEST(CorruptedCache, EditedSfsMetadataIsRejectedAndAFifoDoesNotHang) {
+    TempDir tmp;
+    const fs::path cache = tmp.path() / "cache";
+    const std::string args = "sfs --v 0.7 --level 1 --cache " + shellQuote(cache.string()) + " --out " + shellQuote((tmp.path() / "s.off").string());
+    CliRun r = runTrbc(args, tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    fs::path meta, off;
+    for (const auto& e : fs::directory_iterator(cache)) (e.path().extension() == ".json" ? meta : off) = e.path();
+    ASSERT_FALSE(meta.empty());
+    std::string text = test::slurp(meta);
+    const auto at = text.find("\"converged\": true");
+    ASSERT_NE(at, std::string::npos) << text;
+    text.replace(at, 17, "\"converged\": false");
+    writeText(meta, text);
+    r = runTrbc(args, tmp.path());
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(contains(r.err, "metadata checksum mismatch")) << r.err;
+    EXPECT_TRUE(contains(test::slurp(meta), "\"converged\": true"));  // rebuilt
+    // A FIFO in place of the mesh: skipped, not read.
+    fs::remove(off);
+    ASSERT_EQ(::mkfifo(off.c_str(), 0644), 0);
+    r = test::runShell("timeout 60 " + shellQuote(TRBC_CLI) + " " + args, tmp.path());
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(contains(r.err, "not a regular file")) << r.err;
+}
+
+// ---- bounded work from bounded input --------------------------------------------------------
+
+TEST(BoundedWork, AllocationBombsExitTwoQuicklyUnderAMemoryLimit) {
+    TempDir tmp;
+    // A surrogate directory whose relaxation network claims a million-wide hidden layer.
+    const fs::path model = tmp.path() / "model";
+    fs::copy(test::sourceRoot() / "data" / "surrogates", model, fs::copy_options::recursive);
+    writeText(model / "relaxation.json", R"({"format":"trbc-mlp","version":1,"activation":"tanh","layer_sizes":[3,1048576,60,3],)"
+                                         R"("weights":[[],[],[]],"biases":[[],[],[]]})");
+    const fs::path in = writeText(tmp.path() / "in.csv", "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN\n0.95,4,250,1.5,0.7,100\n");
+    std::string deep = "[a";
+    for (int k = 0; k < 60000; ++k) deep += ".a";
+    const fs::path deepToml = writeText(tmp.path() / "deep.toml", deep + "]\nx = 1\n");
+    const fs::path bigToml = writeText(tmp.path() / "big.toml", "note = \"" + std::string(5u << 20, 'x') + "\"\n");
+    struct Bomb {
+        std::string args, message;
+    };
+    const std::string out = " --out " + shellQuote((tmp.path() / "o").string());
+    const std::vector<Bomb> bombs = {
+        {"surrogate eval --model " + shellQuote(model.string()) + " --in " + shellQuote(in.string()) + out, "weights"},
+        {"sobol --samples 16777216 --no-plot" + out, "2^27"},
+        {"infer --samples 100000000" + out, "[100, 1e6]"},
+        {"surrogate train --data " + shellQuote(tmp.path().string()) + " --distill-samples 1e8" + out, "--distill-samples"},
+        {"flow shear --shear-rate 10 --rotations 1000 --frame-interval 1e-6 --level 1 --no-cache" + out, "100000 saved frames"},
+        {"validate --config " + shellQuote(deepToml.string()) + out, "nested deeper than 32"},
+        {"calibrate --config " + shellQuote(deepToml.string()) + out, "nested deeper than 32"},
+        {"validate --config " + shellQuote(bigToml.string()) + out, "more than the limit of 4 MiB"},
+        {"mesh icosphere --level 1 --area 1e-300 --out " + shellQuote((tmp.path() / "m.vtk").string()), "[1e-100, 1e100]"},
+    };
+    for (const Bomb& b : bombs) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const CliRun r = test::runShell("ulimit -v 2000000; exec " + shellQuote(TRBC_CLI) + " " + b.args, tmp.path());
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        EXPECT_EQ(r.status, 2) << b.args << "\n" << r.err;
+        EXPECT_TRUE(contains(r.err, b.message)) << b.args << "\n" << r.err;
+        EXPECT_LT(seconds, 30.0) << b.args;
+    }
+    EXPECT_FALSE(fs::exists(tmp.path() / "m.vtk"));
 }
 
 }  // namespace

@@ -712,7 +712,7 @@ void refineThresholds(Runner& R) {
         for (double eta : thresholdViscosities(R.cfg))
             for (const long sample : samples)
                 if (const auto rate = refinementRate(R.thresholdPoints(eta, sample))) {
-                    const std::string mean = shearCaseId("threshold", eta, *rate);
+                    const std::string mean = uniqueShearCaseId("threshold", eta, *rate, R.cases);
                     const std::string id = sample < 0 ? mean : drawCaseId(mean, sample);
                     if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0, sample});
                 }
