@@ -194,7 +194,7 @@ TEST(BadInput, CalibrateOutputDirectoryRules) {
     const fs::path cfg = writeText(tmp.path() / "c.toml", toml);
     r = runTrbc("calibrate --quiet --config " + cfg.string() + " --out " + other.string(), tmp.path());
     EXPECT_EQ(r.status, 2);
-    EXPECT_TRUE(contains(r.err, "is not the output of `trbc calibrate`")) << r.err;
+    EXPECT_TRUE(contains(r.err, "that `trbc calibrate` did not write")) << r.err;
     EXPECT_EQ(test::slurp(other / "report.md"), "mine\n");
     EXPECT_FALSE(fs::exists(other / "config.toml"));
 

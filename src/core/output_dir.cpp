@@ -27,6 +27,24 @@ OutputDirectory::OutputDirectory(const fs::path& dir, std::string command, std::
     fs::create_directories(dir_, ec);
     if (ec) throw InputError(fmt::format("{} {}: cannot create the directory: {}", option, dir.string(), ec.message()));
     lock(option);
+    try {
+        checkContents(option, dir.string(), earlier, inputs);
+    } catch (...) {
+        release();  // a throwing constructor runs no destructor
+        throw;
+    }
+}
+
+void OutputDirectory::release() {
+    if (fd_ < 0) return;
+    ::unlink((dir_ / kOutputLockName).c_str());  // while still held: see lock()
+    ::close(fd_);
+    fd_ = -1;
+}
+
+void OutputDirectory::checkContents(const std::string& option, const std::string& shown, const std::vector<std::string>& earlier,
+                                    const std::vector<fs::path>& inputs) {
+    std::error_code ec;
     const fs::path marker = dir_ / kOutputMarkerName;
     const std::string mine = "trbc " + command_ + "\n";
     if (fs::exists(marker)) {
@@ -35,7 +53,7 @@ OutputDirectory::OutputDirectory(const fs::path& dir, std::string command, std::
         if (theirs.rfind("trbc ", 0) == 0)  // another command's output
             throw InputError(fmt::format("{} {}: the directory holds the output of `{}`, not of `trbc {}`; choose a new or empty "
                                          "directory",
-                                         option, dir.string(), theirs.substr(0, theirs.find('\n')), command_));
+                                         option, shown, theirs.substr(0, theirs.find('\n')), command_));
     }
     bool recognised = false;
     for (const std::string& name : earlier) recognised = recognised || fs::exists(dir_ / name);
@@ -48,7 +66,7 @@ OutputDirectory::OutputDirectory(const fs::path& dir, std::string command, std::
             if (input) continue;
             throw InputError(fmt::format("{} {}: the directory holds files ({}, ...) that `trbc {}` did not write (no {}); "
                                          "choose a new or empty directory",
-                                         option, dir.string(), name, command_, kOutputMarkerName));
+                                         option, shown, name, command_, kOutputMarkerName));
         }
     writeFileAtomically(marker, mine);
 }
@@ -105,10 +123,7 @@ OutputDirectory::~OutputDirectory() {
             fs::remove_all(dir_, ec);
         }
     }
-    if (fd_ >= 0) {
-        ::unlink((dir_ / kOutputLockName).c_str());  // while still held: see lock()
-        ::close(fd_);
-    }
+    release();
 }
 
 void checkFileName(std::string_view name, std::string_view what) {

@@ -36,6 +36,9 @@ public:
 
 private:
     void lock(const std::string& option);
+    void checkContents(const std::string& option, const std::string& shown, const std::vector<std::string>& earlier,
+                       const std::vector<std::filesystem::path>& inputs);
+    void release();
     std::filesystem::path dir_;
     std::string command_;
     int fd_ = -1;
