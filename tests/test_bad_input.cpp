@@ -41,7 +41,7 @@ TEST(BadInput, NonFiniteAndOutOfRangeNumbersNameTheOptionAndItsUnit) {
         {"minimize --mesh m.off --out r.off --max-step 1e309", "--max-step: '1e309' is not a finite number"},
         {"sobol --samples 12abc --out s", "--samples: '12abc' is not a number"},
         {"sobol --samples 2.5 --out s", "--samples: '2.5' is not a whole number"},
-        {"infer --samples 2 --out i", "--samples: 2 is out of range (valid: [100, 1e8])"},
+        {"infer --samples 2 --out i", "--samples: 2 is out of range (valid: [100, 1e6])"},
         {"export --posterior p --quantile 1 --out x", "--quantile: 1 is out of range (valid: (0, 1))"},
         {"campaign --samples 1 --level 1 --out c", "--level: 1 is out of range (valid: [2, 6])"},
     };
@@ -194,7 +194,7 @@ TEST(BadInput, CalibrateOutputDirectoryRules) {
     const fs::path cfg = writeText(tmp.path() / "c.toml", toml);
     r = runTrbc("calibrate --quiet --config " + cfg.string() + " --out " + other.string(), tmp.path());
     EXPECT_EQ(r.status, 2);
-    EXPECT_TRUE(contains(r.err, "is not the output of `trbc calibrate`")) << r.err;
+    EXPECT_TRUE(contains(r.err, "that `trbc calibrate` did not write")) << r.err;
     EXPECT_EQ(test::slurp(other / "report.md"), "mine\n");
     EXPECT_FALSE(fs::exists(other / "config.toml"));
 

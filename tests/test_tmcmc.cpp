@@ -19,6 +19,8 @@
 #include <cstdlib>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <vector>
 #include <functional>
 #include <numbers>
 #include <string>
@@ -27,6 +29,8 @@
 #include <fmt/format.h>
 
 #include "core/error.hpp"
+#include "core/file_io.hpp"
+#include "core/log.hpp"
 #include "inference/priors.hpp"
 #include "inference/statistics.hpp"
 #include "inference/tmcmc.hpp"
@@ -583,6 +587,56 @@ TEST(TmcmcCheckpoint, ResumeAfterStopIsBitIdentical) {
         } catch (const InputError& e) {
             EXPECT_NE(std::string(e.what()).find("targetCoV"), std::string::npos) << e.what();
         }
+    }
+}
+
+/// Flips one bit of `file` at byte `offset` (from the end when negative).
+void flipBit(const std::filesystem::path& file, long offset) {
+    std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(0, std::ios::end);
+    const long size = static_cast<long>(f.tellg());
+    const long at = offset < 0 ? size + offset : offset;
+    f.seekg(at);
+    char c = 0;
+    f.read(&c, 1);
+    c ^= 0x10;
+    f.seekp(at);
+    f.write(&c, 1);
+}
+
+// One flipped bit in the state file or in the header is seen (FNV-1a checksums): the run starts
+// afresh and ends where an uninterrupted run ends, instead of resuming from a wrong population.
+TEST(TmcmcCheckpoint, AFlippedBitIsSeenAndTheRunStartsAfresh) {
+    const Verification v = gaussian5D();
+    TmcmcOptions o = settings(Variant::Basis, 500, 7, 1);
+    const TmcmcResult full = runTmcmc(v.problem, o);
+    for (const char* target : {"tmcmc_state_0003.bin", "tmcmc_checkpoint.json"}) {
+        SCOPED_TRACE(target);
+        TempDir dir(std::string("trbc_tmcmc_flip_") + target);
+        TmcmcOptions c = o;
+        c.checkpointDirectory = dir.path.string();
+        c.maxStages = 3;
+        runTmcmc(v.problem, c);
+        // A bit of a sample value in the binary, or of a digit of the evidence in the header.
+        if (std::string(target).ends_with(".bin"))
+            flipBit(dir.path / target, 64);
+        else {
+            std::string h = readFileBytes(dir.path / target);
+            const auto at = h.find("\"logEvidence\"");
+            ASSERT_NE(at, std::string::npos);
+            const auto digit = h.find_first_of("123456789", at + 15);
+            h[digit] = h[digit] == '9' ? '8' : static_cast<char>(h[digit] + 1);
+            std::ofstream(dir.path / target, std::ios::binary) << h;
+        }
+        std::vector<std::string> messages;
+        const LogSink previous = setLogSink([&](LogLevel, const std::string& m) { messages.push_back(m); });
+        c.resume = true;
+        c.maxStages = 0;
+        const TmcmcResult resumed = runTmcmc(v.problem, c);
+        setLogSink(previous);
+        ASSERT_EQ(messages.size(), 1u);
+        EXPECT_NE(messages[0].find("is damaged"), std::string::npos) << messages[0];
+        expectBitIdentical(full, resumed);
     }
 }
 

@@ -423,7 +423,7 @@ TEST(ValidateCli, LockAndSignalForwarding) {
 
     const test::CliRun second = test::runTrbc("validate --only angle --config " + cfg.string() + " --out " + out.string(), dir.path());
     EXPECT_EQ(second.status, 2);
-    EXPECT_NE(second.err.find("another process (pid " + std::to_string(pid) + ") is working in"), std::string::npos) << second.err;
+    EXPECT_NE(second.err.find("another trbc process (pid " + std::to_string(pid) + ") is writing into"), std::string::npos) << second.err;
 
     ASSERT_EQ(::kill(pid, SIGTERM), 0);
     int left = -1;

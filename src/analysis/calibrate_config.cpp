@@ -11,6 +11,7 @@
 #include "analysis/toml_reader.hpp"
 
 #include "core/error.hpp"
+#include "core/output_dir.hpp"
 #include "inference/rbc_problem.hpp"
 
 namespace trbc {
@@ -41,8 +42,14 @@ void readData(const fs::path& file, const toml::node& node, const fs::path& expe
         r.string("experiment", d.experiment, {"equilibrium", "stretching", "relaxation"});
         r.string("file", path);
         if (d.name.empty() || d.experiment.empty() || path.empty()) fail(e, "a [[data]] entry lacks one of name, experiment, file");
-        if (d.name.find_first_of("/\\ \t") != std::string::npos || d.name == "theta_new" || d.name == "hyper")
-            fail(e, fmt::format("data name '{}' is not allowed (no spaces or slashes; 'theta_new' and 'hyper' are reserved)", d.name));
+        // The name becomes a directory and a CSV/Markdown field: checked once, here.
+        try {
+            checkFileName(d.name, "data name");
+        } catch (const InputError& bad) {
+            fail(e, bad.what());
+        }
+        if (d.name == "theta_new" || d.name == "hyper")
+            fail(e, fmt::format("data name '{}' is not allowed ('theta_new' and 'hyper' are reserved)", d.name));
         for (const CalibrateDataSet& o : c.data)
             if (o.name == d.name) fail(e, fmt::format("data name '{}' appears twice", d.name));
         d.file = configPath(path, *t->get("file"), file, experiments);

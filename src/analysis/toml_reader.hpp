@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <initializer_list>
 #include <limits>
 #include <string>
@@ -103,12 +105,75 @@ private:
     std::string context_;
 };
 
+/// The largest configuration file read, and the deepest nesting (dotted key parts, table header
+/// parts, inline arrays and tables): the TOML parser recurses per level, so a crafted file could
+/// otherwise exhaust the stack or the memory before any key is checked.
+inline constexpr std::uintmax_t kMaxConfigBytes = 4u << 20;
+inline constexpr int kMaxConfigDepth = 32;
+
+/// Throws InputError "file:line: ..." when `text` nests deeper than kMaxConfigDepth. Counts the
+/// dots of keys and headers and the open [ and { of values, outside strings and comments.
+inline void checkTomlDepth(const std::string& text, const std::filesystem::path& file) {
+    int dots = 0, line = 1;
+    std::string open;  // the [ and { not closed yet
+    bool inKey = true;  // before the line's '=' (or in a header): dots separate key parts
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (c == '"' || c == '\'') {  // a string: skipped, multi-line ones included
+            const bool triple = text.compare(i, 3, std::string(3, c)) == 0;
+            const std::string end = triple ? std::string(3, c) : std::string(1, c);
+            std::size_t j = i + end.size();
+            while (j < text.size() && text.compare(j, end.size(), end) != 0) {
+                if (text[j] == '\n') ++line;
+                j += (c == '"' && text[j] == '\\') ? 2 : 1;
+            }
+            i = j + end.size() - 1;
+            continue;
+        }
+        if (c == '#') {
+            while (i + 1 < text.size() && text[i + 1] != '\n') ++i;
+            continue;
+        }
+        if (c == '\n') {
+            ++line;
+            if (open.empty()) inKey = true, dots = 0;
+            continue;
+        }
+        if (c == '=') {
+            inKey = false, dots = 0;
+        } else if (c == '.' && inKey) {
+            ++dots;
+        } else if (c == '[' || c == '{') {
+            inKey = c == '{' || (open.empty() && inKey);  // an inline table's keys, or a header's parts
+            open += c;
+        } else if ((c == ']' || c == '}') && !open.empty()) {
+            open.pop_back();
+        } else if (c == ',' && !open.empty()) {
+            inKey = open.back() == '{', dots = 0;
+        }
+        if (static_cast<int>(open.size()) + dots > kMaxConfigDepth)
+            throw InputError(fmt::format("{}:{}: nested deeper than {} levels (dotted key parts, tables and arrays); not read",
+                                         file.string(), line, kMaxConfigDepth));
+    }
+}
+
 /// Parses a TOML file; a missing file or a syntax error is an InputError "file:line:column: ...".
+/// Files over kMaxConfigBytes or nested deeper than kMaxConfigDepth are refused before parsing.
 inline toml::table parseTomlFile(const std::filesystem::path& file) {
     if (!std::filesystem::is_regular_file(file))
         throw InputError(fmt::format("configuration file {} does not exist", file.string()));
+    const std::uintmax_t bytes = std::filesystem::file_size(file);
+    if (bytes > kMaxConfigBytes)
+        throw InputError(fmt::format("configuration file {}: {} bytes, more than the limit of {} MiB; not read", file.string(), bytes,
+                                     kMaxConfigBytes >> 20));
+    std::string text;
+    {
+        std::ifstream in(file, std::ios::binary);
+        text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    checkTomlDepth(text, file);
     try {
-        return toml::parse_file(file.string());
+        return toml::parse(text, file.string());
     } catch (const toml::parse_error& e) {
         throw InputError(fmt::format("{}:{}:{}: TOML syntax error: {}", file.string(), e.source().begin.line, e.source().begin.column,
                                      e.description()));

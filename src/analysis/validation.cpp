@@ -179,8 +179,20 @@ std::vector<double> logSpaced(double lo, double hi, int count) {
     return r;
 }
 
-std::string shearCaseId(const std::string& kind, double etaOut, double rate) {
-    return fmt::format("{}_eta{:g}_rate{:.4g}", kind, etaOut, rate);
+std::string shearCaseId(const std::string& kind, double etaOut, double rate, int digits) {
+    if (digits >= 17) return fmt::format("{}_eta{}_rate{}", kind, etaOut, rate);  // shortest round trip: one id per double
+    return fmt::format("{}_eta{:g}_rate{:.{}g}", kind, etaOut, rate, digits);
+}
+
+std::string uniqueShearCaseId(const std::string& kind, double etaOut, double rate, const std::vector<ValidationCase>& cases) {
+    for (int digits : {4, 6, 9, 12, 17}) {
+        const std::string id = shearCaseId(kind, etaOut, rate, digits);
+        const bool taken = std::any_of(cases.begin(), cases.end(), [&](const ValidationCase& x) {
+            return x.id == id && !(x.kind == kind && x.etaOut == etaOut && x.rate == rate);
+        });
+        if (!taken) return id;
+    }
+    return shearCaseId(kind, etaOut, rate, 17);
 }
 
 std::string tubeCaseId(double pg) { return fmt::format("tube_pg{:g}", pg); }
@@ -189,7 +201,7 @@ std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
     std::vector<ValidationCase> cases;
     for (const ShearSweep& s : c.sweeps)
         for (double rate : logSpaced(s.rateMin, s.rateMax, s.count)) {
-            const std::string id = shearCaseId(s.kind, s.etaOut, rate);
+            const std::string id = uniqueShearCaseId(s.kind, s.etaOut, rate, cases);
             if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return x.id == id; }))
                 cases.push_back({id, s.kind, s.etaOut, rate, 0.0});
         }

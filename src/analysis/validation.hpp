@@ -66,7 +66,11 @@ struct ValidationCase {
 
 /// The cases of the sweeps and the tube before any refinement, in a fixed order.
 std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c);
-std::string shearCaseId(const std::string& kind, double etaOut, double rate);
+/// "<kind>_eta<eta>_rate<rate>", the rate to `digits` significant digits (17: exact).
+std::string shearCaseId(const std::string& kind, double etaOut, double rate, int digits = 4);
+/// The id with the fewest digits (4, 6, 9, 12, exact) that no case of another kind, viscosity or
+/// rate in `cases` has: distinct inputs never share an id, and ids stay short where they can.
+std::string uniqueShearCaseId(const std::string& kind, double etaOut, double rate, const std::vector<ValidationCase>& cases);
 std::string tubeCaseId(double pressureGradient);
 
 /// Part `part` of `parts` (1 <= part <= parts) of the initial cases, for running one set on several

@@ -3,7 +3,7 @@
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <signal.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -12,7 +12,9 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <cstdlib>
 #include <mutex>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -56,20 +58,37 @@ int childExitCode(int status) {
 }
 
 int runChildProcess(const std::string& command) {
-    posix_spawnattr_t attr;
-    posix_spawnattr_init(&attr);
-    posix_spawnattr_setpgroup(&attr, 0);  // its own group: kill(-pid) reaches sh and what it starts
-    sigset_t defaults;
-    sigemptyset(&defaults);
-    for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&defaults, s);
-    posix_spawnattr_setsigdefault(&attr, &defaults);
-    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGDEF);
+    // Everything the child needs is made before fork(): between fork and exec it calls only
+    // async-signal-safe functions.
     std::string sh = "sh", dashC = "-c", cmd = command;
     char* argv[] = {sh.data(), dashC.data(), cmd.data(), nullptr};
-    pid_t pid = 0;
-    const int err = posix_spawn(&pid, "/bin/sh", nullptr, &attr, argv, environ);
-    posix_spawnattr_destroy(&attr);
-    if (err != 0) return -1;
+    const pid_t parent = ::getpid();
+    std::vector<std::string> env;
+    for (char** e = environ; *e != nullptr; ++e)
+        if (std::strncmp(*e, kParentPidVariable, std::strlen(kParentPidVariable)) != 0 ||
+            (*e)[std::strlen(kParentPidVariable)] != '=')
+            env.emplace_back(*e);
+    env.push_back(fmt::format("{}={}", kParentPidVariable, parent));
+    std::vector<char*> envp;
+    for (std::string& e : env) envp.push_back(e.data());
+    envp.push_back(nullptr);
+    const pid_t pid = ::fork();
+    if (pid < 0) return -1;
+    if (pid == 0) {
+        // The shell dies with this process (SIGKILL included): PR_SET_PDEATHSIG, then a check that
+        // the parent did not die before it was set. The trbc it starts does the same
+        // (dieWithParent), so no solver outlives the driver.
+        ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+        if (::getppid() != parent) ::_exit(137);
+        ::setpgid(0, 0);  // its own group: kill(-pid) reaches sh and what it starts
+        for (int s : {SIGINT, SIGTERM, SIGHUP}) ::signal(s, SIG_DFL);
+        sigset_t none;
+        sigemptyset(&none);
+        ::sigprocmask(SIG_SETMASK, &none, nullptr);
+        ::execve("/bin/sh", argv, envp.data());
+        ::_exit(127);
+    }
+    ::setpgid(pid, pid);  // also here, so that kill(-pid) works before the child has run
     const std::size_t slot = registerChild(pid);
     int status = 0;
     pid_t r;
@@ -77,6 +96,17 @@ int runChildProcess(const std::string& command) {
     while (r == -1 && errno == EINTR);
     if (slot < kSlots) gChildren[slot].store(0);
     return r == pid ? status : -1;
+}
+
+void dieWithParent() {
+    const char* value = std::getenv(kParentPidVariable);
+    if (value == nullptr) return;
+    const long driver = std::strtol(value, nullptr, 10);
+    ::unsetenv(kParentPidVariable);
+    // The parent here may be the shell between the driver and this process; the shell dies with
+    // the driver, and this process with the shell. If the driver is already gone, nothing may run.
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (driver > 0 && ::kill(static_cast<pid_t>(driver), 0) != 0 && errno == ESRCH) ::_exit(137);
 }
 
 void forwardSignalsToChildren() {
@@ -87,30 +117,6 @@ void forwardSignalsToChildren() {
         sigemptyset(&sa.sa_mask);
         for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &sa, nullptr);
     });
-}
-
-DirectoryLock::DirectoryLock(const std::filesystem::path& dir, const std::string& name, const std::string& what) {
-    const std::filesystem::path file = dir / name;
-    fd_ = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (fd_ < 0) throw InputError(fmt::format("{}: cannot open the lock file {}: {}", what, file.string(), std::strerror(errno)));
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-        char buf[32] = {};
-        const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
-        ::close(fd_);
-        fd_ = -1;
-        throw InputError(fmt::format("{}: another process (pid {}) is working in {} (lock {}); wait for it to finish or use "
-                                     "another output directory",
-                                     what, n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string("?"),
-                                     dir.string(), file.string()));
-    }
-    const std::string pid = std::to_string(::getpid());
-    if (::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, pid.data(), pid.size(), 0) < 0) {
-        // the pid is only informative
-    }
-}
-
-DirectoryLock::~DirectoryLock() {
-    if (fd_ >= 0) ::close(fd_);  // releases the flock
 }
 
 }  // namespace trbc::cli

@@ -17,6 +17,7 @@
 #include "analysis/stage_ledger.hpp"
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -182,19 +183,6 @@ struct CalibrateOptions {
     bool quiet = false;
 };
 
-/// OUT is new, empty, an earlier calibrate output (it has the stage ledger) or holds nothing but
-/// the --config file itself: anything else would have its report.md and config.toml overwritten.
-void checkOutputDirectory(const std::string& out, const CalibrateConfig& cfg) {
-    if (!fs::is_directory(out) || fs::exists(fs::path(out) / "stages.json")) return;
-    for (const auto& e : fs::directory_iterator(out)) {
-        std::error_code ec;
-        if (!fs::equivalent(e.path(), cfg.file, ec))
-            throw InputError(fmt::format("--out {}: the directory holds files ({}, ...) but is not the output of `trbc "
-                                         "calibrate` (no stages.json); choose a new or empty directory",
-                                         out, e.path().filename().string()));
-    }
-}
-
 /// OUT/config.toml: the configuration, with its bases merged into it so that the copy stands alone.
 void copyConfiguration(const CalibrateConfig& cfg, const fs::path& copy) {
     std::error_code ec;
@@ -236,11 +224,10 @@ void writeSummary(const CalibrateConfig& cfg, const fs::path& out, int threads, 
 void runCalibrate(const CalibrateOptions& o) {
     const auto t0 = SteadyClock::now();
     const CalibrateConfig cfg = readCalibrateConfig(o.config, defaultExperimentDirectory());
-    checkOutputDirectory(o.out, cfg);
+    const OutputDirectory outDir(o.out, "calibrate", "--out", {"stages.json"}, {cfg.file});
     ensureWritableDirectory(o.out);
-    const fs::path out = fs::absolute(o.out).lexically_normal();
+    const fs::path out = outDir.path();
     fs::create_directories(out / "logs");
-    const DirectoryLock lock(out, ".calibrate.lock", "calibrate");
     forwardSignalsToChildren();
     const CalibrateTools tools = calibrateTools();
     const int threads = o.threads > 0 ? o.threads : cfg.threads;

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #ifdef TRBC_WITH_MPI
@@ -16,6 +17,7 @@
 #endif
 
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/clock.hpp"
 #include "core/error.hpp"
 #include "sampling/campaign.hpp"
@@ -181,15 +183,25 @@ void runCampaign(const CampaignCommandOptions& o) {
     const auto t0 = SteadyClock::now();
     CampaignSummary share, s;
     std::string error;
-    const auto attempt = [&error](auto&& step) {
+    bool ioError = false;
+    const auto attempt = [&](auto&& step) {
         try {
             step();
+        } catch (const IoError& e) {
+            error = e.what();
+            ioError = true;
         } catch (const std::exception& e) {
             error = e.what();
         }
     };
-    // Rank 0 prepares (or refuses) the campaign before any rank touches its part file.
-    if (ranks.rank == 0) attempt([&] { prepareCampaign(c); });
+    // Rank 0 locks the output directory for the whole run (every rank writes only its own part
+    // file inside it) and prepares (or refuses) the campaign before any rank touches its part file.
+    std::optional<OutputDirectory> outDir;
+    if (ranks.rank == 0)
+        attempt([&] {
+            outDir.emplace(c.outDir, "campaign", "--out", std::vector<std::string>{"campaign.json"});
+            prepareCampaign(c);
+        });
     agreeOnFailure(ranks.mpi, error);
     if (error.empty()) attempt([&] { share = runCampaignShare(c, ranks.rank, ranks.size); });
     agreeOnFailure(ranks.mpi, error);
@@ -200,7 +212,10 @@ void runCampaign(const CampaignCommandOptions& o) {
     // A rank that failed reports its own reason. Other ranks than 0 exit quietly when only
     // another rank failed: an early non-zero exit would make the launcher kill rank 0 before it
     // prints the reason, and rank 0 (or the failed rank) already gives the job its status.
-    if (!error.empty() && !(ranks.rank != 0 && error == kAnotherRankFailed)) throw InputError(error);
+    if (!error.empty() && !(ranks.rank != 0 && error == kAnotherRankFailed)) {
+        if (ioError) throw IoError(error);
+        throw InputError(error);
+    }
     if (ranks.rank != 0) return;
     std::cout << fmt::format("campaign: {} of {} samples done ({} ok, {} failed); {} cells computed now, {} resumed; "
                              "{:.1f} s\n",

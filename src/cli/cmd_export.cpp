@@ -12,6 +12,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/clock.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -85,6 +86,7 @@ void runExport(const ExportCommandOptions& o) {
     const fs::path in(o.posterior);
     const fs::path file = fs::is_directory(in) ? in / "samples.csv" : in;
     const NumericTable t = readThetaNewSamples(in);
+    const OutputDirectory outDir(o.out, "export", "--out", {"cell.json"});
     ensureWritableDirectory(o.out);
     omp_set_num_threads(o.threads);
     double kbJ = 0.0;

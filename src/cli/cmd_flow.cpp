@@ -122,7 +122,8 @@ struct SteppingOptions {
 };
 
 void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& unit) {
-    addNumber(cmd, "--frame-interval", s.step.frameInterval, "interval of the saved frames", NumberRange::leftOpen(0.0, 1e6, unit))
+    addNumber(cmd, "--frame-interval", s.step.frameInterval, "interval of the saved frames (duration / interval at most 100000 frames)",
+              NumberRange::leftOpen(0.0, 1e6, unit))
         ->capture_default_str();
     addNumber(cmd, "--step-tol", s.step.stepTolerance, "local error per time step, largest vertex displacement",
               NumberRange::leftOpen(0.0, 1.0, "R_A"))

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -92,8 +93,11 @@ void addMethodOptions(CLI::App* cmd, InferCommandOptions& o) {
 /// Population size, seed, inputs and outputs, the FvK density and the phase-3b and prior choices.
 void addRunOptions(CLI::App* cmd, InferCommandOptions& o) {
     // Below 100 samples the TMCMC stages cannot resample the population (the same floor as [inference] samples).
-    addNumber(cmd, "--samples", o.samples, "population size N of every TMCMC/BASIS run (phase 1; phases 2-3 of --method reweighting)",
-              NumberRange::closed(100, 1e8))
+    // N x 5 parameters, with its likelihoods and a handful of copies per stage: 1e6 keeps a run
+    // within a few hundred MB.
+    addNumber(cmd, "--samples", o.samples, "population size N of every TMCMC/BASIS run (phase 1; phases 2-3 of --method reweighting; "
+                                           "at most 1e6, the memory of N x 5 parameters and their copies)",
+              NumberRange::closed(100, 1e6))
         ->capture_default_str();
     addNumber(cmd, "--seed", o.seed, "run seed (each run derives its own from it and its name)", NumberRange::nonNegative())
         ->capture_default_str();
@@ -197,6 +201,7 @@ void runInfer(const InferCommandOptions& o) {
     const std::filesystem::path dataDir = experimentDirectory(o.dataDir);
     std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
     for (RbcDataSet& d : data) d.prior = box;
+    const OutputDirectory outDir(o.out, "infer", "--out", {"infer.json", kPhase1PriorBoxFile});
     ensureWritableDirectory(o.out);
     const nlohmann::json boxJson = priorBoxJson(box);
     checkPhase1PriorBox(o, opt, boxJson);

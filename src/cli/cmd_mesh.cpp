@@ -57,9 +57,14 @@ void registerMesh(CLI::App& app) {
     addNumber(ico, "--level", o->level, "subdivision level L", NumberRange::closed(0, 7))->capture_default_str();
     ico->add_flag("--biconcave", o->biconcave, "map onto the Evans-Fung (1972) resting cell");
     // Bounded so that area, volume and every coordinate stay finite doubles (volume ~ area^1.5).
-    addNumber(ico, "--area", o->area, "scale uniformly to this area (0 = keep)", NumberRange::closed(0.0, 1e100, "(length^2, um^2 with --biconcave)"));
+    // Bounded on both sides so that area, volume, every coordinate and the curvatures (~ 1 /
+    // length) stay finite, normal doubles (volume ~ area^1.5, products of edge vectors ~ area).
+    addNumber(ico, "--area", o->area, "scale uniformly to this area (0 = keep, else in [1e-100, 1e100])",
+              NumberRange::closed(0.0, 1e100, "(length^2, um^2 with --biconcave)"));
     addOutOption(ico, o->out, "output mesh (.off, .ply or .vtk)");
     ico->callback([o]() {
+        if (o->area > 0.0 && o->area < 1e-100)
+            throw InputError(fmt::format("--area {:g}: too small for finite curvatures; valid: 0 (keep) or [1e-100, 1e100]", o->area));
         Mesh m = icosphere(o->level);
         if (o->biconcave) m.X = evansFungMap(m.X);
         if (o->area > 0) m.X = scaleToArea(m.X, m.F, o->area);

@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -33,7 +34,8 @@ struct SobolCommandOptions {
 
 void addSobolOptions(CLI::App* cmd, SobolCommandOptions& o) {
     addSurrogateModelOption(cmd, o.model);
-    addNumber(cmd, "--samples", o.samples, "N, base rows of the Saltelli design (N(2D+2) evaluations)",
+    addNumber(cmd, "--samples", o.samples, "N, base rows of the Saltelli design (N(2D+2) evaluations; N(2D+2) x outputs at most "
+                                           "2^27 values, the memory of the model's outputs: N up to 262144 with the default --forces)",
               NumberRange::closed(2, double(1L << 24)))
         ->capture_default_str();
     addNumber(cmd, "--seed", o.seed, "seed of the bootstrap (and of the base sample with --base random)", NumberRange::nonNegative())
@@ -71,10 +73,20 @@ void drawFigures(const std::filesystem::path& dir) {
 void runSobol(const SobolCommandOptions& o) {
     const std::filesystem::path modelDir = surrogateModelDirectory(o.model);
     const Surrogate s = Surrogate::load(modelDir);
+    const OutputDirectory outDir(o.out, "sobol", "--out", {"sobol.json", "sobol_indices.csv"});
     ensureWritableDirectory(o.out);
     omp_set_num_threads(o.threads);
     const std::vector<double> forces = sobolForces(o.forces);
     const std::vector<std::string> outputs = surrogateSobolOutputs(forces);
+    // Every evaluation's outputs are held at once: N (2D + 2) x outputs doubles, checked before the
+    // model is evaluated.
+    constexpr double kMaxValues = double(1L << 27);
+    const double values = double(o.samples) * (2.0 * 5.0 + 2.0) * double(outputs.size());
+    if (values > kMaxValues)
+        throw InputError(fmt::format("--samples {} with --forces {}: N (2D + 2) x {} outputs = {:.3g} values, more than the limit of "
+                                     "2^27 = {:.3g}; use --samples {} or fewer",
+                                     o.samples, o.forces, outputs.size(), values, kMaxValues,
+                                     static_cast<long>(kMaxValues / (12.0 * double(outputs.size())))));
     Eigen::VectorXd lo(5), hi(5);
     for (int k = 0; k < 5; ++k) lo(k) = kCellBox[k].lo, hi(k) = kCellBox[k].hi;
     SobolOptions so;

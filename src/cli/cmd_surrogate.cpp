@@ -162,7 +162,9 @@ void addTrainOptions(CLI::App* cmd, TrainCommandOptions& o) {
                     "per member; the default): any of the --ensemble networks, or none; "
                     "when not given, the default's networks that are not in --ensemble are left out")
         ->check(CLI::IsMember(networkNamesOrNone()))->delimiter(',')->capture_default_str();
-    addNumber(cmd, "--distill-samples", o.t.distillSamples, "box points of each distillation", NumberRange::closed(1000, 1e8))
+    // 1e7 points x (5 inputs + the teachers' outputs) doubles: about 1 GB at most.
+    addNumber(cmd, "--distill-samples", o.t.distillSamples, "box points of each distillation (at most 1e7: memory)",
+              NumberRange::closed(1000, 1e7))
         ->capture_default_str();
     addNumber(cmd, "--cup-hmin-um", o.t.cupHminUm,
               "with --branch auto, a kicked cell counts as the cup (the branch the classifier separates) when its hmin "

@@ -24,6 +24,7 @@
 #include "analysis/validation_draws.hpp"
 #include "cli/child_process.hpp"
 #include "cli/common.hpp"
+#include "core/output_dir.hpp"
 #include "core/clock.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -178,6 +179,15 @@ struct Runner {
         // as failed with the signal.
         if (rc == 130 || rc == 128 + SIGINT || forwardedSignal() != 0)
             throw NumericalError(fmt::format("validate: case {} interrupted (exit {}); run the same command again to resume", c.id, rc));
+        // Exit 5: the case could not write its outputs (a full disk): not a result of the case,
+        // so nothing is recorded and the run stops; the same command resumes once there is room.
+        if (rc == 5) {
+            std::string tail = readFileBytes(log);
+            if (tail.size() > 600) tail = tail.substr(tail.size() - 600);
+            while (!tail.empty() && tail.back() == '\n') tail.pop_back();
+            throw IoError(fmt::format("validate: case {} could not write its outputs in {} ({})", c.id, dir.string(),
+                                      tail.substr(tail.rfind('\n') == std::string::npos ? 0 : tail.rfind('\n') + 1)));
+        }
         json result = tryReadJson(stdoutFile).value_or(json());
         if (!result.is_object()) {
             std::string tail = readFileBytes(log);
@@ -702,7 +712,7 @@ void refineThresholds(Runner& R) {
         for (double eta : thresholdViscosities(R.cfg))
             for (const long sample : samples)
                 if (const auto rate = refinementRate(R.thresholdPoints(eta, sample))) {
-                    const std::string mean = shearCaseId("threshold", eta, *rate);
+                    const std::string mean = uniqueShearCaseId("threshold", eta, *rate, R.cases);
                     const std::string id = sample < 0 ? mean : drawCaseId(mean, sample);
                     if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0, sample});
                 }
@@ -800,9 +810,9 @@ void runValidate(const ValidateCommandOptions& o) {
     const std::vector<ValidationCase> selected = selectedCases(all, o);
     const std::vector<ValidationCase> initial = casesWithDraws(selected, R.draws);
     if (o.dryRun) return listCases(R, initial);
+    const OutputDirectory outDir(R.out, "validate", "--out", {"validation.json", "cases"}, {o.config});
     ensureWritableDirectory(R.out.string());
     fs::create_directories(R.out / "cases");
-    const DirectoryLock lock(R.out, ".validate.lock", "validate");
     forwardSignalsToChildren();
     const auto t0 = SteadyClock::now();
     R.runAll(initial);

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <iostream>
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -10,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
@@ -81,6 +84,7 @@ void keepFreedMemory() {
 }  // namespace
 
 int main(int argc, char** argv) {
+    trbc::cli::dieWithParent();
     keepFreedMemory();
     trbc::cli::setCommandLine(argc, argv);
     CLI::App app{"trbc: a calibrated, transferable red-blood-cell membrane model"};
@@ -114,12 +118,23 @@ int main(int argc, char** argv) {
     } catch (const trbc::InputError& e) {
         std::cerr << "trbc: error: " << e.what() << '\n';
         return 2;
+    } catch (const trbc::IoError& e) {
+        std::cout.flush();
+        std::cerr << "trbc: I/O error: " << e.what() << '\n';
+        return 5;
     } catch (const trbc::NumericalError& e) {
         std::cerr << "trbc: numerical failure: " << e.what() << '\n';
         return 3;
     } catch (const std::exception& e) {
         std::cerr << "trbc: internal error: " << e.what() << '\n';
         return 4;
+    }
+    // A result printed to a full disk is no result.
+    errno = 0;
+    std::cout.flush();
+    if (!std::cout) {
+        std::cerr << "trbc: I/O error: cannot write the standard output: " << (errno != 0 ? std::strerror(errno) : "write failed") << '\n';
+        return 5;
     }
     return 0;
 }

@@ -86,4 +86,29 @@ NumericTable readNumericTable(const std::filesystem::path& path, const std::vect
     return t;
 }
 
+std::string csvField(std::string_view text) {
+    const bool quote = text.find_first_of(",\"\r\n") != std::string_view::npos ||
+                       (!text.empty() && (text.front() == ' ' || text.back() == ' '));
+    if (!quote) return std::string(text);
+    std::string out = "\"";
+    for (char ch : text) {
+        if (ch == '"') out += '"';
+        out += ch;
+    }
+    return out + '"';
+}
+
+std::string markdownCell(std::string_view text) {
+    std::string out;
+    for (char ch : text) {
+        if (ch == '|')
+            out += "\\|";
+        else if (ch == '\n' || ch == '\r')
+            out += ' ';
+        else
+            out += ch;
+    }
+    return out;
+}
+
 }  // namespace trbc

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace trbc {
@@ -23,5 +24,12 @@ struct NumericTable {
 /// Reads a CSV whose header names the columns. Only the columns in `numericColumns` (all columns if
 /// empty) must be numbers; the others are ignored. Empty lines are skipped; '#' starts a comment line.
 NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns = {});
+
+/// One CSV field as RFC 4180 writes it: as is, or in double quotes with '"' doubled when it holds a
+/// comma, a quote, a line break or leading/trailing space, so that no text can add a column or a row.
+std::string csvField(std::string_view text);
+
+/// One Markdown table cell: '|' escaped and line breaks as spaces, so that no text can add a cell or a row.
+std::string markdownCell(std::string_view text);
 
 }  // namespace trbc

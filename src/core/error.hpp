@@ -18,4 +18,12 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+/// The operating system refused a read or a write (disk full, no permission, file system gone):
+/// not a property of the input nor of the numerics, so never recorded as a result. Exit 5, with
+/// the system's message (strerror).
+class IoError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
 }  // namespace trbc

@@ -72,7 +72,15 @@ nlohmann::json diagnosticsJson(const StressFreeState& s) {
             {"principal_extents", {s.principalExtents[0], s.principalExtents[1], s.principalExtents[2]}}};
 }
 
-// Returns false (with the reason) when the entry is missing or not trustworthy.
+/// The metadata's own checksum: FNV-1a of its JSON text without "meta_checksum", so that an
+/// edited diagnostic (converged, energy) is seen like an edited mesh.
+std::string metadataChecksum(nlohmann::json j) {
+    j.erase("meta_checksum");
+    return fmt::format("{:016x}", fnv1a(j.dump()));
+}
+
+// Returns false (with the reason) when the entry is missing or not trustworthy. Only regular
+// files are read: a FIFO or a device in the cache would block or never end.
 bool loadCached(const std::filesystem::path& off, double v, int level, const SfsOptions& opt, StressFreeState& s,
                 std::string& reason) {
     std::filesystem::path meta = off;
@@ -81,8 +89,16 @@ bool loadCached(const std::filesystem::path& off, double v, int level, const Sfs
         reason = "missing";
         return false;
     }
+    if (!std::filesystem::is_regular_file(off) || !std::filesystem::is_regular_file(meta)) {
+        reason = "not a regular file";
+        return false;
+    }
     try {
         const nlohmann::json j = nlohmann::json::parse(readFileBytes(meta));
+        if (!j.contains("meta_checksum") || j.at("meta_checksum").get<std::string>() != metadataChecksum(j)) {
+            reason = "metadata checksum mismatch";
+            return false;
+        }
         const std::string bytes = readFileBytes(off);
         if (j.at("model_version").get<int>() != kSfsModelVersion || j.at("level").get<int>() != level ||
             j.at("v").get<double>() != v || j.at("gradient_tolerance").get<double>() > opt.gradientTolerance) {
@@ -136,13 +152,14 @@ void storeCached(const std::filesystem::path& off, const StressFreeState& s, con
     std::filesystem::path tmpMeta = meta;
     tmpMeta += stamp;
     writeOff(tmpOff.string(), s.mesh);
-    const nlohmann::json j = {{"model_version", kSfsModelVersion},
+    nlohmann::json j = {{"model_version", kSfsModelVersion},
                               {"trbc_version", kVersion},
                               {"v", s.v},
                               {"level", s.level},
                               {"gradient_tolerance", opt.gradientTolerance},
                               {"checksum", fmt::format("{:016x}", fnv1a(readFileBytes(tmpOff)))},
                               {"diagnostics", diagnosticsJson(s)}};
+    j["meta_checksum"] = metadataChecksum(j);
     {
         std::ofstream out(tmpMeta);
         out << j.dump(2) << '\n';

@@ -341,6 +341,11 @@ private:
 void checkOptions(const CellFlowOptions& o) {
     requirePositive("tEnd", o.tEnd, "(internal time)");
     requirePositive("frameInterval", o.frameInterval, "(internal time)");
+    // Every saved frame is kept in memory (3 Nv doubles each): their count is bounded before the run.
+    if (o.tEnd / o.frameInterval > double(kMaxFlowFrames))
+        throw InputError(fmt::format("frames = duration / frame interval = {:.3g} is more than the limit of {} saved frames; raise "
+                                     "--frame-interval to at least {:.3g} (internal time) or shorten the run",
+                                     o.tEnd / o.frameInterval, kMaxFlowFrames, o.tEnd / double(kMaxFlowFrames)));
     requirePositive("errorTolerance", o.errorTolerance, "R_A");
     requirePositive("dtInitial", o.dtInitial, "(internal time)");
     requirePositive("dtMin", o.dtMin, "(internal time)");

@@ -64,6 +64,9 @@
 
 namespace trbc {
 
+/// The most frames a flow run saves (duration / frame interval): each is 3 Nv doubles in memory.
+inline constexpr long kMaxFlowFrames = 100000;
+
 /// Physical flow conditions of one run.
 struct FlowConditions {
     double etaOut = 28.9;      ///< outer (suspending) viscosity, mPa s

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,9 @@
 #include <utility>
 
 #include "core/error.hpp"
+#include "core/file_io.hpp"
+#include "core/hash.hpp"
+#include "core/log.hpp"
 
 namespace trbc {
 
@@ -488,74 +492,78 @@ TmcmcStageInfo stageFromJson(const nlohmann::json& j) {
 }
 
 template <class T>
-void writeRaw(std::ofstream& f, const T* data, std::size_t count) {
-    f.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(sizeof(T) * count));
+void appendRaw(std::string& bytes, const T* data, std::size_t count) {
+    bytes.append(reinterpret_cast<const char*>(data), sizeof(T) * count);
 }
 
+/// Reads `count` values at `offset` of `bytes`; false when the bytes end first.
 template <class T>
-void readRaw(std::ifstream& f, T* data, std::size_t count) {
-    f.read(reinterpret_cast<char*>(data), static_cast<std::streamsize>(sizeof(T) * count));
+bool takeRaw(const std::string& bytes, std::size_t& offset, T* data, std::size_t count) {
+    const std::size_t size = sizeof(T) * count;
+    if (bytes.size() < offset || bytes.size() - offset < size) return false;
+    std::memcpy(data, bytes.data() + offset, size);
+    offset += size;
+    return true;
 }
 
+/// The header's own checksum: FNV-1a of its JSON text without the "checksum" key.
+std::string headerChecksum(nlohmann::json h) {
+    h.erase("checksum");
+    return fmt::format("{:016x}", fnv1a(h.dump()));
+}
+
+// Both files carry an FNV-1a checksum (core/hash.hpp): the binary's in the header
+// ("dataChecksum"), the header's in itself ("checksum"), so that one flipped bit in either is
+// seen and the run starts afresh instead of resuming from a wrong population.
 void writeCheckpoint(const TmcmcOptions& opt, const RunState& st) {
     const fs::path dir(opt.checkpointDirectory);
     std::error_code ec;
     fs::create_directories(dir, ec);
-    if (ec) throw InputError(fmt::format("TMCMC checkpoint: cannot create directory '{}': {}", dir.string(), ec.message()));
+    if (ec) throw IoError(fmt::format("TMCMC checkpoint: cannot create directory '{}': {}", dir.string(), ec.message()));
     const int n = static_cast<int>(st.pop.theta.rows()), N = static_cast<int>(st.pop.theta.cols());
 
-    const fs::path bin = dir / binaryName(st.stage), binTmp = dir / (binaryName(st.stage) + ".tmp");
-    {
-        std::ofstream f(binTmp, std::ios::binary | std::ios::trunc);
-        if (!f) throw InputError(fmt::format("TMCMC checkpoint: cannot open '{}' for writing", binTmp.string()));
-        const std::int64_t header[3] = {n, N, st.stage};
-        const double scalars[2] = {st.rho, st.logEvidence};
-        f.write(kMagic, sizeof kMagic);
-        writeRaw(f, header, 3);
-        writeRaw(f, scalars, 2);
-        writeRaw(f, st.pop.theta.data(), static_cast<std::size_t>(n) * static_cast<std::size_t>(N));
-        writeRaw(f, st.pop.logLike.data(), static_cast<std::size_t>(N));
-        writeRaw(f, st.pop.logPrior.data(), static_cast<std::size_t>(N));
-        if (!f) throw InputError(fmt::format("TMCMC checkpoint: error while writing '{}' (disk full?)", binTmp.string()));
-    }
-    fs::rename(binTmp, bin);
+    const fs::path bin = dir / binaryName(st.stage);
+    std::string bytes(kMagic, sizeof kMagic);
+    const std::int64_t header[3] = {n, N, st.stage};
+    const double scalars[2] = {st.rho, st.logEvidence};
+    appendRaw(bytes, header, 3);
+    appendRaw(bytes, scalars, 2);
+    appendRaw(bytes, st.pop.theta.data(), static_cast<std::size_t>(n) * static_cast<std::size_t>(N));
+    appendRaw(bytes, st.pop.logLike.data(), static_cast<std::size_t>(N));
+    appendRaw(bytes, st.pop.logPrior.data(), static_cast<std::size_t>(N));
+    writeFileAtomically(bin, bytes);
 
     nlohmann::json h;
     h["format"] = "trbc-tmcmc-checkpoint";
-    h["version"] = 1;
+    h["version"] = 2;
     h["options"] = optionsToJson(opt, n);
     h["stage"] = st.stage;
     h["exponent"] = numberToJson(st.rho);               // informative; the exact values are in the binary file
     h["logEvidence"] = numberToJson(st.logEvidence);
     h["likelihoodEvaluations"] = st.evaluations;
     h["dataFile"] = bin.filename().string();
+    h["dataChecksum"] = fmt::format("{:016x}", fnv1a(bytes));
     h["stages"] = nlohmann::json::array();
     for (const auto& s : st.stages) h["stages"].push_back(stageToJson(s));
-    const fs::path hdr = dir / kHeaderName, hdrTmp = dir / (std::string(kHeaderName) + ".tmp");
-    {
-        std::ofstream f(hdrTmp, std::ios::trunc);
-        if (!f) throw InputError(fmt::format("TMCMC checkpoint: cannot open '{}' for writing", hdrTmp.string()));
-        f << h.dump(1) << '\n';
-        if (!f) throw InputError(fmt::format("TMCMC checkpoint: error while writing '{}' (disk full?)", hdrTmp.string()));
-    }
-    fs::rename(hdrTmp, hdr);
+    h["checksum"] = headerChecksum(h);
+    writeFileAtomically(dir / kHeaderName, h.dump(1) + "\n");
     if (st.stage > 0) fs::remove(dir / binaryName(st.stage - 1), ec);  // superseded
 }
 
-/// Loads the checkpoint if there is one (false if none); throws InputError when it was written
-/// by a run with different options or is damaged.
+/// Loads the checkpoint if there is one (false if none, or if it is damaged: reported, and the
+/// run starts afresh); throws InputError when it was written by a run with different options.
 bool readCheckpoint(const TmcmcOptions& opt, int n, RunState& st) {
     const fs::path dir(opt.checkpointDirectory), hdr = dir / kHeaderName;
     if (!fs::exists(hdr)) return false;
-    nlohmann::json h;
-    try {
-        std::ifstream f(hdr);
-        h = nlohmann::json::parse(f);
-    } catch (const nlohmann::json::exception& e) {
-        throw InputError(fmt::format("TMCMC resume: '{}' is not a valid checkpoint header: {}", hdr.string(), e.what()));
-    }
-    if (h.value("format", "") != "trbc-tmcmc-checkpoint")
-        throw InputError(fmt::format("TMCMC resume: '{}' is not a TMCMC checkpoint", hdr.string()));
+    const auto damaged = [&](const std::string& why) {
+        logMessage(LogLevel::Warning, fmt::format("TMCMC resume: the checkpoint in '{}' is damaged ({}); starting afresh", dir.string(), why));
+        return false;
+    };
+    const nlohmann::json h = nlohmann::json::parse(readFileBytes(hdr), nullptr, false);
+    if (h.is_discarded() || !h.is_object()) return damaged(hdr.filename().string() + " is not valid JSON");
+    if (h.value("format", "") != "trbc-tmcmc-checkpoint" || h.value("version", 0) != 2 || !h.contains("checksum") ||
+        !h["checksum"].is_string() || h["checksum"].get<std::string>() != headerChecksum(h))
+        return damaged(hdr.filename().string() + ": checksum mismatch or an older format");
     const nlohmann::json expected = optionsToJson(opt, n), stored = h.at("options");
     for (const auto& [key, value] : expected.items())
         if (!stored.contains(key) || stored.at(key) != value)
@@ -563,29 +571,31 @@ bool readCheckpoint(const TmcmcOptions& opt, int n, RunState& st) {
                                          "give {}; resume needs identical settings", dir.string(), key,
                                          stored.contains(key) ? stored.at(key).dump() : "(missing)", value.dump()));
     const int N = opt.populationSize;
-    const fs::path bin = dir / h.at("dataFile").get<std::string>();
-    std::ifstream f(bin, std::ios::binary);
-    if (!f) throw InputError(fmt::format("TMCMC resume: cannot open checkpoint data '{}'", bin.string()));
+    const std::string dataFile = h.at("dataFile").get<std::string>();
+    if (dataFile.find('/') != std::string::npos) return damaged("dataFile names another directory");
+    const fs::path bin = dir / dataFile;
+    const std::string bytes = fs::is_regular_file(bin) ? readFileBytes(bin) : std::string();
+    if (h.value("dataChecksum", "") != fmt::format("{:016x}", fnv1a(bytes)))
+        return damaged(bin.filename().string() + ": missing or checksum mismatch");
     char magic[8];
     std::int64_t header[3];
     double scalars[2];
-    f.read(magic, sizeof magic);
-    readRaw(f, header, 3);
-    readRaw(f, scalars, 2);
-    if (!f || !std::equal(magic, magic + 8, kMagic) || header[0] != n || header[1] != N ||
-        header[2] != h.at("stage").get<int>())
-        throw InputError(fmt::format("TMCMC resume: checkpoint data '{}' is damaged or does not match its header", bin.string()));
-    st.pop = Population{Eigen::MatrixXd(n, N), Eigen::VectorXd(N), Eigen::VectorXd(N)};
-    readRaw(f, st.pop.theta.data(), static_cast<std::size_t>(n) * static_cast<std::size_t>(N));
-    readRaw(f, st.pop.logLike.data(), static_cast<std::size_t>(N));
-    readRaw(f, st.pop.logPrior.data(), static_cast<std::size_t>(N));
-    if (!f) throw InputError(fmt::format("TMCMC resume: checkpoint data '{}' is truncated", bin.string()));
-    st.rho = scalars[0];
-    st.logEvidence = scalars[1];
-    st.stage = static_cast<int>(header[2]);
-    st.evaluations = h.at("likelihoodEvaluations").get<long long>();
-    st.stages.clear();
-    for (const auto& s : h.at("stages")) st.stages.push_back(stageFromJson(s));
+    std::size_t offset = 0;
+    if (!takeRaw(bytes, offset, magic, 8) || !takeRaw(bytes, offset, header, 3) || !takeRaw(bytes, offset, scalars, 2) ||
+        !std::equal(magic, magic + 8, kMagic) || header[0] != n || header[1] != N || header[2] != h.at("stage").get<int>())
+        return damaged(bin.filename().string() + " does not match its header");
+    RunState loaded;
+    loaded.pop = Population{Eigen::MatrixXd(n, N), Eigen::VectorXd(N), Eigen::VectorXd(N)};
+    if (!takeRaw(bytes, offset, loaded.pop.theta.data(), static_cast<std::size_t>(n) * static_cast<std::size_t>(N)) ||
+        !takeRaw(bytes, offset, loaded.pop.logLike.data(), static_cast<std::size_t>(N)) ||
+        !takeRaw(bytes, offset, loaded.pop.logPrior.data(), static_cast<std::size_t>(N)) || offset != bytes.size())
+        return damaged(bin.filename().string() + " is truncated");
+    loaded.rho = scalars[0];
+    loaded.logEvidence = scalars[1];
+    loaded.stage = static_cast<int>(header[2]);
+    loaded.evaluations = h.at("likelihoodEvaluations").get<long long>();
+    for (const auto& s : h.at("stages")) loaded.stages.push_back(stageFromJson(s));
+    st = std::move(loaded);
     return true;
 }
 

@@ -2,7 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <unistd.h>
+
+#include <atomic>
 #include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -90,14 +94,15 @@ private:
 
 std::ofstream openForWriting(const std::string& path) {
     std::ofstream out(path);
-    if (!out) throw InputError(fmt::format("cannot open '{}' for writing", path));
+    if (!out) throw IoError(fmt::format("cannot open '{}' for writing: {}", path, std::strerror(errno)));
     out.precision(17);
     return out;
 }
 
 void finishWriting(std::ofstream& out, const std::string& path) {
+    errno = 0;
     out.flush();
-    if (!out) throw InputError(fmt::format("error while writing '{}' (disk full or unwritable?)", path));
+    if (!out) throw IoError(fmt::format("error while writing '{}': {}", path, errno != 0 ? std::strerror(errno) : "write failed"));
 }
 
 void checkFields(const Mesh& mesh, const std::vector<VertexField>& fields) {
@@ -494,10 +499,15 @@ void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<Vert
     if (kind != std::filesystem::file_type::not_found && kind != std::filesystem::file_type::regular &&
         kind != std::filesystem::file_type::none)
         return write(path);  // a device or a pipe: in place, checked at the flush
-    // Through PATH.tmp and rename(2), so that a failed write leaves no partial mesh behind.
-    const std::string tmp = path + ".tmp";
+    // Through PATH.tmp.<pid>.<n> and rename(2), so that a failed write leaves no partial mesh
+    // behind and concurrent writers never share a temporary.
+    static std::atomic<unsigned long> temporaries{0};
+    const std::string tmp = fmt::format("{}.tmp.{}.{}", path, ::getpid(), temporaries++);
     try {
         write(tmp);
+    } catch (const IoError& e) {
+        std::filesystem::remove(tmp, ec);
+        throw IoError(fmt::format("cannot write '{}': {}", path, e.what()));
     } catch (const InputError& e) {
         std::filesystem::remove(tmp, ec);
         throw InputError(fmt::format("cannot write '{}': {}", path, e.what()));
@@ -506,7 +516,7 @@ void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<Vert
     if (ec) {
         const std::string why = ec.message();
         std::filesystem::remove(tmp, ec);
-        throw InputError(fmt::format("cannot write '{}': {}", path, why));
+        throw IoError(fmt::format("cannot write '{}': {}", path, why));
     }
 }
 

@@ -741,6 +741,8 @@ PYBIND11_MODULE(_core, m) {
             PyErr_SetString(PyExc_ValueError, e.what());
         } catch (const NumericalError& e) {
             numericalError(e.what());
+        } catch (const IoError& e) {
+            PyErr_SetString(PyExc_OSError, e.what());
         }
     });
 

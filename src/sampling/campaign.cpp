@@ -6,8 +6,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -263,8 +266,8 @@ int openPartFile(const CampaignOptions& o, int rank, const std::map<long, Campai
             if (finished.count(r.point.sampleId)) keep += formatCampaignRow(r) + "\n";
     }
     writeFileAtomically(part, keep);
-    const int fd = ::open(part.c_str(), O_WRONLY | O_APPEND);
-    if (fd < 0) throw InputError(fmt::format("cannot open {} for appending", part.string()));
+    const int fd = ::open(part.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd < 0) throw IoError(fmt::format("cannot open {} for appending: {}", part.string(), std::strerror(errno)));
     return fd;
 }
 
@@ -274,10 +277,12 @@ void appendBlock(int fd, const std::string& block, const fs::path& part) {
     std::size_t off = 0;
     while (off < block.size()) {
         const ssize_t n = ::write(fd, block.data() + off, block.size() - off);
-        if (n < 0) throw InputError(fmt::format("cannot append to {}", part.string()));
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) throw IoError(fmt::format("cannot append to {}: {}", part.string(), std::strerror(errno)));
         off += std::size_t(n);
     }
-    ::fsync(fd);
+    if (::fsync(fd) != 0 && errno != EINVAL && errno != EROFS)
+        throw IoError(fmt::format("cannot append to {}: {}", part.string(), std::strerror(errno)));
 }
 
 void markFailed(std::vector<CampaignRow>& rows, const std::string& reason) {
@@ -459,7 +464,8 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
     std::error_code ec;
     fs::create_directories(equilibriaDir(o), ec);
     std::ofstream records(equilibriaPart(o, rank), std::ios::app);
-    if (ec || !records) throw InputError(fmt::format("cannot append to {}", equilibriaPart(o, rank).string()));
+    if (ec || !records)
+        throw IoError(fmt::format("cannot append to {}: {}", equilibriaPart(o, rank).string(), ec ? ec.message() : std::strerror(errno)));
 
     std::vector<std::size_t> pending;
     CampaignProgress prog;
@@ -476,9 +482,13 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
     prog.cellsDone = prog.cellsResumed;
     if (o.progress) o.progress(prog);
 
+    // A write error stops the run: the cells not started yet are skipped (a full disk would lose
+    // their rows anyway) and the error is reported with the system's reason.
     std::string error;
+    std::atomic<bool> stop{false};
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.threads)
     for (std::size_t k = 0; k < pending.size(); ++k) {
+        if (stop.load()) continue;
         omp_set_num_threads(1);  // one thread per cell: the force loops inside stay serial
         const auto& cell = cells[pending[k]];
         const bool inject = std::any_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return o.injectFailures.count(q.sampleId); });
@@ -497,9 +507,12 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
             try {
                 // The record first: a cell counts as done only once its rows are appended.
                 records << formatCellRecord(record) << std::endl;
+                if (!records)
+                    throw IoError(fmt::format("cannot append to {}: {}", equilibriaPart(o, rank).string(), std::strerror(errno)));
                 appendBlock(fd, block, partPath(o, rank));
             } catch (const std::exception& e) {
-                error = e.what();
+                if (error.empty()) error = e.what();
+                stop = true;
             }
             ++prog.cellsDone;
             for (const CampaignRow& r : rows) (r.ok() ? prog.rowsOk : prog.rowsFailed)++;
@@ -508,7 +521,7 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
         }
     }
     ::close(fd);
-    if (!error.empty()) throw InputError(error);
+    if (!error.empty()) throw IoError(error);
 
     CampaignSummary s;
     s.cellsComputed = long(pending.size());

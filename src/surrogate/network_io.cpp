@@ -221,10 +221,18 @@ void writeLayers(const Mlp& net, json& obj) {
 Mlp readLayers(const Reader& r, const json& obj, const std::vector<int>& sizes, const std::string& parent) {
     const std::size_t L = sizes.size() - 1;
     const auto path = [&](const char* name) { return parent.empty() ? std::string(name) : parent + "." + name; };
-    Mlp net(sizes);
-    // weights[l]: n_{l+1} rows of n_l numbers; biases[l]: n_{l+1} numbers
+    // weights[l]: n_{l+1} rows of n_l numbers; biases[l]: n_{l+1} numbers. The shapes that the
+    // file holds are checked before the network is allocated: layer_sizes cannot ask for more
+    // memory than the file's own numbers take (a 100-byte file cannot claim a million-wide layer).
     const json& weights = r.array(r.key(obj, "weights", parent), path("weights"), L);
     const json& biases = r.array(r.key(obj, "biases", parent), path("biases"), L);
+    for (std::size_t l = 0; l < L; ++l) {
+        const std::string wp = index(path("weights"), l);
+        const json& rows = r.array(weights[l], wp, static_cast<std::size_t>(sizes[l + 1]));
+        for (std::size_t i = 0; i < rows.size(); ++i) r.array(rows[i], index(wp, i), static_cast<std::size_t>(sizes[l]));
+        r.array(biases[l], index(path("biases"), l), static_cast<std::size_t>(sizes[l + 1]));
+    }
+    Mlp net(sizes);
     for (std::size_t l = 0; l < L; ++l) {
         const int li = static_cast<int>(l);
         const std::string wp = index(path("weights"), l);

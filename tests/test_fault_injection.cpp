@@ -1,0 +1,366 @@
+// trbc under faults: concurrent runs on one output directory, SIGKILL of a driver with its child
+// running, a full disk (an LD_PRELOAD write shim), corrupted checkpoints and caches, hostile names
+// and configurations, and inputs that ask for unbounded work. docs/RELIABILITY.md lists the
+// guarantee each test checks.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <sys/stat.h>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "analysis/calibrate_config.hpp"
+#include "analysis/validation.hpp"
+#include "core/error.hpp"
+#include "core/file_io.hpp"
+#include "core/output_dir.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using test::CliRun;
+using test::runTrbc;
+using test::shellQuote;
+using test::TempDir;
+using test::writeText;
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+/// Starts `trbc ARGS` in the background (stdout and stderr to `log`) and returns its pid.
+pid_t startTrbc(const std::string& args, const fs::path& log, const fs::path& scratch) {
+    const fs::path pidFile = scratch / "bg.pid";
+    fs::remove(pidFile);
+    const std::string cmd = "(" + shellQuote(TRBC_CLI) + " " + args + " > " + shellQuote(log.string()) + " 2>&1 < /dev/null & echo $! > " +
+                            shellQuote(pidFile.string()) + ")";
+    if (std::system(cmd.c_str()) != 0) return -1;
+    for (int i = 0; i < 200 && test::slurp(pidFile).empty(); ++i) std::this_thread::sleep_for(10ms);
+    return static_cast<pid_t>(std::stol(test::slurp(pidFile)));
+}
+
+/// Processes (other than this test) whose command line mentions `needle`.
+int processesMentioning(const std::string& needle) {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator("/proc")) {
+        const std::string name = e.path().filename().string();
+        if (name.find_first_not_of("0123456789") != std::string::npos || std::stoi(name) == ::getpid()) continue;
+        std::string cmd = test::slurp(e.path() / "cmdline");
+        std::replace(cmd.begin(), cmd.end(), '\0', ' ');
+        if (contains(cmd, needle)) ++n;
+    }
+    return n;
+}
+
+bool alive(pid_t pid) {
+    // A zombie (killed, not reaped by the shell that started it) counts as gone.
+    const std::string stat = test::slurp(fs::path("/proc") / std::to_string(pid) / "stat");
+    if (stat.empty()) return false;
+    const auto close = stat.rfind(')');
+    return close != std::string::npos && close + 2 < stat.size() && stat[close + 2] != 'Z';
+}
+
+/// The shell prefix that makes every write into `dir` fail with ENOSPC after `after` bytes.
+std::string fullDisk(const fs::path& dir, long after) {
+    return "env LD_PRELOAD=" + shellQuote(TRBC_ENOSPC_SHIM) + " TRBC_ENOSPC_DIR=" + shellQuote(dir.string()) +
+           " TRBC_ENOSPC_AFTER=" + std::to_string(after) + " ";
+}
+
+// ---- one writer per output directory --------------------------------------------------------
+
+TEST(OutputDirectoryContract, ASecondWriterIsRefusedAndNoLockStaysBehind) {
+    TempDir tmp;
+    const fs::path out = tmp.path() / "out";
+    {
+        const OutputDirectory first(out, "campaign");
+        EXPECT_TRUE(fs::exists(out / kOutputLockName));
+        try {
+            const OutputDirectory second(out, "campaign");
+            ADD_FAILURE() << "a second writer was let in";
+        } catch (const InputError& e) {
+            EXPECT_TRUE(contains(e.what(), "another trbc process (pid " + std::to_string(::getpid()) + ") is writing into")) << e.what();
+        }
+    }
+    EXPECT_FALSE(fs::exists(out / kOutputLockName));
+    EXPECT_TRUE(fs::exists(out / kOutputMarkerName));
+    // A lock file left by a killed holder does not block.
+    writeText(out / kOutputLockName, "999999");
+    EXPECT_NO_THROW(OutputDirectory(out, "campaign"));
+    // Another command's output, and a folder that trbc did not make, are refused.
+    EXPECT_THROW(OutputDirectory(out, "infer"), InputError);
+    writeText(tmp.path() / "mine" / "notes.txt", "keep me\n");
+    try {
+        const OutputDirectory foreign(tmp.path() / "mine", "validate");
+        ADD_FAILURE() << "a foreign folder was accepted";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "notes.txt")) << e.what();
+    }
+    EXPECT_EQ(test::slurp(tmp.path() / "mine" / "notes.txt"), "keep me\n");
+    // A run that fails before writing anything leaves no folder behind.
+    try {
+        const OutputDirectory fresh(tmp.path() / "fresh", "sobol");
+        throw InputError("bad option");
+    } catch (const InputError&) {
+    }
+    EXPECT_FALSE(fs::exists(tmp.path() / "fresh"));
+}
+
+TEST(OutputDirectoryContract, ConcurrentAtomicWritesNeverShareATemporary) {
+    TempDir tmp;
+    const fs::path file = tmp.path() / "record.json";
+    std::vector<std::thread> writers;
+    std::atomic<int> failures{0};
+    for (int t = 0; t < 4; ++t)
+        writers.emplace_back([&, t] {
+            const std::string text(1000 + t, char('a' + t));
+            for (int k = 0; k < 200; ++k) try {
+                    writeFileAtomically(file, text);
+                } catch (const std::exception&) {
+                    ++failures;
+                }
+        });
+    for (std::thread& w : writers) w.join();
+    EXPECT_EQ(failures.load(), 0);
+    const std::string text = test::slurp(file);
+    ASSERT_GE(text.size(), 1000u);
+    EXPECT_EQ(text, std::string(text.size(), text[0]));  // one writer's whole text
+    int left = 0;
+    for (const auto& e : fs::directory_iterator(tmp.path())) left += e.path().filename() != "record.json";
+    EXPECT_EQ(left, 0) << "temporaries left behind";
+}
+
+TEST(OutputDirectoryContract, EveryWritingCommandRefusesAForeignFolder) {
+    TempDir tmp;
+    const fs::path foreign = tmp.path() / "foreign";
+    writeText(foreign / "validation.md", "a user's notes\n");
+    writeText(foreign / "shear.csv", "a user's table\n");
+    const fs::path cfg = writeText(tmp.path() / "v.toml", "[run]\nlevel = 1\n[shear]\nrotations = 1\n"
+                                                          "[[shear.angle]]\neta_out = 23.9\nrate_min = 40\nrate_max = 40\ncount = 1\n"
+                                                          "[tube]\nenabled = false\n");
+    const std::string out = " --out " + shellQuote(foreign.string());
+    for (const std::string& args :
+         {"validate --quiet --config " + shellQuote(cfg.string()) + out, "sobol --samples 2 --forces 2 --resamples 4 --no-plot" + out,
+          "infer --phase 1 --samples 100 --quiet" + out, "campaign --samples 8 --forces-per-cell 4 --level 2 --no-cache" + out}) {
+        const CliRun r = runTrbc(args, tmp.path());
+        EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+        EXPECT_TRUE(contains(r.err, "that `trbc ")) << args << "\n" << r.err;
+    }
+    EXPECT_EQ(test::slurp(foreign / "validation.md"), "a user's notes\n");
+    EXPECT_EQ(test::slurp(foreign / "shear.csv"), "a user's table\n");
+    // Its own folder again: accepted, and no lock file is left.
+    const fs::path sobol = tmp.path() / "sobol";
+    for (int k = 0; k < 2; ++k) {
+        const CliRun r = runTrbc("sobol --samples 2 --forces 2 --resamples 4 --no-plot --out " + shellQuote(sobol.string()), tmp.path());
+        EXPECT_EQ(r.status, 0) << r.err;
+    }
+    EXPECT_FALSE(fs::exists(sobol / kOutputLockName));
+    const CliRun other = runTrbc("infer --phase 1 --samples 100 --quiet --out " + shellQuote(sobol.string()), tmp.path());
+    EXPECT_EQ(other.status, 2);
+    EXPECT_TRUE(contains(other.err, "holds the output of `trbc sobol`")) << other.err;
+}
+
+TEST(OutputDirectoryContract, ASecondCampaignResumeIntoARunningOneIsRefused) {
+    TempDir tmp;
+    const fs::path out = tmp.path() / "c";
+    const std::string args = "campaign --samples 600 --forces-per-cell 3 --level 2 --seed 11 --threads 1 --out " + shellQuote(out.string());
+    const pid_t first = startTrbc(args, tmp.path() / "first.log", tmp.path());
+    ASSERT_GT(first, 0);
+    for (int i = 0; i < 500 && !fs::exists(out / "parts" / "rank0.csv"); ++i) std::this_thread::sleep_for(10ms);
+    ASSERT_TRUE(fs::exists(out / "parts" / "rank0.csv")) << test::slurp(tmp.path() / "first.log");
+    const CliRun second = runTrbc(args + " --resume", tmp.path());
+    EXPECT_EQ(second.status, 2) << second.err;
+    EXPECT_TRUE(contains(second.err, "another trbc process (pid " + std::to_string(first) + ") is writing into")) << second.err;
+    EXPECT_TRUE(alive(first)) << test::slurp(tmp.path() / "first.log");
+    ::kill(first, SIGKILL);
+    for (int i = 0; i < 200 && alive(first); ++i) std::this_thread::sleep_for(10ms);
+    // The lock file of the killed run does not block: the next run gets as far as its settings.
+    const CliRun third = runTrbc(args + " --resume --forces-per-cell 2", tmp.path());
+    EXPECT_EQ(third.status, 2);
+    EXPECT_TRUE(contains(third.err, "was made with different settings")) << third.err;
+}
+
+// ---- children die with their parent ---------------------------------------------------------
+
+TEST(ChildProcesses, ASigkilledValidateTakesItsCaseWithItAndResumes) {
+    TempDir tmp;
+    const std::string head = "[run]\nlevel = 1\njobs = 1\n[shear]\n";
+    const std::string cases = "[[shear.angle]]\neta_out = 23.9\nrate_min = 40\nrate_max = 40\ncount = 1\n[tube]\nenabled = false\n";
+    const fs::path slow = writeText(tmp.path() / "slow.toml", head + "rotations = 1000\n" + cases);
+    const fs::path quick = writeText(tmp.path() / "quick.toml", head + "rotations = 1\n" + cases);
+    const fs::path out = tmp.path() / "o";
+    const pid_t driver = startTrbc("validate --quiet --config " + shellQuote(slow.string()) + " --out " + shellQuote(out.string()),
+                                   tmp.path() / "log", tmp.path());
+    ASSERT_GT(driver, 0);
+    const std::string caseDir = (out / "cases" / "angle_eta23.9_rate40").string();
+    for (int i = 0; i < 500 && processesMentioning(caseDir) == 0; ++i) std::this_thread::sleep_for(10ms);
+    ASSERT_GT(processesMentioning(caseDir), 0) << test::slurp(tmp.path() / "log");
+    ::kill(driver, SIGKILL);
+    int left = -1;
+    for (int i = 0; i < 100; ++i) {
+        std::this_thread::sleep_for(50ms);
+        if ((left = processesMentioning(caseDir)) == 0) break;
+    }
+    EXPECT_EQ(left, 0) << "the case outlived its driver";
+    const CliRun r = runTrbc("validate --quiet --config " + shellQuote(quick.string()) + " --out " + shellQuote(out.string()), tmp.path());
+    EXPECT_EQ(r.status, 0) << r.err;
+}
+
+// ---- a full disk ----------------------------------------------------------------------------
+
+TEST(FullDisk, ValidateStopsWithTheSystemMessageAndRecordsNoFailure) {
+    TempDir tmp;
+    const fs::path cfg = writeText(tmp.path() / "v.toml", "[run]\nlevel = 1\njobs = 1\n[shear]\nrotations = 1\n"
+                                                          "[[shear.angle]]\neta_out = 23.9\nrate_min = 40\nrate_max = 40\ncount = 1\n"
+                                                          "[tube]\nenabled = false\n");
+    const fs::path out = tmp.path() / "o";
+    const std::string id = "angle_eta23.9_rate40";
+    const std::string args = "validate --quiet --config " + shellQuote(cfg.string()) + " --out " + shellQuote(out.string());
+    CliRun r = test::runShell(fullDisk(out / "cases" / id, 64) + shellQuote(TRBC_CLI) + " " + args, tmp.path());
+    EXPECT_EQ(r.status, 5) << r.err;
+    EXPECT_TRUE(contains(r.err, "No space left on device")) << r.err;
+    EXPECT_FALSE(fs::exists(out / "cases" / (id + ".json"))) << test::slurp(out / "cases" / (id + ".json"));
+    // Room again: the case runs, and nothing was kept as a failure.
+    r = runTrbc(args, tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const nlohmann::json rec = nlohmann::json::parse(test::slurp(out / "cases" / (id + ".json")));
+    EXPECT_EQ(rec["result"]["status"], "ok");
+}
+
+TEST(FullDisk, CampaignStopsAtTheFirstFailedWriteWithTheSystemMessage) {
+    TempDir tmp;
+    const fs::path out = tmp.path() / "c";
+    const std::string args = "campaign --samples 40 --forces-per-cell 4 --level 2 --seed 5 --no-cache --threads 1 --out " +
+                             shellQuote(out.string());
+    // The part file's header fits; the first cell's rows do not.
+    const CliRun r = test::runShell(fullDisk(out / "parts", 200) + shellQuote(TRBC_CLI) + " " + args, tmp.path());
+    EXPECT_EQ(r.status, 5) << r.err;
+    EXPECT_TRUE(contains(r.err, "No space left on device")) << r.err;
+    std::istringstream records(test::slurp(out / "equilibria" / "rank0.csv"));
+    int lines = 0;
+    for (std::string l; std::getline(records, l);) lines += !l.empty();
+    EXPECT_LE(lines, 2) << "cells went on after the disk was full";
+}
+
+// ---- names that cannot break files ----------------------------------------------------------
+
+TEST(HostileNames, DataSetNamesAreCheckedOnce) {
+    TempDir tmp;
+    const auto error = [&](const std::string& name) {
+        const fs::path file = writeText(tmp.path() / "c.toml", "[[data]]\nname = \"" + name +
+                                                                 "\"\nexperiment = \"stretching\"\nfile = "
+                                                                 "\"@experiments/stretching/mills_2004.csv\"\n");
+        try {
+            readCalibrateConfig(file, test::experimentsDir());
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    for (const std::string& bad : {std::string("a,b"), std::string("a\\nb"), std::string("."), std::string(".."),
+                                   std::string(253, 'x'), std::string("a|b"), std::string("a b")}) {
+        const std::string e = error(bad);
+        EXPECT_TRUE(contains(e, "data name")) << bad << ": " << e;
+        EXPECT_TRUE(contains(e, "A-Z a-z 0-9 _ . -") || contains(e, "'.' and '..'")) << e;
+    }
+    EXPECT_EQ(error("mills_2004-copy.2"), "");
+    EXPECT_NO_THROW(checkFileName(std::string(100, 'a'), "name"));
+    EXPECT_THROW(checkFileName(std::string(101, 'a'), "name"), InputError);
+}
+
+TEST(HostileNames, CaseIdsAreUniqueForDistinctInputs) {
+    const std::vector<ValidationCase> none;
+    EXPECT_EQ(uniqueShearCaseId("angle", 23.9, 20.0, none), "angle_eta23.9_rate20");  // short where it can be
+    std::vector<ValidationCase> cases = {{uniqueShearCaseId("angle", 23.9, 20.001, none), "angle", 23.9, 20.001}};
+    const std::string close = uniqueShearCaseId("angle", 23.9, 20.002, cases);
+    EXPECT_NE(close, cases[0].id);
+    EXPECT_EQ(uniqueShearCaseId("angle", 23.9, 20.001, cases), cases[0].id);  // the same input keeps its id
+    // Two sweeps whose rates agree to four digits give two cases.
+    ValidationConfig c;
+    c.tubeEnabled = false;
+    c.sweeps = {{.kind = "angle", .etaOut = 23.9, .rateMin = 20.001, .rateMax = 20.001, .count = 1},
+                {.kind = "angle", .etaOut = 23.9, .rateMin = 20.002, .rateMax = 20.002, .count = 1}};
+    const std::vector<ValidationCase> all = initialValidationCases(c);
+    ASSERT_EQ(all.size(), 2u);
+    EXPECT_NE(all[0].id, all[1].id);
+}
+
+// ---- corrupted caches -----------------------------------------------------------------------
+
+TEST(CorruptedCache, EditedSfsMetadataIsRejectedAndAFifoDoesNotHang) {
+    TempDir tmp;
+    const fs::path cache = tmp.path() / "cache";
+    const std::string args = "sfs --v 0.7 --level 1 --cache " + shellQuote(cache.string()) + " --out " + shellQuote((tmp.path() / "s.off").string());
+    CliRun r = runTrbc(args, tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    fs::path meta, off;
+    for (const auto& e : fs::directory_iterator(cache)) (e.path().extension() == ".json" ? meta : off) = e.path();
+    ASSERT_FALSE(meta.empty());
+    std::string text = test::slurp(meta);
+    const auto at = text.find("\"converged\": true");
+    ASSERT_NE(at, std::string::npos) << text;
+    text.replace(at, 17, "\"converged\": false");
+    writeText(meta, text);
+    r = runTrbc(args, tmp.path());
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(contains(r.err, "metadata checksum mismatch")) << r.err;
+    EXPECT_TRUE(contains(test::slurp(meta), "\"converged\": true"));  // rebuilt
+    // A FIFO in place of the mesh: skipped, not read.
+    fs::remove(off);
+    ASSERT_EQ(::mkfifo(off.c_str(), 0644), 0);
+    r = test::runShell("timeout 60 " + shellQuote(TRBC_CLI) + " " + args, tmp.path());
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(contains(r.err, "not a regular file")) << r.err;
+}
+
+// ---- bounded work from bounded input --------------------------------------------------------
+
+TEST(BoundedWork, AllocationBombsExitTwoQuicklyUnderAMemoryLimit) {
+    TempDir tmp;
+    // A surrogate directory whose relaxation network claims a million-wide hidden layer.
+    const fs::path model = tmp.path() / "model";
+    fs::copy(test::sourceRoot() / "data" / "surrogates", model, fs::copy_options::recursive);
+    writeText(model / "relaxation.json", R"({"format":"trbc-mlp","version":1,"activation":"tanh","layer_sizes":[3,1048576,60,3],)"
+                                         R"("weights":[[],[],[]],"biases":[[],[],[]]})");
+    const fs::path in = writeText(tmp.path() / "in.csv", "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN\n0.95,4,250,1.5,0.7,100\n");
+    std::string deep = "[a";
+    for (int k = 0; k < 60000; ++k) deep += ".a";
+    const fs::path deepToml = writeText(tmp.path() / "deep.toml", deep + "]\nx = 1\n");
+    const fs::path bigToml = writeText(tmp.path() / "big.toml", "note = \"" + std::string(5u << 20, 'x') + "\"\n");
+    struct Bomb {
+        std::string args, message;
+    };
+    const std::string out = " --out " + shellQuote((tmp.path() / "o").string());
+    const std::vector<Bomb> bombs = {
+        {"surrogate eval --model " + shellQuote(model.string()) + " --in " + shellQuote(in.string()) + out, "weights"},
+        {"sobol --samples 16777216 --no-plot" + out, "2^27"},
+        {"infer --samples 100000000" + out, "[100, 1e6]"},
+        {"surrogate train --data " + shellQuote(tmp.path().string()) + " --distill-samples 1e8" + out, "--distill-samples"},
+        {"flow shear --shear-rate 10 --rotations 1000 --frame-interval 1e-6 --level 1 --no-cache" + out, "100000 saved frames"},
+        {"validate --config " + shellQuote(deepToml.string()) + out, "nested deeper than 32"},
+        {"calibrate --config " + shellQuote(deepToml.string()) + out, "nested deeper than 32"},
+        {"validate --config " + shellQuote(bigToml.string()) + out, "more than the limit of 4 MiB"},
+        {"mesh icosphere --level 1 --area 1e-300 --out " + shellQuote((tmp.path() / "m.vtk").string()), "[1e-100, 1e100]"},
+    };
+    for (const Bomb& b : bombs) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const CliRun r = test::runShell("ulimit -v 2000000; exec " + shellQuote(TRBC_CLI) + " " + b.args, tmp.path());
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        EXPECT_EQ(r.status, 2) << b.args << "\n" << r.err;
+        EXPECT_TRUE(contains(r.err, b.message)) << b.args << "\n" << r.err;
+        EXPECT_LT(seconds, 30.0) << b.args;
+    }
+    EXPECT_FALSE(fs::exists(tmp.path() / "m.vtk"));
+}
+
+}  // namespace
+}  // namespace trbc
