@@ -172,7 +172,11 @@ TEST(OutputDirectoryContract, EveryWritingCommandRefusesAForeignFolder) {
 TEST(OutputDirectoryContract, ASecondCampaignResumeIntoARunningOneIsRefused) {
     TempDir tmp;
     const fs::path out = tmp.path() / "c";
-    const std::string args = "campaign --samples 600 --forces-per-cell 3 --level 2 --seed 11 --threads 1 --out " + shellQuote(out.string());
+    const auto campaign = [&](int forces) {
+        return "campaign --samples 600 --forces-per-cell " + std::to_string(forces) + " --level 2 --seed 11 --threads 1 --out " +
+               shellQuote(out.string());
+    };
+    const std::string args = campaign(3);
     const pid_t first = startTrbc(args, tmp.path() / "first.log", tmp.path());
     ASSERT_GT(first, 0);
     for (int i = 0; i < 500 && !fs::exists(out / "parts" / "rank0.csv"); ++i) std::this_thread::sleep_for(10ms);
@@ -184,7 +188,7 @@ TEST(OutputDirectoryContract, ASecondCampaignResumeIntoARunningOneIsRefused) {
     ::kill(first, SIGKILL);
     for (int i = 0; i < 200 && alive(first); ++i) std::this_thread::sleep_for(10ms);
     // The lock file of the killed run does not block: the next run gets as far as its settings.
-    const CliRun third = runTrbc(args + " --resume --forces-per-cell 2", tmp.path());
+    const CliRun third = runTrbc(campaign(2) + " --resume", tmp.path());
     EXPECT_EQ(third.status, 2);
     EXPECT_TRUE(contains(third.err, "was made with different settings")) << third.err;
 }
@@ -258,7 +262,7 @@ TEST(HostileNames, DataSetNamesAreCheckedOnce) {
     const auto error = [&](const std::string& name) {
         const fs::path file = writeText(tmp.path() / "c.toml", "[[data]]\nname = \"" + name +
                                                                  "\"\nexperiment = \"stretching\"\nfile = "
-                                                                 "\"@experiments/stretching/mills_2004.csv\"\n");
+                                                                 "\"@experiments/stretching/mills_2004/mills_2004.csv\"\n");
         try {
             readCalibrateConfig(file, test::experimentsDir());
         } catch (const InputError& e) {
@@ -345,7 +349,7 @@ TEST(BoundedWork, AllocationBombsExitTwoQuicklyUnderAMemoryLimit) {
         {"sobol --samples 16777216 --no-plot" + out, "2^27"},
         {"infer --samples 100000000" + out, "[100, 1e6]"},
         {"surrogate train --data " + shellQuote(tmp.path().string()) + " --distill-samples 1e8" + out, "--distill-samples"},
-        {"flow shear --shear-rate 10 --rotations 1000 --frame-interval 1e-6 --level 1 --no-cache" + out, "100000 saved frames"},
+        {"flow shear --eta-out 23.9 --shear-rate 10 --rotations 1000 --frame-interval 1e-6 --level 1 --no-cache" + out, "saved frames"},
         {"validate --config " + shellQuote(deepToml.string()) + out, "nested deeper than 32"},
         {"calibrate --config " + shellQuote(deepToml.string()) + out, "nested deeper than 32"},
         {"validate --config " + shellQuote(bigToml.string()) + out, "more than the limit of 4 MiB"},

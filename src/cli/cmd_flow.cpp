@@ -122,7 +122,7 @@ struct SteppingOptions {
 };
 
 void addSteppingOptions(CLI::App* cmd, SteppingOptions& s, const std::string& unit) {
-    addNumber(cmd, "--frame-interval", s.step.frameInterval, "interval of the saved frames (duration / interval at most 100000 frames)",
+    addNumber(cmd, "--frame-interval", s.step.frameInterval, "interval of the saved frames (duration / interval at most 1e7 frames, and their positions at most 4 GiB)",
               NumberRange::leftOpen(0.0, 1e6, unit))
         ->capture_default_str();
     addNumber(cmd, "--step-tol", s.step.stepTolerance, "local error per time step, largest vertex displacement",

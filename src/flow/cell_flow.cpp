@@ -501,6 +501,13 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     if (initial.cols() != nv || !initial.allFinite())
         throw InputError(fmt::format("cell flow: initial shape has {} vertices (model {}) or non-finite positions",
                                      initial.cols(), nv));
+    const double frameBytes = opt.tEnd / opt.frameInterval * 24.0 * static_cast<double>(nv);
+    if (opt.keepFrames && frameBytes > kMaxFlowFrameBytes)
+        throw InputError(fmt::format("frames = duration / frame interval = {:.3g} of {} vertices would take {:.3g} GiB, more "
+                                     "than the limit of {:.3g} GiB; raise --frame-interval to at least {:.3g} (internal "
+                                     "time) or shorten the run",
+                                     opt.tEnd / opt.frameInterval, nv, frameBytes / 1073741824.0,
+                                     kMaxFlowFrameBytes / 1073741824.0, opt.frameInterval * frameBytes / kMaxFlowFrameBytes));
     const auto t0 = Clock::now();
     const Faces& F = model.faces();
     const double A0 = model.targetArea(), V0 = model.targetVolume();

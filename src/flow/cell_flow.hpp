@@ -64,8 +64,10 @@
 
 namespace trbc {
 
-/// The most frames a flow run saves (duration / frame interval): each is 3 Nv doubles in memory.
-inline constexpr long kMaxFlowFrames = 100000;
+/// The most frames a flow run records (duration / frame interval; a few scalars each), and the most
+/// memory its kept frames may take (3 Nv doubles each): both are checked before the run.
+inline constexpr long kMaxFlowFrames = 10000000;
+inline constexpr double kMaxFlowFrameBytes = 4.0 * 1024 * 1024 * 1024;
 
 /// Physical flow conditions of one run.
 struct FlowConditions {
