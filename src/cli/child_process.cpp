@@ -12,6 +12,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <cstdio>
 #include <cstdlib>
 #include <mutex>
 #include <vector>
@@ -98,15 +99,52 @@ int runChildProcess(const std::string& command) {
     return r == pid ? status : -1;
 }
 
+namespace {
+
+/// The parent pid and state letter of a process from /proc/PID/stat ("pid (comm) S ppid ...");
+/// false when it is gone. A zombie (state Z) has died and is only waiting to be reaped.
+bool processStat(pid_t pid, char& state, pid_t& parent) {
+    char path[64];
+    std::snprintf(path, sizeof path, "/proc/%d/stat", static_cast<int>(pid));
+    std::FILE* f = std::fopen(path, "r");
+    if (f == nullptr) return false;
+    char buf[512] = {};
+    const std::size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+    std::fclose(f);
+    const char* close = std::strrchr(buf, ')');  // comm may hold spaces and parentheses
+    if (n == 0 || close == nullptr) return false;
+    int ppid = 0;
+    if (std::sscanf(close + 1, " %c %d", &state, &ppid) != 2) return false;
+    parent = static_cast<pid_t>(ppid);
+    return true;
+}
+
+bool running(pid_t pid) {
+    char state = 0;
+    pid_t parent = 0;
+    return processStat(pid, state, parent) && state != 'Z' && state != 'X';
+}
+
+}  // namespace
+
 void dieWithParent() {
     const char* value = std::getenv(kParentPidVariable);
     if (value == nullptr) return;
-    const long driver = std::strtol(value, nullptr, 10);
+    const pid_t driver = static_cast<pid_t>(std::strtol(value, nullptr, 10));
     ::unsetenv(kParentPidVariable);
-    // The parent here may be the shell between the driver and this process; the shell dies with
-    // the driver, and this process with the shell. If the driver is already gone, nothing may run.
+    // The parent here is the driver or the shell it started; the shell dies with the driver
+    // (runChildProcess), and this process with its parent from now on. Whatever died before this
+    // point is caught below: a parent that is no longer the driver or the driver's shell (this
+    // process was re-parented), or a driver that has died (a zombie not yet reaped counts as dead).
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-    if (driver > 0 && ::kill(static_cast<pid_t>(driver), 0) != 0 && errno == ESRCH) ::_exit(137);
+    if (driver <= 0) return;
+    const pid_t parent = ::getppid();
+    if (parent != driver) {
+        char state = 0;
+        pid_t grandparent = 0;
+        if (!processStat(parent, state, grandparent) || grandparent != driver) ::_exit(137);
+    }
+    if (!running(driver)) ::_exit(137);
 }
 
 void forwardSignalsToChildren() {

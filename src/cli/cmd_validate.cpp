@@ -170,7 +170,8 @@ struct Runner {
             fmt::format("{} {} --threads {} --out {} --vtk-every 50 --resume --checkpoint-interval {}", shellQuote(exe),
                         caseArgs(c), cfg.threads, shellQuote(dir), cfg.checkpointInterval);
         const auto t0 = SteadyClock::now();
-        const int rc = childExitCode(runChildProcess(command + " > " + shellQuote(stdoutFile) + (resuming ? " 2>> " : " 2> ") +
+        // exec: the shell becomes the case, so no process stands between validate and the solver.
+        const int rc = childExitCode(runChildProcess("exec " + command + " > " + shellQuote(stdoutFile) + (resuming ? " 2>> " : " 2> ") +
                                                      shellQuote(log) + " < /dev/null"));
         const double wall = secondsSince(t0);
         // SIGINT/SIGTERM/SIGHUP of validate are forwarded to the cases and end validate itself

@@ -94,7 +94,14 @@ private:
 
 std::ofstream openForWriting(const std::string& path) {
     std::ofstream out(path);
-    if (!out) throw IoError(fmt::format("cannot open '{}' for writing: {}", path, std::strerror(errno)));
+    if (!out) {
+        // A path that cannot exist or be written by this user is the caller's input (exit 2); the
+        // rest (disk full, file system errors) is the system's (exit 5).
+        const int err = errno;
+        const std::string what = fmt::format("cannot open '{}' for writing: {}", path, std::strerror(err));
+        if (err == ENOENT || err == ENOTDIR || err == EACCES || err == EISDIR || err == EROFS) throw InputError(what);
+        throw IoError(what);
+    }
     out.precision(17);
     return out;
 }
