@@ -20,6 +20,7 @@ nlohmann::json energyTermsJson(const MembraneParameters& p, const EnergyTerms& t
     if (p.hasBending()) terms["bending"] = t.bending;
     if (p.hasAde()) terms["ade"] = t.ade;
     if (p.hasLim()) terms["lim"] = t.lim;
+    if (p.hasCapsuleLaw()) terms[inPlaneLawName(p.law)] = t.capsule;
     if (p.hasArea()) terms["area"] = t.area;
     if (p.hasVolume()) terms["volume"] = t.volume;
     return terms;
@@ -36,9 +37,10 @@ void registerForces(CLI::App& app) {
         "Energy of each term (JSON on stdout) and per-vertex forces -dU/dx (CSV fx,fy,fz) of a mesh. "
         "Lengths and moduli in the mesh's own units; every modulus defaults to 0 (term off).");
     cmd->add_option("--mesh", o->mesh, "closed triangle mesh (OFF)")->required();
-    cmd->add_option("--reference", o->reference, "stress-free mesh for the Lim term (OFF, same connectivity)");
+    cmd->add_option("--reference", o->reference, "stress-free mesh for the in-plane term (OFF, same connectivity)");
     addOutOption(cmd, o->out, "output CSV with header fx,fy,fz, one row per vertex");
     addModulusOptions(cmd, o->moduli);
+    addInPlaneLawOptions(cmd, o->moduli);
     cmd->callback([o]() {
         const MembraneParameters p = checkedParameters(o->moduli);
         ensureWritableFile(o->out);
@@ -49,6 +51,8 @@ void registerForces(CLI::App& app) {
             validateSameConnectivity(mesh, *ref, o->reference);
         } else if (p.hasLim()) {
             throw InputError("the Lim term (--ka or --mu > 0) needs the stress-free mesh --reference");
+        } else if (p.hasCapsuleLaw()) {
+            throw InputError(fmt::format("the {} law (--Gs > 0) needs the stress-free mesh --reference", o->moduli.law));
         }
         const MembraneModel model(mesh.F, mesh.numVertices(), p, ref ? &ref->X : nullptr);
         Vertices grad;

@@ -138,8 +138,28 @@ void addModulusOptions(CLI::App* app, ModulusOptions& m) {
         ->each([&m](const std::string&) { m.haveV0 = true; });
 }
 
+void addInPlaneLawOptions(CLI::App* app, ModulusOptions& m) {
+    app->add_option("--law", m.law,
+                    "in-plane law of each face against --reference: lim (Lim et al. 2008; --ka --a3 --a4 --mu --b1 --b2), "
+                    "neo-hookean, W = Gs/2 (I1 - 1 + 1/(I2 + 1)), or skalak, W = Gs/4 (I1^2 + 2 I1 - 2 I2 + C I2^2) "
+                    "(--Gs, --skalak-c)")
+        ->check(CLI::IsMember({"lim", "neo-hookean", "skalak"}))
+        ->capture_default_str()
+        ->group("In-plane law");
+    addNumber(app, "--Gs", m.p.capsule.Gs,
+              "shear modulus Gs of the neo-hookean and skalak laws (energy/area; 0 = off); area-dilation modulus "
+              "3 Gs (neo-hookean), Gs (1 + 2 C) (skalak)",
+              NumberRange::closed(0.0, 1e12, "(mesh units)"))
+        ->group("In-plane law");
+    addNumber(app, "--skalak-c", m.p.capsule.C, "Skalak coefficient C (dimensionless; > -1/2 so that Gs (1 + 2 C) > 0)",
+              NumberRange::leftOpen(-0.5, 1e6))
+        ->group("In-plane law");
+}
+
 MembraneParameters checkedParameters(const ModulusOptions& m) {
-    return checkedMembraneParameters(m.p, m.haveA0, m.A0, m.haveV0, m.V0, "--");
+    MembraneParameters p = m.p;
+    p.law = m.law == "neo-hookean" ? InPlaneLaw::NeoHookean : m.law == "skalak" ? InPlaneLaw::Skalak : InPlaneLaw::Lim;
+    return checkedMembraneParameters(p, m.haveA0, m.A0, m.haveV0, m.V0, "--");
 }
 
 ProgressLine::ProgressLine(std::string command, std::chrono::duration<double> interval)

@@ -112,13 +112,16 @@ struct ModulusOptions {
     MembraneParameters p;
     double A0 = 0.0, V0 = 0.0;
     bool haveA0 = false, haveV0 = false;
+    std::string law = "lim";  ///< --law, when addInPlaneLawOptions added it
 };
 
 /// Adds --kb --C0 --kad --DA0 --ka --a3 --a4 --mu --b1 --b2 --kA --A0 --kV --V0.
 void addModulusOptions(CLI::App* app, ModulusOptions& m);
+/// Adds --law {lim,neo-hookean,skalak}, --Gs and --skalak-c (the in-plane law and its moduli).
+void addInPlaneLawOptions(CLI::App* app, ModulusOptions& m);
 
-/// Checks ranges (moduli >= 0, finite; A0 and V0 positive and present when their penalty is on)
-/// and returns the parameters. Throws InputError naming the option.
+/// Checks ranges (moduli >= 0, finite; A0 and V0 positive and present when their penalty is on;
+/// only the moduli of the chosen --law) and returns the parameters. Throws InputError naming the option.
 MembraneParameters checkedParameters(const ModulusOptions& m);
 
 /// The command line as one string, for provenance.

@@ -47,7 +47,7 @@ FlowScales makeScales(const FlowConditions& f) {
     return s;
 }
 
-/// Bending and Lim moduli in internal units. No penalties: area and volume are exact
+/// Bending and in-plane moduli (Lim or a capsule law) in internal units. No penalties: area and volume are exact
 /// constraints (multiplier rows in the coupled system, projection after each step).
 MembraneParameters internalMembrane(const CellParameters& p, const FlowScales& s) {
     MembraneParameters m = experimentMembrane(p);  // kb (pN um), Kalpha = mu (pN/um), Lim constants
@@ -55,6 +55,7 @@ MembraneParameters internalMembrane(const CellParameters& p, const FlowScales& s
     m.bending.kb /= F * L;
     m.lim.Kalpha /= F / L;
     m.lim.mu /= F / L;
+    m.capsule.Gs /= F / L;
     return m;
 }
 

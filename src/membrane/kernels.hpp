@@ -184,6 +184,43 @@ inline LimFace limFace(const LimParameters& p, const LimReference& r, const Vec3
     return limFace(p, r, limN(r, a.squaredNorm(), b.squaredNorm(), a.dot(b)), area, 1.0 / area);
 }
 
+/// Capsule-law energy of one face and its gradient written as dU_t/dx = cArea dA_t/dx + cN dN/dx
+/// (docs/MEMBRANE_MODEL.md, in-plane laws), from the same N and A = A_t as the Lim energy. With C the
+/// right Cauchy-Green tensor of the face's affine map from its reference, tr C = N/(4 A0^2) and
+/// det C = (A/A0)^2, so I1 = N/(4 A0^2) - 2 and I2 = J^2 - 1 (J = A/A0). U_t = A0 W(I1, I2), and
+/// with W_k = dW/dI_k, dI1/dx = dN/dx / (4 A0^2), dI2/dx = 2 A/A0^2 dA/dx:
+///   cN = W_1 / (4 A0),  cArea = 2 W_2 J.
+/// Neo-Hookean, W = Gs/2 (I1 - 1 + 1/(I2 + 1)): W_1 = Gs/2, W_2 = -Gs/(2 J^4),
+///   cN = Gs/(8 A0), cArea = -Gs / J^3.
+/// Skalak, W = Gs/4 (I1^2 + 2 I1 - 2 I2 + C I2^2): W_1 = Gs/2 (I1 + 1), W_2 = Gs/2 (C I2 - 1),
+///   cN = Gs (I1 + 1)/(8 A0), cArea = Gs (C I2 - 1) J.
+struct CapsuleFace {
+    double energy, I1, I2, cArea, cN;
+};
+
+template <InPlaneLaw law>
+inline CapsuleFace capsuleFace(const CapsuleLawParameters& p, const LimReference& r, double N, double area,
+                               double invArea) {
+    static_assert(law == InPlaneLaw::NeoHookean || law == InPlaneLaw::Skalak);
+    const double J = area * r.invArea0;
+    const double I1 = 0.25 * N * r.invArea0 * r.invArea0 - 2.0, I2 = J * J - 1.0;
+    const double cN1 = 0.125 * p.Gs * r.invArea0;  // Gs/(8 A0)
+    if constexpr (law == InPlaneLaw::NeoHookean) {
+        const double invJ = r.area0 * invArea, invJ2 = invJ * invJ;  // 1/(I2 + 1) = 1/J^2
+        return {0.5 * p.Gs * r.area0 * (I1 - 1.0 + invJ2), I1, I2, -p.Gs * invJ2 * invJ, cN1};
+    } else {
+        return {0.25 * p.Gs * r.area0 * (I1 * (I1 + 2.0) - 2.0 * I2 + p.C * I2 * I2), I1, I2,
+                p.Gs * (p.C * I2 - 1.0) * J, cN1 * (I1 + 1.0)};
+    }
+}
+
+/// The same from the current edge vectors a = x_j - x_i, b = x_k - x_i and the area A_t.
+template <InPlaneLaw law>
+inline CapsuleFace capsuleFace(const CapsuleLawParameters& p, const LimReference& r, const Vec3& a, const Vec3& b,
+                               double area) {
+    return capsuleFace<law>(p, r, limN(r, a.squaredNorm(), b.squaredNorm(), a.dot(b)), area, 1.0 / area);
+}
+
 /// dN/dx for the three corners (docs/MEMBRANE_MODEL.md, Lim energy), scaled by c:
 /// dN/dx_j = 2 (|b0|^2 a - (a0.b0) b), dN/dx_k = 2 (|a0|^2 b - (a0.b0) a), dN/dx_i = -dN/dx_j - dN/dx_k.
 inline Corner3 limShearGradient(double c, const LimReference& r, Real3 a, Real3 b) {

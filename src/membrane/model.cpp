@@ -66,6 +66,30 @@ void withFlags(bool a, bool b, Fn&& f) {
     withFlags(a, [&](auto ca) { withFlags(b, [&](auto cb) { f(ca, cb); }); });
 }
 
+// The in-plane energy of the face loop, as a compile-time constant (one vectorised loop per law).
+enum class FaceLaw { None, Lim, NeoHookean, Skalak };
+template <FaceLaw law>
+using FaceLawConstant = std::integral_constant<FaceLaw, law>;
+
+template <class Fn>
+void withFaceLaw(const MembraneParameters& p, Fn&& f) {
+    if (p.hasLim())
+        f(FaceLawConstant<FaceLaw::Lim>{});
+    else if (!p.hasCapsuleLaw())
+        f(FaceLawConstant<FaceLaw::None>{});
+    else if (p.law == InPlaneLaw::NeoHookean)
+        f(FaceLawConstant<FaceLaw::NeoHookean>{});
+    else
+        f(FaceLawConstant<FaceLaw::Skalak>{});
+}
+
+// "the Lim in-plane term needs a stress-free reference mesh" and the same for the other laws.
+void requireReference(const MembraneParameters& p, bool haveReference) {
+    if (!p.hasInPlane() || haveReference) return;
+    const char* name = p.law == InPlaneLaw::Lim ? "Lim" : p.law == InPlaneLaw::NeoHookean ? "neo-Hookean" : "Skalak";
+    throw InputError(fmt::format("the {} in-plane term needs a stress-free reference mesh", name));
+}
+
 // Sum of v[0, n) in a fixed order (8 interleaved partial sums): vectorises, and is the same for
 // any number of threads.
 double fixedOrderSum(const Eigen::VectorXd& v, Eigen::Index n) {
@@ -131,14 +155,12 @@ MembraneModel::MembraneModel(const Faces& faces, Eigen::Index numVertices, const
         }
 
     if (reference) setReference(*reference);
-    if (params_.hasLim() && limRef_.rows() == 0)
-        throw InputError("the Lim in-plane term needs a stress-free reference mesh");
+    requireReference(params_, limRef_.rows() != 0);
     resizeScratch();
 }
 
 void MembraneModel::setParameters(const MembraneParameters& params) {
-    if (params.hasLim() && limRef_.rows() == 0)
-        throw InputError("the Lim in-plane term needs a stress-free reference mesh");
+    requireReference(params, limRef_.rows() != 0);
     params_ = params;
 }
 
@@ -164,7 +186,8 @@ void MembraneModel::resizeScratch() const {
     s_.faceY.resize(nf, 3);
     s_.faceEdge.resize(nf, 9);
     s_.faceArea.setZero(nf);
-    for (auto* v : {&s_.faceInvTwiceArea, &s_.faceVolume, &s_.faceLimEnergy, &s_.faceLimCArea, &s_.faceLimCN})
+    for (auto* v : {&s_.faceInvTwiceArea, &s_.faceVolume, &s_.faceInPlaneEnergy, &s_.faceInPlaneCArea,
+                    &s_.faceInPlaneCN})
         v->resize(nf);
     s_.edgeLenTheta.setZero(ne);
     s_.edgeThetaOverLen.resize(ne);
@@ -173,7 +196,7 @@ void MembraneModel::resizeScratch() const {
     s_.faceGrad.setZero(3, 3 * nf + 1);
 }
 
-// Passes: (1) faces: normal, area, volume, edge vectors, Lim; (2) edges: l theta; (3) vertices:
+// Passes: (1) faces: normal, area, volume, edge vectors, in-plane law; (2) edges: l theta; (3) vertices:
 // A_i, H_i; global sums; (4) faces: gradient at the three corners, including the face's share of
 // the l theta gradient of its three edges; (5) vertices: sum of their corner gradients.
 // Passes 1-5 vectorise across faces, edges and vertices (gathers through the index arrays).
@@ -184,7 +207,8 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
     const auto& F = faceVertices_;
     const auto nf = F.cols(), ne = edgeFaces_.cols(), nv = numVertices_, rows = nf + kPad;
     const auto& P = params_;
-    const bool bending = P.hasBending(), ade = P.hasAde(), lim = P.hasLim();
+    const bool bending = P.hasBending(), ade = P.hasAde(), lim = P.hasLim(), capsule = P.hasCapsuleLaw();
+    const bool inPlane = lim || capsule;
     const bool curvature = bending || ade;
     const double H0 = 0.5 * P.bending.C0, kb = P.bending.kb;
     const Real3 o = col3(X, 0);  // volume about a mesh point: round-off free of the position
@@ -199,9 +223,10 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
     } global;
 
     // Pass 1 on faces [begin, end): A_t, n_t, V_t, the edge vectors e (kernels::oppositeEdges),
-    // y = x_i - o, and the Lim energy with its gradient coefficients.
-    const auto faceGeometry = [&](Eigen::Index begin, Eigen::Index end, auto withLim) {
+    // y = x_i - o, and the in-plane energy (Lim or a capsule law) with its gradient coefficients.
+    const auto faceGeometry = [&](Eigen::Index begin, Eigen::Index end, auto law) {
         const LimParameters limParams = P.lim;  // local copies: not reloaded after each store
+        const CapsuleLawParameters capsuleParams = P.capsule;
         const Real3 origin = o;
         double twiceArea[kBlock], aa[kBlock], bb[kBlock], ab[kBlock];  // |c|, a.a, b.b, a.b
         TRBC_IVDEP
@@ -227,13 +252,21 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
             setRow3(s_.faceNormal, f, inv * row3(s_.faceNormal, f));
             s_.faceArea[f] = area;
             s_.faceInvTwiceArea[f] = inv;
-            if constexpr (withLim) {
+            if constexpr (law == FaceLaw::Lim) {
                 const auto r = limReference(f);
                 const double N = kernels::limN(r, aa[f - begin], bb[f - begin], ab[f - begin]);
                 const auto lf = kernels::limFace(limParams, r, N, area, 2.0 * inv);
-                s_.faceLimEnergy[f] = lf.energy;
-                s_.faceLimCArea[f] = lf.cArea;
-                s_.faceLimCN[f] = lf.cN;
+                s_.faceInPlaneEnergy[f] = lf.energy;
+                s_.faceInPlaneCArea[f] = lf.cArea;
+                s_.faceInPlaneCN[f] = lf.cN;
+            } else if constexpr (law != FaceLaw::None) {
+                constexpr InPlaneLaw kLaw = law == FaceLaw::NeoHookean ? InPlaneLaw::NeoHookean : InPlaneLaw::Skalak;
+                const auto r = limReference(f);
+                const double N = kernels::limN(r, aa[f - begin], bb[f - begin], ab[f - begin]);
+                const auto cf = kernels::capsuleFace<kLaw>(capsuleParams, r, N, area, 2.0 * inv);
+                s_.faceInPlaneEnergy[f] = cf.energy;
+                s_.faceInPlaneCArea[f] = cf.cArea;
+                s_.faceInPlaneCN[f] = cf.cN;
             }
         }
     };
@@ -285,9 +318,9 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
 
     // Pass 4 on faces [begin, end): the gradient at the corners,
     // cArea dA_t/dx + cVolume dV_t/dx + cN dN_t/dx + the face's share of the l theta terms, with
-    // cArea = global.area + Lim cArea - 2 kb/3 sum_{k in t} (H_k^2 - H0^2) and, for each edge
+    // cArea = global.area + in-plane cArea - 2 kb/3 sum_{k in t} (H_k^2 - H0^2) and, for each edge
     // (a, b), coef = global.edge + kb (H_a + H_b - 2 H0) (docs/MEMBRANE_MODEL.md, bending).
-    const auto faceGradient = [&](Eigen::Index begin, Eigen::Index end, auto withCurvature, auto withLim) {
+    const auto faceGradient = [&](Eigen::Index begin, Eigen::Index end, auto withCurvature, auto withInPlane) {
         const auto c = global;  // a local copy: not reloaded after each store
         TRBC_IVDEP
         for (Eigen::Index f = begin; f < end; ++f) {
@@ -306,9 +339,9 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
                     {c.edge + cM[j] + cM[k], c.edge + cM[k] + cM[i], c.edge + cM[i] + cM[j]},
                     {thetaOverLen[ei], thetaOverLen[ej], thetaOverLen[ek]});
             }
-            if constexpr (withLim) {
-                cArea += s_.faceLimCArea[f];
-                g += kernels::limShearGradient(s_.faceLimCN[f], limReference(f), e.k, -e.j);
+            if constexpr (withInPlane) {
+                cArea += s_.faceInPlaneCArea[f];
+                g += kernels::limShearGradient(s_.faceInPlaneCN[f], limReference(f), e.k, -e.j);
             }
             g += kernels::areaVolumeGradient(cArea, c.volume, n, s_.faceArea[f], row3(s_.faceY, f), e);
             const Real3 corner[3] = {g.i, g.j, g.k};
@@ -336,8 +369,8 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
 
 #pragma omp parallel if (nf >= kParallelMinFaces)
     {
-        withFlags(lim, [&](auto withLim) {
-            forBlocks(nf, [&](Eigen::Index begin, Eigen::Index end) { faceGeometry(begin, end, withLim); });
+        withFaceLaw(P, [&](auto law) {
+            forBlocks(nf, [&](Eigen::Index begin, Eigen::Index end) { faceGeometry(begin, end, law); });
         });
         if (curvature) {
             forBlocks(ne, edgeAngles);
@@ -348,7 +381,8 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
             areaTotal = fixedOrderSum(s_.faceArea, nf);
             volumeTotal = fixedOrderSum(s_.faceVolume, nf);
             if (bending) terms.bending = fixedOrderSum(s_.vertexEnergy, nv);
-            if (lim) terms.lim = fixedOrderSum(s_.faceLimEnergy, nf);
+            if (lim) terms.lim = fixedOrderSum(s_.faceInPlaneEnergy, nf);
+            if (capsule) terms.capsule = fixedOrderSum(s_.faceInPlaneEnergy, nf);
             if (ade) {
                 const double d = fixedOrderSum(s_.edgeLenTheta, ne) - P.bending.DA0;
                 terms.ade = std::numbers::pi * P.bending.kad / (2.0 * areaTotal) * d * d;
@@ -367,9 +401,9 @@ double MembraneModel::evaluate(const Vertices& X, Vertices* grad, EnergyTerms* t
             }
         }
         if (wantGrad) {
-            withFlags(curvature, lim, [&](auto withCurvature, auto withLim) {
+            withFlags(curvature, inPlane, [&](auto withCurvature, auto withInPlane) {
                 forBlocks(nf, [&](Eigen::Index begin, Eigen::Index end) {
-                    faceGradient(begin, end, withCurvature, withLim);
+                    faceGradient(begin, end, withCurvature, withInPlane);
                 });
             });
             forBlocks(nv, vertexGradient);
@@ -383,6 +417,7 @@ VertexDiagnostics MembraneModel::vertexDiagnostics(const Vertices& X) const {
     MembraneModel probe(*this);
     probe.params_.bending.kb = probe.params_.bending.kb != 0.0 ? probe.params_.bending.kb : 1.0;
     probe.params_.lim = {};
+    probe.params_.capsule = {};
     probe.evaluate(X);
     return {probe.s_.vertexArea.head(numVertices_), probe.s_.vertexH.head(numVertices_)};
 }

@@ -12,10 +12,11 @@
 
 namespace trbc {
 
-/// Energy of each term; terms that are switched off are zero.
+/// Energy of each term; terms that are switched off are zero. `capsule` is the in-plane energy of
+/// the neo-Hookean or Skalak law (MembraneParameters::law), `lim` that of the Lim law.
 struct EnergyTerms {
-    double bending = 0.0, ade = 0.0, lim = 0.0, area = 0.0, volume = 0.0;
-    double total() const { return bending + ade + lim + area + volume; }
+    double bending = 0.0, ade = 0.0, lim = 0.0, area = 0.0, volume = 0.0, capsule = 0.0;
+    double total() const { return bending + ade + lim + area + volume + capsule; }
 };
 
 /// Per-vertex quantities of the last evaluation (for output and diagnostics).
@@ -27,7 +28,7 @@ struct VertexDiagnostics {
 class MembraneModel {
 public:
     /// `faces`: connectivity of every mesh this model will see. `reference`: stress-free
-    /// positions (same connectivity), required when the Lim term is on.
+    /// positions (same connectivity), required when an in-plane term (Lim or capsule law) is on.
     MembraneModel(const Faces& faces, Eigen::Index numVertices, const MembraneParameters& params,
                   const Vertices* reference = nullptr);
 
@@ -41,7 +42,7 @@ public:
     const MembraneParameters& parameters() const { return params_; }
     /// Replaces the moduli (same reference and connectivity).
     void setParameters(const MembraneParameters& params);
-    /// Replaces the stress-free reference of the Lim term.
+    /// Replaces the stress-free reference of the in-plane term.
     void setReference(const Vertices& reference);
     const Faces& faces() const { return faces_; }
     const Topology& topology() const { return topo_; }
@@ -56,7 +57,7 @@ private:
         Eigen::Matrix<double, Eigen::Dynamic, 3> faceNormal, faceY;  // n_t; y = x_i - o
         Eigen::Matrix<double, Eigen::Dynamic, 9> faceEdge;  // (t, 3 m + c): edge opposite corner m
         Eigen::VectorXd faceArea, faceInvTwiceArea, faceVolume;  // A_t, 1/(2 A_t), V_t
-        Eigen::VectorXd faceLimEnergy, faceLimCArea, faceLimCN;  // kernels::LimFace
+        Eigen::VectorXd faceInPlaneEnergy, faceInPlaneCArea, faceInPlaneCN;  // kernels::LimFace, CapsuleFace
         Eigen::VectorXd edgeLenTheta, edgeThetaOverLen;          // l_e theta_e, theta_e / l_e
         Eigen::VectorXd vertexArea, vertexH, vertexEnergy;
         Eigen::VectorXd vertexCoefM, vertexCoefA;  // kb (H - H0), 2 kb/3 (H^2 - H0^2)

@@ -8,6 +8,15 @@
 
 namespace trbc {
 
+const char* inPlaneLawName(InPlaneLaw law) {
+    switch (law) {
+        case InPlaneLaw::Lim: return "lim";
+        case InPlaneLaw::NeoHookean: return "neo-hookean";
+        case InPlaneLaw::Skalak: return "skalak";
+    }
+    return "unknown";
+}
+
 MembraneParameters checkedMembraneParameters(MembraneParameters p, bool haveA0, double A0, bool haveV0, double V0,
                                              const std::string& prefix) {
     auto finite = [&](const char* name, double v) {
@@ -27,6 +36,27 @@ MembraneParameters checkedMembraneParameters(MembraneParameters p, bool haveA0, 
     nonNegative("mu", p.lim.mu);
     finite("b1", p.lim.b1);
     finite("b2", p.lim.b2);
+    nonNegative("Gs", p.capsule.Gs);
+    finite("skalak-c", p.capsule.C);
+    // K_s = Gs (1 + 2 C) of the Skalak law must be > 0.
+    if (p.capsule.C <= -0.5)
+        throw InputError(fmt::format("{}skalak-c = {} is out of range: the Skalak C must be > -1/2 (valid: (-0.5, inf))",
+                                     prefix, p.capsule.C));
+    const char* law = inPlaneLawName(p.law);
+    const auto onlyFor = [&](const char* name, double v, bool allowed, const char* laws) {
+        if (v != 0.0 && !allowed)
+            throw InputError(fmt::format("{}{} = {} is a modulus of {}, but {}law is {}", prefix, name, v,
+                                         laws, prefix, law));
+    };
+    const bool lim = p.law == InPlaneLaw::Lim, capsule = !lim, skalak = p.law == InPlaneLaw::Skalak;
+    onlyFor("ka", p.lim.Kalpha, lim, "the lim law");
+    onlyFor("a3", p.lim.a3, lim, "the lim law");
+    onlyFor("a4", p.lim.a4, lim, "the lim law");
+    onlyFor("mu", p.lim.mu, lim, "the lim law");
+    onlyFor("b1", p.lim.b1, lim, "the lim law");
+    onlyFor("b2", p.lim.b2, lim, "the lim law");
+    onlyFor("Gs", p.capsule.Gs, capsule, "the neo-hookean and skalak laws");
+    onlyFor("skalak-c", p.capsule.C, skalak, "the skalak law");
     nonNegative("kA", p.penalty.kA);
     nonNegative("kV", p.penalty.kV);
     if (p.penalty.kA > 0) {
