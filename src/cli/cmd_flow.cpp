@@ -753,10 +753,11 @@ void registerTube(CLI::App* flow) {
 
 void registerFlow(CLI::App& app) {
     CLI::App* flow =
-        app.add_subcommand("flow", "Flow validations (docs/FLOW.md): one cell in simple shear flow or in a microtube");
+        app.add_subcommand("flow", "Flows (docs/FLOW.md): one cell in simple shear flow or in a microtube, or a spherical capsule in shear");
     flow->require_subcommand(1);
     registerShear(flow);
     registerTube(flow);
+    registerFlowCapsule(flow);
 }
 
 }  // namespace trbc::cli

@@ -149,6 +149,8 @@ std::filesystem::path cacheDirectory(const CacheOptions& c);
 /// Solver tolerances of the experiments: --tol --max-iter --relax-tol --relax-inner-tol --overdamped.
 void addSolverOptions(CLI::App* cmd, ExperimentOptions& e);
 
+/// `trbc flow capsule` (cmd_flow_capsule.cpp), a subcommand of `trbc flow`.
+void registerFlowCapsule(CLI::App* flow);
 void registerForces(CLI::App& app);
 void registerCampaign(CLI::App& app);
 void registerSurrogate(CLI::App& app);

@@ -140,6 +140,7 @@ public:
         w_ = forceVelocity(areaGradient_);
         wNorm_ = w_.norm();
         normals_ = ops_.vertexNormals() / ops_.vertexNormals().norm();
+        areaConstrained_ = model.areaConstraint();
         if (opt.preconditioner) buildPreconditioner();
     }
 
@@ -181,7 +182,7 @@ public:
         Eigen::Map<Vertices>(b.data(), 3, nv) =
             (2.0 / (1.0 + model_.viscosityRatio())) * (env_ ? env_->background(Xs_) : model_.background().at(Xs_)) +
             forceVelocity(Fexp);
-        b[n] = areaRate / gNorm_;
+        b[n] = areaConstrained_ ? areaRate / gNorm_ : 0.0;
         b[n + 1] = volumeRate / vNorm_;
         const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
             y.resize(n + 2);
@@ -193,8 +194,14 @@ public:
             if (wall_) Sf += wall_(f);
             yu = u - c_ * Sf;
             if (k_ != 0.0) yu -= k_ * Du;
-            yu += (x[n] / wNorm_) * w_ - x[n + 1] * normals_;
-            y[n] = (areaGradient_.array() * u.array()).sum() / gNorm_;
+            yu -= x[n + 1] * normals_;
+            // Without the area constraint the tension row is the identity and its column zero.
+            if (areaConstrained_) {
+                yu += (x[n] / wNorm_) * w_;
+                y[n] = (areaGradient_.array() * u.array()).sum() / gNorm_;
+            } else {
+                y[n] = x[n];
+            }
             y[n + 1] = (volumeGradient_.array() * u.array()).sum() / vNorm_;
         };
         const LinearMap Minv = [&](const VectorXd& x, VectorXd& y) {
@@ -232,7 +239,7 @@ private:
     /// The two scalar rows of the system applied to a velocity: (g . u / |g|, dV/dx . u / |dV/dx|).
     Eigen::Vector2d constraintRows(Eigen::Ref<const VectorXd> u) const {
         const Eigen::Map<const VectorXd> g(areaGradient_.data(), u.size()), v(volumeGradient_.data(), u.size());
-        return {g.dot(u) / gNorm_, v.dot(u) / vNorm_};
+        return {areaConstrained_ ? g.dot(u) / gNorm_ : 0.0, v.dot(u) / vNorm_};
     }
     Vertices single(const Vertices& f) const {
         if (!dense_) return ops_.singleLayer(f);
@@ -309,10 +316,13 @@ private:
         // The multipliers' columns B = (w / |w|, -n), P^-1 B and the Schur complement C P^-1 B
         // (C the two constraint rows); a near-singular complement keeps the block-diagonal form.
         precB_.resize(n, 2);
-        precB_.col(0) = velocityPreconditioner(Eigen::Map<const VectorXd>(w_.data(), n) / wNorm_);
+        precB_.col(0) = areaConstrained_ ? velocityPreconditioner(Eigen::Map<const VectorXd>(w_.data(), n) / wNorm_)
+                                          : VectorXd::Zero(n);
         precB_.col(1) = velocityPreconditioner(-Eigen::Map<const VectorXd>(normals_.data(), n));
+        // Without the area constraint the system's multiplier block is diag(1, 0) (the tension row
+        // is the identity), so the complement C P^-1 B - diag(1, 0) has -1 in its first entry.
         Eigen::Matrix2d schur;
-        schur.col(0) = constraintRows(precB_.col(0));
+        schur.col(0) = areaConstrained_ ? constraintRows(precB_.col(0)) : Eigen::Vector2d(-1.0, 0.0);
         schur.col(1) = constraintRows(precB_.col(1));
         schurLu_.compute(schur);
         eliminateMultipliers_ = schur.allFinite() && std::abs(schur.determinant()) > 1e-12 * schur.squaredNorm();
@@ -335,6 +345,7 @@ private:
     Vertices areaGradient_, volumeGradient_, w_, normals_;
     std::vector<Eigen::Matrix3d> precBlocks_;
     bool eliminateMultipliers_ = false;
+    bool areaConstrained_ = true;
     Eigen::MatrixX2d precB_;  ///< P^-1 B
     Eigen::PartialPivLU<Eigen::Matrix2d> schurLu_;
 };
@@ -372,6 +383,17 @@ bdf2::StepControl stepControl(const CellFlowOptions& o) {
     return c;
 }
 
+/// Newton projection onto V = V0 along dV/dx (a few iterations), for a membrane without the area
+/// constraint.
+void projectVolume(Vertices& X, const Faces& F, double V0) {
+    for (int it = 0; it < 5; ++it) {
+        const AreaVolume av = areaVolumeWithGradients(X, F);
+        const double c = av.volume - V0;
+        if (std::abs(c) <= 1e-13 * V0) return;
+        X -= (c / av.volumeGradient.squaredNorm()) * av.volumeGradient;
+    }
+}
+
 /// Gauss-Newton projection onto A = A0, V = V0 (moves along dA/dx and dV/dx; a few iterations).
 void projectAreaVolume(Vertices& X, const Faces& F, double A0, double V0) {
     for (int it = 0; it < 5; ++it) {
@@ -405,6 +427,14 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
                    long(q.singlePrecisionFar),
                    long(initial.cols()), long(model.faces().cols())})
         d += fmt::format("{},", v);
+    if (model.hasMembraneSpec()) {
+        const MembraneParameters& m = model.membrane().parameters();
+        d += fmt::format("spec|{}|", model.areaConstraint());
+        for (double v : {m.bending.kb, m.bending.C0, m.lim.Kalpha, m.lim.a3, m.lim.a4, m.lim.mu, m.lim.b1, m.lim.b2,
+                         m.capsule.Gs, m.capsule.C, model.edgeFriction(), model.viscosityRatio()})
+            d += fmt::format("{:a},", v);
+        d += fmt::format("{},", static_cast<int>(m.law));
+    }
     std::uint64_t h = fnv1a(d);
     h = fnv1a(std::string_view(reinterpret_cast<const char*>(model.faces().data()),
                                static_cast<std::size_t>(model.faces().size()) * sizeof(model.faces()(0, 0))),
@@ -468,6 +498,24 @@ CellFlowModel::CellFlowModel(const CellParameters& cell, const FlowConditions& f
     area0_ = flow.A0 / (scales_.length * scales_.length);
     volume0_ = flow.V0 / (scales_.length * scales_.length * scales_.length);
     background_ = LinearFlow::simpleShear(flow.shearRate * scales_.time);
+}
+
+CellFlowModel::CellFlowModel(const MembraneFlowSpec& spec, const Faces& faces, const Vertices& reference)
+    : flow_{.etaOut = 1.0, .etaIn = spec.viscosityRatio, .shearRate = 1.0},
+      internalReference_(checkedReference(faces, reference, 1.0)),
+      membrane_(faces, reference.cols(), spec.membrane, &internalReference_),
+      spec_(std::make_shared<const MembraneFlowSpec>(spec)) {
+    if (!(spec.edgeFriction >= 0.0) || !std::isfinite(spec.edgeFriction))
+        throw InputError(fmt::format("membrane flow: edge friction = {}: must be finite and >= 0", spec.edgeFriction));
+    requirePositive("viscosity ratio", spec.viscosityRatio, "");
+    gamma_ = spec.edgeFriction;
+    lambda_ = spec.viscosityRatio;
+    area0_ = totalArea(internalReference_, faces);
+    volume0_ = enclosedVolume(internalReference_, faces);
+    flow_.A0 = area0_;
+    flow_.V0 = volume0_;
+    areaConstraint_ = spec.areaConstraint;
+    background_ = LinearFlow::simpleShear(1.0);
 }
 
 FlowGroups CellFlowModel::groups() const {
@@ -653,7 +701,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         }
         // Accept; remove the second-order area and volume drift of the linearised step.
         const double areaCorrection = totalArea(Xnew, F) / A0 - 1.0, volumeCorrection = enclosedVolume(Xnew, F) / V0 - 1.0;
-        projectAreaVolume(Xnew, F, A0, V0);
+        if (model.areaConstraint())
+            projectAreaVolume(Xnew, F, A0, V0);
+        else
+            projectVolume(Xnew, F, V0);
         tension = stepTension;
         history.accept(Xnew, h);
         ++res.steps;
@@ -683,8 +734,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         // Frames in (tOld, t]: BDF2's dense output.
         for (; bdf2::covers(t, frameTime(nextFrame)); ++nextFrame)
             recordFrame(frameTime(nextFrame), bdf2::interpolate(history, tOld, t, frameTime(nextFrame)));
-        if (!(std::abs(areaCorrection) <= opt.maxDrift) || !(std::abs(volumeCorrection) <= opt.maxDrift) ||
-            !(std::abs(rec.areaDrift) <= opt.maxDrift) || !(std::abs(rec.volumeDrift) <= opt.maxDrift))
+        // A capsule's area follows its in-plane law: only a constrained area counts as drift.
+        const bool areaDrifts = model.areaConstraint() &&
+                                (!(std::abs(areaCorrection) <= opt.maxDrift) || !(std::abs(rec.areaDrift) <= opt.maxDrift));
+        if (areaDrifts || !(std::abs(volumeCorrection) <= opt.maxDrift) || !(std::abs(rec.volumeDrift) <= opt.maxDrift))
             return finish(false, fmt::format("diverged at t = {:.6g}: area change {:.3g}, volume change {:.3g} in one "
                                              "step (limit {:.3g})",
                                              t, areaCorrection, volumeCorrection, opt.maxDrift));

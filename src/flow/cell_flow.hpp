@@ -52,6 +52,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -100,12 +101,26 @@ struct FlowGroups {
     double shearStressPa = 0.0;      ///< eta_out rate
 };
 
+/// A membrane given directly in internal units (trbc flow capsule): the moduli in units of
+/// eta_out rate L (in-plane) and eta_out rate L^3 (bending), the edge friction gamma' = 4 E / sqrt 3
+/// (E = eta_m / (eta_out L)), the viscosity ratio, simple shear at unit rate. Without the global area
+/// constraint the in-plane law alone resists area change, as for the capsules of the literature;
+/// the volume stays exact (the flow conserves it).
+struct MembraneFlowSpec {
+    MembraneParameters membrane;
+    double edgeFriction = 0.0;
+    double viscosityRatio = 1.0;
+    bool areaConstraint = false;
+};
+
 /// The nondimensional problem: membrane model, edge friction, viscosity ratio, background flow.
 class CellFlowModel {
 public:
     /// `referenceUm`: Lim reference (stress-free state, um), same connectivity as every shape.
     CellFlowModel(const CellParameters& cell, const FlowConditions& flow, const Faces& faces,
                   const Vertices& referenceUm);
+    /// `reference`: stress-free state in internal units; A0 and V0 are its area and volume.
+    CellFlowModel(const MembraneFlowSpec& spec, const Faces& faces, const Vertices& reference);
 
     const FlowScales& scales() const { return scales_; }
     FlowGroups groups() const;
@@ -118,6 +133,10 @@ public:
     const LinearFlow& background() const { return background_; }
     double targetArea() const { return area0_; }     ///< internal units
     double targetVolume() const { return volume0_; }
+    /// The area held exactly by a multiplier (a red cell) or left to the in-plane law (a capsule).
+    bool areaConstraint() const { return areaConstraint_; }
+    /// Set by the MembraneFlowSpec constructor: the membrane is not built from `cell()`.
+    bool hasMembraneSpec() const { return spec_ != nullptr; }
 
     Vertices toInternal(const Vertices& Xum) const { return Xum / scales_.length; }
     Vertices toMicrons(const Vertices& X) const { return X * scales_.length; }
@@ -130,6 +149,8 @@ private:
     MembraneModel membrane_;
     double gamma_ = 0.0, lambda_ = 1.0, area0_ = 0.0, volume0_ = 0.0;
     LinearFlow background_;
+    bool areaConstraint_ = true;
+    std::shared_ptr<const MembraneFlowSpec> spec_;
 };
 
 struct CellFlowResult;
