@@ -42,7 +42,7 @@ std::string accuracyMarkdown(const std::vector<OutputAccuracy>& acc) {
 /// Held-out rows with truth and prediction: inputs, outputs, outputs_pred.
 void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
                          const Eigen::MatrixXd& predicted) {
-    std::string text =
+    std::string text = csvProvenance() +
         "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,"
         "D_um_pred,hmin_um_pred,hmax_um_pred,D0_um_pred,D1_um_pred,tc_s_pred\n";
     for (Eigen::Index c = 0; c < inputs.cols(); ++c) {
