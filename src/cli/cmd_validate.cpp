@@ -643,6 +643,7 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
 
 /// The configuration with the command line's overrides, the output and import directories, the tools.
 void configureRunner(Runner& R, const ValidateCommandOptions& o) {
+    setProvenanceSeed(o.seed);
     R.cfg = readValidationConfig(o.config, defaultExperimentDirectory());
     if (!o.posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o.posterior).lexically_normal();
     if (o.jobs > 0) R.cfg.jobs = o.jobs;

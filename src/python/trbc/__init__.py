@@ -280,7 +280,7 @@ def load_inference(out: _PathLike) -> dict:
 def _read_table(path: Path) -> dict:
     """A CSV as {column: array}: numbers as float arrays (empty cells NaN), other columns as lists."""
     with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+        rows = list(csv.DictReader((ln for ln in f if not ln.startswith("#"))))
     table = {}
     for name in (rows[0].keys() if rows else []):
         cells = [r[name] for r in rows]
