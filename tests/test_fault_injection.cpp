@@ -2,6 +2,7 @@
 // running, a full disk (an LD_PRELOAD write shim), corrupted checkpoints and caches, hostile names
 // and configurations, and inputs that ask for unbounded work. docs/RELIABILITY.md lists the
 // guarantee each test checks.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <signal.h>
@@ -26,6 +27,7 @@
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/output_dir.hpp"
+#include "core/version.hpp"
 #include "inference/rbc_pipeline.hpp"
 #include "inference/rbc_problem.hpp"
 #include "test_support.hpp"
@@ -346,6 +348,32 @@ TEST(HostileNames, InferManifestNamesAreChecked) {
     }
     writeText(dir / "datasets.json", nlohmann::json::array({{{"name", "m-1.x"}, {"experiment", "stretching"}, {"file", "m.csv"}}}).dump());
     EXPECT_EQ(loadRbcDataSets(dir).at(0).name, "m-1.x");
+}
+
+TEST(Provenance, EveryCsvTableOpensWithVersionRevisionCommandAndSeed) {
+    TempDir tmp;
+    // A table written by the CLI names the command that wrote it.
+    const fs::path forces = tmp.path() / "f.csv";
+    const CliRun r = runTrbc("forces --mesh " + shellQuote(test::meshPath("rbc_498.off")) + " --kb 1 --out " + shellQuote(forces.string()),
+                             tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string text = test::slurp(forces);
+    const std::string first = text.substr(0, text.find('\n'));
+    EXPECT_TRUE(first.starts_with(fmt::format("# trbc {} (", kVersion))) << first;
+    EXPECT_TRUE(contains(first, "| command: ") && contains(first, " forces --mesh ")) << first;
+    EXPECT_TRUE(contains(first, "| seed: n/a")) << first;
+    EXPECT_FALSE(std::string(gitDescribe()).empty());
+    EXPECT_EQ(readNumericTable(forces).columns, (std::vector<std::string>{"fx", "fy", "fz"}));  // readers skip it
+    // A seeded run names its seed; a line break in an argument stays inside the comment line.
+    setProvenanceCommand("trbc infer --seed 7 --out a\nb");
+    setProvenanceSeed(7);
+    writePosteriorStats(tmp.path() / "s.csv", {{"p", "v", 1, 1, 1, 1, 0.1, 0.9, 1.1}});
+    const std::string stats = test::slurp(tmp.path() / "s.csv");
+    EXPECT_TRUE(stats.starts_with(fmt::format("# trbc {} ({}) | command: trbc infer --seed 7 --out a b | seed: 7\nposterior,parameter,",
+                                              kVersion, gitDescribe())))
+        << stats;
+    EXPECT_EQ(readCsvRecords(tmp.path() / "s.csv").size(), 2u);
+    setProvenanceCommand("trbc");
 }
 
 TEST(HostileNames, CaseIdsAreUniqueForDistinctInputs) {

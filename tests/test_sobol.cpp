@@ -532,6 +532,8 @@ TEST(SobolIndices, CsvOutput) {
     std::ifstream in(dir / "sobol_indices.csv");
     std::string line;
     std::getline(in, line);
+    EXPECT_TRUE(line.starts_with("# trbc ")) << line;  // the provenance line
+    std::getline(in, line);
     EXPECT_EQ(line, "output,input,S1,S1_ci,ST,ST_ci");
     std::vector<std::string> rows;
     while (std::getline(in, line)) rows.push_back(line);
