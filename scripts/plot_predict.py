@@ -25,12 +25,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 BANDS = [("q005", "q995", 0.15, "99 %"), ("q05", "q95", 0.3, "90 %"), ("q25", "q75", 0.5, "50 %")]
 
 
+def _number(text):
+    """A CSV number; "n/a" (a band without a data point) and an empty cell are NaN."""
+    return float("nan") if text in ("", "n/a") else float(text)
+
+
 def read_csv(path):
     with open(path, newline="") as f:
         rows = list(csv.DictReader((ln for ln in f if not ln.startswith("#"))))
     if not rows:
         return {}
-    return {k: [float(r[k]) if k not in ("observable", "posterior", "experiment") else r[k] for r in rows] for k in rows[0]}
+    return {k: [_number(r[k]) if k not in ("observable", "posterior", "experiment") else r[k] for r in rows] for k in rows[0]}
 
 
 def coverage(out_dir):

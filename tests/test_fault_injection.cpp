@@ -328,6 +328,7 @@ TEST(HostileNames, CsvAndMarkdownWritersQuoteEveryTextField) {
     // csvRow and the reader are inverse for any text.
     const std::vector<std::string> hostile = {"", " lead", "a,b", "\"q\"", "line\nbreak", "cr\r\nlf", "#x"};
     EXPECT_EQ(parseCsvRecords("h\n" + csvRow(hostile)).at(1), hostile);
+    EXPECT_EQ(parseCsvRecords("h\n" + csvRow({"#x", "y"})).at(1), (std::vector<std::string>{"#x", "y"}));
 }
 
 TEST(HostileNames, InferManifestNamesAreChecked) {

@@ -184,8 +184,9 @@ std::string csvProvenance() {
 }
 
 std::string csvField(std::string_view text) {
+    // A leading '#' is quoted too: a row that starts with it would read as a comment line.
     const bool quote = text.find_first_of(",\"\r\n") != std::string_view::npos ||
-                       (!text.empty() && (text.front() == ' ' || text.back() == ' '));
+                       (!text.empty() && (text.front() == ' ' || text.back() == ' ' || text.front() == '#'));
     if (!quote) return std::string(text);
     std::string out = "\"";
     for (char ch : text) {

@@ -29,7 +29,8 @@ struct NumericTable {
 NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns = {});
 
 /// One CSV field as RFC 4180 writes it: as is, or in double quotes with '"' doubled when it holds a
-/// comma, a quote, a line break or leading/trailing space, so that no text can add a column or a row.
+/// comma, a quote, a line break, leading/trailing space or a leading '#', so that no text can add a
+/// column or a row, or turn a row into a comment line.
 std::string csvField(std::string_view text);
 
 /// The fields of a line joined by commas, each through csvField, and a line break.
