@@ -13,6 +13,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -29,6 +30,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
+#include "core/hash.hpp"
 #include "core/version.hpp"
 #include "experiments/parameters.hpp"
 #include "flow/tube.hpp"
@@ -51,6 +53,18 @@ std::string stringOr(const json& o, const char* key) {
 double numberOr(const json& o, const char* key) {
     const auto it = o.find(key);
     return it != o.end() && it->is_number() ? it->get<double>() : NAN;
+}
+
+/// FNV-1a of a table's bytes after its leading '#' lines, "missing" when it does not exist: the
+/// provenance line names the command and build that wrote the samples, not their values, so a
+/// posterior rewritten by `infer --resume` keeps its cases.
+std::string tableFingerprint(const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return "missing";
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::size_t start = 0;
+    while (start < text.size() && text[start] == '#') start = std::min(text.find('\n', start), text.size() - 1) + 1;
+    return fmt::format("{:016x}", fnv1a(std::string_view(text).substr(start)));
 }
 
 struct Runner {
@@ -95,7 +109,7 @@ struct Runner {
     std::string cellKey(const ValidationCase& c) const {
         if (c.sample >= 0) return cellArgs(c);
         if (cfg.cellSource == "posterior")
-            return cellArgs(c) + " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
+            return cellArgs(c) + " " + tableFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
         if (cfg.cellSource == "explicit") return cellArgs(c);
         return fmt::format("table1 v={} mu={} kb={} b2={} etam={}", table1::v, table1::mu, table1::kbJ, table1::b2, table1::etam);
     }
