@@ -160,13 +160,20 @@ std::vector<std::vector<std::string>> readCsvRecords(const std::filesystem::path
 std::string csvRow(std::initializer_list<std::string_view> fields) {
     std::string out;
     bool first = true;
-    for (std::string_view f : fields) out += (first ? "" : ",") + csvField(f), first = false;
+    for (std::string_view f : fields) {
+        if (!first) out += ',';
+        out += csvField(f);
+        first = false;
+    }
     return out + '\n';
 }
 
 std::string csvRow(const std::vector<std::string>& fields) {
     std::string out;
-    for (std::size_t k = 0; k < fields.size(); ++k) out += (k ? "," : "") + csvField(fields[k]);
+    for (std::size_t k = 0; k < fields.size(); ++k) {
+        if (k) out += ',';
+        out += csvField(fields[k]);
+    }
     return out + '\n';
 }
 
