@@ -265,7 +265,7 @@ TEST(HostileNames, DataSetNamesAreCheckedOnce) {
     const auto error = [&](const std::string& name) {
         const fs::path file = writeText(tmp.path() / "c.toml", "[[data]]\nname = \"" + name +
                                                                  "\"\nexperiment = \"stretching\"\nfile = "
-                                                                 "\"@experiments/stretching/mills_2004.csv\"\n");
+                                                                 "\"@experiments/stretching/mills_2004/mills_2004.csv\"\n");
         try {
             readCalibrateConfig(file, test::experimentsDir());
         } catch (const InputError& e) {
