@@ -74,7 +74,7 @@ def read_rows(path, level):
     if not path.exists():
         return {}
     with open(path) as f:
-        rows = [r for r in csv.DictReader(f) if int(r["level"]) == level]
+        rows = [r for r in csv.DictReader((ln for ln in f if not ln.startswith("#"))) if int(r["level"]) == level]
     return {(float(r["v"]), float(r["FvK"])): r for r in rows}
 
 

@@ -70,7 +70,7 @@ def read_csv(path):
         return None
     try:
         with open(path, newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+            rows = [r for r in csv.reader((ln for ln in fh if not ln.startswith("#"))) if r and any(c.strip() for c in r)]
     except OSError as exc:
         note(f"cannot read {path}: {exc}")
         return None
@@ -345,7 +345,7 @@ def plot_equilibrium(sim, d, data, out):
     else:
         try:
             with open(ef_path, newline="") as fh:
-                for row in csv.DictReader(fh):
+                for row in csv.DictReader((ln for ln in fh if not ln.startswith("#"))):
                     meas[row["quantity"].strip()] = (float(row["mean_um"]), float(row["sd_um"]))
         except (KeyError, ValueError) as exc:
             note(f"evans_fung_1972.csv: unexpected format ({exc})")

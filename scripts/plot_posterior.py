@@ -58,7 +58,7 @@ SKIP = {"log_likelihood", "log_prior"}
 
 def read_samples(path):
     with open(path, newline="") as f:
-        reader = csv.reader(f)
+        reader = csv.reader((ln for ln in f if not ln.startswith("#")))
         header = next(reader)
         rows = [[float(x) for x in row] for row in reader if row]
     if not rows:

@@ -25,12 +25,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 BANDS = [("q005", "q995", 0.15, "99 %"), ("q05", "q95", 0.3, "90 %"), ("q25", "q75", 0.5, "50 %")]
 
 
+def _number(text):
+    """A CSV number; "n/a" (a band without a data point) and an empty cell are NaN."""
+    return float("nan") if text in ("", "n/a") else float(text)
+
+
 def read_csv(path):
     with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+        rows = list(csv.DictReader((ln for ln in f if not ln.startswith("#"))))
     if not rows:
         return {}
-    return {k: [float(r[k]) if k not in ("observable", "posterior", "experiment") else r[k] for r in rows] for k in rows[0]}
+    return {k: [_number(r[k]) if k not in ("observable", "posterior", "experiment") else r[k] for r in rows] for k in rows[0]}
 
 
 def coverage(out_dir):
@@ -38,7 +43,7 @@ def coverage(out_dir):
     points = {}
     if os.path.exists(path):
         with open(path, newline="") as f:
-            for r in csv.DictReader(f):
+            for r in csv.DictReader((ln for ln in f if not ln.startswith("#"))):
                 points.setdefault(r["posterior"], []).append(r)
     return points
 
@@ -49,7 +54,7 @@ def evans_fung_sd(data_dir):
         path = os.path.join(data_dir, "equilibrium", "evans_fung_1972.csv")
         if os.path.exists(path):
             with open(path, newline="") as f:
-                for r in csv.DictReader(f):
+                for r in csv.DictReader((ln for ln in f if not ln.startswith("#"))):
                     sds[r["quantity"] + "_um"] = (float(r["mean_um"]), float(r["sd_um"]))
     return sds
 

@@ -50,7 +50,7 @@ COLUMNS = ["output", "input", "S1", "S1_ci", "ST", "ST_ci"]
 def read_indices(path):
     """Return (inputs in file order, {output: {input: {col: float}}} in file order)."""
     with open(path, newline="") as f:
-        reader = csv.DictReader(f)
+        reader = csv.DictReader((ln for ln in f if not ln.startswith("#")))
         missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
         if missing:
             sys.exit(f"plot_sobol: {path}: missing column(s) {', '.join(missing)}; "

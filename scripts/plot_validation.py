@@ -116,7 +116,7 @@ def read_rows(path):
         return []
     try:
         with open(path, newline="") as fh:
-            reader = csv.DictReader(fh)
+            reader = csv.DictReader((ln for ln in fh if not ln.startswith("#")))
             rows = []
             for r in reader:
                 rows.append({(k or "").strip(): (v or "").strip() if isinstance(v, str) else ""

@@ -26,7 +26,7 @@ import time
 def read_stats(path):
     rows = {}
     with open(path) as f:
-        for r in csv.DictReader(f):
+        for r in csv.DictReader((ln for ln in f if not ln.startswith("#"))):
             if r["posterior"] == "theta_new":
                 rows[r["parameter"]] = {k: float(v) for k, v in r.items() if k not in ("posterior", "parameter")}
     return rows

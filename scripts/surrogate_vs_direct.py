@@ -41,7 +41,7 @@ def main():
     if a.reuse_direct:
         try:
             with open(os.path.join(a.out, "points.csv")) as f:
-                old = list(csv.DictReader(f))
+                old = list(csv.DictReader((ln for ln in f if not ln.startswith("#"))))
             with open(os.path.join(a.out, "summary.md")) as f:
                 head = f.readline()
         except OSError as e:
@@ -72,7 +72,7 @@ def main():
     cmd = [a.trbc, "surrogate", "eval", "--in", inp, "--out", sur] + (["--model", a.model] if a.model else [])
     subprocess.run(cmd, check=True, env=env)
     with open(sur) as f:
-        srows = list(csv.DictReader(f))
+        srows = list(csv.DictReader((ln for ln in f if not ln.startswith("#"))))
     pred = [[float(r[k]) for k in OUTS] for r in srows]
     with open(os.path.join(a.out, "points.csv"), "w", newline="") as f:
         w = csv.writer(f)

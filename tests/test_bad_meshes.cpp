@@ -173,6 +173,8 @@ TEST(BadMeshesControl, OctahedronAcceptedByCliForces) {
     std::string line;
     int n = 0;
     ASSERT_TRUE(std::getline(rows, line));
+    EXPECT_TRUE(line.starts_with("# trbc ")) << line;  // the provenance line
+    ASSERT_TRUE(std::getline(rows, line));
     EXPECT_EQ(line, "fx,fy,fz");
     while (std::getline(rows, line)) ++n;
     EXPECT_EQ(n, 6);

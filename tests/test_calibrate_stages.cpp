@@ -151,6 +151,23 @@ TEST(CalibrateStages, AChangedDataFileChangesExactlyTheStagesDownstream) {
     EXPECT_EQ(changed, expected);
 }
 
+TEST(CalibrateStages, AChangedBaseOfTheValidationConfigChangesTheValidationStage) {
+    TempDir dir;
+    std::ofstream(dir.path() / "base.toml") << "[run]\nlevel = 2\n";
+    std::ofstream(dir.path() / "v.toml") << "base = \"base.toml\"\n[run]\njobs = 2\n";
+    const std::vector<CalibrateStep> steps = calibrateSteps(
+        config(dir, "[validation]\nenabled = true\nconfig = \"" + (dir.path() / "v.toml").string() + "\"\n"), "/out", 2, tools());
+    const std::map<std::string, std::string> before = fingerprints(steps, dir.path() / "out");
+    std::ofstream(dir.path() / "base.toml", std::ios::app) << "threads = 3\n";
+    const std::vector<CalibrateStep> again = calibrateSteps(
+        config(dir, "[validation]\nenabled = true\nconfig = \"" + (dir.path() / "v.toml").string() + "\"\n"), "/out", 2, tools());
+    const std::map<std::string, std::string> after = fingerprints(again, dir.path() / "out");
+    std::set<std::string> changed;
+    for (const auto& [name, fp] : before)
+        if (after.at(name) != fp) changed.insert(name);
+    EXPECT_EQ(changed, (std::set<std::string>{"validation", "report"}));
+}
+
 TEST(CalibrateStages, MissingNetworksNameTheSurrogateDirectory) {
     TempDir dir;
     const std::string toml = "[surrogate]\nmode = \"path\"\ndir = \"" + dir.path().string() + "\"\n";

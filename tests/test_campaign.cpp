@@ -149,7 +149,8 @@ std::vector<std::string> rowsWithoutWallTime(const fs::path& samples) {
     std::vector<std::string> out;
     std::ifstream in(samples);
     std::string line;
-    while (std::getline(in, line)) out.push_back(line.substr(0, line.rfind(',')));
+    while (std::getline(in, line))
+        if (!line.starts_with('#')) out.push_back(line.substr(0, line.rfind(',')));  // not the provenance line
     return out;
 }
 
@@ -374,6 +375,8 @@ TEST(CampaignRunner, ReuseFromASymmetricCampaignGivesTheTableOfAFullRun) {
     // equilibria.csv: cell_id,v,FvK,branch,energy_gap_J,reused
     std::ifstream in(reuse / "equilibria.csv");
     std::string line;
+    ASSERT_TRUE(std::getline(in, line));
+    EXPECT_TRUE(line.starts_with("# trbc ")) << line;  // the provenance line
     ASSERT_TRUE(std::getline(in, line));
     EXPECT_EQ(line, "cell_id,v,FvK,branch,energy_gap_J,reused");
     long cells = 0, kicked = 0, reused = 0;

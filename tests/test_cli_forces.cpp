@@ -35,6 +35,8 @@ Vertices readForceCsv(const std::string& path, Eigen::Index nv) {
     std::ifstream in(path);
     std::string line;
     std::getline(in, line);
+    EXPECT_TRUE(line.starts_with("# trbc ")) << line;  // the provenance line
+    std::getline(in, line);
     EXPECT_EQ(line, "fx,fy,fz");
     Vertices f(3, nv);
     Eigen::Index i = 0;

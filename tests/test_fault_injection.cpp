@@ -2,6 +2,7 @@
 // running, a full disk (an LD_PRELOAD write shim), corrupted checkpoints and caches, hostile names
 // and configurations, and inputs that ask for unbounded work. docs/RELIABILITY.md lists the
 // guarantee each test checks.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <signal.h>
@@ -19,10 +20,16 @@
 #include <vector>
 
 #include "analysis/calibrate_config.hpp"
+#include "analysis/prediction.hpp"
+#include "analysis/report.hpp"
 #include "analysis/validation.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/output_dir.hpp"
+#include "core/version.hpp"
+#include "inference/rbc_pipeline.hpp"
+#include "inference/rbc_problem.hpp"
 #include "test_support.hpp"
 
 namespace trbc {
@@ -279,6 +286,99 @@ TEST(HostileNames, DataSetNamesAreCheckedOnce) {
     EXPECT_EQ(error("mills_2004-copy.2"), "");
     EXPECT_NO_THROW(checkFileName(std::string(100, 'a'), "name"));
     EXPECT_THROW(checkFileName(std::string(101, 'a'), "name"), InputError);
+}
+
+TEST(HostileNames, CsvAndMarkdownWritersQuoteEveryTextField) {
+    TempDir tmp;
+    // Names that would add a column, a row or a table cell if written as they are.
+    const std::vector<std::string> names = {"a,b", "c\nd", "e\"f", "g|h"};
+    std::vector<PosteriorPrediction> predictions;
+    for (const std::string& name : names) {
+        PosteriorPrediction p;
+        p.label = p.name = name;
+        p.experiment = RbcExperiment::Stretching;
+        p.haveData = true;
+        p.coverage = {{"D0", 10.0, 5.0, 4.0, 5.0, 6.0}, {"D1", 20.0, 7.0, 6.0, 7.0, 8.0}};  // both inside
+        predictions.push_back(p);
+    }
+    const fs::path out = tmp.path() / "out";
+    fs::create_directories(out / "predict");
+    writeCoverageCsv(out / "predict" / "coverage.csv", predictions);
+    const auto rows = readCsvRecords(out / "predict" / "coverage.csv");
+    ASSERT_EQ(rows.size(), 1 + 2 * names.size());
+    for (std::size_t r = 1; r < rows.size(); ++r) {
+        ASSERT_EQ(rows[r].size(), rows[0].size()) << r;
+        EXPECT_EQ(rows[r][0], names[(r - 1) / 2]);
+        EXPECT_EQ(rows[r][8], "1");
+    }
+    // One Markdown row per prediction, with the name's '|' escaped and its line break a space.
+    const std::string md = coverageMarkdown(predictions);
+    EXPECT_TRUE(contains(md, "| a,b | stretching |")) << md;
+    EXPECT_TRUE(contains(md, "| c d | stretching |")) << md;
+    EXPECT_TRUE(contains(md, "| g\\|h | stretching |")) << md;
+    // The report counts what coverage.csv says: all 8 points inside.
+    CalibrationReportInputs in;
+    in.outputDirectory = out;
+    in.configFile = writeText(tmp.path() / "c.toml", "");
+    in.version = "test";
+    EXPECT_NO_THROW(writeCalibrationReport(in));
+    EXPECT_TRUE(contains(test::slurp(out / "report.md"), "**8 of 8**")) << test::slurp(out / "report.md");
+    // Posterior statistics keep a name with a comma in one field.
+    writePosteriorStats(out / "posterior_stats.csv", {{"x,y", "v", 1, 1, 1, 1, 0.1, 0.9, 1.1}});
+    const NumericTable stats = readNumericTable(out / "posterior_stats.csv", {"mean", "q95"});
+    ASSERT_EQ(stats.values.rows(), 1);
+    EXPECT_EQ(readCsvRecords(out / "posterior_stats.csv").at(1).at(0), "x,y");
+    EXPECT_DOUBLE_EQ(stats.column("q95")[0], 1.1);
+    // csvRow and the reader are inverse for any text.
+    const std::vector<std::string> hostile = {"", " lead", "a,b", "\"q\"", "line\nbreak", "cr\r\nlf", "#x"};
+    EXPECT_EQ(parseCsvRecords("h\n" + csvRow(hostile)).at(1), hostile);
+    EXPECT_EQ(parseCsvRecords("h\n" + csvRow({"#x", "y"})).at(1), (std::vector<std::string>{"#x", "y"}));
+}
+
+TEST(HostileNames, InferManifestNamesAreChecked) {
+    TempDir tmp;
+    const fs::path dir = tmp.path() / "data";
+    fs::create_directories(dir);
+    fs::copy_file(test::experimentsDir() / "stretching" / "mills_2004" / "mills_2004.csv", dir / "m.csv");
+    for (const std::string& bad : {std::string("a,b"), std::string(".."), std::string(101, 'x')}) {
+        writeText(dir / "datasets.json", nlohmann::json::array({{{"name", bad}, {"experiment", "stretching"}, {"file", "m.csv"}}}).dump());
+        try {
+            loadRbcDataSets(dir);
+            ADD_FAILURE() << bad << " accepted";
+        } catch (const InputError& e) {
+            EXPECT_TRUE(contains(e.what(), "datasets.json")) << e.what();
+            EXPECT_TRUE(contains(e.what(), "data set name")) << e.what();
+            EXPECT_TRUE(contains(e.what(), "A-Z a-z 0-9 _ . -") || contains(e.what(), "'.' and '..'")) << e.what();
+        }
+    }
+    writeText(dir / "datasets.json", nlohmann::json::array({{{"name", "m-1.x"}, {"experiment", "stretching"}, {"file", "m.csv"}}}).dump());
+    EXPECT_EQ(loadRbcDataSets(dir).at(0).name, "m-1.x");
+}
+
+TEST(Provenance, EveryCsvTableOpensWithVersionRevisionCommandAndSeed) {
+    TempDir tmp;
+    // A table written by the CLI names the command that wrote it.
+    const fs::path forces = tmp.path() / "f.csv";
+    const CliRun r = runTrbc("forces --mesh " + shellQuote(test::meshPath("rbc_498.off")) + " --kb 1 --out " + shellQuote(forces.string()),
+                             tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string text = test::slurp(forces);
+    const std::string first = text.substr(0, text.find('\n'));
+    EXPECT_TRUE(first.starts_with(fmt::format("# trbc {} (", kVersion))) << first;
+    EXPECT_TRUE(contains(first, "| command: ") && contains(first, " forces --mesh ")) << first;
+    EXPECT_TRUE(contains(first, "| seed: n/a")) << first;
+    EXPECT_FALSE(std::string(gitDescribe()).empty());
+    EXPECT_EQ(readNumericTable(forces).columns, (std::vector<std::string>{"fx", "fy", "fz"}));  // readers skip it
+    // A seeded run names its seed; a line break in an argument stays inside the comment line.
+    setProvenanceCommand("trbc infer --seed 7 --out a\nb");
+    setProvenanceSeed(7);
+    writePosteriorStats(tmp.path() / "s.csv", {{"p", "v", 1, 1, 1, 1, 0.1, 0.9, 1.1}});
+    const std::string stats = test::slurp(tmp.path() / "s.csv");
+    EXPECT_TRUE(stats.starts_with(fmt::format("# trbc {} ({}) | command: trbc infer --seed 7 --out a b | seed: 7\nposterior,parameter,",
+                                              kVersion, gitDescribe())))
+        << stats;
+    EXPECT_EQ(readCsvRecords(tmp.path() / "s.csv").size(), 2u);
+    setProvenanceCommand("trbc");
 }
 
 TEST(HostileNames, CaseIdsAreUniqueForDistinctInputs) {

@@ -166,6 +166,8 @@ TEST(PredictionCoverage, MarksPointOutsideTheBand) {
     std::ifstream in(files[0]);
     std::string header;
     std::getline(in, header);
+    EXPECT_TRUE(header.starts_with("# trbc ")) << header;  // the provenance line
+    std::getline(in, header);
     EXPECT_EQ(header.rfind("Fext_pN,D0_um_q005,D0_um_q05,", 0), 0u) << header;
     EXPECT_NE(header.find("D1_um_q95,D1_um_q995,D1_um_mean"), std::string::npos) << header;
     fs::remove_all(dir);

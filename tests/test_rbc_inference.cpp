@@ -646,8 +646,9 @@ TEST(RbcInference, AllPhasesEndToEndOnAnalyticModel) {
                           "phase3/theta_new/ancestral_check.csv", "phase3/hochmuth_1979_cell2/samples.csv"})
         EXPECT_TRUE(fs::exists(out / f)) << f;
     const std::string stats = test::slurp(out / "posterior_stats.csv");
-    EXPECT_EQ(stats.rfind("posterior,parameter,mean,median,ml,map,sd,q05,q95,mcse_mean,mcse_median,mcse_sd,mcse_q05,mcse_q95,rhat,"
-                          "ess_bulk,ess_tail\n", 0), 0u);
+    EXPECT_EQ(stats.rfind("# trbc ", 0), 0u);  // the provenance line, then the header
+    EXPECT_EQ(stats.find("\nposterior,parameter,mean,median,ml,map,sd,q05,q95,mcse_mean,mcse_median,mcse_sd,mcse_q05,mcse_q95,rhat,"
+                          "ess_bulk,ess_tail\n"), stats.find('\n'));
     for (const char* row : {"theta_new,v,", "theta_new,mu_uN_per_m,", "theta_new,kb_J,", "theta_new,b2,", "theta_new,etam_Pa_s_um,",
                             "evans_fung_1972,FvK,", "mills_2004,kb_J,", "suresh_2005,mu_uN_per_m,", "hochmuth_1979_cell1,etam_over_mu_s,",
                             "hochmuth_1979_cell4,tc_s,"})

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "surrogate/sobol.hpp"
 #include "surrogate/sobol_io.hpp"
@@ -532,6 +533,8 @@ TEST(SobolIndices, CsvOutput) {
     std::ifstream in(dir / "sobol_indices.csv");
     std::string line;
     std::getline(in, line);
+    EXPECT_TRUE(line.starts_with("# trbc ")) << line;  // the provenance line
+    std::getline(in, line);
     EXPECT_EQ(line, "output,input,S1,S1_ci,ST,ST_ci");
     std::vector<std::string> rows;
     while (std::getline(in, line)) rows.push_back(line);
@@ -551,12 +554,17 @@ TEST(SobolIndices, CsvOutput) {
 
     std::ifstream in2(dir / "sobol_second_order.csv");
     std::getline(in2, line);
+    EXPECT_TRUE(line.starts_with("# trbc ")) << line;  // the provenance line
+    std::getline(in2, line);
     EXPECT_EQ(line, "output,input_i,input_j,S2,S2_ci");
     std::getline(in2, line);
     EXPECT_EQ(line.substr(0, 10), "D_um,v,mu,");
 
     SobolResult bad = r;
-    bad.outputs[0] = "D,um";
+    bad.outputs[0] = "D,um";  // quoted, so that it stays one field
+    trbc::writeSobolCsv(dir / "quoted.csv", bad);
+    EXPECT_EQ(trbc::readCsvRecords(dir / "quoted.csv").at(1).at(0), "D,um");
+    bad.outputs[0] = "";
     EXPECT_THROW(trbc::writeSobolCsv(dir / "bad.csv", bad), trbc::InputError);
     EXPECT_THROW(trbc::writeSobolCsv(dir / "missing_dir" / "x.csv", r), trbc::InputError);
     bad = r;

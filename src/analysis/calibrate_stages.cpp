@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "analysis/toml_reader.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/shell_quote.hpp"
@@ -196,9 +197,17 @@ CalibrateStep validationStep(const CalibrateConfig& cfg, const fs::path& out, co
     const fs::path vcfg = cfg.validationConfig.empty() ? c.tools.validationConfig : cfg.validationConfig;
     std::string only;
     for (const std::string& k : cfg.validationOnly) only += (only.empty() ? " --only " : ",") + k;
+    std::vector<Part> inputs = {Part::literal("validation"), Part::literal(kVersion), Part::of("inference.phase23"), Part::bytesOf(vcfg),
+                                Part::literal(only)};
+    // Every file of the validation config's base chain: `trbc validate` reads them all, so a change to
+    // any of them re-runs the stage.
+    if (fs::is_regular_file(vcfg)) {
+        std::vector<fs::path> chain, bases;
+        parseWithBases(vcfg, chain, bases);
+        for (const fs::path& b : bases) inputs.push_back(Part::bytesOf(b));
+    }
     return commandStep({.name = "validation",
-                        .inputs = {Part::literal("validation"), Part::literal(kVersion), Part::of("inference.phase23"), Part::bytesOf(vcfg),
-                                   Part::literal(only)},
+                        .inputs = inputs,
                         .outputs = {out / "validation" / "validation.json"}},
                        {},
                        {c.trbc(fmt::format("validate --config {} --posterior {} --out {} --threads {}{} --quiet", shellQuote(vcfg),

@@ -378,21 +378,22 @@ std::vector<fs::path> writePredictionCsv(const fs::path& dir, const PosteriorPre
     const fs::path file = dir / fmt::format("predict_{}_{}.csv", p.label, experimentName(p.experiment));
     std::string s;
     if (p.experiment == RbcExperiment::Equilibrium) {
-        s = "observable,data_um";
+        // A band without a data point has "n/a" in data_um (pandas and trbc's readers take it as missing).
+        s = csvProvenance() + "observable,data_um";
         for (double q : lv) s += fmt::format(",pred_{}", levelSuffix(q));
         s += ",pred_mean\n";
         for (std::size_t j = 0; j < p.bands.size(); ++j) {
             const ObservableBand& b = p.bands[j];
-            s += b.observable + "," + (j < p.coverage.size() ? fmtNum(p.coverage[j].y) : std::string("nan"));
+            s += csvField(b.observable) + "," + (j < p.coverage.size() ? fmtNum(p.coverage[j].y) : std::string("n/a"));
             for (Eigen::Index i = 0; i < b.summary[0].quantiles.size(); ++i) s += fmt::format(",{:.8g}", b.summary[0].quantiles[i]);
             s += fmt::format(",{:.8g}\n", b.summary[0].mean);
         }
         writeFileAtomically(file, s);
         files.push_back(file);
         const fs::path dfile = dir / fmt::format("predict_{}_{}_density.csv", p.label, experimentName(p.experiment));
-        std::string d;
+        std::string d = csvProvenance();
         for (std::size_t j = 0; j < p.bands.size(); ++j)
-            d += fmt::format("{}{},{}_density", j ? "," : "", p.bands[j].observable, p.bands[j].observable);
+            d += fmt::format("{}{},{}", j ? "," : "", csvField(p.bands[j].observable), csvField(p.bands[j].observable + "_density"));
         d += "\n";
         const std::size_t np = p.densityX.empty() ? 0 : p.densityX[0].size();
         for (std::size_t i = 0; i < np; ++i) {
@@ -404,10 +405,10 @@ std::vector<fs::path> writePredictionCsv(const fs::path& dir, const PosteriorPre
         files.push_back(dfile);
         return files;
     }
-    s = p.xName;
+    s = csvProvenance() + csvField(p.xName);
     for (const ObservableBand& b : p.bands) {
-        for (double q : lv) s += fmt::format(",{}_{}", b.observable, levelSuffix(q));
-        s += fmt::format(",{}_mean", b.observable);
+        for (double q : lv) s += "," + csvField(fmt::format("{}_{}", b.observable, levelSuffix(q)));
+        s += "," + csvField(b.observable + "_mean");
     }
     s += "\n";
     const std::size_t nx = p.bands.empty() ? 0 : p.bands[0].x.size();
@@ -425,10 +426,11 @@ std::vector<fs::path> writePredictionCsv(const fs::path& dir, const PosteriorPre
 }
 
 void writeCoverageCsv(const fs::path& file, const std::vector<PosteriorPrediction>& predictions) {
-    std::string s = "posterior,experiment,observable,x,y,q05,q50,q95,inside_90\n";
+    std::string s = csvProvenance() + "posterior,experiment,observable,x,y,q05,q50,q95,inside_90\n";
     for (const PosteriorPrediction& p : predictions)
         for (const CoveragePoint& c : p.coverage)
-            s += fmt::format("{},{},{},{},{},{},{},{},{}\n", p.label, experimentName(p.experiment), c.observable, fmtNum(c.x), fmtNum(c.y),
+            s += fmt::format("{},{},{},{},{},{},{},{},{}\n", csvField(p.label), csvField(experimentName(p.experiment)), csvField(c.observable),
+                             fmtNum(c.x), fmtNum(c.y),
                              fmtNum(c.q05), fmtNum(c.q50), fmtNum(c.q95), c.inside() ? 1 : 0);
     writeFileAtomically(file, s);
 }
@@ -443,7 +445,8 @@ std::string coverageMarkdown(const std::vector<PosteriorPrediction>& predictions
     int total = 0, inside = 0;
     for (const PosteriorPrediction& p : predictions) {
         if (!p.haveData) {
-            s += fmt::format("| {} | {} | {} | – | – | no data set of this name |\n", p.label, experimentName(p.experiment), p.samplesUsed);
+            s += fmt::format("| {} | {} | {} | – | – | no data set of this name |\n", markdownCell(p.label), experimentName(p.experiment),
+                             p.samplesUsed);
             continue;
         }
         int in = 0;
@@ -456,8 +459,8 @@ std::string coverageMarkdown(const std::vector<PosteriorPrediction>& predictions
         }
         total += static_cast<int>(p.coverage.size());
         inside += in;
-        s += fmt::format("| {} | {} | {} | {} | {} | {} |\n", p.label, experimentName(p.experiment), p.samplesUsed, p.coverage.size(), in,
-                         out.empty() ? std::string("none") : fmt::format("{}", fmt::join(out, "; ")));
+        s += fmt::format("| {} | {} | {} | {} | {} | {} |\n", markdownCell(p.label), experimentName(p.experiment), p.samplesUsed,
+                         p.coverage.size(), in, out.empty() ? std::string("none") : markdownCell(fmt::format("{}", fmt::join(out, "; "))));
     }
     s += fmt::format("\nIn all: {} of {} data points inside their 90 % band ({:.1f} %).\n", inside, total,
                      total ? 100.0 * inside / total : 0.0);
@@ -474,7 +477,7 @@ std::string coverageMarkdown(const std::vector<PosteriorPrediction>& predictions
                 return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
             };
             const Eigen::VectorXd ratio = (p.tcSim.array() / p.tcLatent.array()).matrix();
-            s += fmt::format("| {} | {:.4g} | {:.4g} | {:.3f} |\n", p.label, median(p.tcLatent), median(p.tcSim), median(ratio));
+            s += fmt::format("| {} | {:.4g} | {:.4g} | {:.3f} |\n", markdownCell(p.label), median(p.tcLatent), median(p.tcSim), median(ratio));
         }
     }
     return s;
@@ -505,7 +508,7 @@ std::string directComparisonMarkdown(const std::vector<DirectComparison>& rows, 
         double md = 0.0;
         for (double d : r.direct) md += d;
         md = r.direct.empty() ? std::numeric_limits<double>::quiet_NaN() : md / static_cast<double>(r.direct.size());
-        s += fmt::format("| {} | {} | {} | {} | {:.4g} | {:.4g} | {:.4g} |\n", r.label, r.observable, r.surrogate.size(), r.failures,
+        s += fmt::format("| {} | {} | {} | {} | {:.4g} | {:.4g} | {:.4g} |\n", markdownCell(r.label), markdownCell(r.observable), r.surrogate.size(), r.failures,
                          r.rmse(), r.maxAbs(), md);
     }
     return s;

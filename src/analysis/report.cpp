@@ -10,6 +10,7 @@
 #include <regex>
 #include <sstream>
 
+#include "core/csv.hpp"
 #include "core/file_io.hpp"
 #include "core/error.hpp"
 
@@ -51,11 +52,7 @@ std::string inlineHtml(const std::string& s) {
     return e;
 }
 
-std::string mdCell(const std::string& s) {
-    std::string r;
-    for (char c : s) r += c == '|' ? std::string("\\|") : std::string(1, c);
-    return r;
-}
+std::string mdCell(const std::string& s) { return markdownCell(s); }
 
 }  // namespace
 
@@ -153,27 +150,18 @@ std::string ReportDocument::html(const std::string& title) const {
 
 namespace {
 
-/// Rows of a simple CSV (no quoting: the pipeline's own files), header first; empty if missing.
-std::vector<std::vector<std::string>> readCsvRows(const fs::path& p) {
-    std::vector<std::vector<std::string>> rows;
-    std::ifstream in(p);
-    std::string line;
-    while (std::getline(in, line)) {
-        if (!line.empty() && line.back() == '\r') line.pop_back();
-        if (line.empty()) continue;
-        std::vector<std::string> cells;
-        std::stringstream ss(line);
-        std::string c;
-        while (std::getline(ss, c, ',')) cells.push_back(c);
-        rows.push_back(std::move(cells));
-    }
-    return rows;
-}
+/// Records of one of the pipeline's CSV tables (quoted fields, '#' lines skipped), header first; empty if missing.
+std::vector<std::vector<std::string>> readCsvRows(const fs::path& p) { return readCsvRecords(p); }
 
 /// Column index by name (-1 if absent).
 int columnOf(const std::vector<std::string>& header, const std::string& name) {
     const auto it = std::find(header.begin(), header.end(), name);
     return it == header.end() ? -1 : static_cast<int>(it - header.begin());
+}
+
+/// Column c of a record; empty when the record is shorter or c is -1 (a missing column).
+std::string cellOf(const std::vector<std::string>& row, int c) {
+    return c >= 0 && static_cast<std::size_t>(c) < row.size() ? row[static_cast<std::size_t>(c)] : std::string();
 }
 
 nlohmann::json readJson(const fs::path& p) { return tryReadJson(p).value_or(nullptr); }
@@ -210,12 +198,12 @@ void parametersSection(ReportDocument& doc, const fs::path& out) {
     std::vector<std::vector<std::string>> table, paper;
     for (const ParameterLayout& L : kThetaLayout)
         for (std::size_t r = 1; r < rows.size(); ++r) {
-            if (rows[r][static_cast<std::size_t>(cPost)] != "theta_new" || rows[r][static_cast<std::size_t>(cPar)] != L.parameter) continue;
+            if (cellOf(rows[r], cPost) != "theta_new" || cellOf(rows[r], cPar) != L.parameter) continue;
             std::vector<std::string> line = {L.label};
             for (const char* col : {"mean", "mcse_mean", "median", "map", "sd", "mcse_sd", "q05", "q95"}) {
                 const int c = columnOf(h, col);
                 // Statistics files of older versions have no MCSE columns; "nan" marks a statistic without one.
-                const std::string cell = c < 0 ? std::string() : rows[r][static_cast<std::size_t>(c)];
+                const std::string cell = c < 0 ? std::string() : cellOf(rows[r], c);
                 line.push_back(cell.empty() || cell == "nan" ? "–" : num(std::stod(cell) * L.factor));
             }
             table.push_back(line);
@@ -250,10 +238,10 @@ void predictionSection(ReportDocument& doc, const fs::path& out) {
     std::map<std::string, std::string> experiment;
     int inside = 0, total = 0;
     for (std::size_t r = 1; r < rows.size(); ++r) {
-        const std::string p = rows[r][static_cast<std::size_t>(cPost)];
-        const bool in = rows[r][static_cast<std::size_t>(cIn)] == "1";
+        const std::string p = cellOf(rows[r], cPost);
+        const bool in = cellOf(rows[r], cIn) == "1";
         count[p].first += in, count[p].second += 1, inside += in, total += 1;
-        experiment[p] = rows[r][static_cast<std::size_t>(cExp)];
+        experiment[p] = cellOf(rows[r], cExp);
     }
     std::vector<std::vector<std::string>> table;
     for (const auto& [p, c] : count)
@@ -289,9 +277,9 @@ void sobolSection(ReportDocument& doc, const fs::path& out) {
         std::vector<std::string> line = {o};
         for (const std::string& in : inputs)
             for (std::size_t r = 1; r < rows.size(); ++r)
-                if (rows[r][static_cast<std::size_t>(cOut)] == o && rows[r][static_cast<std::size_t>(cIn)] == in)
-                    line.push_back(fmt::format("{:.2f} / {:.2f}", std::stod(rows[r][static_cast<std::size_t>(cS1)]),
-                                               std::stod(rows[r][static_cast<std::size_t>(cST)])));
+                if (cellOf(rows[r], cOut) == o && cellOf(rows[r], cIn) == in)
+                    line.push_back(fmt::format("{:.2f} / {:.2f}", std::stod(cellOf(rows[r], cS1)),
+                                               std::stod(cellOf(rows[r], cST))));
         if (line.size() == inputs.size() + 1) table.push_back(line);
     }
     std::vector<std::string> header = {"output (first order / total)"};

@@ -115,6 +115,28 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
             const auto [lo, hi] = box.bounds(key);
             r.real(key, *value, lo, hi);
         }
+        // Keys the chosen source does not read are refused, not ignored: table1 and posterior take all five
+        // parameters from elsewhere, explicit takes exactly the five given.
+        const char* kParameters[] = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
+        if (c.cellSource != "posterior" && t->get("posterior"))
+            r.fail(*t->get("posterior"), fmt::format("'cell.posterior' is not read with cell.source = \"{}\" (only with source = "
+                                                     "\"posterior\"): remove it or set source = \"posterior\"",
+                                                     c.cellSource));
+        if (c.cellSource != "explicit")
+            for (const char* key : kParameters)
+                if (const toml::node* n = t->get(key))
+                    r.fail(*n, fmt::format("'cell.{}' is not read with cell.source = \"{}\" (the cell is {}): remove it, or set "
+                                           "source = \"explicit\" and give all of v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um",
+                                           key, c.cellSource,
+                                           c.cellSource == "table1" ? "Table 1's means" : "the posterior's means"));
+        if (c.cellSource == "explicit") {
+            std::vector<std::string> missing;
+            for (const char* key : kParameters)
+                if (!t->get(key)) missing.push_back(key);
+            if (!missing.empty())
+                r.fail(*t->get("source"), fmt::format("cell.source = \"explicit\" needs all of v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; "
+                                                      "missing: {}", fmt::join(missing, ", ")));
+        }
         if (c.cellSource == "posterior" && c.posterior.empty())
             r.fail(*t, "cell.source = \"posterior\" needs cell.posterior (DIR/phase3/theta_new of `trbc infer`)");
         if (c.cellSource == "posterior" && !fs::exists(c.posterior))

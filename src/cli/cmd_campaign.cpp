@@ -19,6 +19,7 @@
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "sampling/campaign.hpp"
 
@@ -172,6 +173,7 @@ void runCampaign(const CampaignCommandOptions& o) {
     c.design = parseDesignKind(o.design);
     c.outDir = o.out;
     c.command = commandLine();
+    setProvenanceSeed(c.seed);
     c.experiment.level = o.level;
     c.experiment.cacheDir = cacheDirectory(o.cache);
     if (!o.inject.empty()) c.injectFailures = parseIdList(o.inject);

@@ -13,6 +13,7 @@
 #include <numbers>
 
 #include "cli/common.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -271,7 +272,7 @@ void writeShapesAndSteps(const std::string& dir, const FlowScales& scales, const
     pvd += "</Collection>\n</VTKFile>\n";
     writeText(dir + "/shapes.pvd", pvd);
     const double tensionUnit = scales.force() / L;
-    std::string steps = "t_s,dt_s,local_error_um,gmres_iterations,tension_pN_per_um,area_drift,volume_drift,"
+    std::string steps = csvProvenance() + "t_s,dt_s,local_error_um,gmres_iterations,tension_pN_per_um,area_drift,volume_drift,"
                         "area_projection,volume_projection\n";
     for (const auto& s : r.stepLog)
         steps += fmt::format("{:.9g},{:.6e},{:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e}\n", s.t * T, s.dt * T, s.error * L,
@@ -294,7 +295,7 @@ struct ShearCli {
 void writeShearOutputs(const std::string& dir, const ShearCaseResult& res, int vtkEvery, const nlohmann::json& j) {
     writeShapesAndSteps(dir, res.scales, res.prepared, res.prepared.initial, res.flow, vtkEvery);
     const ShearFrameSeries& s = res.series;
-    std::string csv = "t_s,shear_strain,inclination_deg,orientation_unwrapped_deg,area_drift,volume_drift,cx_um,cy_um,cz_um\n";
+    std::string csv = csvProvenance() + "t_s,shear_strain,inclination_deg,orientation_unwrapped_deg,area_drift,volume_drift,cx_um,cy_um,cz_um\n";
     for (std::size_t k = 0; k < s.time.size(); ++k) {
         const Eigen::Vector3d c = s.centroidUm.col(static_cast<Eigen::Index>(k));
         csv += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.6e},{:.6e},{:.9g},{:.9g},{:.9g}\n", s.time[k], s.shearStrain[k],
@@ -506,7 +507,7 @@ void addWallOptions(CLI::App* cmd, TubeCli& o) {
 
 /// frames.csv of a tube stage (times from the start of the stage): centroid, extents, clearance, drift.
 void writeTubeFrames(const std::string& dir, const TubeFrameSeries& s) {
-    std::string csv = "t_s,t_R_over_V,cx_um,cy_um,cz_um,length_um,width_y_um,width_z_um,clearance_um,area_drift,"
+    std::string csv = csvProvenance() + "t_s,t_R_over_V,cx_um,cy_um,cz_um,length_um,width_y_um,width_z_um,clearance_um,area_drift,"
                       "volume_drift\n";
     for (std::size_t k = 0; k < s.time.size(); ++k) {
         const Eigen::Vector3d c = s.centroidUm.col(static_cast<Eigen::Index>(k));

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cli/common.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "membrane/model.hpp"
@@ -60,7 +61,7 @@ void registerForces(CLI::App& app) {
         const double energy = model.evaluate(mesh.X, &grad, &terms);
         if (!std::isfinite(energy) || !grad.allFinite())
             throw NumericalError(fmt::format("energy or forces are not finite on '{}'", o->mesh));
-        std::string csv = "fx,fy,fz\n";
+        std::string csv = csvProvenance() + "fx,fy,fz\n";
         for (Eigen::Index i = 0; i < grad.cols(); ++i)
             csv += fmt::format("{:.17g},{:.17g},{:.17g}\n", -grad(0, i), -grad(1, i), -grad(2, i));
         writeFileAtomically(o->out, csv);

@@ -10,6 +10,7 @@
 
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -146,6 +147,7 @@ RbcInferenceOptions inferenceOptions(const InferCommandOptions& o) {
     opt.population.truncate = o.truncation == "on";
     opt.population.newCellBox = o.box == "on";
     opt.seed = o.seed;
+    setProvenanceSeed(o.seed);
     opt.resume = o.resume;
     opt.fvkRule = o.fvk == "closed"          ? FvkDensityRule::ClosedForm
                   : o.fvk == "closed-double" ? FvkDensityRule::ClosedFormDouble

@@ -11,6 +11,7 @@
 
 #include "analysis/prediction.hpp"
 #include "cli/common.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/hash.hpp"
@@ -156,6 +157,7 @@ nlohmann::json predictProvenance(const PredictCommandOptions& o, const PredictIn
 }
 
 void runPredict(const PredictCommandOptions& o) {
+    setProvenanceSeed(o.seed);
     omp_set_num_threads(o.threads);
     const std::vector<fs::path> dirs = posteriorDirectories(o);
     ensureWritableDirectory(o.out);

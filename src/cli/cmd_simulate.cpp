@@ -11,6 +11,7 @@
 
 #include "cli/common.hpp"
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -53,7 +54,7 @@ ExperimentSet parseExperiments(const std::string& text) {
 void writeCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {
     std::ostringstream out;
     out.precision(10);
-    out << header << '\n';
+    out << csvProvenance() << header << '\n';
     for (std::size_t i = 0; i < cols.front().size(); ++i) {
         for (std::size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c][i];
         out << '\n';

@@ -13,6 +13,7 @@
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -93,6 +94,7 @@ void runSobol(const SobolCommandOptions& o) {
     so.nBase = o.samples;
     so.base = o.base == "sobol" ? SobolBase::Sobol : SobolBase::PseudoRandom;
     so.seed = o.seed;
+    setProvenanceSeed(o.seed);
     so.resamples = o.resamples;
     const auto t0 = SteadyClock::now();
     const SobolResult r = sobolAnalysis([&](const Eigen::MatrixXd& X) { return surrogateSobolModel(s, X, forces); }, lo, hi, so,

@@ -42,7 +42,7 @@ std::string accuracyMarkdown(const std::vector<OutputAccuracy>& acc) {
 /// Held-out rows with truth and prediction: inputs, outputs, outputs_pred.
 void writePredictionsCsv(const std::filesystem::path& p, const Eigen::MatrixXd& inputs, const Eigen::MatrixXd& truth,
                          const Eigen::MatrixXd& predicted) {
-    std::string text =
+    std::string text = csvProvenance() +
         "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,"
         "D_um_pred,hmin_um_pred,hmax_um_pred,D0_um_pred,D1_um_pred,tc_s_pred\n";
     for (Eigen::Index c = 0; c < inputs.cols(); ++c) {
@@ -205,6 +205,7 @@ void reconcileNetworkLists(TrainCommandOptions& o, bool distillGiven) {
 SurrogateTrainingOptions trainingOptions(const TrainCommandOptions& o) {
     SurrogateTrainingOptions t = o.t;
     t.command = commandLine();
+    setProvenanceSeed(t.network.seed);
     if (o.branch == "auto") t.cellBranch = o.kicked;
     t.logRelaxation = o.relaxationVariables == "log";
     t.sqrtB2Stretching = o.stretchingVariables == "sqrt-b2";
@@ -409,7 +410,8 @@ void registerEval(CLI::App* parent) {
         omp_set_num_threads(o->threads);
         const Eigen::MatrixXd y = s.evaluate(x);
         const auto outside = outsideTrainingBox(x);
-        std::string text = "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,outside_training_box\n";
+        std::string text =
+            csvProvenance() + "v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,Fext_pN,D_um,hmin_um,hmax_um,D0_um,D1_um,tc_s,outside_training_box\n";
         long nOutside = 0;
         for (Eigen::Index i = 0; i < x.cols(); ++i) {
             for (int r = 0; r < 6; ++r)

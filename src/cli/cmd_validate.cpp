@@ -13,6 +13,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -26,8 +27,10 @@
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
+#include "core/hash.hpp"
 #include "core/version.hpp"
 #include "experiments/parameters.hpp"
 #include "flow/tube.hpp"
@@ -50,6 +53,18 @@ std::string stringOr(const json& o, const char* key) {
 double numberOr(const json& o, const char* key) {
     const auto it = o.find(key);
     return it != o.end() && it->is_number() ? it->get<double>() : NAN;
+}
+
+/// FNV-1a of a table's bytes after its leading '#' lines, "missing" when it does not exist: the
+/// provenance line names the command and build that wrote the samples, not their values, so a
+/// posterior rewritten by `infer --resume` keeps its cases.
+std::string tableFingerprint(const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return "missing";
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::size_t start = 0;
+    while (start < text.size() && text[start] == '#') start = std::min(text.find('\n', start), text.size() - 1) + 1;
+    return fmt::format("{:016x}", fnv1a(std::string_view(text).substr(start)));
 }
 
 struct Runner {
@@ -94,7 +109,7 @@ struct Runner {
     std::string cellKey(const ValidationCase& c) const {
         if (c.sample >= 0) return cellArgs(c);
         if (cfg.cellSource == "posterior")
-            return cellArgs(c) + " " + fileFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
+            return cellArgs(c) + " " + tableFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
         if (cfg.cellSource == "explicit") return cellArgs(c);
         return fmt::format("table1 v={} mu={} kb={} b2={} etam={}", table1::v, table1::mu, table1::kbJ, table1::b2, table1::etam);
     }
@@ -294,17 +309,18 @@ struct ComparisonTable {
         (s.verdict == "inside" ? inside : s.verdict == "outside" ? outside : s.verdict == "no data" ? noData : other)++;
         rows.push_back({{"case", id}, {"observable", observable}, {"predicted", predicted}, {"scatter_lo", s.lo},
                         {"scatter_hi", s.hi}, {"points", s.points}, {"window", s.window}, {"verdict", s.verdict}});
-        md += fmt::format("| {} | {} | {} | {} | {} |\n", id, observable, shown,
+        md += fmt::format("| {} | {} | {} | {} | {} |\n", markdownCell(id), markdownCell(observable), markdownCell(shown),
                           s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g} ({} values)", s.lo, s.hi, s.points),
                           s.verdict == "outside" ? "**outside**" : s.verdict);
     }
 
     std::string csv() const {
-        std::string cmp = "case,observable,predicted,scatter_lo,scatter_hi,points,verdict,window\n";
+        std::string cmp = csvProvenance() + "case,observable,predicted,scatter_lo,scatter_hi,points,verdict,window\n";
         for (const json& c : rows)
-            cmp += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{},{},\"{}\"\n", c["case"].get<std::string>(), c["observable"].get<std::string>(),
-                               c["predicted"].get<double>(), c["scatter_lo"].get<double>(), c["scatter_hi"].get<double>(),
-                               c["points"].get<int>(), c["verdict"].get<std::string>(), c["window"].get<std::string>());
+            cmp += fmt::format("{},{},{:.6g},{:.6g},{:.6g},{},{},{}\n", csvField(c["case"].get<std::string>()),
+                               csvField(c["observable"].get<std::string>()), c["predicted"].get<double>(), c["scatter_lo"].get<double>(),
+                               c["scatter_hi"].get<double>(), c["points"].get<int>(), csvField(c["verdict"].get<std::string>()),
+                               csvField(c["window"].get<std::string>()));
         return cmp;
     }
 };
@@ -329,11 +345,11 @@ std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationC
     const json plateau = d.value("plateau", json::object()), settling = d.value("settling", json::object()),
                motion = d.value("cell_frame_motion", json::object());
     const std::string settled = settling.empty() ? "none" : settling.value("settled", false) ? "true" : "false";
-    const std::string row = fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.pressureGradient,
+    const std::string row = fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), c.pressureGradient,
                                         cfg.tubeRadius, num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
                                         num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false",
                                         settled, num(settling.value("length_change_main_vs_settled", json())),
-                                        num(motion.value("ratio", json())), status,
+                                        num(motion.value("ratio", json())), csvField(status),
                                         num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())),
                                         rec.value("wall_s", 0.0), cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
     if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) return row;
@@ -349,11 +365,11 @@ std::string shearCase(const ValidationCase& c, const json& rec, const Validation
     const json& r = rec.at("result");
     const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
     const std::string status = r.value("status", "failed"), regime = regimeOf(o);
-    const std::string row = fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", c.id, c.kind, c.etaOut, c.rate,
-                                        c.etaOut * 1e-3 * c.rate, regime, num(o.value("inclination_deg", json())),
+    const std::string row = fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), csvField(c.kind),
+                                        c.etaOut, c.rate, c.etaOut * 1e-3 * c.rate, csvField(regime), num(o.value("inclination_deg", json())),
                                         num(o.value("swing_amplitude_deg", json())), num(o.value("ttf_4pi_f_over_shear_rate", json())),
-                                        status, num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())),
-                                        rec.value("wall_s", 0.0), cfg.level);
+                                        csvField(status), num(d.value("area_drift_max", json())),
+                                        num(d.value("volume_drift_max", json())), rec.value("wall_s", 0.0), cfg.level);
     if (status != "ok") return row;
     if (c.kind == "angle") {
         const double a = numberOr(o, "inclination_deg");
@@ -369,7 +385,7 @@ std::string shearCase(const ValidationCase& c, const json& rec, const Validation
 
 /// threshold.csv: the bracket per outer viscosity, compared with Fischer 2013 and Abkarian 2007.
 std::string thresholdTable(const Runner& R, const ValidationEvidence& evidence, ComparisonTable& table) {
-    std::string thr = "eta_out_mPa_s,gamma_lo_per_s,gamma_hi_per_s,tau_lo_Pa,tau_hi_Pa,monotone,intermittent_rates_per_s\n";
+    std::string thr = csvProvenance() + "eta_out_mPa_s,gamma_lo_per_s,gamma_hi_per_s,tau_lo_Pa,tau_hi_Pa,monotone,intermittent_rates_per_s\n";
     for (double eta : thresholdViscosities(R.cfg)) {
         if (R.thresholdPoints(eta).empty()) continue;  // not run (--only)
         const ThresholdBracket b = thresholdBracket(R.thresholdPoints(eta));
@@ -427,7 +443,7 @@ struct BandTable {
     json rows = json::array();
     /// kind -> compared, configured cell inside, band overlap, band verdict within the MC error
     std::map<std::string, std::array<int, 4>> tally;
-    std::string csv = "case,kind,observable,eta_out_mPa_s,shear_rate_per_s,pg_mmHg_per_mm,mean_cell,mean_cell_verdict,median,q05,q95,"
+    std::string csv = csvProvenance() + "case,kind,observable,eta_out_mPa_s,shear_rate_per_s,pg_mmHg_per_mm,mean_cell,mean_cell_verdict,median,q05,q95,"
                       "median_mcse,q05_mcse,q95_mcse,draws,finished,failed,with_value,scatter_lo,scatter_hi,points,band_verdict,"
                       "band_verdict_within_mcse,reasons\n";
     std::string md = "| case | observable | mean cell | median [5 – 95 %] | MC error (median / 5 % / 95 %) | finished / failed / "
@@ -446,11 +462,7 @@ struct BandTable {
         const std::string meanVerdict = m == mean.rows.end() ? "not compared" : (*m)["verdict"].get<std::string>();
         const std::string verdict = bandVerdict(b, s, kind != "threshold");
         const bool marginal = bandVerdictWithinMcse(b, s);
-        std::string reasons = drawReasonsText(b), quoted;  // a failure's text: '"' doubled in the CSV, no '|' in the markdown
-        for (char& ch : reasons) {
-            quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-            if (ch == '|') ch = '/';
-        }
+        const std::string reasons = drawReasonsText(b);  // a failure's text: through csvField and markdownCell
         std::array<int, 4>& t = tally[kind];
         ++t[0], t[1] += meanVerdict == "inside", t[2] += verdict == "overlap", t[3] += marginal;
         rows.push_back({{"case", id}, {"kind", kind}, {"observable", observable}, {"mean_cell", meanValue},
@@ -461,12 +473,13 @@ struct BandTable {
                         {"band_verdict_within_mcse", marginal},
                         {"reasons", b.reasons}});
         const auto g = [](double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : std::string(); };
-        csv += fmt::format("{},{},{},{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", id, kind, observable, c.etaOut,
+        csv += fmt::format("{},{},{},{:g},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csvField(id), csvField(kind),
+                           csvField(observable), c.etaOut,
                            c.rate > 0.0 ? fmt::format("{:.6g}", c.rate) : "", kind == "tube" ? fmt::format("{:g}", c.pressureGradient) : "",
-                           g(meanValue), meanVerdict,
+                           g(meanValue), csvField(meanVerdict),
                            g(b.median), g(b.lo), g(b.hi), g(b.medianMcse), g(b.loMcse), g(b.hiMcse), b.draws, b.finished, b.failed,
-                           b.withValue, g(s.lo), g(s.hi), s.points, verdict, marginal ? "yes" : "no", quoted);
-        md += fmt::format("| {} | {} | {} | {} | {} | {} / {} / {} | {} | {} | {}{} | {} |\n", id, observable,
+                           b.withValue, g(s.lo), g(s.hi), s.points, csvField(verdict), marginal ? "yes" : "no", csvField(reasons));
+        md += fmt::format("| {} | {} | {} | {} | {} | {} / {} / {} | {} | {} | {}{} | {} |\n", markdownCell(id), markdownCell(observable),
                           std::isfinite(meanValue) ? fmt::format("{:.3g}", meanValue) : "–",
                           b.withValue > 0 ? fmt::format("{:.3g} [{:.3g} – {:.3g}]", b.median, b.lo, b.hi) : "–",
                           b.withValue > 0 ? fmt::format("{:.2g} / {}{:.2g} / {}{:.2g}", b.medianMcse, b.endsMcseIsLowerBound ? "≥ " : "",
@@ -475,7 +488,7 @@ struct BandTable {
                           b.finished, b.failed, b.withValue,
                           s.points == 0 ? std::string("–") : fmt::format("{:.3g} – {:.3g}", s.lo, s.hi), meanVerdict,
                           verdict == "no overlap" ? "**no overlap**" : verdict, marginal ? " (within MC error)" : "",
-                          reasons.empty() ? "–" : reasons);
+                          reasons.empty() ? "–" : markdownCell(reasons));
     }
 
     /// Per kind: observables compared and agreeing under each verdict; the draw runs and their failures.
@@ -523,14 +536,14 @@ std::optional<ScatterComparison> drawScatter(const ValidationCase& c, const std:
 /// draws.csv (one row per draw run) and bands.csv; returns the bands.
 BandTable drawTables(const Runner& R, ValidationEvidence& evidence, const ComparisonTable& mean) {
     BandTable bands;
-    std::string runs = "case_id,case,kind,sample,status,regime,inclination_deg,ttf_4pi_f_over_shear_rate,velocity_cm_per_s,length_um,wall_s\n";
+    std::string runs = csvProvenance() + "case_id,case,kind,sample,status,regime,inclination_deg,ttf_4pi_f_over_shear_rate,velocity_cm_per_s,length_um,wall_s\n";
     for (const ValidationCase& c : R.cases) {
         if (c.sample >= 0) {
             const json& rec = R.results.at(c.id);
             const json& r = rec.at("result");
             const json o = r.value("observables", json::object());
-            runs += fmt::format("{},{},{},{},{},{},{},{},{},{},{:.1f}\n", c.id, c.id.substr(0, c.id.rfind("_sample")), c.kind, c.sample,
-                                r.value("status", "failed"), regimeOf(o), num(o.value("inclination_deg", json())),
+            runs += fmt::format("{},{},{},{},{},{},{},{},{},{},{:.1f}\n", csvField(c.id), csvField(c.id.substr(0, c.id.rfind("_sample"))),
+                                csvField(c.kind), c.sample, csvField(r.value("status", "failed")), csvField(regimeOf(o)), num(o.value("inclination_deg", json())),
                                 num(o.value("ttf_4pi_f_over_shear_rate", json())), num(o.value("velocity_cm_per_s", json())),
                                 num(o.value("length_um", json())), rec.value("wall_s", 0.0));
             continue;
@@ -565,7 +578,7 @@ BandTable drawTables(const Runner& R, ValidationEvidence& evidence, const Compar
 json writeTables(const Runner& R, json& bandRows) {
     ValidationEvidence evidence(R.cfg.dataDir);
     ComparisonTable table;
-    std::string shear = kShearHeader, tube = kTubeHeader;
+    std::string shear = csvProvenance() + kShearHeader, tube = csvProvenance() + kTubeHeader;
     int failed = 0;
     std::size_t cases = 0;
     for (const ValidationCase& c : R.cases) {
@@ -645,6 +658,7 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
 
 /// The configuration with the command line's overrides, the output and import directories, the tools.
 void configureRunner(Runner& R, const ValidateCommandOptions& o) {
+    setProvenanceSeed(o.seed);
     R.cfg = readValidationConfig(o.config, defaultExperimentDirectory());
     if (!o.posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o.posterior).lexically_normal();
     if (o.jobs > 0) R.cfg.jobs = o.jobs;

@@ -14,6 +14,7 @@
 #include <string_view>
 
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 
 namespace trbc::cli {
@@ -31,6 +32,7 @@ void setCommandLine(int argc, char** argv) {
         });
         g_commandLine += (i ? " " : "") + (plain ? a : shellQuote(a));
     }
+    setProvenanceCommand(g_commandLine);  // the provenance line of every CSV table
 }
 
 namespace {

@@ -2,7 +2,9 @@
 // Numeric CSV tables with a header line (experimental data, surrogate inputs). Strict: every
 // problem is an InputError naming the file, the line and the column.
 #include <Eigen/Core>
+#include <cstdint>
 #include <filesystem>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -22,12 +24,36 @@ struct NumericTable {
 };
 
 /// Reads a CSV whose header names the columns. Only the columns in `numericColumns` (all columns if
-/// empty) must be numbers; the others are ignored. Empty lines are skipped; '#' starts a comment line.
+/// empty) must be numbers; the others are ignored. Empty lines are skipped; '#' starts a comment line;
+/// fields may be quoted as csvField writes them.
 NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns = {});
 
 /// One CSV field as RFC 4180 writes it: as is, or in double quotes with '"' doubled when it holds a
-/// comma, a quote, a line break or leading/trailing space, so that no text can add a column or a row.
+/// comma, a quote, a line break, leading/trailing space or a leading '#', so that no text can add a
+/// column or a row, or turn a row into a comment line.
 std::string csvField(std::string_view text);
+
+/// The fields of a line joined by commas, each through csvField, and a line break.
+std::string csvRow(std::initializer_list<std::string_view> fields);
+std::string csvRow(const std::vector<std::string>& fields);
+
+/// The records of a CSV file (RFC 4180: quoted fields may hold commas, quotes and line breaks), header
+/// first. Lines that start with '#' (the provenance line) and empty lines are skipped. Empty when the
+/// file cannot be read.
+std::vector<std::vector<std::string>> readCsvRecords(const std::filesystem::path& path);
+/// The records of CSV text, as readCsvRecords.
+std::vector<std::vector<std::string>> parseCsvRecords(std::string_view text);
+
+/// The provenance line that opens every CSV table trbc writes, for example
+/// "# trbc 1.4.0 (v1.4.0-12-gabc1234) | command: trbc infer --seed 3 | seed: 3\n": the version, the
+/// revision of the source it was built from (`git describe --always --dirty`, "unknown" outside a git
+/// checkout), the command line and the run seed ("n/a" for a command without one). Every CSV reader of
+/// trbc skips lines that start with '#'.
+std::string csvProvenance();
+/// Records the command line that csvProvenance names (the CLI's main does, once).
+void setProvenanceCommand(std::string commandLine);
+/// Records the run seed that csvProvenance names (each command with a seed does).
+void setProvenanceSeed(std::uint64_t seed);
 
 /// One Markdown table cell: '|' escaped and line breaks as spaces, so that no text can add a cell or a row.
 std::string markdownCell(std::string_view text);

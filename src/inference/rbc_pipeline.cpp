@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/hash.hpp"
@@ -69,7 +70,7 @@ struct Context {
 };
 
 void writeStages(const fs::path& file, const TmcmcResult& r) {
-    std::string s = "stage,exponent,cov,acceptance_rate,unique_selections,ess,max_log_likelihood,log_evidence_increment,"
+    std::string s = csvProvenance() + "stage,exponent,cov,acceptance_rate,unique_selections,ess,max_log_likelihood,log_evidence_increment,"
                     "covariance_jitter,likelihood_evaluations,elapsed_s\n";
     for (const TmcmcStageInfo& g : r.stages)
         s += fmt::format("{},{:.10g},{:.6g},{:.6g},{},{:.8g},{:.10g},{:.10g},{:.6g},{},{:.4f}\n", g.stage, g.exponent,
@@ -81,7 +82,9 @@ void writeStages(const fs::path& file, const TmcmcResult& r) {
 
 void writeSamples(const fs::path& file, const Eigen::MatrixXd& x, const std::vector<std::string>& names,
                   const Eigen::VectorXd& logLikelihood, const Eigen::VectorXd& logPrior) {
-    std::string s = fmt::format("{},log_likelihood,log_prior\n", fmt::join(names, ","));
+    std::vector<std::string> header = names;
+    header.insert(header.end(), {"log_likelihood", "log_prior"});
+    std::string s = csvProvenance() + csvRow(header);
     s.reserve(static_cast<std::size_t>(x.cols()) * 20 * static_cast<std::size_t>(x.rows() + 2));
     for (Eigen::Index k = 0; k < x.cols(); ++k) {
         for (Eigen::Index j = 0; j < x.rows(); ++j) fmt::format_to(std::back_inserter(s), "{:.10g},", x(j, k));
@@ -333,7 +336,7 @@ nlohmann::json timingJson(const RbcPhaseTiming& t) {
 nlohmann::json ancestralCheck(const Eigen::MatrixXd& tmcmc, const Eigen::MatrixXd& ancestral, const fs::path& file) {
     const auto& names = pooledOutputNames();
     const Eigen::VectorXd scale = pooledOutputScale();
-    std::string csv = "parameter,tmcmc_mean,ancestral_mean,tmcmc_sd,ancestral_sd,tmcmc_q05,ancestral_q05,tmcmc_q95,ancestral_q95,mean_difference_in_sd\n";
+    std::string csv = csvProvenance() + "parameter,tmcmc_mean,ancestral_mean,tmcmc_sd,ancestral_sd,tmcmc_q05,ancestral_q05,tmcmc_q95,ancestral_q95,mean_difference_in_sd\n";
     nlohmann::json j = nlohmann::json::object();
     double worst = 0.0;
     for (int p = 0; p < kPooledDimension; ++p) {
@@ -341,7 +344,7 @@ nlohmann::json ancestralCheck(const Eigen::MatrixXd& tmcmc, const Eigen::MatrixX
         const double ma = mean(a), mb = mean(b), sa = populationSd(a), sb = populationSd(b);
         const double diff = (ma - mb) / std::max(sb, 1e-300);
         worst = std::max(worst, std::abs(diff));
-        csv += fmt::format("{},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.4f}\n", names[static_cast<std::size_t>(p)], ma, mb,
+        csv += fmt::format("{},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.8g},{:.4f}\n", csvField(names[static_cast<std::size_t>(p)]), ma, mb,
                            sa, sb, quantile(a, 0.05), quantile(b, 0.05), quantile(a, 0.95), quantile(b, 0.95), diff);
         j[names[static_cast<std::size_t>(p)]] = {{"tmcmc_mean", ma}, {"ancestral_mean", mb}, {"tmcmc_sd", sa}, {"ancestral_sd", sb},
                                                  {"mean_difference_in_sd", diff}};
@@ -630,10 +633,11 @@ std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, 
 }
 
 void writePosteriorStats(const fs::path& file, const std::vector<PosteriorStatsRow>& rows) {
-    std::string s = "posterior,parameter,mean,median,ml,map,sd,q05,q95,mcse_mean,mcse_median,mcse_sd,mcse_q05,mcse_q95,rhat,ess_bulk,ess_tail\n";
+    std::string s = csvProvenance() +
+                    "posterior,parameter,mean,median,ml,map,sd,q05,q95,mcse_mean,mcse_median,mcse_sd,mcse_q05,mcse_q95,rhat,ess_bulk,ess_tail\n";
     for (const PosteriorStatsRow& r : rows)
         s += fmt::format("{},{},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.10g},{:.4g},{:.4g},{:.4g},{:.4g},{:.4g},{:.5f},{:.0f},{:.0f}\n",
-                         r.posterior, r.parameter, r.mean, r.median, r.ml, r.map, r.sd, r.q05, r.q95, r.mcseMean, r.mcseMedian,
+                         csvField(r.posterior), csvField(r.parameter), r.mean, r.median, r.ml, r.map, r.sd, r.q05, r.q95, r.mcseMean, r.mcseMedian,
                          r.mcseSd, r.mcseQ05, r.mcseQ95, r.rhat, r.essBulk, r.essTail);
     writeFileAtomically(file, s);
 }

@@ -14,6 +14,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/output_dir.hpp"
 #include "surrogate/surrogate.hpp"
 
 namespace trbc {
@@ -174,6 +175,8 @@ std::vector<RbcDataSet> loadManifest(const fs::path& dir) {
             !e["experiment"].is_string() || !e["file"].is_string())
             throw InputError(fmt::format("{}: every entry needs string fields name, experiment, file", manifest.string()));
         const std::string name = e["name"], exp = e["experiment"];
+        // The name becomes a directory and a CSV/Markdown field: checked here, where infer reads it.
+        checkFileName(name, manifest.string() + ": data set name");
         fs::path file = e["file"].get<std::string>();
         if (file.is_relative()) file = dir / file;
         if (!fs::exists(file)) throw InputError(fmt::format("{}: data set '{}': file {} does not exist", manifest.string(), name, file.string()));

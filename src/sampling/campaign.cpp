@@ -19,6 +19,7 @@
 #include <sstream>
 
 #include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
@@ -547,13 +548,13 @@ CampaignSummary finalizeCampaign(const CampaignOptions& o, double wallSeconds) {
         j = nlohmann::json::parse(in);
     }
     if (s.complete) {
-        std::string csv = campaignCsvHeader() + "\n";
+        std::string csv = csvProvenance() + campaignCsvHeader() + "\n";
         for (const auto& [id, r] : rows) csv += formatCampaignRow(r) + "\n";
         writeFileAtomically(samplesPath(o), csv);
         j["status"] = "complete";
         // Per finished cell (of those with a record: campaigns made before the records have none).
         const auto records = cellRecords(o);
-        std::string eq = "cell_id,v,FvK,branch,energy_gap_J,reused\n";
+        std::string eq = csvProvenance() + "cell_id,v,FvK,branch,energy_gap_J,reused\n";
         std::map<std::string, long> branches;
         long reused = 0, lastCell = -1;
         for (const auto& [id, r] : rows) {
@@ -616,8 +617,10 @@ std::map<long, int> readCampaignBranches(const fs::path& dirOrFile) {
     std::ifstream in(path);
     std::string line;
     long lineNo = 1;
-    if (!std::getline(in, line) || line != "cell_id,v,FvK,branch,energy_gap_J,reused")
-        throw InputError(fmt::format("{}:1: expected the header cell_id,v,FvK,branch,energy_gap_J,reused", path.string()));
+    bool header = static_cast<bool>(std::getline(in, line));
+    while (header && line.starts_with('#')) header = static_cast<bool>(std::getline(in, line)), ++lineNo;  // the provenance line
+    if (!header || line != "cell_id,v,FvK,branch,energy_gap_J,reused")
+        throw InputError(fmt::format("{}:{}: expected the header cell_id,v,FvK,branch,energy_gap_J,reused", path.string(), lineNo));
     while (std::getline(in, line)) {
         ++lineNo;
         std::vector<std::string> f;

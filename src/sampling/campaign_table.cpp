@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/csv.hpp"
 #include "core/error.hpp"
 
 namespace trbc {
@@ -24,7 +25,7 @@ std::string formatCampaignRow(const CampaignRow& r) {
     const CampaignPoint& q = r.point;
     return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.4f}", q.sampleId, q.cellId, r.seed,
                        num(q.p.v), num(q.p.mu), num(q.p.FvK), num(q.p.b2), num(q.p.etam), num(q.fext), num(r.D),
-                       num(r.hmin), num(r.hmax), num(r.D0), num(r.D1), num(r.tc), r.status, csvSafe(r.reason),
+                       num(r.hmin), num(r.hmax), num(r.D0), num(r.D1), num(r.tc), csvField(r.status), csvField(csvSafe(r.reason)),
                        r.wallSeconds);
 }
 
@@ -35,17 +36,6 @@ std::string csvSafe(std::string text) {
 }
 
 namespace {
-
-std::vector<std::string> splitFields(const std::string& line) {
-    std::vector<std::string> f;
-    std::size_t start = 0;
-    for (;;) {
-        const std::size_t comma = line.find(',', start);
-        f.push_back(line.substr(start, comma - start));
-        if (comma == std::string::npos) return f;
-        start = comma + 1;
-    }
-}
 
 double parseDouble(const std::string& s, const std::string& where, const char* column) {
     if (s == "nan") return NAN;
@@ -77,6 +67,7 @@ std::vector<CampaignRow> readCampaignCsv(const std::filesystem::path& path, bool
     std::vector<CampaignRow> rows;
     std::size_t pos = 0;
     long lineNo = 0;
+    bool headerSeen = false;
     while (pos < text.size()) {
         const std::size_t nl = text.find('\n', pos);
         ++lineNo;
@@ -87,13 +78,16 @@ std::vector<CampaignRow> readCampaignCsv(const std::filesystem::path& path, bool
         }
         const std::string line = text.substr(pos, nl == std::string::npos ? std::string::npos : nl - pos);
         pos = nl == std::string::npos ? text.size() : nl + 1;
-        if (lineNo == 1) {
+        if (line.starts_with('#')) continue;  // the provenance line
+        if (!headerSeen) {
+            headerSeen = true;
             if (line != campaignCsvHeader())
                 throw InputError(fmt::format("{}: not a campaign table header (expected '{}')", where, campaignCsvHeader()));
             continue;
         }
         if (line.empty()) continue;
-        const auto f = splitFields(line);
+        const auto records = parseCsvRecords(line);  // one line: csvSafe keeps line breaks out of the reason
+        const auto f = records.empty() ? std::vector<std::string>{} : records[0];
         if (f.size() != 18) throw InputError(fmt::format("{}: {} fields, expected 18", where, f.size()));
         CampaignRow r;
         CampaignPoint& q = r.point;

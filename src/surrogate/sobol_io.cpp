@@ -3,16 +3,16 @@
 #include <fstream>
 #include <string>
 
+#include "core/csv.hpp"
 #include "core/error.hpp"
 
 namespace trbc {
 
 namespace {
 
-const std::string& csvName(const std::string& name) {
-    if (name.empty() || name.find_first_of(",\"\r\n") != std::string::npos)
-        throw InputError("sobol csv: name '" + name + "' is empty or contains ',', '\"' or a line break");
-    return name;
+std::string csvName(const std::string& name) {
+    if (name.empty()) throw InputError("sobol csv: an output or input name is empty");
+    return csvField(name);
 }
 
 std::ofstream openCsv(const std::filesystem::path& path) {
@@ -31,7 +31,7 @@ void finish(std::ofstream& out, const std::filesystem::path& path) {
 
 void writeSobolCsv(const std::filesystem::path& path, const SobolResult& r) {
     std::ofstream out = openCsv(path);
-    out << "output,input,S1,S1_ci,ST,ST_ci\n";
+    out << csvProvenance() << "output,input,S1,S1_ci,ST,ST_ci\n";
     for (Eigen::Index o = 0; o < r.S1.rows(); ++o)
         for (Eigen::Index i = 0; i < r.S1.cols(); ++i)
             out << csvName(r.outputs[o]) << ',' << csvName(r.inputs[i]) << ',' << r.S1(o, i) << ',' << r.S1_ci(o, i)
@@ -43,7 +43,7 @@ void writeSobolSecondOrderCsv(const std::filesystem::path& path, const SobolResu
     if (r.S2.size() != r.outputs.size())
         throw InputError("sobol csv: the result has no second-order indices (run with secondOrder = true)");
     std::ofstream out = openCsv(path);
-    out << "output,input_i,input_j,S2,S2_ci\n";
+    out << csvProvenance() << "output,input_i,input_j,S2,S2_ci\n";
     for (std::size_t o = 0; o < r.S2.size(); ++o)
         for (Eigen::Index i = 0; i < r.S2[o].rows(); ++i)
             for (Eigen::Index j = i + 1; j < r.S2[o].cols(); ++j)

@@ -76,7 +76,7 @@ def test_predict_gives_the_cli_bands(inference, run_cli, tmp_path):
     run_cli("predict", "--posterior", post.file.parent, "--grid", 20, "--quiet", "--out", tmp_path, json_out=False)
     files = list(tmp_path.glob("predict_*_stretching.csv"))
     assert len(files) == 1
-    table = np.genfromtxt(files[0], delimiter=",", names=True, dtype=None, encoding=None)
+    table = np.genfromtxt(files[0], delimiter=",", names=True, skip_header=1, dtype=None, encoding=None)  # after the provenance line
     d1 = table[table[table.dtype.names[0]] == "D1_um"] if table.dtype.names[0] == "observable" else None
     band = p["bands"]["D1_um"]
     if d1 is not None:

@@ -89,7 +89,7 @@ def test_membrane_energy_matches_trbc_forces(tmp_path, run_cli):
     assert set(e["terms"]) == set(out["terms"]) == {"bending", "ade", "lim", "area", "volume"}
     for k, v in out["terms"].items():
         assert e["terms"][k] == pytest.approx(v, rel=1e-13)
-    forces = np.loadtxt(tmp_path / "f.csv", delimiter=",", skiprows=1)
+    forces = np.loadtxt(tmp_path / "f.csv", delimiter=",", skiprows=2)  # the provenance line and the header
     assert e["forces"].shape == (m.n_vertices, 3)
     np.testing.assert_allclose(e["forces"], forces, rtol=1e-12, atol=1e-14 * np.abs(forces).max())
 

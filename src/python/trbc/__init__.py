@@ -278,14 +278,14 @@ def load_inference(out: _PathLike) -> dict:
 
 
 def _read_table(path: Path) -> dict:
-    """A CSV as {column: array}: numbers as float arrays (empty cells NaN), other columns as lists."""
+    """A CSV as {column: array}: numbers as float arrays (empty and "n/a" cells NaN), other columns as lists."""
     with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+        rows = list(csv.DictReader((ln for ln in f if not ln.startswith("#"))))
     table = {}
     for name in (rows[0].keys() if rows else []):
         cells = [r[name] for r in rows]
         try:
-            table[name] = np.array([float(c) if c != "" else np.nan for c in cells])
+            table[name] = np.array([float(c) if c not in ("", "n/a") else np.nan for c in cells])
         except ValueError:
             table[name] = cells
     return table
