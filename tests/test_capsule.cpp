@@ -52,7 +52,7 @@ TEST(CapsuleFlow, BadCasesAreRefusedWithTheirRange) {
     c.viscosityRatio = -1.0;
     EXPECT_THROW(validateCapsuleCase(c), InputError);
     c = CapsuleCase{};
-    c.strain = 100.0;
+    c.strain = 200.0;  // 2e5 frames: more than the 1e5 allowed
     c.frameInterval = 1e-3;
     EXPECT_THROW(validateCapsuleCase(c), InputError);
     c = CapsuleCase{};
@@ -90,7 +90,9 @@ TEST_P(CapsuleSmallDeformation, FollowsBarthesBiesel) {
     ASSERT_TRUE(r.completed) << r.message;
     EXPECT_TRUE(r.steady) << r.d12Variation;
     EXPECT_NEAR(r.taylorD12 / 0.01, p.slope, 0.03 * p.slope);
-    EXPECT_NEAR(r.inclinationDeg, 45.0, 3.0);
+    // 45 deg as Ca -> 0; at Ca = 0.01 the O(Ca) correction grows with lambda (44.3, 43.9 and 41.9 deg
+    // for lambda = 0.2, 1 and 5 at level 4).
+    EXPECT_NEAR(r.inclinationDeg, 45.0, p.lambda > 1.0 ? 4.0 : 2.0);
     EXPECT_NEAR(r.membraneFrequencyOverRate, 0.5, 0.02);
 }
 
@@ -105,6 +107,39 @@ INSTANTIATE_TEST_SUITE_P(
         const char* law = i.param.law == InPlaneLaw::Lim ? "Lim" : i.param.law == InPlaneLaw::Skalak ? "Skalak" : "NeoHookean";
         return std::string(law) + "_lambda" + (i.param.lambda == 0.2 ? "0_2" : std::to_string(int(i.param.lambda)));
     });
+
+TEST(CapsuleFlow, FiniteDeformationNeoHookeanLiesInThePublishedRange) {
+    // Ca = 0.075, lambda = 1: about 0.150 by boundary integrals (Ramanujan & Pozrikidis 1998) and 0.163
+    // by front tracking (Doddi & Bagchi 2008); trbc gives 0.1523 at level 3 and 0.1528 at level 4.
+    const CapsuleResult r = run(InPlaneLaw::NeoHookean, 0.075, 1.0, kRegularisingBending, 8.0);
+    ASSERT_TRUE(r.completed) << r.message;
+    EXPECT_TRUE(r.steady) << r.d12Variation;
+    EXPECT_GE(r.taylorD12, 0.150);
+    EXPECT_LE(r.taylorD12, 0.163);
+    EXPECT_LT(r.inclinationDeg, 40.0);  // below the small-deformation angle of 45 deg
+    EXPECT_LT(std::abs(r.areaChange), 0.05);
+}
+
+TEST(CapsuleFlow, BendingCaseLiesInThePublishedRange) {
+    // Neo-Hookean, Ca_E = 0.05 (Ca = 0.15), E_b / (a^2 E_s) = 0.0375 (EB = 0.1125): 0.143 (Pozrikidis
+    // 2001), 0.146 (Le 2010), 0.133 (Guckenberger et al. 2016). trbc gives 0.1330 at level 3 and
+    // 0.1333 at level 4, at the low end of that range; the bound below leaves the level-3 value room
+    // for the last digits of another machine's arithmetic.
+    const CapsuleResult r = run(InPlaneLaw::NeoHookean, 0.15, 1.0, 0.1125, 8.0);
+    ASSERT_TRUE(r.completed) << r.message;
+    EXPECT_TRUE(r.steady) << r.d12Variation;
+    EXPECT_GE(r.taylorD12, 0.1325);
+    EXPECT_LE(r.taylorD12, 0.146);
+}
+
+TEST(CapsuleFlow, TheVolumeIsHeldAndTheAreaFollowsTheLaw) {
+    // No area constraint: the area grows with the deformation (an ellipsoid of the sphere's volume
+    // has more area), the volume stays at the sphere's.
+    const CapsuleResult r = run(InPlaneLaw::NeoHookean, 0.3, 1.0, kRegularisingBending, 3.0);
+    ASSERT_TRUE(r.completed) << r.message;
+    EXPECT_GT(r.areaChange, 0.01);
+    EXPECT_GT(r.taylorD12, 0.3);
+}
 
 }  // namespace
 }  // namespace trbc

@@ -451,7 +451,8 @@ TEST(InPlaneLawParameters, BadModuliAndModuliOfAnotherLawAreRejected) {
 Vertices readForces(const std::filesystem::path& path, Eigen::Index nv) {
     std::ifstream in(path);
     std::string line;
-    std::getline(in, line);
+    do std::getline(in, line);  // past the provenance line
+    while (!line.empty() && line[0] == '#');
     EXPECT_EQ(line, "fx,fy,fz");
     Vertices f(3, nv);
     Eigen::Index i = 0;

@@ -207,6 +207,8 @@ nlohmann::json checkpointJson(const CellFlowResult& r, double timeUnit) {
 
 nlohmann::json provenanceJson(int level, const char* method) {
     return {{"version", kVersion},
+            {"revision", gitDescribe()},
+            {"compiler", "GCC " __VERSION__},
             {"command", commandLine()},
             {"level", level},
             {"vertices", 10 * (1 << (2 * level)) + 2},

@@ -42,6 +42,8 @@ void runCapsuleCommand(CapsuleCli& o) {
                        {"strain", o.c.strain},
                        {"step_tol", o.c.stepTolerance}};
     j["provenance"] = {{"version", kVersion},
+                       {"revision", gitDescribe()},
+                       {"compiler", "GCC " __VERSION__},
                        {"command", commandLine()},
                        {"level", o.c.level},
                        {"vertices", r.vertices},
