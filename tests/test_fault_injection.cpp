@@ -262,6 +262,16 @@ TEST(FullDisk, CampaignStopsAtTheFirstFailedWriteWithTheSystemMessage) {
     EXPECT_LE(lines, 2) << "cells went on after the disk was full";
 }
 
+TEST(CacheDirectory, WithoutHomeTheCacheIsNamedNotCreatedInTheWorkingDirectory) {
+    TempDir tmp;
+    const CliRun r = test::runShell("env -u HOME -u XDG_CACHE_HOME -u TRBC_CACHE_DIR " + shellQuote(TRBC_CLI) +
+                                        " sfs --v 0.95 --level 1 --out " + shellQuote((tmp.path() / "s.off").string()),
+                                    tmp.path());
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_TRUE(contains(r.err, "--cache DIR")) << r.err;
+    EXPECT_FALSE(fs::exists(tmp.path() / ".trbc-cache"));
+}
+
 // ---- names that cannot break files ----------------------------------------------------------
 
 TEST(HostileNames, DataSetNamesAreCheckedOnce) {

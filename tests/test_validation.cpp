@@ -23,6 +23,17 @@ namespace trbc {
 namespace {
 
 namespace fs = std::filesystem;
+
+TEST(ValidationReasons, AShortenedReasonEndsAtAWordBoundary) {
+    const std::string reason = "exit 2 without a result: trbc: error: frames = duration / frame interval is more than the "
+                               "limit; raise --frame-interval to at least 0.2\nRun with --help";
+    const std::string s = shortenedReason(reason, 60);
+    EXPECT_LE(s.size(), 64u);
+    EXPECT_EQ(s.substr(s.size() - 4), " ...");
+    EXPECT_EQ(reason.find(s.substr(0, s.size() - 4) + " "), 0u);  // a whole-word prefix
+    EXPECT_EQ(shortenedReason(reason, 1000), reason.substr(0, reason.find('\n')));  // first line only
+    EXPECT_EQ(shortenedReason(std::string(300, 'x'), 100), std::string(100, 'x') + " ...");  // one long word
+}
 using test::TempDir;
 using test::writeText;
 

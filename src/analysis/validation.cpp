@@ -466,4 +466,12 @@ ScatterComparison ValidationEvidence::criticalStress(double etaOut, std::optiona
     return compareInterval(etaOut, tauLo, tauHi, critical_, 0.1);
 }
 
+std::string shortenedReason(const std::string& reason, std::size_t limit) {
+    std::string line = reason.substr(0, reason.find('\n'));
+    if (line.size() <= limit) return line;
+    std::size_t cut = line.rfind(' ', limit);
+    if (cut == std::string::npos || cut < limit / 2) cut = limit;  // one long word: cut it
+    return line.substr(0, cut) + " ...";
+}
+
 }  // namespace trbc

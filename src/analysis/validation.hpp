@@ -86,6 +86,10 @@ struct RegimePoint {
     std::string regime;  ///< tank-treading | tumbling | intermittent | "" (failed)
 };
 
+/// The first line of a failure reason, at most `limit` characters, cut at a word boundary with
+/// " ..." when longer, so that a quoted reason never ends in the middle of a word.
+std::string shortenedReason(const std::string& reason, std::size_t limit);
+
 /// Threshold bracket (docs/VALIDATE.md): gammaLo = highest rate with tumbling, gammaHi = lowest rate with tank-treading.
 struct ThresholdBracket {
     std::optional<double> gammaLo, gammaHi;

@@ -232,7 +232,7 @@ struct Runner {
             else if (what == "ok")
                 what = fmt::format("v {} cm/s, length {} um", num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())));
             else
-                what = "FAILED: " + result.value("reason", std::string("?")).substr(0, 160);
+                what = "FAILED: " + shortenedReason(result.value("reason", std::string("?")), 160);
             const double elapsed = secondsSince(start);
             const double eta = (total - done) * (caseSeconds / ranHere) / cfg.jobs;
             std::cerr << fmt::format("validate: [{}/{}] {} ({:.0f} s): {}; elapsed {:.0f} min, ETA {:.0f} min\n", done, total, c.id, wall, what,
@@ -429,8 +429,7 @@ std::vector<std::pair<std::string, std::string>> drawObservables(const std::stri
 DrawOutcome drawOutcome(const json& rec, const std::string& key) {
     const json& r = rec.at("result");
     if (r.value("status", "failed") != "ok") {
-        std::string why = stringOr(r, "reason").substr(0, 100);
-        return {false, NAN, why.substr(0, why.find('\n'))};
+        return {false, NAN, shortenedReason(stringOr(r, "reason"), 100)};
     }
     const json o = r.value("observables", json::object());
     const double x = numberOr(o, key.c_str());

@@ -239,7 +239,9 @@ std::filesystem::path defaultCacheDirectory() {
     if (const char* d = std::getenv("TRBC_CACHE_DIR"); d && *d) return d;
     if (const char* d = std::getenv("XDG_CACHE_HOME"); d && *d) return std::filesystem::path(d) / "trbc";
     if (const char* h = std::getenv("HOME"); h && *h) return std::filesystem::path(h) / ".cache" / "trbc";
-    return ".trbc-cache";
+    // Not a folder in whatever the current directory happens to be: the user names one.
+    throw InputError("no SFS cache directory: TRBC_CACHE_DIR, XDG_CACHE_HOME and HOME are all unset; give --cache DIR "
+                     "(or set one of them), or --no-cache");
 }
 
 std::filesystem::path sfsCachePath(const std::filesystem::path& cacheDir, double v, int level) {

@@ -55,8 +55,8 @@ double maxStressFreeReducedVolume(int level);
 /// NumericalError when the minimisation fails or the shape is not oblate.
 StressFreeState generateStressFreeState(double v, int level, const SfsOptions& options = {});
 
-/// Default cache directory: $TRBC_CACHE_DIR, else $XDG_CACHE_HOME/trbc, else ~/.cache/trbc, else
-/// ./.trbc-cache.
+/// Default cache directory: $TRBC_CACHE_DIR, else $XDG_CACHE_HOME/trbc, else ~/.cache/trbc; throws
+/// InputError when none of the three is set.
 std::filesystem::path defaultCacheDirectory();
 
 /// Loads the SFS from `cacheDir` when a valid entry exists (checksum, metadata, connectivity and
