@@ -56,19 +56,6 @@ pid_t startTrbc(const std::string& args, const fs::path& log, const fs::path& sc
     return static_cast<pid_t>(std::stol(test::slurp(pidFile)));
 }
 
-/// Processes (other than this test) whose command line mentions `needle`.
-int processesMentioning(const std::string& needle) {
-    int n = 0;
-    for (const auto& e : fs::directory_iterator("/proc")) {
-        const std::string name = e.path().filename().string();
-        if (name.find_first_not_of("0123456789") != std::string::npos || std::stoi(name) == ::getpid()) continue;
-        std::string cmd = test::slurp(e.path() / "cmdline");
-        std::replace(cmd.begin(), cmd.end(), '\0', ' ');
-        if (contains(cmd, needle)) ++n;
-    }
-    return n;
-}
-
 bool alive(pid_t pid) {
     // A zombie (killed, not reaped by the shell that started it) counts as gone.
     const std::string stat = test::slurp(fs::path("/proc") / std::to_string(pid) / "stat");
@@ -213,13 +200,13 @@ TEST(ChildProcesses, ASigkilledValidateTakesItsCaseWithItAndResumes) {
                                    tmp.path() / "log", tmp.path());
     ASSERT_GT(driver, 0);
     const std::string caseDir = (out / "cases" / "angle_eta23.9_rate40").string();
-    for (int i = 0; i < 500 && processesMentioning(caseDir) == 0; ++i) std::this_thread::sleep_for(10ms);
-    ASSERT_GT(processesMentioning(caseDir), 0) << test::slurp(tmp.path() / "log");
+    for (int i = 0; i < 500 && test::processesMentioning(caseDir) == 0; ++i) std::this_thread::sleep_for(10ms);
+    ASSERT_GT(test::processesMentioning(caseDir), 0) << test::slurp(tmp.path() / "log");
     ::kill(driver, SIGKILL);
     int left = -1;
     for (int i = 0; i < 100; ++i) {
         std::this_thread::sleep_for(50ms);
-        if ((left = processesMentioning(caseDir)) == 0) break;
+        if ((left = test::processesMentioning(caseDir)) == 0) break;
     }
     EXPECT_EQ(left, 0) << "the case outlived its driver";
     const CliRun r = runTrbc("validate --quiet --config " + shellQuote(quick.string()) + " --out " + shellQuote(out.string()), tmp.path());

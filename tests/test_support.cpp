@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
@@ -105,6 +106,18 @@ CliRun runShell(const std::string& commandLine, const fs::path& scratch) {
     r.out = slurp(out);
     r.err = slurp(err);
     return r;
+}
+
+int processesMentioning(const std::string& needle) {
+    int n = 0;
+    for (const auto& e : std::filesystem::directory_iterator("/proc")) {
+        const std::string name = e.path().filename().string();
+        if (name.find_first_not_of("0123456789") != std::string::npos || std::stoi(name) == ::getpid()) continue;
+        std::string cmd = slurp(e.path() / "cmdline");
+        std::replace(cmd.begin(), cmd.end(), '\0', ' ');
+        if (cmd.find(needle) != std::string::npos) ++n;
+    }
+    return n;
 }
 
 }  // namespace trbc::test

@@ -59,5 +59,7 @@ struct CliRun {
 CliRun runTrbc(const std::string& args, const std::filesystem::path& scratch);
 /// Runs a whole shell command line the same way (for a launcher in front of the CLI, e.g. mpiexec).
 CliRun runShell(const std::string& commandLine, const std::filesystem::path& scratch);
+/// Processes (other than this test) whose command line mentions `needle`.
+int processesMentioning(const std::string& needle);
 
 }  // namespace trbc::test

@@ -416,19 +416,6 @@ TEST(ValidateCli, ShardsRunApartAndImportMergesThem) {
     EXPECT_NE(r.err.find("not a validate output directory (no cases/ in it)"), std::string::npos) << r.err;
 }
 
-/// Processes whose command line mentions `needle` (other than this test).
-int processesMentioning(const std::string& needle) {
-    int n = 0;
-    for (const auto& e : fs::directory_iterator("/proc")) {
-        const std::string name = e.path().filename().string();
-        if (name.find_first_not_of("0123456789") != std::string::npos || std::stoi(name) == ::getpid()) continue;
-        std::string cmd = test::slurp(e.path() / "cmdline");
-        std::replace(cmd.begin(), cmd.end(), '\0', ' ');
-        if (cmd.find(needle) != std::string::npos) ++n;
-    }
-    return n;
-}
-
 // A second validate on the same OUT is refused while the first runs; SIGTERM to validate reaches
 // the `trbc flow` cases it started (their own process groups) and leaves none running.
 TEST(ValidateCli, LockAndSignalForwarding) {
@@ -451,7 +438,7 @@ TEST(ValidateCli, LockAndSignalForwarding) {
     for (int i = 0; i < 300 && !(fs::exists(out / "cases" / "angle_eta23.9_rate20.log") && fs::exists(out / "cases" / "angle_eta23.9_rate60.log")); ++i)
         std::this_thread::sleep_for(50ms);
     ASSERT_TRUE(fs::exists(out / "cases" / "angle_eta23.9_rate60.log")) << test::slurp(dir.path() / "log");
-    ASSERT_GE(processesMentioning((out / "cases" / "angle_eta23.9_rate").string()), 2);
+    ASSERT_GE(test::processesMentioning((out / "cases" / "angle_eta23.9_rate").string()), 2);
 
     const test::CliRun second = test::runTrbc("validate --only angle --config " + cfg.string() + " --out " + out.string(), dir.path());
     EXPECT_EQ(second.status, 2);
@@ -461,7 +448,7 @@ TEST(ValidateCli, LockAndSignalForwarding) {
     int left = -1;
     for (int i = 0; i < 100; ++i) {
         std::this_thread::sleep_for(50ms);
-        left = processesMentioning(out.string());
+        left = test::processesMentioning(out.string());
         if (left == 0) break;
     }
     EXPECT_EQ(left, 0) << "cases still running after SIGTERM to validate";
@@ -496,8 +483,8 @@ TEST(ValidateCli, AnInterruptedCaseResumesFromItsSnapshots) {
     std::this_thread::sleep_for(200ms);
     ASSERT_EQ(::kill(pid, SIGTERM), 0);
     const std::string cases = (out / "cases").string();
-    for (int i = 0; i < 200 && processesMentioning(cases) > 0; ++i) std::this_thread::sleep_for(25ms);
-    ASSERT_EQ(processesMentioning(cases), 0);
+    for (int i = 0; i < 200 && test::processesMentioning(cases) > 0; ++i) std::this_thread::sleep_for(25ms);
+    ASSERT_EQ(test::processesMentioning(cases), 0);
     ASSERT_FALSE(fs::exists(out / "cases" / (id + ".json"))) << "the case finished before it could be interrupted";
     EXPECT_TRUE(fs::exists(snapshot));
 
