@@ -194,12 +194,12 @@ public:
             if (wall_) Sf += wall_(f);
             yu = u - c_ * Sf;
             if (k_ != 0.0) yu -= k_ * Du;
-            yu -= x[n + 1] * normals_;
             // Without the area constraint the tension row is the identity and its column zero.
             if (areaConstrained_) {
-                yu += (x[n] / wNorm_) * w_;
+                yu += (x[n] / wNorm_) * w_ - x[n + 1] * normals_;
                 y[n] = (areaGradient_.array() * u.array()).sum() / gNorm_;
             } else {
+                yu -= x[n + 1] * normals_;
                 y[n] = x[n];
             }
             y[n + 1] = (volumeGradient_.array() * u.array()).sum() / vNorm_;
