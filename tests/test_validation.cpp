@@ -62,7 +62,7 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
     int angle = 0, ttf = 0, thr = 0, tube = 0;
     for (const ValidationCase& x : cases)
         (x.kind == "angle" ? angle : x.kind == "ttf" ? ttf : x.kind == "threshold" ? thr : tube)++;
-    EXPECT_EQ(angle, 28);  // 14 rates at 10.7 and 23.9 mPa s
+    EXPECT_EQ(angle, 56);  // 14 rates at 10.7, 23.9, 55.9 and 104 mPa s
     EXPECT_EQ(ttf, 6);
     EXPECT_EQ(thr, 4 * 6 + 4 * 5);  // the eight scripted sweeps
     EXPECT_EQ(tube, 15);            // 5, 10, ..., 75 mmHg/mm
@@ -78,6 +78,12 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
     EXPECT_EQ(c.cellSource, "table1");
     EXPECT_DOUBLE_EQ(c.stepTol, 1e-3);       // the shear's
     EXPECT_DOUBLE_EQ(c.tubeStepTol, 6.25e-5);  // the tube's (docs/FLOW_TUBE.md, "Step tolerance")
+    // The two higher viscosities for theta_new alone: the same 28 angle cases as the full set's.
+    const ValidationConfig hv = readValidationConfig(kRepo / "configs" / "validation_high_viscosity.toml", kExperiments);
+    const std::vector<ValidationCase> hvCases = initialValidationCases(hv);
+    ASSERT_EQ(hvCases.size(), 28u);
+    EXPECT_EQ(hv.cellSource, "explicit");
+    for (std::size_t k = 0; k < hvCases.size(); ++k) EXPECT_EQ(hvCases[k].id, cases[28 + k].id);
 }
 
 TEST(ValidationConfig, ErrorsNameFileLineKeyAndRange) {

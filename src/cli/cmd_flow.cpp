@@ -287,6 +287,7 @@ void writeShapesAndSteps(const std::string& dir, const FlowScales& scales, const
 
 struct ShearCli {
     ShearCaseOptions c;
+    std::string start = "in-plane";
     CellOptions cell;
     SteppingOptions step;
     CacheOptions cache;
@@ -322,6 +323,11 @@ nlohmann::json shearParametersJson(const ShearCaseResult& res, const ShearCli& o
             {"V0_um3", fc.V0},
             {"rotations", o.c.rotations},
             {"tilt_deg", o.c.tiltDeg},
+            {"start", o.start},
+            {"kick_temperature_K", o.start == "random" ? nlohmann::json(o.c.kickTemperatureK) : nlohmann::json(nullptr)},
+            {"temperature_K", o.c.temperatureK},
+            {"thermal_step_times_rate", o.c.temperatureK > 0.0 ? nlohmann::json(o.c.thermalStep) : nlohmann::json(nullptr)},
+            {"seed", o.c.seed},
             {"t_end_s", res.tEndSeconds},
             {"dimensionless", {{"capillary_number", g.capillary},
                                {"viscosity_ratio", g.viscosityRatio},
@@ -334,6 +340,11 @@ nlohmann::json shearDiagnosticsJson(const ShearCaseResult& res, const ShearCli& 
     nlohmann::json diag = stepDiagnostics(res.scales, r, res.prepared);
     diag["dt_min_times_rate"] = r.dtSmallest;
     diag["dt_max_times_rate"] = r.dtLargest;
+    if (res.integrator.thermal.kT > 0.0)
+        diag["thermal"] = {{"kT_internal", res.integrator.thermal.kT},
+                           {"lanczos_iterations_per_step", r.steps ? double(r.sqrtIterations) / r.steps : 0.0},
+                           {"lanczos_iterations_max", r.maxSqrtIterations},
+                           {"mobility_gmres_iterations_per_step", r.steps ? double(r.mobilityIterations) / r.steps : 0.0}};
     diag["step_control"] = stepControlJson(res.integrator, o.step.step.dt, "fixed_dt_times_rate");
     diag["setup_wall_s"] = res.setupWallSeconds;
     diag["wall_s_per_rotation"] = r.tReached > 0 ? r.wallSeconds / (r.tReached / (4.0 * kPi)) : 0.0;
@@ -368,6 +379,8 @@ void addShearObservables(nlohmann::json& j, const ShearObservables& obs) {
 void runShear(ShearCli& o) {
     o.c.cell = cellParameters(o.cell);
     o.c.allowOutsidePrior = o.cell.allowOutside;
+    o.c.randomStart = o.start == "random";
+    setProvenanceSeed(o.c.seed);
     o.c.cacheDir = cacheDirectory(o.cache);
     configureStepping(o.step, "flow shear", "/rate", {});
     o.c.step = o.step.step;
@@ -418,6 +431,26 @@ void registerShear(CLI::App* flow) {
               "start turned by this angle about the flow (x) axis, out of the shear plane (the in-plane start, 0, "
               "stays mirror symmetric about that plane and cannot leave it; docs/FLOW.md)",
               NumberRange::closed(0.0, 90.0, "deg"))
+        ->capture_default_str();
+    addNumber(cmd, "--temperature", o->c.temperatureK,
+              "thermal fluctuations of the membrane and both fluids during the run, at this temperature (fixed steps "
+              "of --thermal-step; docs/FLOW_THERMAL.md); 0: none",
+              NumberRange::closed(0.0, 400.0, "K"))
+        ->capture_default_str();
+    addNumber(cmd, "--thermal-step", o->c.thermalStep, "fixed time step of a run with --temperature",
+              NumberRange::leftOpen(0.0, 1.0, "1/rate"))
+        ->capture_default_str();
+    cmd->add_option("--start", o->start,
+                    "in-plane: the equilibrium disc with its axis along the gradient (turned by --tilt-deg); random: "
+                    "that shape at a uniformly random orientation with the thermal l = 2, 3 undulations at "
+                    "--kick-temperature, from --seed (one member of the ensemble protocol, docs/FLOW_THERMAL.md)")
+        ->check(CLI::IsMember({"in-plane", "random"}))
+        ->capture_default_str();
+    addNumber(cmd, "--kick-temperature", o->c.kickTemperatureK, "temperature of the undulations of --start random",
+              NumberRange::closed(0.0, 400.0, "K"))
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o->c.seed, "seed of --start random and of the thermal noise of --temperature",
+              NumberRange::nonNegative())
         ->capture_default_str();
     addSteppingOptions(cmd, o->step, "1/rate");
     addCacheOptions(cmd, o->cache);

@@ -17,12 +17,14 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/random.hpp"
 #include "core/version.hpp"
 #include "flow/cell_flow_checkpoint.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/validate.hpp"
 #include "solvers/bdf2.hpp"
 #include "solvers/gmres.hpp"
+#include "solvers/krylov_sqrt.hpp"
 
 namespace trbc {
 namespace {
@@ -32,6 +34,7 @@ using Eigen::VectorXd;
 using Clock = std::chrono::steady_clock;
 
 constexpr double kPi = std::numbers::pi;
+constexpr std::uint64_t kThermalStream = 0x74686572;  // "ther": the thermal noise's streams
 
 void requirePositive(const char* name, double value, const char* unit) {
     if (!(value > 0.0) || !std::isfinite(value))
@@ -176,12 +179,14 @@ public:
 
     /// Solves for u and tau with the explicit nodal force Fexp and the prescribed rate of
     /// area change g . u = areaRate and volume change dV/dx . u = volumeRate; GMRES starts from zero.
-    Solution solve(const Vertices& Fexp, double areaRate, double volumeRate) const {
+    /// `extraVelocity` (optional) is added to the right-hand side's velocity (the thermal noise).
+    Solution solve(const Vertices& Fexp, double areaRate, double volumeRate, const Vertices* extraVelocity = nullptr) const {
         const Index nv = Xs_.cols(), n = 3 * nv;
         VectorXd b(n + 2);
         Eigen::Map<Vertices>(b.data(), 3, nv) =
             (2.0 / (1.0 + model_.viscosityRatio())) * (env_ ? env_->background(Xs_) : model_.background().at(Xs_)) +
             forceVelocity(Fexp);
+        if (extraVelocity) Eigen::Map<Vertices>(b.data(), 3, nv) += *extraVelocity;
         b[n] = areaConstrained_ ? areaRate / gNorm_ : 0.0;
         b[n + 1] = volumeRate / vNorm_;
         const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
@@ -228,7 +233,35 @@ public:
         return sol;
     }
 
+    /// The fluid's mobility of nodal forces, M_lambda F = (I - k D)^-1 c S M^-1 F (GMRES for
+    /// lambda != 1, its iterations added to `iterations`).
+    Vertices mobility(const Vertices& F, double tolerance, long& iterations) const {
+        const Vertices v = forceVelocity(F);
+        if (k_ == 0.0) return v;
+        const Index nv = Xs_.cols();
+        const LinearMap A = [&](const VectorXd& x, VectorXd& y) {
+            const Eigen::Map<const Vertices> u(x.data(), 3, nv);
+            y.resize(x.size());
+            Eigen::Map<Vertices>(y.data(), 3, nv) = u - k_ * doubleLayer(u);
+        };
+        VectorXd x;
+        const GmresResult g = trbc::gmres(A, {}, Eigen::Map<const VectorXd>(v.data(), v.size()), x, {tolerance, 60, 600});
+        iterations += g.iterations;
+        if (!g.converged)
+            throw NumericalError(fmt::format("cell flow: the thermal mobility's GMRES did not converge (relative residual "
+                                             "{:.3e})", g.residual));
+        return Eigen::Map<const Vertices>(x.data(), 3, nv);
+    }
+    /// (I - k D) w: a velocity w of the mobility M_lambda as it enters the system's right-hand side.
+    Vertices secondKind(const Vertices& w) const { return k_ == 0.0 ? w : Vertices(w - k_ * doubleLayer(w)); }
+
 private:
+    Vertices doubleLayer(const Vertices& u) const {
+        if (!dense_) return ops_.doubleLayer(u);
+        Vertices y(3, u.cols());
+        Dd_.multiply(u.data(), y.data());
+        return y;
+    }
     /// P^-1 r for the velocity block.
     VectorXd velocityPreconditioner(Eigen::Ref<const VectorXd> r) const {
         const Index nv = Xs_.cols();
@@ -350,6 +383,48 @@ private:
     Eigen::PartialPivLU<Eigen::Matrix2d> schurLu_;
 };
 
+/// The two noises of a thermal step h at the state of `sys` (ThermalOptions): the fluid's velocity
+/// w = sqrt(2 kT / h) M_lambda^(1/2) xi as it enters the right-hand side, (I - k D) w, and the
+/// membrane-viscosity force f_Gamma = sqrt(2 kT gamma / h) sum_e xi_e d_e on the edges' ends.
+struct ThermalNoise {
+    Vertices velocity, force;
+};
+ThermalNoise thermalNoise(const CoupledSystem& sys, const CellFlowModel& model, const Vertices& X, double h,
+                          const ThermalOptions& th, long stepIndex, CellFlowResult& res) {
+    const Index nv = X.cols();
+    // The stream of step n depends on (seed, n) alone: a resumed run draws the same numbers.
+    Rng rng(th.seed, static_cast<std::uint64_t>(stepIndex), kThermalStream);
+    VectorXd xi(3 * nv);
+    for (Index i = 0; i < xi.size(); ++i) xi[i] = rng.normal();
+    ThermalNoise noise;
+    noise.force = Vertices::Zero(3, nv);
+    const double gamma = model.edgeFriction();
+    if (gamma > 0.0) {
+        const Topology& T = model.membrane().topology();
+        const double a = std::sqrt(2.0 * th.kT * gamma / h);
+        for (Index e = 0; e < T.numEdges(); ++e) {
+            const int i = T.edges(0, e), j = T.edges(1, e);
+            const Eigen::Vector3d f = a * rng.normal() * (X.col(i) - X.col(j)).normalized();
+            noise.force.col(i) += f;
+            noise.force.col(j) -= f;
+        }
+    }
+    const LinearMap M = [&](const VectorXd& x, VectorXd& y) {
+        const Vertices v = sys.mobility(Eigen::Map<const Vertices>(x.data(), 3, nv), th.mobilityTolerance,
+                                        res.mobilityIterations);
+        y = Eigen::Map<const VectorXd>(v.data(), v.size());
+    };
+    const KrylovSqrtResult r = krylovSqrt(M, xi, {th.sqrtTolerance, th.sqrtMaxIterations});
+    res.sqrtIterations += r.iterations;
+    res.maxSqrtIterations = std::max(res.maxSqrtIterations, r.iterations);
+    if (!r.converged)
+        throw NumericalError(fmt::format("cell flow: the Lanczos square root of the mobility did not converge in {} "
+                                         "iterations (change {:.3e})",
+                                         r.iterations, r.change));
+    noise.velocity = sys.secondKind(std::sqrt(2.0 * th.kT / h) * Eigen::Map<const Vertices>(r.value.data(), 3, nv));
+    return noise;
+}
+
 void checkOptions(const CellFlowOptions& o) {
     requirePositive("tEnd", o.tEnd, "(internal time)");
     requirePositive("frameInterval", o.frameInterval, "(internal time)");
@@ -369,6 +444,15 @@ void checkOptions(const CellFlowOptions& o) {
     if (o.gmresRestart < 1 || o.gmresMaxIterations < 1 || o.maxSteps < 1)
         throw InputError("cell flow: gmresRestart, gmresMaxIterations and maxSteps must be >= 1");
     requirePositive("maxDrift", o.maxDrift, "");
+    const ThermalOptions& th = o.thermal;
+    if (!(th.kT >= 0.0) || !std::isfinite(th.kT))
+        throw InputError(fmt::format("thermal energy kT = {} (internal units): must be finite and >= 0", th.kT));
+    if (th.kT > 0.0) {
+        requirePositive("thermal step", th.step, "(internal time)");
+        requirePositive("thermal sqrtTolerance", th.sqrtTolerance, "");
+        requirePositive("thermal mobilityTolerance", th.mobilityTolerance, "");
+        if (th.sqrtMaxIterations < 1) throw InputError("cell flow: thermal sqrtMaxIterations must be >= 1");
+    }
 }
 
 /// The step control of the options (docs/FLOW.md, step control).
@@ -435,6 +519,9 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
             d += fmt::format("{:a},", v);
         d += fmt::format("{},", static_cast<int>(m.law));
     }
+    if (o.thermal.kT > 0.0)
+        d += fmt::format("thermal|{:a}|{}|{:a}|{:a}|{}|{:a}|", o.thermal.kT, o.thermal.seed, o.thermal.step,
+                         o.thermal.sqrtTolerance, o.thermal.sqrtMaxIterations, o.thermal.mobilityTolerance);
     std::uint64_t h = fnv1a(d);
     h = fnv1a(std::string_view(reinterpret_cast<const char*>(model.faces().data()),
                                static_cast<std::size_t>(model.faces().size()) * sizeof(model.faces()(0, 0))),
@@ -515,7 +602,10 @@ CellFlowModel::CellFlowModel(const MembraneFlowSpec& spec, const Faces& faces, c
     flow_.A0 = area0_;
     flow_.V0 = volume0_;
     areaConstraint_ = spec.areaConstraint;
-    background_ = LinearFlow::simpleShear(1.0);
+    if (!(spec.shearRate >= 0.0) || !std::isfinite(spec.shearRate))
+        throw InputError(fmt::format("membrane flow: shear rate = {}: must be finite and >= 0", spec.shearRate));
+    background_ = LinearFlow::simpleShear(spec.shearRate);
+    flow_.shearRate = spec.shearRate;
 }
 
 FlowGroups CellFlowModel::groups() const {
@@ -634,24 +724,46 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         return res;
     };
 
+    // Thermal runs: fixed steps that land on the frames, the trapezoidal rule (ThermalOptions).
+    const bool thermal = opt.thermal.kT > 0.0;
+    if (thermal && env) throw InputError("cell flow: thermal fluctuations are for a cell in unbounded fluid, not in a tube");
+    const double thermalStep = opt.frameInterval / std::ceil(opt.frameInterval / opt.thermal.step * (1.0 - 1e-12));
+    const auto thermalProposal = [&] {
+        bdf2::Step s;
+        s.wanted = thermalStep;
+        s.end = std::min(opt.tEnd, static_cast<double>(res.steps + 1) * thermalStep);
+        s.h = s.end - t;
+        s.landed = bdf2::reaches(s.end, opt.tEnd);
+        return s;
+    };
+
     while (!bdf2::reaches(t, opt.tEnd)) {
         if (res.steps + res.rejectedSteps + res.failedSolves >= opt.maxSteps)
             return finish(false, fmt::format("step limit {} reached at t = {:.6g}", opt.maxSteps, t));
-        const bdf2::Step step = control.propose(dt, history, t, opt.tEnd);
+        const bdf2::Step step = thermal ? thermalProposal() : control.propose(dt, history, t, opt.tEnd);
         const double h = step.h;
-        const bdf2::Coefficients coef = bdf2::coefficients(history, h);
-        const Vertices Y = coef.historyTerm(history.X, history.Xprev), Xpred = bdf2::predictor(history, h);
-        const double alpha = h / coef.c0;
+        const bdf2::Coefficients coef = thermal ? bdf2::Coefficients{} : bdf2::coefficients(history, h);
+        const Vertices Y = thermal ? history.X : coef.historyTerm(history.X, history.Xprev);
+        const Vertices Xpred = thermal ? history.X : bdf2::predictor(history, h);
+        // BDF2: X^{n+1} = Y + alpha u with the Hessian weight alpha = h / c0; the trapezoidal rule:
+        // X^{n+1} = X^n + h u with the weight h / 2.
+        const double alpha = thermal ? h : h / coef.c0;
+        const double hessianWeight = thermal ? 0.5 * h : alpha;
         double stepTension = tension, stepFlux = 0.0;
         bool solved = false;
         std::string failure;
         int iterations = 0;
         try {
-            const CoupledSystem sys(model, Xpred, alpha, opt, factor, env);
+            const CoupledSystem sys(model, Xpred, hessianWeight, opt, factor, env);
             Vertices g(3, nv);
             sys.gradient(Xpred, g);
             // F(X*) - H (Y - X*): the explicit part of the linearised elastic force.
-            const Vertices Fexp = -g - sys.hessianTimes(Y - Xpred);
+            Vertices Fexp = -g - sys.hessianTimes(Y - Xpred);
+            std::optional<ThermalNoise> noise;
+            if (thermal) {
+                noise = thermalNoise(sys, model, Xpred, h, opt.thermal, res.steps, res);
+                Fexp += noise->force;
+            }
             // Linearised area constraint A(X*) + g_A . (Y + alpha u - X*) = A0.
             const double areaRate =
                 (A0 - sys.area() - (sys.areaGradient().array() * (Y - Xpred).array()).sum()) / alpha;
@@ -661,7 +773,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             // step's velocity leave residuals in the grid-scale modes that cost more iterations
             // than they save (level 3: 14.4 iterations per step from zero, 15.5 from the predicted
             // velocity, plus its operator application; docs/FLOW.md, "Preconditioner").
-            const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate);
+            const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate, noise ? &noise->velocity : nullptr);
             iterations = s.gmres.iterations;
             if (s.gmres.converged && s.u.allFinite() && std::isfinite(s.tension)) {
                 Xnew = Y + alpha * s.u;
@@ -680,6 +792,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
         }
         res.gmresIterations += iterations;
         res.maxGmresIterations = std::max(res.maxGmresIterations, iterations);
+        if (!solved && thermal) {
+            ++res.failedSolves;
+            return finish(false, fmt::format("solver diverged at t = {:.6g} (thermal step {:.3g}): {}", t, h, failure));
+        }
         if (!solved) {
             ++res.failedSolves;
             const bdf2::Verdict v = control.afterFailedSolve(step);
@@ -689,8 +805,9 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             dt = v.dt;
             continue;
         }
-        const double err = history.accepted >= 2 ? bdf2::localError(Xnew, Xpred) : 0.0;  // also logged with fixed steps
-        const bdf2::Verdict verdict = control.judge(step, err, history);
+        // Also logged with fixed steps; a thermal step has no error estimate and is always accepted.
+        const double err = !thermal && history.accepted >= 2 ? bdf2::localError(Xnew, Xpred) : 0.0;
+        const bdf2::Verdict verdict = thermal ? bdf2::Verdict{bdf2::Outcome::Accept, thermalStep} : control.judge(step, err, history);
         if (verdict.outcome != bdf2::Outcome::Accept) {
             ++res.rejectedSteps;
             if (verdict.outcome == bdf2::Outcome::Fail)

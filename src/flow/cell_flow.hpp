@@ -50,6 +50,7 @@
 // BDF2 stepper, solvers/bdf2.hpp. The tank-treading motion itself (vertices turning at rate ~
 // shear rate) sets the step: ~0.3-0.5 / rate at tol = 1e-3.
 #include <Eigen/Core>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -111,6 +112,7 @@ struct MembraneFlowSpec {
     double edgeFriction = 0.0;
     double viscosityRatio = 1.0;
     bool areaConstraint = false;
+    double shearRate = 1.0;  ///< of the background flow (0: quiescent fluid; the time unit stays)
 };
 
 /// The nondimensional problem: membrane model, edge friction, viscosity ratio, background flow.
@@ -172,7 +174,31 @@ struct CellFlowCheckpoint {
     std::function<void(const std::string&)> log;
 };
 
+/// Thermal fluctuations of the membrane and the fluids (docs/FLOW_THERMAL.md). Off when kT = 0:
+/// the run is then the deterministic one, step for step.
+///
+/// Scheme. Fixed steps h, linearly implicit trapezoidal rule about X^n:
+///   X^{n+1} = X^n + h u,   u = N (F(X^n) - (h/2) H u - Gamma u + f_Gamma) + N M_lambda^-1 w,
+/// the coupled system of one step with the Hessian weight h/2 (instead of BDF2's h/c0), and two
+/// noises: w ~ sqrt(2 kT / h) M_lambda^(1/2) xi (Lanczos, solvers/krylov_sqrt.hpp), with M_lambda =
+/// (I - k D)^-1 c S M^-1 the fluid's mobility of the nodal forces, and f_Gamma = sqrt(2 kT gamma / h)
+/// sum_edges xi_e d_e (+ on one end, - on the other), whose covariance is (2 kT / h) Gamma. N
+/// holds the constraints: exact area (a force -tau dA/dx, the mobility-weighted projection) and
+/// volume (a uniform normal velocity). For a linear force the trapezoidal rule keeps the Gibbs
+/// covariance kT H^-1 exactly at any step; the approximations are stated in docs/FLOW_THERMAL.md.
+/// The random numbers of step n come from (seed, n) alone, so a resumed run repeats them.
+struct ThermalOptions {
+    double kT = 0.0;                ///< thermal energy, internal units eta_out rate R_A^3 (0: off)
+    std::uint64_t seed = 1;
+    double step = 0.1;              ///< fixed step, internal time (shortened to land on the frames)
+    double sqrtTolerance = 1e-3;    ///< Lanczos: relative change of M^(1/2) xi between iterations
+    int sqrtMaxIterations = 100;
+    /// GMRES of (I - k D) y = c S M^-1 F inside M_lambda (lambda != 1): a tenth of the Lanczos tolerance.
+    double mobilityTolerance = 1e-4;
+};
+
 struct CellFlowOptions {
+    ThermalOptions thermal;
     double tEnd = 40.0 * 3.14159265358979323846;  ///< internal time (10 rotations 4 pi / rate)
     double frameInterval = 0.1;      ///< frames at k frameInterval (interpolated), internal time
     bool keepFrames = true;
@@ -239,6 +265,10 @@ struct CellFlowResult {
     double maxAreaCorrection = 0.0, maxVolumeCorrection = 0.0;
     double sumAreaCorrection = 0.0, sumVolumeCorrection = 0.0;
     double maxFluxCorrection = 0.0;  ///< largest |uniform normal velocity| of the volume row (R_A rate)
+    /// Thermal runs: operator applications of the Lanczos square roots (summed, largest per step) and
+    /// the GMRES iterations of (I - k D) inside the mobility (lambda != 1).
+    long sqrtIterations = 0, mobilityIterations = 0;
+    int maxSqrtIterations = 0;
     double wallSeconds = 0.0;              ///< summed over the resumed parts
     int resumes = 0;                       ///< times the run continued from a snapshot
     double resumedAt = -1.0;               ///< time of the last snapshot resumed, internal units (-1: none)

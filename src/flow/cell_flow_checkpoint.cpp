@@ -15,7 +15,7 @@
 namespace trbc {
 namespace {
 
-constexpr std::string_view kMagic = "trbc-cell-flow-snapshot 2\n";
+constexpr std::string_view kMagic = "trbc-cell-flow-snapshot 3\n";
 
 class Writer {
 public:
@@ -111,6 +111,9 @@ void writeResult(Writer& w, const CellFlowResult& r) {
         w.pod(v);
     for (int v : {r.steps, r.rejectedSteps, r.failedSolves, r.maxGmresIterations, r.resumes}) w.pod(v);
     w.pod(r.gmresIterations);
+    w.pod(r.sqrtIterations);
+    w.pod(r.mobilityIterations);
+    w.pod(r.maxSqrtIterations);
 }
 
 CellFlowResult readResult(Reader& rd) {
@@ -141,6 +144,9 @@ CellFlowResult readResult(Reader& rd) {
         *v = rd.pod<double>();
     for (int* v : {&r.steps, &r.rejectedSteps, &r.failedSolves, &r.maxGmresIterations, &r.resumes}) *v = rd.pod<int>();
     r.gmresIterations = rd.pod<long>();
+    r.sqrtIterations = rd.pod<long>();
+    r.mobilityIterations = rd.pod<long>();
+    r.maxSqrtIterations = rd.pod<int>();
     return r;
 }
 

@@ -6,12 +6,15 @@
 #include <numbers>
 
 #include "core/error.hpp"
+#include "core/random.hpp"
+#include "experiments/thermal_undulations.hpp"
 #include "mesh/geometry.hpp"
 
 namespace trbc {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
+constexpr std::uint64_t kRandomStartStream = 0x7374617274;  // "start"
 
 FlowConditions shearConditions(const ShearCaseOptions& o) {
     FlowConditions fc;
@@ -24,8 +27,8 @@ FlowConditions shearConditions(const ShearCaseOptions& o) {
 /// What the snapshots' key adds to the integrator's own fingerprint (which holds the cell, the
 /// fluid, the mesh, the initial shape and the stepping options).
 std::string shearCaseKey(const ShearCaseOptions& o) {
-    return fmt::format("shear eta_out {:a} eta_in {:a} rate {:a} level {} rotations {:a}", o.etaOut, o.etaIn, o.shearRate,
-                       o.level, o.rotations);
+    return fmt::format("shear eta_out {:a} eta_in {:a} rate {:a} level {} rotations {:a} random start {} kick {:a} seed {}",
+                       o.etaOut, o.etaIn, o.shearRate, o.level, o.rotations, o.randomStart, o.kickTemperatureK, o.seed);
 }
 
 ShearFrameSeries shearSeries(const CellFlowResult& r, const FlowScales& s, double rate) {
@@ -72,7 +75,20 @@ void validateShearCaseOptions(const ShearCaseOptions& o) {
     requireOptionRange(n, "level", o.level, {1.0, 5.0, false, ""});
     requireOptionRange(n, "rotations", o.rotations, {0.0, 1000.0, true, ""});
     requireOptionRange(n, "tilt_deg", o.tiltDeg, {0.0, 90.0, false, "deg"});
+    requireOptionRange(n, "temperature_K", o.temperatureK, {0.0, 400.0, false, "K"});
+    requireOptionRange(n, "kick_temperature_K", o.kickTemperatureK, {0.0, 400.0, false, "K"});
+    requireOptionRange(n, "thermal_step", o.thermalStep, {0.0, 1.0, true, "1/rate"});
     validateStepping(o.step, "1/rate");
+}
+
+Vertices randomThermalStart(const Vertices& X, double radiusUm, double kbPnUm, double temperatureK, std::uint64_t seed) {
+    Rng rng(seed, kRandomStartStream);
+    Eigen::Quaterniond q(rng.normal(), rng.normal(), rng.normal(), rng.normal());
+    q.normalize();
+    const Eigen::Vector3d c = centroid(X);
+    Vertices Y = (q.toRotationMatrix() * (X.colwise() - c)).colwise() + c;
+    if (temperatureK > 0.0) Y += thermalUndulation(Y, radiusUm, thermalEnergy(temperatureK), kbPnUm, rng);
+    return Y;
 }
 
 Vertices tiltAboutFlowAxis(const Vertices& X, double tiltDeg) {
@@ -93,7 +109,16 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o) {
     const CellFlowModel model(o.cell, res.conditions, res.prepared.faces, res.prepared.reference);
     res.scales = model.scales();
     res.groups = model.groups();
+    if (o.randomStart)
+        res.prepared.initial = randomThermalStart(res.prepared.initial, res.scales.length,
+                                                  model.membrane().parameters().bending.kb * res.scales.force() * res.scales.length,
+                                                  o.kickTemperatureK, o.seed);
     res.integrator = stageOptions(o.step, o.rotations * 4.0 * kPi, 0.0);
+    if (o.temperatureK > 0.0) {
+        res.integrator.thermal.kT = thermalEnergy(o.temperatureK) / (res.scales.force() * res.scales.length);
+        res.integrator.thermal.seed = o.seed;
+        res.integrator.thermal.step = o.thermalStep;
+    }
     res.integrator.checkpoint = stageCheckpoint(o.step, "main", shearCaseKey(o));
     res.setupWallSeconds = secondsSince(tStart);
     res.flow = integrateCellFlow(model, model.toInternal(res.prepared.initial), res.integrator,

@@ -30,14 +30,30 @@ struct ShearCaseOptions {
     /// symmetric about the shear plane z = 0, whose exactly in-plane start cannot leave it
     /// (a stand-in for thermal symmetry breaking).
     double tiltDeg = 0.0;
+    /// Thermal fluctuations of the membrane and both fluids during the run (ThermalOptions), K;
+    /// 0: none. Fixed steps of thermalStep / rate.
+    double temperatureK = 0.0;
+    double thermalStep = 0.1;
+    /// The start of the ensemble protocol (docs/FLOW_THERMAL.md): the equilibrium shape turned to a
+    /// uniformly random orientation and given the thermal l = 2, 3 undulations
+    /// (experiments/thermal_undulations.hpp) at kickTemperatureK, both drawn from `seed`.
+    bool randomStart = false;
+    double kickTemperatureK = 293.15;
+    std::uint64_t seed = 1;  ///< of the random start and of the thermal noise
     std::filesystem::path cacheDir;  ///< SFS cache; empty: none
     FlowCaseStepping step;    ///< times in 1/rate
 };
 
 /// Throws InputError naming the option and its valid range: eta_out_mPa_s, shear_rate_per_s,
 /// eta_in_mPa_s in (0, 1e6], the cell inside the prior box (unless allowOutsidePrior), level in
-/// [1, 5], rotations in (0, 1000], tilt_deg in [0, 90], the stepping options (validateStepping).
+/// [1, 5], rotations in (0, 1000], tilt_deg in [0, 90], temperature_K and kick_temperature_K in
+/// [0, 400], thermal_step in (0, 1], the stepping options (validateStepping).
 void validateShearCaseOptions(const ShearCaseOptions& o);
+
+/// X turned about its centroid to a uniformly random orientation (a unit quaternion of four normal
+/// variates) and given the thermal l = 2, 3 undulations of a cell of bending modulus kb (pN um)
+/// at temperatureK, radius R_A (um); both drawn from `seed`.
+Vertices randomThermalStart(const Vertices& X, double radiusUm, double kbPnUm, double temperatureK, std::uint64_t seed);
 
 /// X turned by tiltDeg degrees about the flow (x) axis through its centroid, y towards z.
 Vertices tiltAboutFlowAxis(const Vertices& X, double tiltDeg);
