@@ -29,11 +29,29 @@ def test_flow_shear_gives_the_cli_numbers(run_cli, cache):
     (dict(level=9), "level"), (dict(v=0.5), "v"), (dict(FvK=100.0, kb_J=2e-19), "kb_J"),
     (dict(rotations=0.0), "rotations"), (dict(frame_interval=-1.0), "frame_interval"), (dict(dt=500.0), "dt"),
     (dict(tilt_deg=95.0), "tilt_deg"), (dict(tilt_deg=-1.0), "tilt_deg"),
+    (dict(start="tilted"), "start"), (dict(temperature_K=500.0), "temperature_K"),
+    (dict(temperature_K=293.0, thermal_step=0.0), "thermal_step"),
 ])
 def test_flow_shear_bad_input(kwargs, name):
     args = {**dict(eta_out_mPa_s=28.9, shear_rate_per_s=20.0, level=1, rotations=1.0), **kwargs}
     with pytest.raises(ValueError, match=name):
         trbc.flow_shear(**args)
+
+
+def test_flow_shear_random_start_and_fluctuations_are_seeded(run_cli, cache):
+    """The ensemble start and the thermal noise give the CLI's numbers, repeat with their seed and
+    differ between seeds."""
+    kw = dict(eta_out_mPa_s=28.9, shear_rate_per_s=20.0, level=1, rotations=0.5, cache_dir=cache, threads=1)
+    a = trbc.flow_shear(**kw, start="random", seed=4, temperature_K=293.15)
+    b = trbc.flow_shear(**kw, start="random", seed=4, temperature_K=293.15)
+    c = trbc.flow_shear(**kw, start="random", seed=5, temperature_K=293.15)
+    np.testing.assert_array_equal(a["time_series"]["inclination_deg"], b["time_series"]["inclination_deg"])
+    assert not np.array_equal(a["time_series"]["inclination_deg"], c["time_series"]["inclination_deg"])
+    cli = run_cli("flow", "shear", "--eta-out", 28.9, "--shear-rate", 20.0, "--level", 1, "--rotations", 0.5,
+                  "--start", "random", "--seed", 4, "--temperature", 293.15, "--cache", cache, "--threads", 1)
+    assert cli["parameters"]["seed"] == 4 and cli["parameters"]["start"] == "random"
+    assert cli["diagnostics"]["thermal"]["lanczos_iterations_per_step"] > 1
+    assert a["diagnostics"]["steps"] == cli["diagnostics"]["steps"]
 
 
 TUBE = dict(radius_um=3.3, pressure_gradient_mmHg_per_mm=30.0, level=1, wall_points=12, settle_R_over_V=10.0,

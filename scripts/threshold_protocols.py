@@ -1,0 +1,201 @@
+#!/usr/bin/env python3
+"""The tumbling / tank-treading threshold under two start protocols (docs/FLOW_THERMAL.md): the
+in-plane start (the disc exactly in the shear plane) and the ensemble start (`--start random`,
+MEMBERS seeds per flow condition, scored as the fraction that tank-treads). Each case is one
+`trbc flow shear` run kept as OUT/cases/<id>/flow.json (a re-run skips finished cases, so the scan
+resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_table.md.
+
+    scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
+        [--members 8] [--jobs 2] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
+        [--dry-run]
+
+Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
+Pa s um; v 0.95), the paper's Table 1 means, trbc's theta_new posterior means. Stresses: six per
+outer viscosity, log-spaced over the range where that viscosity's thresholds lie.
+
+The critical stress of a protocol is where the tank-treading fraction crosses 1/2, interpolated
+in log stress between the two bracketing stresses; its standard error comes from a parametric
+bootstrap of the fractions (binomial, 2000 resamples, seed 1). The in-plane start has one member
+per stress and gives a bracket only."""
+import argparse
+import concurrent.futures
+import csv
+import json
+import math
+import os
+import random
+import subprocess
+import sys
+import time
+
+CELLS = {
+    "reference": dict(v=0.95, mu=4.99, kb=2.10e-19, b2=1.84, etam=0.42),
+    "table1": dict(v=0.94, mu=4.99, kb=2.10e-19, b2=1.84, etam=0.69),
+    "theta_new": dict(v=0.9297396564886498, mu=4.6566855671327145, kb=2.258889261687751e-19, b2=2.0072406191529075,
+                      etam=0.6981572103032143),
+}
+# Shear stresses (Pa) per outer viscosity (mPa s): around the brackets that the in-plane start found.
+STRESS_RANGE = {10.7: (0.2, 1.5), 23.9: (0.03, 0.25), 30.0: (0.03, 0.25), 100.0: (0.03, 0.2)}
+ETA_IN = 10.0
+
+
+def logspace(lo, hi, n):
+    return [lo * (hi / lo) ** (k / (n - 1)) for k in range(n)]
+
+
+def cases(cells, viscosities, members, level, rotations):
+    out = []
+    for cell in cells:
+        for eta in viscosities:
+            for stress in logspace(*STRESS_RANGE[eta], 6):
+                rate = stress / (eta * 1e-3)
+                base = dict(cell=cell, eta=eta, stress=stress, rate=rate, level=level, rotations=rotations)
+                out.append(dict(base, protocol="in-plane", seed=0, id=f"{cell}_eta{eta:g}_tau{stress:.4g}_inplane"))
+                for seed in range(1, members + 1):
+                    out.append(dict(base, protocol="ensemble", seed=seed, id=f"{cell}_eta{eta:g}_tau{stress:.4g}_s{seed}"))
+    return out
+
+
+def command(trbc, c, out):
+    p = CELLS[c["cell"]]
+    cmd = [trbc, "flow", "shear", "--eta-out", f"{c['eta']:g}", "--shear-rate", repr(c["rate"]), "--eta-in", f"{ETA_IN:g}",
+           "--level", str(c["level"]), "--rotations", f"{c['rotations']:g}", "--threads", "1",
+           "--v", repr(p["v"]), "--mu", repr(p["mu"]), "--kb", repr(p["kb"]), "--b2", repr(p["b2"]), "--etam", repr(p["etam"]),
+           "--vtk-every", "1000000", "--out", os.path.join(out, "cases", c["id"])]
+    if c["protocol"] == "ensemble":
+        cmd += ["--start", "random", "--seed", str(c["seed"])]
+    return cmd
+
+
+def run(trbc, c, out):
+    d = os.path.join(out, "cases", c["id"])
+    if os.path.exists(os.path.join(d, "flow.json")):
+        return c["id"], "kept", 0.0
+    t0 = time.time()
+    r = subprocess.run(command(trbc, c, out), capture_output=True, text=True)
+    if r.returncode != 0 and not os.path.exists(os.path.join(d, "flow.json")):
+        os.makedirs(d, exist_ok=True)
+        with open(os.path.join(d, "flow.json"), "w") as f:
+            json.dump({"status": "failed", "reason": r.stderr.strip().splitlines()[-1:] or ["exit %d" % r.returncode],
+                       "observables": {"regime": None}}, f)
+    return c["id"], "ran", time.time() - t0
+
+
+def regime(out, c):
+    try:
+        with open(os.path.join(out, "cases", c["id"], "flow.json")) as f:
+            j = json.load(f)
+    except (OSError, ValueError):
+        return None, None
+    return j.get("observables", {}).get("regime"), j.get("status")
+
+
+def crossing(stresses, fractions):
+    """log-stress where the fraction first crosses 1/2 going up; None without a crossing."""
+    for k in range(len(stresses) - 1):
+        f0, f1 = fractions[k], fractions[k + 1]
+        if f0 < 0.5 <= f1:
+            w = (0.5 - f0) / (f1 - f0)
+            return math.exp(math.log(stresses[k]) + w * (math.log(stresses[k + 1]) - math.log(stresses[k])))
+    return None
+
+
+def summarise(out, all_cases, members):
+    rows, groups = [], {}
+    for c in all_cases:
+        reg, status = regime(out, c)
+        rows.append(dict(c, regime=reg, status=status))
+        if reg is None and status is None:
+            continue
+        key = (c["cell"], c["eta"], c["protocol"])
+        g = groups.setdefault(key, {})
+        n, k = g.get(c["stress"], (0, 0))
+        g[c["stress"]] = (n + 1, k + (reg == "tank-treading"))
+    with open(os.path.join(out, "cases.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["id", "cell", "eta_out_mPa_s", "shear_stress_Pa", "shear_rate_per_s", "protocol", "seed", "regime", "status"])
+        for r in rows:
+            w.writerow([r["id"], r["cell"], r["eta"], f"{r['stress']:.6g}", f"{r['rate']:.6g}", r["protocol"], r["seed"],
+                        r["regime"] or "", r["status"] or "not run"])
+    rng = random.Random(1)
+    table = ["| cell | eta_out (mPa s) | protocol | TT fraction per stress (Pa) | critical stress (Pa) |", "|---|---|---|---|---|"]
+    with open(os.path.join(out, "fractions.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["cell", "eta_out_mPa_s", "protocol", "shear_stress_Pa", "members", "tank_treading", "fraction", "se"])
+        for (cell, eta, protocol), g in sorted(groups.items()):
+            s = sorted(g)
+            fr = [g[x][1] / g[x][0] for x in s]
+            for x, p in zip(s, fr):
+                n = g[x][0]
+                w.writerow([cell, eta, protocol, f"{x:.6g}", n, g[x][1], f"{p:.4f}", f"{math.sqrt(max(p * (1 - p), 0.25 / n) / n):.4f}"])
+            tc = crossing(s, fr)
+            if protocol == "ensemble" and tc is not None:
+                boots = []
+                for _ in range(2000):
+                    fb = [sum(rng.random() < p for _ in range(g[x][0])) / g[x][0] for x, p in zip(s, fr)]
+                    b = crossing(s, fb)
+                    if b is not None:
+                        boots.append(math.log(b))
+                sd = (sum((b - sum(boots) / len(boots)) ** 2 for b in boots) / (len(boots) - 1)) ** 0.5 if len(boots) > 1 else float("nan")
+                crit = f"{tc:.3g} (log-SE {sd:.2f}, {len(boots)}/2000 resamples cross)"
+            elif tc is not None:
+                k = next(i for i in range(len(s) - 1) if fr[i] < 0.5 <= fr[i + 1])
+                crit = f"[{s[k]:.3g}, {s[k + 1]:.3g}]"
+            else:
+                crit = "not bracketed"
+            cells_ = ", ".join(f"{x:.3g}: {g[x][1]}/{g[x][0]}" for x in s)
+            table.append(f"| {cell} | {eta:g} | {protocol} | {cells_} | {crit} |")
+    with open(os.path.join(out, "threshold_table.md"), "w") as f:
+        f.write("\n".join(table) + "\n")
+    return table
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trbc", default="build/trbc")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--level", type=int, default=3)
+    ap.add_argument("--rotations", type=float, default=10)
+    ap.add_argument("--members", type=int, default=8)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--cells", default="reference,table1,theta_new")
+    ap.add_argument("--viscosities", default="10.7,23.9,30,100")
+    ap.add_argument("--dry-run", action="store_true")
+    ap.add_argument("--summary-only", action="store_true", help="tabulate the finished cases, run nothing")
+    a = ap.parse_args()
+    cells = a.cells.split(",")
+    for c in cells:
+        if c not in CELLS:
+            sys.exit(f"--cells: unknown cell '{c}' (valid: {', '.join(CELLS)})")
+    try:
+        viscosities = [float(x) for x in a.viscosities.split(",")]
+    except ValueError:
+        sys.exit(f"--viscosities: '{a.viscosities}' is not a comma-separated list of numbers")
+    for v in viscosities:
+        if v not in STRESS_RANGE:
+            sys.exit(f"--viscosities: {v:g} mPa s has no stress range (valid: {', '.join(f'{x:g}' for x in STRESS_RANGE)})")
+    if a.members < 1 or a.jobs < 1 or not 1 <= a.level <= 4:
+        sys.exit("--members and --jobs must be >= 1, --level in [1, 4]")
+    all_cases = cases(cells, viscosities, a.members, a.level, a.rotations)
+    if a.dry_run:
+        for c in all_cases:
+            print(" ".join(command(a.trbc, c, a.out)))
+        return
+    os.makedirs(os.path.join(a.out, "cases"), exist_ok=True)
+    with open(os.path.join(a.out, "command.txt"), "w") as f:
+        f.write(" ".join(sys.argv) + "\n")
+    if not a.summary_only:
+        t0, done = time.time(), 0
+        todo = [c for c in all_cases if not os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json"))]
+        print(f"{len(all_cases)} cases, {len(all_cases) - len(todo)} finished earlier, {len(todo)} to run", file=sys.stderr)
+        with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
+            for cid, what, wall in ex.map(lambda c: run(a.trbc, c, a.out), todo):
+                done += 1
+                el = time.time() - t0
+                print(f"[{done}/{len(todo)}] {cid} {what} {wall:.0f} s; elapsed {el / 60:.0f} min, "
+                      f"ETA {el / done * (len(todo) - done) / 60:.0f} min", file=sys.stderr, flush=True)
+    print("\n".join(summarise(a.out, all_cases, a.members)))
+
+
+if __name__ == "__main__":
+    main()
