@@ -73,6 +73,8 @@ def run(trbc, c, out):
         return c["id"], "kept", 0.0
     t0 = time.time()
     r = subprocess.run(command(trbc, c, out), capture_output=True, text=True)
+    if r.returncode < 0:  # killed by a signal: not a result, the next run repeats the case
+        return c["id"], f"killed (signal {-r.returncode})", time.time() - t0
     if r.returncode != 0 and not os.path.exists(os.path.join(d, "flow.json")):
         os.makedirs(d, exist_ok=True)
         with open(os.path.join(d, "flow.json"), "w") as f:

@@ -283,5 +283,40 @@ TEST(TubeCase, BadOptionsThrowInputErrorNamingTheOption) {
     EXPECT_TRUE(contains(inputError([&] { validateTubeCaseOptions(o); }), "parameter --settle = 5 R/V"));
 }
 
+// The ramp protocol: the first stage is the shear case at its rate, step for step; the later
+// stages start from the shape where the last ended; the brackets name the rates where the regime
+// changes on each leg; bad rates are refused with the option's name.
+TEST(ShearRamp, StagesContinueFromTheLastShapeAndBracketTheRegimeChange) {
+    ShearRampOptions r;
+    r.base = cheapShear(30.0, 2.0);
+    r.rates = {2.0, 20.0};
+    const ShearRampResult ramp = runShearRamp(r);
+    ASSERT_TRUE(ramp.completed);
+    ASSERT_EQ(ramp.stages.size(), 3u);
+    const ShearCaseResult single = runShearCase(cheapShear(30.0, 2.0));
+    ASSERT_TRUE(single.completed && ramp.stages[0].observables);
+    EXPECT_EQ(ramp.stages[0].observables->regime, single.observables->regime);
+    EXPECT_EQ(ramp.stages[0].observables->orientationAdvance, single.observables->orientationAdvance);
+    EXPECT_TRUE(ramp.stages[0].up && ramp.stages[1].up && !ramp.stages[2].up);
+    EXPECT_EQ(ramp.stages[2].shearRate, 2.0);
+    // At 30 mPa s: tumbling at 2 1/s, tank-treading at 20 1/s, tumbling again on the way down.
+    EXPECT_EQ(ramp.stages[0].observables->regime, ShearRegime::Tumbling);
+    EXPECT_EQ(ramp.stages[1].observables->regime, ShearRegime::TankTreading);
+    EXPECT_EQ(ramp.stages[2].observables->regime, ShearRegime::Tumbling);
+    ASSERT_TRUE(ramp.upBracket && ramp.downBracket);
+    EXPECT_EQ(*ramp.upBracket, std::make_pair(2.0, 20.0));
+    EXPECT_EQ(*ramp.downBracket, std::make_pair(2.0, 20.0));
+    // The down stage starts where the tank-treading stage ended, not from the disc at rest.
+    EXPECT_NE(ramp.stages[2].observables->orientationAdvance, single.observables->orientationAdvance);
+
+    ShearRampOptions bad = r;
+    bad.rates = {2.0};
+    EXPECT_TRUE(contains(inputError([&] { runShearRamp(bad); }), "rates"));
+    bad.rates = {2.0, 2.0};
+    EXPECT_TRUE(contains(inputError([&] { runShearRamp(bad); }), "increase"));
+    bad.rates = {2.0, -1.0};
+    EXPECT_TRUE(contains(inputError([&] { runShearRamp(bad); }), "shear_rate_per_s"));
+}
+
 }  // namespace
 }  // namespace trbc

@@ -3,6 +3,8 @@
 // shape modes l = 2..6 for the discrete energy (docs/FLOW_THERMAL.md).
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <Eigen/Dense>
 #include <cmath>
 #include <numbers>
@@ -14,6 +16,7 @@
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
 #include "solvers/krylov_sqrt.hpp"
+#include "test_support.hpp"
 
 namespace trbc {
 namespace {
@@ -241,6 +244,37 @@ TEST(ThermalFlow, BadOptionsAreRefused) {
     o.thermal.kT = 1e-3;
     o.thermal.step = 0.0;
     EXPECT_THROW(integrateCellFlow(model, sphere.X, o), InputError);
+}
+
+// The ensemble start and the ramp from the command line: the start repeats with its seed and
+// differs between seeds; the ramp reports its stages; bad rates exit 2 naming --rates.
+TEST(ThermalFlowCli, RandomStartIsSeededAndTheRampReportsItsStages) {
+    test::TempDir dir;
+    const std::string shear = "flow shear --eta-out 23.9 --shear-rate 40 --level 1 --rotations 0.5 --no-cache --start random --out ";
+    std::string shapes[3];
+    int k = 0;
+    for (const char* seed : {"3", "3", "4"}) {
+        const std::filesystem::path out = dir.path() / ("s" + std::to_string(k));
+        const test::CliRun r = test::runTrbc(shear + out.string() + " --seed " + seed, dir.path());
+        ASSERT_EQ(r.status, 0) << r.err;
+        shapes[k++] = test::slurp(out / "initial.vtk");
+    }
+    EXPECT_EQ(shapes[0], shapes[1]);
+    EXPECT_NE(shapes[0], shapes[2]);
+
+    const std::filesystem::path ramp = dir.path() / "ramp";
+    const test::CliRun r = test::runTrbc("flow ramp --eta-out 30 --rates 2,20 --level 1 --rotations 1 --no-cache --out " + ramp.string(),
+                                         dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(test::slurp(ramp / "ramp.json"));
+    ASSERT_EQ(j["stages"].size(), 3u);
+    EXPECT_EQ(j["stages"][2]["direction"], "down");
+    EXPECT_DOUBLE_EQ(j["stages"][1]["shear_stress_Pa"].get<double>(), 0.6);
+    EXPECT_TRUE(j["summary"]["completed"].get<bool>());
+
+    const test::CliRun bad = test::runTrbc("flow ramp --eta-out 30 --rates 20,2 --level 1 --no-cache", dir.path());
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("--rates"), std::string::npos) << bad.err;
 }
 
 }  // namespace

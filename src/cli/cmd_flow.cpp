@@ -42,7 +42,8 @@ std::string cliOptionName(const std::string& name) {
         {"tube_length_um", "--tube-length"}, {"repulsion_range_um", "--repulsion-range"},
         {"repulsion_pressure", "--repulsion-pressure"}, {"frame_interval", "--frame-interval"}, {"step_tol", "--step-tol"}, {"gmres_tol", "--gmres-tol"},
         {"dt", "--dt"}, {"max_steps", "--max-steps"}, {"checkpoint_interval", "--checkpoint-interval"},
-        {"resume", "--resume"}};
+        {"resume", "--resume"}, {"rates", "--rates"}, {"temperature_K", "--temperature"},
+        {"kick_temperature_K", "--kick-temperature"}, {"thermal_step", "--thermal-step"}};
     const auto it = names.find(name);
     return it == names.end() ? name : it->second;
 }
@@ -314,7 +315,7 @@ nlohmann::json shearParametersJson(const ShearCaseResult& res, const ShearCli& o
     return {{"eta_out_mPa_s", fc.etaOut},
             {"eta_in_mPa_s", fc.etaIn},
             {"shear_rate_per_s", fc.shearRate},
-            {"shear_stress_Pa", fc.etaOut * 1e-3 * fc.shearRate},
+            {"shear_stress_Pa", shearStressPa(fc.etaOut, fc.shearRate)},
             {"cell", cellJson(res.cell)},
             {"cell_source", cellSource(o.cell)},
             {"area_volume", "exact constraints: area multiplier (membrane tension) in the coupled system, "
@@ -376,14 +377,10 @@ void addShearObservables(nlohmann::json& j, const ShearObservables& obs) {
                      {"membrane_advance_4pi_f_over_shear_rate", obs.membraneAdvance4piFOverRate}};
 }
 
+void finishShearOptions(ShearCli& o, const std::string& command);
+
 void runShear(ShearCli& o) {
-    o.c.cell = cellParameters(o.cell);
-    o.c.allowOutsidePrior = o.cell.allowOutside;
-    o.c.randomStart = o.start == "random";
-    setProvenanceSeed(o.c.seed);
-    o.c.cacheDir = cacheDirectory(o.cache);
-    configureStepping(o.step, "flow shear", "/rate", {});
-    o.c.step = o.step.step;
+    finishShearOptions(o, "flow shear");
     validateShearCaseOptions(o.c);
     applySteppingOptions(o.step);
     const ShearCaseResult res = runShearCase(o.c);
@@ -410,6 +407,54 @@ void runShear(ShearCli& o) {
     std::cout << j.dump(2) << std::endl;
 }
 
+/// The options that `flow shear` and `flow ramp` share: the fluid, the cell, the mesh, the start,
+/// the fluctuations, the stepping and the cache.
+void addShearOptions(CLI::App* cmd, ShearCli& o) {
+    addNumber(cmd, "--eta-out", o.c.etaOut, "outer (suspending) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->required();
+    addNumber(cmd, "--eta-in", o.c.etaIn, "inner (cytosol) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->capture_default_str();
+    addCellOptions(cmd, o.cell);
+    addNumber(cmd, "--level", o.c.level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)", NumberRange::closed(1, 5))
+        ->capture_default_str();
+    addNumber(cmd, "--tilt-deg", o.c.tiltDeg,
+              "start turned by this angle about the flow (x) axis, out of the shear plane (the in-plane start, 0, "
+              "stays mirror symmetric about that plane and cannot leave it; docs/FLOW.md)",
+              NumberRange::closed(0.0, 90.0, "deg"))
+        ->capture_default_str();
+    addNumber(cmd, "--temperature", o.c.temperatureK,
+              "thermal fluctuations of the membrane and both fluids during the run, at this temperature (fixed steps "
+              "of --thermal-step; docs/FLOW_THERMAL.md); 0: none",
+              NumberRange::closed(0.0, 400.0, "K"))
+        ->capture_default_str();
+    addNumber(cmd, "--thermal-step", o.c.thermalStep, "fixed time step of a run with --temperature",
+              NumberRange::leftOpen(0.0, 1.0, "1/rate"))
+        ->capture_default_str();
+    cmd->add_option("--start", o.start,
+                    "in-plane: the equilibrium disc with its axis along the gradient (turned by --tilt-deg); random: "
+                    "that shape at a uniformly random orientation with the thermal l = 2, 3 undulations at "
+                    "--kick-temperature, from --seed (one member of the ensemble protocol, docs/FLOW_THERMAL.md)")
+        ->check(CLI::IsMember({"in-plane", "random"}))
+        ->capture_default_str();
+    addNumber(cmd, "--kick-temperature", o.c.kickTemperatureK, "temperature of the undulations of --start random",
+              NumberRange::closed(0.0, 400.0, "K"))
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o.c.seed, "seed of --start random and of the thermal noise of --temperature",
+              NumberRange::nonNegative())
+        ->capture_default_str();
+    addSteppingOptions(cmd, o.step, "1/rate");
+    addCacheOptions(cmd, o.cache);
+}
+
+/// The library options from the command line's (shared by shear and ramp).
+void finishShearOptions(ShearCli& o, const std::string& command) {
+    o.c.cell = cellParameters(o.cell);
+    o.c.allowOutsidePrior = o.cell.allowOutside;
+    o.c.randomStart = o.start == "random";
+    setProvenanceSeed(o.c.seed);
+    o.c.cacheDir = cacheDirectory(o.cache);
+    configureStepping(o.step, command, "/rate", {});
+    o.c.step = o.step.step;
+}
+
 void registerShear(CLI::App* flow) {
     auto o = std::make_shared<ShearCli>();
     CLI::App* cmd = flow->add_subcommand(
@@ -418,43 +463,77 @@ void registerShear(CLI::App* flow) {
         "Stokes flow, membrane forces of docs/MEMBRANE_MODEL.md with membrane viscosity, semi-implicit adaptive BDF2. Prints "
         "regime, inclination angle, swinging amplitude and 4 pi f / rate as JSON. Without cell options the cell "
         "is the paper's Table 1 posterior means (v=0.94, mu=4.99 uN/m, kb=2.10e-19 J, b2=1.84, etam=0.69 Pa s um)");
-    addNumber(cmd, "--eta-out", o->c.etaOut, "outer (suspending) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->required();
     addNumber(cmd, "--shear-rate", o->c.shearRate, "shear rate", NumberRange::leftOpen(0.0, 1e6, "1/s"))->required();
-    addNumber(cmd, "--eta-in", o->c.etaIn, "inner (cytosol) viscosity", NumberRange::leftOpen(0.0, 1e6, "mPa s"))->capture_default_str();
-    addCellOptions(cmd, o->cell);
-    addNumber(cmd, "--level", o->c.level, "icosphere level of the cell mesh (Nv = 10 4^L + 2)", NumberRange::closed(1, 5))
-        ->capture_default_str();
     addNumber(cmd, "--rotations", o->c.rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate",
               NumberRange::leftOpen(0.0, 1000.0))
         ->capture_default_str();
-    addNumber(cmd, "--tilt-deg", o->c.tiltDeg,
-              "start turned by this angle about the flow (x) axis, out of the shear plane (the in-plane start, 0, "
-              "stays mirror symmetric about that plane and cannot leave it; docs/FLOW.md)",
-              NumberRange::closed(0.0, 90.0, "deg"))
-        ->capture_default_str();
-    addNumber(cmd, "--temperature", o->c.temperatureK,
-              "thermal fluctuations of the membrane and both fluids during the run, at this temperature (fixed steps "
-              "of --thermal-step; docs/FLOW_THERMAL.md); 0: none",
-              NumberRange::closed(0.0, 400.0, "K"))
-        ->capture_default_str();
-    addNumber(cmd, "--thermal-step", o->c.thermalStep, "fixed time step of a run with --temperature",
-              NumberRange::leftOpen(0.0, 1.0, "1/rate"))
-        ->capture_default_str();
-    cmd->add_option("--start", o->start,
-                    "in-plane: the equilibrium disc with its axis along the gradient (turned by --tilt-deg); random: "
-                    "that shape at a uniformly random orientation with the thermal l = 2, 3 undulations at "
-                    "--kick-temperature, from --seed (one member of the ensemble protocol, docs/FLOW_THERMAL.md)")
-        ->check(CLI::IsMember({"in-plane", "random"}))
-        ->capture_default_str();
-    addNumber(cmd, "--kick-temperature", o->c.kickTemperatureK, "temperature of the undulations of --start random",
-              NumberRange::closed(0.0, 400.0, "K"))
-        ->capture_default_str();
-    addNumber(cmd, "--seed", o->c.seed, "seed of --start random and of the thermal noise of --temperature",
-              NumberRange::nonNegative())
-        ->capture_default_str();
-    addSteppingOptions(cmd, o->step, "1/rate");
-    addCacheOptions(cmd, o->cache);
+    addShearOptions(cmd, *o);
     cmd->callback([o]() { runShear(*o); });
+}
+
+// ---- flow ramp ---------------------------------------------------------------------------------
+
+struct RampCli {
+    ShearCli s;
+    std::vector<double> rates;
+};
+
+void runRamp(RampCli& o) {
+    finishShearOptions(o.s, "flow ramp");
+    ShearRampOptions r{o.s.c, o.rates};
+    r.base.shearRate = o.rates.empty() ? 1.0 : o.rates.front();
+    applySteppingOptions(o.s.step);
+    const ShearRampResult res = runShearRamp(r);
+    nlohmann::json stages = nlohmann::json::array();
+    for (const ShearRampStage& st : res.stages) {
+        nlohmann::json e{{"shear_rate_per_s", st.shearRate},
+                         {"shear_stress_Pa", shearStressPa(o.s.c.etaOut, st.shearRate)},
+                         {"direction", st.up ? "up" : "down"},
+                         {"status", st.completed ? "ok" : "failed"},
+                         {"wall_s", st.wallSeconds}};
+        if (!st.completed) e["reason"] = st.message;
+        if (st.observables) addShearObservables(e, *st.observables);
+        e.erase("analysis");
+        stages.push_back(e);
+    }
+    const auto bracket = [&](const std::optional<std::pair<double, double>>& b) {
+        return b ? nlohmann::json{b->first, b->second} : nlohmann::json(nullptr);
+    };
+    nlohmann::json j;
+    j["parameters"] = {{"eta_out_mPa_s", o.s.c.etaOut},   {"eta_in_mPa_s", o.s.c.etaIn},       {"rates_per_s", o.rates},
+                       {"cell", cellJson(o.s.c.cell)},      {"cell_source", cellSource(o.s.cell)}, {"level", o.s.c.level},
+                       {"rotations_per_stage", o.s.c.rotations}, {"tilt_deg", o.s.c.tiltDeg},     {"start", o.s.start},
+                       {"temperature_K", o.s.c.temperatureK}, {"seed", o.s.c.seed}};
+    j["provenance"] = provenanceJson(o.s.c.level, "the shear rate stepped up and down, each stage from the last stage's "
+                                                  "shape (flow/shear_case.hpp, runShearRamp)");
+    j["stages"] = stages;
+    j["summary"] = {{"completed", res.completed},
+                    {"up_onset_bracket_per_s", bracket(res.upBracket)},
+                    {"down_end_bracket_per_s", bracket(res.downBracket)},
+                    {"hysteresis", res.upBracket && res.downBracket && *res.upBracket != *res.downBracket},
+                    {"wall_s", res.wallSeconds}};
+    if (!o.s.step.out.empty()) writeText(o.s.step.out + "/ramp.json", j.dump(2) + "\n");
+    removeCheckpoints(o.s.step);
+    std::cout << j.dump(2) << std::endl;
+    if (!res.completed) throw NumericalError("flow ramp: " + res.stages.back().message);
+}
+
+void registerRamp(CLI::App* flow) {
+    auto o = std::make_shared<RampCli>();
+    o->s.c.rotations = 10.0;
+    CLI::App* cmd = flow->add_subcommand(
+        "ramp",
+        "One red cell in simple shear with the shear rate stepped up through --rates and back down, each stage "
+        "--rotations rigid-sphere turns from the shape where the last ended (the ramp protocol, docs/FLOW_THERMAL.md). "
+        "Prints each stage's regime and angle and the rates where tank-treading begins going up and ends going down");
+    cmd->add_option("--rates", o->rates, "shear rates, strictly increasing (comma-separated), 1/s")
+        ->delimiter(',')
+        ->required();
+    addNumber(cmd, "--rotations", o->s.c.rotations, "duration of each stage in rigid-sphere turns 4 pi / rate",
+              NumberRange::leftOpen(0.0, 1000.0))
+        ->capture_default_str();
+    addShearOptions(cmd, o->s);
+    cmd->callback([o]() { runRamp(*o); });
 }
 
 // ---- flow tube ---------------------------------------------------------------------------------
@@ -792,6 +871,7 @@ void registerFlow(CLI::App& app) {
         app.add_subcommand("flow", "Flows (docs/FLOW.md): one cell in simple shear flow or in a microtube, or a spherical capsule in shear");
     flow->require_subcommand(1);
     registerShear(flow);
+    registerRamp(flow);
     registerTube(flow);
     registerFlowCapsule(flow);
 }

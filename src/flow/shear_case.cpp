@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <numbers>
 
 #include "core/error.hpp"
@@ -127,6 +128,75 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o) {
     res.message = res.flow.message;
     res.series = shearSeries(res.flow, res.scales, o.shearRate);
     if (res.completed) res.observables = shearObservables(res.flow, o);
+    res.wallSeconds = secondsSince(tStart);
+    return res;
+}
+
+ShearRampResult runShearRamp(const ShearRampOptions& o) {
+    const auto tStart = std::chrono::steady_clock::now();
+    const OptionNamer& n = o.base.step.optionName;
+    if (o.rates.size() < 2 || o.rates.size() > 50)
+        throw InputError(fmt::format("{}: {} rates given; a ramp needs 2 to 50 increasing shear rates",
+                                     optionName(n, "rates"), o.rates.size()));
+    for (std::size_t k = 0; k < o.rates.size(); ++k) {
+        ShearCaseOptions c = o.base;
+        c.shearRate = o.rates[k];
+        validateShearCaseOptions(c);
+        if (k > 0 && !(o.rates[k] > o.rates[k - 1]))
+            throw InputError(fmt::format("{}: the rates must increase strictly ({:g} after {:g} 1/s)", optionName(n, "rates"),
+                                         o.rates[k], o.rates[k - 1]));
+    }
+    std::vector<std::pair<double, bool>> plan;
+    for (double r : o.rates) plan.emplace_back(r, true);
+    for (std::size_t k = o.rates.size() - 1; k-- > 0;) plan.emplace_back(o.rates[k], false);
+
+    ShearRampResult res;
+    res.prepared = prepareShearCell(o.base.cell, o.base.level, o.base.cacheDir);
+    Vertices Xum = res.prepared.initial;
+    if (o.base.tiltDeg != 0.0) Xum = tiltAboutFlowAxis(Xum, o.base.tiltDeg);
+    std::string key = shearCaseKey(o.base) + " ramp";
+    for (double r : o.rates) key += fmt::format(" {:a}", r);
+    for (std::size_t k = 0; k < plan.size(); ++k) {
+        const auto stageStart = std::chrono::steady_clock::now();
+        ShearCaseOptions c = o.base;
+        c.shearRate = plan[k].first;
+        const CellFlowModel model(c.cell, shearConditions(c), res.prepared.faces, res.prepared.reference);
+        if (k == 0 && c.randomStart)
+            Xum = randomThermalStart(Xum, model.scales().length,
+                                     model.membrane().parameters().bending.kb * model.scales().force() * model.scales().length,
+                                     c.kickTemperatureK, c.seed);
+        if (k == 0) res.prepared.initial = Xum;
+        CellFlowOptions opt = stageOptions(c.step, c.rotations * 4.0 * kPi, 0.0);
+        const std::string stage = fmt::format("{}_{}", plan[k].second ? "up" : "down", k);
+        opt.checkpoint = stageCheckpoint(c.step, stage, key);
+        if (c.temperatureK > 0.0) {
+            opt.thermal.kT = thermalEnergy(c.temperatureK) / (model.scales().force() * model.scales().length);
+            opt.thermal.seed = c.seed + 1000003ULL * k;  // a stream of its own per stage
+            opt.thermal.step = c.thermalStep;
+        }
+        const CellFlowResult flow = integrateCellFlow(model, model.toInternal(Xum), opt,
+                                                      stageObserver(c.step, stage, opt.tEnd, model.scales().length, tStart));
+        ShearRampStage st;
+        st.shearRate = c.shearRate;
+        st.up = plan[k].second;
+        st.completed = flow.completed;
+        st.message = flow.message;
+        if (flow.completed) st.observables = shearObservables(flow, c);
+        st.wallSeconds = secondsSince(stageStart);
+        res.stages.push_back(st);
+        if (!flow.completed) break;
+        Xum = model.toMicrons(flow.final);
+    }
+    res.completed = res.stages.size() == plan.size() && std::all_of(res.stages.begin(), res.stages.end(),
+                                                                    [](const ShearRampStage& s) { return s.completed; });
+    const auto treads = [](const ShearRampStage& s) {
+        return s.observables && s.observables->regime == ShearRegime::TankTreading;
+    };
+    for (std::size_t k = 1; k < res.stages.size(); ++k) {
+        const ShearRampStage &a = res.stages[k - 1], &b = res.stages[k];
+        if (a.up && b.up && !res.upBracket && !treads(a) && treads(b)) res.upBracket = {{a.shearRate, b.shearRate}};
+        if (!b.up && !res.downBracket && treads(a) && !treads(b)) res.downBracket = {{b.shearRate, a.shearRate}};
+    }
     res.wallSeconds = secondsSince(tStart);
     return res;
 }

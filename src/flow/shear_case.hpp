@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <limits>
 #include <optional>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "experiments/parameters.hpp"
@@ -89,5 +91,39 @@ struct ShearCaseResult {
 /// analysis, naming rotations and frame_interval). A failed run is no exception: completed =
 /// false with the integrator's reason.
 ShearCaseResult runShearCase(const ShearCaseOptions& o);
+
+/// The ramp protocol (docs/FLOW_THERMAL.md, "Ramp"): one cell, the shear rate stepped up through
+/// `rates` and back down (r_1 < ... < r_n, then r_{n-1}, ..., r_1), each stage `base.rotations`
+/// rigid-sphere turns at its rate starting from the shape where the stage before ended; the first
+/// stage starts as runShearCase does (in-plane, tilted or random). Experiments find the regimes'
+/// boundary at different rates going up and down (Dupire et al. 2012; Minetti et al. 2019).
+struct ShearRampOptions {
+    ShearCaseOptions base;      ///< everything but shearRate
+    std::vector<double> rates;  ///< 1/s, strictly increasing, at least two
+};
+
+struct ShearRampStage {
+    double shearRate = 0.0;  ///< 1/s
+    bool up = true;
+    bool completed = false;
+    std::string message;
+    std::optional<ShearObservables> observables;  ///< when completed (times in 1/rate)
+    double wallSeconds = 0.0;
+};
+
+struct ShearRampResult {
+    std::vector<ShearRampStage> stages;  ///< up, then down
+    ShearCell prepared;                  ///< the first stage's start
+    bool completed = false;              ///< every stage completed
+    /// The rates bracketing the onset of tank-treading going up, [last rate not tank-treading, first
+    /// tank-treading], and its end going down, [first rate not tank-treading, last tank-treading];
+    /// absent when the regime does not change on that leg.
+    std::optional<std::pair<double, double>> upBracket, downBracket;
+    double wallSeconds = 0.0;
+};
+
+/// Throws InputError for bad options (validateShearCaseOptions of the base at every rate; rates
+/// strictly increasing, at least two, at most 50). A failed stage ends the ramp (completed = false).
+ShearRampResult runShearRamp(const ShearRampOptions& o);
 
 }  // namespace trbc
