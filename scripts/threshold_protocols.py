@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
-"""The tumbling / tank-treading threshold under two start protocols (docs/FLOW_THERMAL.md): the
-in-plane start (the disc exactly in the shear plane) and the ensemble start (`--start random`,
-MEMBERS seeds per flow condition, scored as the fraction that tank-treads). Each case is one
+"""The tumbling / tank-treading threshold under three protocols (docs/FLOW_THERMAL.md): the
+in-plane start (the disc exactly in the shear plane), the ensemble start (`--start random`,
+MEMBERS seeds per flow condition, scored as the fraction that tank-treads) and the fluctuating
+cell (`--temperature 293.15` from the in-plane start, FLUCTUATING seeds per flow condition). Each case is one
 `trbc flow shear` run kept as OUT/cases/<id>/flow.json (a re-run skips finished cases, so the scan
 resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_table.md.
 
     scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
-        [--members 8] [--jobs 2] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
+        [--members 8] [--fluctuating 0] [--thermal-step 0.25] [--jobs 2] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
         [--dry-run]
 
 Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
@@ -43,7 +44,7 @@ def logspace(lo, hi, n):
     return [lo * (hi / lo) ** (k / (n - 1)) for k in range(n)]
 
 
-def cases(cells, viscosities, members, level, rotations):
+def cases(cells, viscosities, members, fluctuating, level, rotations):
     out = []
     for cell in cells:
         for eta in viscosities:
@@ -53,7 +54,12 @@ def cases(cells, viscosities, members, level, rotations):
                 out.append(dict(base, protocol="in-plane", seed=0, id=f"{cell}_eta{eta:g}_tau{stress:.4g}_inplane"))
                 for seed in range(1, members + 1):
                     out.append(dict(base, protocol="ensemble", seed=seed, id=f"{cell}_eta{eta:g}_tau{stress:.4g}_s{seed}"))
+                for seed in range(1, fluctuating + 1):
+                    out.append(dict(base, protocol="fluctuating", seed=seed, id=f"{cell}_eta{eta:g}_tau{stress:.4g}_T{seed}"))
     return out
+
+
+THERMAL_STEP = 0.25
 
 
 def command(trbc, c, out):
@@ -64,6 +70,8 @@ def command(trbc, c, out):
            "--vtk-every", "1000000", "--out", os.path.join(out, "cases", c["id"])]
     if c["protocol"] == "ensemble":
         cmd += ["--start", "random", "--seed", str(c["seed"])]
+    if c["protocol"] == "fluctuating":
+        cmd += ["--temperature", "293.15", "--thermal-step", f"{THERMAL_STEP:g}", "--seed", str(c["seed"])]
     return cmd
 
 
@@ -131,7 +139,7 @@ def summarise(out, all_cases, members):
                 n = g[x][0]
                 w.writerow([cell, eta, protocol, f"{x:.6g}", n, g[x][1], f"{p:.4f}", f"{math.sqrt(max(p * (1 - p), 0.25 / n) / n):.4f}"])
             tc = crossing(s, fr)
-            if protocol == "ensemble" and tc is not None:
+            if protocol != "in-plane" and tc is not None:
                 boots = []
                 for _ in range(2000):
                     fb = [sum(rng.random() < p for _ in range(g[x][0])) / g[x][0] for x, p in zip(s, fr)]
@@ -153,12 +161,15 @@ def summarise(out, all_cases, members):
 
 
 def main():
+    global THERMAL_STEP
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trbc", default="build/trbc")
     ap.add_argument("--out", required=True)
     ap.add_argument("--level", type=int, default=3)
     ap.add_argument("--rotations", type=float, default=10)
     ap.add_argument("--members", type=int, default=8)
+    ap.add_argument("--fluctuating", type=int, default=0, help="seeds of the fluctuating protocol per condition")
+    ap.add_argument("--thermal-step", type=float, default=THERMAL_STEP, help="fixed step of the fluctuating runs, 1/rate")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--cells", default="reference,table1,theta_new")
     ap.add_argument("--viscosities", default="10.7,23.9,30,100")
@@ -176,9 +187,10 @@ def main():
     for v in viscosities:
         if v not in STRESS_RANGE:
             sys.exit(f"--viscosities: {v:g} mPa s has no stress range (valid: {', '.join(f'{x:g}' for x in STRESS_RANGE)})")
-    if a.members < 1 or a.jobs < 1 or not 1 <= a.level <= 4:
-        sys.exit("--members and --jobs must be >= 1, --level in [1, 4]")
-    all_cases = cases(cells, viscosities, a.members, a.level, a.rotations)
+    if a.members < 1 or a.jobs < 1 or a.fluctuating < 0 or not 1 <= a.level <= 4 or not 0 < a.thermal_step <= 1:
+        sys.exit("--members and --jobs must be >= 1, --fluctuating >= 0, --level in [1, 4], --thermal-step in (0, 1]")
+    THERMAL_STEP = a.thermal_step
+    all_cases = cases(cells, viscosities, a.members, a.fluctuating, a.level, a.rotations)
     if a.dry_run:
         for c in all_cases:
             print(" ".join(command(a.trbc, c, a.out)))

@@ -290,6 +290,62 @@ fs::path writeTinyValidationConfig(const TempDir& dir) {
                      "[tube]\nenabled = false\n");
 }
 
+TEST(ThresholdEnsemble, MajorityOfTheMembersFinishedDecidesTheRegimeOfARate) {
+    const std::vector<RegimePoint> members = {{4, "tank-treading"}, {2, "tumbling"},     {4, "tank-treading"}, {2, "tank-treading"},
+                                              {4, "tumbling"},      {2, "intermittent"}, {8, ""},              {1, ""},
+                                              {1, "tumbling"},      {6, "tank-treading"}, {6, "tumbling"}};
+    const std::vector<RegimePoint> p = ensembleRegimePoints(members);
+    ASSERT_EQ(p.size(), 5u);
+    const std::vector<std::pair<double, std::string>> want = {
+        {1, "tumbling"}, {2, "tumbling"}, {4, "tank-treading"}, {6, "intermittent"}, {8, ""}};
+    for (std::size_t k = 0; k < want.size(); ++k) {
+        EXPECT_EQ(p[k].rate, want[k].first);
+        EXPECT_EQ(p[k].regime, want[k].second) << "rate " << want[k].first;
+    }
+    // 2 of 3 at rate 2 do not tank-tread (tumbling, intermittent); the failed member at 1 is not counted.
+    const ThresholdBracket b = thresholdBracket(p);
+    EXPECT_EQ(*b.gammaLo, 2.0);
+    EXPECT_EQ(*b.gammaHi, 4.0);
+}
+
+TEST(ThresholdEnsemble, EveryThresholdRateRunsItsMembersFromRandomStarts) {
+    TempDir dir;
+    const fs::path cfg = writeText(dir.path() / "e.toml",
+                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\nthreshold_members = 2\n"
+                                   "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 20\ncount = 1\n"
+                                   "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
+                                   "[tube]\nenabled = false\n");
+    const ValidationConfig c = readValidationConfig(cfg, kExperiments);
+    EXPECT_EQ(c.thresholdMembers, 2);
+    const std::vector<ValidationCase> cases = initialValidationCases(c);
+    ASSERT_EQ(cases.size(), 5u);  // one angle case, two rates x two members
+    EXPECT_EQ(cases[0].member, 0);
+    EXPECT_EQ(cases[1].id, "threshold_eta23.9_rate1_m1");
+    EXPECT_EQ(cases[2].id, "threshold_eta23.9_rate1_m2");
+    EXPECT_EQ(baseCaseId(cases[2]), "threshold_eta23.9_rate1");
+    EXPECT_EQ(cases[4].member, 2);
+    const std::string out = (dir.path() / "o").string();
+    test::CliRun r = test::runTrbc("validate --config " + cfg.string() + " --out " + out + " --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("threshold_eta23.9_rate12_m2: trbc flow shear --eta-out 23.9 --shear-rate 12 "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("--start random --seed 2"), std::string::npos) << r.out;
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const nlohmann::json rec = nlohmann::json::parse(test::slurp(fs::path(out) / "cases" / "threshold_eta23.9_rate12_m1.json"));
+    EXPECT_EQ(rec["member"].get<int>(), 1);
+    EXPECT_NE(test::slurp(fs::path(out) / "validation.md").find("2 members per rate from random starts"), std::string::npos);
+    EXPECT_TRUE(fs::exists(fs::path(out) / "threshold.csv"));
+    const ValidationConfig bad = [&] {
+        try {
+            return readValidationConfig(writeText(dir.path() / "b.toml", "[shear]\nthreshold_members = 100\n"), kExperiments);
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("threshold_members"), std::string::npos) << e.what();
+        }
+        return ValidationConfig{};
+    }();
+    EXPECT_EQ(bad.thresholdMembers, 0);
+}
+
 TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     TempDir dir;
     const fs::path cfg = writeTinyValidationConfig(dir);

@@ -144,11 +144,12 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     }
     if (const toml::table* t = section("shear")) {
         TableReader r(file, *t, "shear");
-        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "angle", "ttf", "threshold"});
+        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_members", "angle", "ttf", "threshold"});
         r.real("eta_in", c.etaIn, 0.0, 1e6, true);
         r.real("rotations", c.rotations, 0.0, 1000.0, true);
         r.real("tilt_deg", c.tiltDeg, 0.0, 90.0);
         r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
+        r.integer("threshold_members", c.thresholdMembers, 0, 64);
         // Sweeps given in the file replace all the default ones (the kinds not given are not run).
         if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
         for (const char* kind : {"angle", "ttf", "threshold"}) readSweeps(file, *t, kind, c.sweeps);
@@ -210,7 +211,7 @@ std::string uniqueShearCaseId(const std::string& kind, double etaOut, double rat
     for (int digits : {4, 6, 9, 12, 17}) {
         const std::string id = shearCaseId(kind, etaOut, rate, digits);
         const bool taken = std::any_of(cases.begin(), cases.end(), [&](const ValidationCase& x) {
-            return x.id == id && !(x.kind == kind && x.etaOut == etaOut && x.rate == rate);
+            return baseCaseId(x) == id && !(x.kind == kind && x.etaOut == etaOut && x.rate == rate);
         });
         if (!taken) return id;
     }
@@ -224,14 +225,45 @@ std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
     for (const ShearSweep& s : c.sweeps)
         for (double rate : logSpaced(s.rateMin, s.rateMax, s.count)) {
             const std::string id = uniqueShearCaseId(s.kind, s.etaOut, rate, cases);
-            if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return x.id == id; }))
-                cases.push_back({id, s.kind, s.etaOut, rate, 0.0});
+            if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return baseCaseId(x) == id; })) {
+                if (s.kind != "threshold" || c.thresholdMembers == 0) {
+                    cases.push_back({id, s.kind, s.etaOut, rate, 0.0});
+                    continue;
+                }
+                for (int k = 1; k <= c.thresholdMembers; ++k)
+                    cases.push_back({memberCaseId(id, k), s.kind, s.etaOut, rate, 0.0, -1, k});
+            }
         }
     if (c.tubeEnabled)
         for (double pg : c.pressureGradients)
             if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return x.id == tubeCaseId(pg); }))
                 cases.push_back({tubeCaseId(pg), "tube", c.tubeEtaOut, 0.0, pg});
     return cases;
+}
+
+std::string memberCaseId(const std::string& caseId, int member) { return fmt::format("{}_m{}", caseId, member); }
+
+std::string baseCaseId(const ValidationCase& c) {
+    return c.member > 0 ? c.id.substr(0, c.id.rfind(fmt::format("_m{}", c.member))) : c.id;
+}
+
+std::vector<RegimePoint> ensembleRegimePoints(const std::vector<RegimePoint>& members) {
+    std::vector<double> rates;
+    for (const RegimePoint& p : members)
+        if (std::find(rates.begin(), rates.end(), p.rate) == rates.end()) rates.push_back(p.rate);
+    std::sort(rates.begin(), rates.end());
+    std::vector<RegimePoint> out;
+    for (double rate : rates) {
+        int finished = 0, treading = 0;
+        for (const RegimePoint& p : members)
+            if (p.rate == rate && !p.regime.empty()) ++finished, treading += p.regime == "tank-treading";
+        const std::string regime = finished == 0               ? ""
+                                   : 2 * treading > finished ? "tank-treading"
+                                   : 2 * treading < finished ? "tumbling"
+                                                             : "intermittent";
+        out.push_back({rate, regime});
+    }
+    return out;
 }
 
 std::vector<ValidationCase> validationShard(const std::vector<ValidationCase>& cases, int part, int parts) {

@@ -38,6 +38,11 @@ struct ValidationConfig {
     double tiltDeg = 0.0;                   ///< shear start turned about the flow axis (`flow shear --tilt-deg`)
     std::vector<ShearSweep> sweeps;         ///< the defaults of docs/VALIDATE.md unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
+    /// The threshold's start protocol: 0 runs each rate once from the configured start (in-plane or
+    /// tilted); N > 0 runs N members from random starts (`flow shear --start random --seed k`, the
+    /// ensemble protocol of docs/FLOW_THERMAL.md), a rate counting as tank-treading when more than
+    /// half of its members tank-tread (ensembleRegimePoints).
+    int thresholdMembers = 0;
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
     double tubeSettle = 60.0;       ///< settling stage: longest R/V (`flow tube --settle`)
@@ -62,7 +67,13 @@ struct ValidationCase {
     std::string kind;    ///< angle | ttf | threshold | tube
     double etaOut = 0.0, rate = 0.0, pressureGradient = 0.0;
     long sample = -1;    ///< the posterior draw's sample (validation_draws.hpp); -1: the configured cell
+    int member = 0;      ///< threshold ensemble member k >= 1 (random start, seed k); 0: the configured start
 };
+
+/// The id of member k of an ensemble case: "<id>_m<k>".
+std::string memberCaseId(const std::string& caseId, int member);
+/// The id without the member's suffix (the id itself for a case of the configured start).
+std::string baseCaseId(const ValidationCase& c);
 
 /// The cases of the sweeps and the tube before any refinement, in a fixed order.
 std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c);
@@ -85,6 +96,12 @@ struct RegimePoint {
     double rate = 0.0;
     std::string regime;  ///< tank-treading | tumbling | intermittent | "" (failed)
 };
+
+/// The regime of each rate from the regimes of its ensemble members (the points of one rate given
+/// once per member): tank-treading when more than half of the members that finished tank-tread,
+/// tumbling when fewer than half do, intermittent at exactly half; "" (failed) when none finished.
+/// Sorted by rate.
+std::vector<RegimePoint> ensembleRegimePoints(const std::vector<RegimePoint>& members);
 
 /// The first line of a failure reason, at most `limit` characters, cut at a word boundary with
 /// " ..." when longer, so that a quoted reason never ends in the middle of a word.

@@ -124,10 +124,13 @@ struct Runner {
                                cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {}", cfg.tubeSettleEtam)
                                                         : fmt::format("--settle-relax {}", cfg.tubeSettleRelax),
                                cfg.tubeSettleTol, cfg.tubeStepTol > 0.0 ? cfg.tubeStepTol : kTubeStepTolerance, cellArgs(c));
+        // An ensemble member starts at random (seed = member), not from the configured tilt.
+        const std::string start = c.member > 0         ? fmt::format(" --start random --seed {}", c.member)
+                                  : cfg.tiltDeg > 0.0 ? fmt::format(" --tilt-deg {}", cfg.tiltDeg)
+                                                      : std::string();
         return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
                            "--step-tol {}{} {}",
-                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol,
-                           cfg.tiltDeg > 0.0 ? fmt::format(" --tilt-deg {}", cfg.tiltDeg) : std::string(), cellArgs(c));
+                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, start, cellArgs(c));
     }
 
     std::string caseKey(const ValidationCase& c) const { return fingerprintOf({kVersion, caseArgs(c), cellKey(c)}); }
@@ -216,6 +219,7 @@ struct Runner {
         json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                        {"exit", rc},         {"wall_s", wall}, {"result", result}};
         if (c.sample >= 0) record["draw"] = drawJson(c.sample);
+        if (c.member > 0) record["member"] = c.member;
         writeFileAtomically(caseFile(c), record.dump(1) + "\n");
         fs::remove(stdoutFile);
         std::lock_guard lock(mutex);
@@ -286,7 +290,7 @@ struct Runner {
                 const json reg = r.value("observables", json::object()).value("regime", json());
                 p.push_back({c.rate, r.value("status", "") == "ok" && reg.is_string() ? reg.get<std::string>() : ""});
             }
-        return p;
+        return cfg.thresholdMembers > 0 ? ensembleRegimePoints(p) : p;
     }
 };
 
@@ -401,7 +405,13 @@ std::string thresholdTable(const Runner& R, const ValidationEvidence& evidence, 
     return thr;
 }
 
-std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t) {
+std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t, int thresholdMembers) {
+    const std::string protocol =
+        thresholdMembers > 0
+            ? fmt::format(" Threshold protocol: {} members per rate from random starts (`flow shear --start random --seed k`, "
+                          "k = 1..{}); a rate tank-treads when more than half of its members do.",
+                          thresholdMembers, thresholdMembers)
+            : std::string(" Threshold protocol: one run per rate from the configured start.");
     return fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
                        "scatter, {} outside, {} without data nearby, {} neither (threshold not bracketed or not monotone, "
                        "tank-treading without a TTF). A tumbling or intermittent cell where the donors tank-tread counts as "
@@ -409,8 +419,8 @@ std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTa
                        "within a factor 1.5 (angle) or 1.25 (TTF) of the case, the velocity the data at pressure gradients within "
                        "a factor 1.25, the length the Tomaiuolo band interpolated at the predicted velocity, the critical stress "
                        "the data within 10 % of the outer viscosity (inside = the interval [eta gamma_lo, eta gamma_hi] overlaps "
-                       "them).\n\n",
-                       cases, failed, t.inside, t.outside, t.noData, t.other) +
+                       "them).{}\n\n",
+                       cases, failed, t.inside, t.outside, t.noData, t.other, protocol) +
            t.md;
 }
 
@@ -597,7 +607,7 @@ json writeTables(const Runner& R, json& bandRows) {
     writeFileAtomically(R.out / "comparison.csv", table.csv());
     json summary = {{"cases", cases}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
                     {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
-    std::string md = validationMarkdown(cases, failed, table);
+    std::string md = validationMarkdown(cases, failed, table, R.cfg.thresholdMembers);
     if (!R.draws.empty()) {
         const BandTable bands = drawTables(R, evidence, table);
         md += bands.markdown(R);
@@ -727,8 +737,11 @@ void refineThresholds(Runner& R) {
             for (const long sample : samples)
                 if (const auto rate = refinementRate(R.thresholdPoints(eta, sample))) {
                     const std::string mean = uniqueShearCaseId("threshold", eta, *rate, R.cases);
-                    const std::string id = sample < 0 ? mean : drawCaseId(mean, sample);
-                    if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0, sample});
+                    for (int k = R.cfg.thresholdMembers > 0 ? 1 : 0; k <= R.cfg.thresholdMembers; ++k) {
+                        const std::string member = k > 0 ? memberCaseId(mean, k) : mean;
+                        const std::string id = sample < 0 ? member : drawCaseId(member, sample);
+                        if (!R.results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0, sample, k});
+                    }
                 }
         if (more.empty()) break;
         if (!R.quiet) std::cerr << fmt::format("validate: threshold refinement {}: {} case(s)\n", round + 1, more.size());
