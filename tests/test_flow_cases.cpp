@@ -320,3 +320,48 @@ TEST(ShearRamp, StagesContinueFromTheLastShapeAndBracketTheRegimeChange) {
 
 }  // namespace
 }  // namespace trbc
+
+namespace trbc {
+namespace {
+
+// The steady-state stop: a tank-treading cell stops at a whole turn from the 4th on with the
+// observables of the full run within the rule's tolerances (the full run's window is longer, so a
+// little more); a tumbling cell stops at the 4th turn; the rule is asked only at the first frame
+// of a turn.
+TEST(ShearSteadyStop, StopsAtAWholeTurnWithTheFullRunsObservables) {
+    ShearCaseOptions o = cheapShear(28.9, 50.0);
+    o.rotations = 10.0;
+    const ShearCaseResult full = runShearCase(o);
+    o.stopWhenSteady = true;
+    const ShearCaseResult early = runShearCase(o);
+    ASSERT_TRUE(full.completed && early.completed);
+    ASSERT_TRUE(early.flow.stoppedEarly);
+    const double turns = early.flow.tReached / (4.0 * kPi);
+    EXPECT_GE(turns, 4.0 - 1e-9);
+    EXPECT_LT(turns, 10.0);
+    // The step that reached the turn ends it (steps at most 1 / rate).
+    EXPECT_NEAR(turns, std::floor(turns), 1.0 / (4.0 * kPi) + 1e-9);
+    ASSERT_EQ(early.observables->regime, ShearRegime::TankTreading);
+    EXPECT_NEAR(early.observables->inclinationDeg, full.observables->inclinationDeg, 0.3);
+    EXPECT_NEAR(early.observables->ttf4piFOverRate, full.observables->ttf4piFOverRate, 0.02 * full.observables->ttf4piFOverRate);
+    // The rule looks at a turn once: not again after a step that ends later in the same turn.
+    const std::vector<double>& t = full.flow.times;
+    const std::vector<Vertices>& f = full.flow.frames;
+    const std::size_t mid = static_cast<std::size_t>(std::floor(turns) * 4.0 * kPi / 0.1) + 5;  // 5 frames past the turn
+    const std::vector<double> tm(t.begin(), t.begin() + mid);
+    const std::vector<Vertices> fm(f.begin(), f.begin() + mid);
+    EXPECT_TRUE(shearSteadyStateReached(tm, fm, {}, tm[mid - 7]));
+    EXPECT_FALSE(shearSteadyStateReached(tm, fm, {}, tm[mid - 3]));
+
+    ShearCaseOptions tumble = cheapShear(23.9, 2.0);
+    tumble.rotations = 10.0;
+    tumble.stopWhenSteady = true;
+    const ShearCaseResult tr = runShearCase(tumble);
+    ASSERT_TRUE(tr.completed);
+    EXPECT_EQ(tr.observables->regime, ShearRegime::Tumbling);
+    EXPECT_TRUE(tr.flow.stoppedEarly);
+    EXPECT_LT(tr.flow.tReached / (4.0 * kPi), 6.0);
+}
+
+}  // namespace
+}  // namespace trbc

@@ -144,12 +144,14 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     }
     if (const toml::table* t = section("shear")) {
         TableReader r(file, *t, "shear");
-        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_members", "angle", "ttf", "threshold"});
+        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_members", "stop_when_steady", "angle",
+                     "ttf", "threshold"});
         r.real("eta_in", c.etaIn, 0.0, 1e6, true);
         r.real("rotations", c.rotations, 0.0, 1000.0, true);
         r.real("tilt_deg", c.tiltDeg, 0.0, 90.0);
         r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
         r.integer("threshold_members", c.thresholdMembers, 0, 64);
+        r.boolean("stop_when_steady", c.stopWhenSteady);
         // Sweeps given in the file replace all the default ones (the kinds not given are not run).
         if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
         for (const char* kind : {"angle", "ttf", "threshold"}) readSweeps(file, *t, kind, c.sweeps);

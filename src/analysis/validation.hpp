@@ -43,6 +43,7 @@ struct ValidationConfig {
     /// ensemble protocol of docs/FLOW_THERMAL.md), a rate counting as tank-treading when more than
     /// half of its members tank-tread (ensembleRegimePoints).
     int thresholdMembers = 0;
+    bool stopWhenSteady = false;  ///< shear cases stop when steady (`flow shear --stop-when-steady`)
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
     double tubeSettle = 60.0;       ///< settling stage: longest R/V (`flow tube --settle`)

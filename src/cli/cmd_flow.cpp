@@ -329,6 +329,7 @@ nlohmann::json shearParametersJson(const ShearCaseResult& res, const ShearCli& o
             {"temperature_K", o.c.temperatureK},
             {"thermal_step_times_rate", o.c.temperatureK > 0.0 ? nlohmann::json(o.c.thermalStep) : nlohmann::json(nullptr)},
             {"seed", o.c.seed},
+            {"stop_when_steady", o.c.stopWhenSteady},
             {"t_end_s", res.tEndSeconds},
             {"dimensionless", {{"capillary_number", g.capillary},
                                {"viscosity_ratio", g.viscosityRatio},
@@ -341,6 +342,8 @@ nlohmann::json shearDiagnosticsJson(const ShearCaseResult& res, const ShearCli& 
     nlohmann::json diag = stepDiagnostics(res.scales, r, res.prepared);
     diag["dt_min_times_rate"] = r.dtSmallest;
     diag["dt_max_times_rate"] = r.dtLargest;
+    diag["stopped_when_steady"] = r.stoppedEarly;
+    diag["rotations_run"] = r.tReached / (4.0 * kPi);
     if (res.integrator.thermal.kT > 0.0)
         diag["thermal"] = {{"kT_internal", res.integrator.thermal.kT},
                            {"lanczos_iterations_per_step", r.steps ? double(r.sqrtIterations) / r.steps : 0.0},
@@ -467,6 +470,10 @@ void registerShear(CLI::App* flow) {
     addNumber(cmd, "--rotations", o->c.rotations, "duration in rigid-sphere turns, t_end = rotations 4 pi / rate",
               NumberRange::leftOpen(0.0, 1000.0))
         ->capture_default_str();
+    cmd->add_flag("--stop-when-steady", o->c.stopWhenSteady,
+                  "stop at the first whole turn (from the 4th) where the observables of the frames so far and of those one turn "
+                  "earlier agree: both tumbling, or tank-treading with angle and swing within 0.1 deg and TTF within 0.5 % "
+                  "(docs/FLOW.md, steady-state stop); --rotations stays the longest duration");
     addShearOptions(cmd, *o);
     cmd->callback([o]() { runShear(*o); });
 }

@@ -129,8 +129,9 @@ struct Runner {
                                   : cfg.tiltDeg > 0.0 ? fmt::format(" --tilt-deg {}", cfg.tiltDeg)
                                                       : std::string();
         return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
-                           "--step-tol {}{} {}",
-                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, start, cellArgs(c));
+                           "--step-tol {}{}{} {}",
+                           c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, start,
+                           cfg.stopWhenSteady ? " --stop-when-steady" : "", cellArgs(c));
     }
 
     std::string caseKey(const ValidationCase& c) const { return fingerprintOf({kVersion, caseArgs(c), cellKey(c)}); }

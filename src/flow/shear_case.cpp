@@ -28,8 +28,10 @@ FlowConditions shearConditions(const ShearCaseOptions& o) {
 /// What the snapshots' key adds to the integrator's own fingerprint (which holds the cell, the
 /// fluid, the mesh, the initial shape and the stepping options).
 std::string shearCaseKey(const ShearCaseOptions& o) {
-    return fmt::format("shear eta_out {:a} eta_in {:a} rate {:a} level {} rotations {:a} random start {} kick {:a} seed {}",
-                       o.etaOut, o.etaIn, o.shearRate, o.level, o.rotations, o.randomStart, o.kickTemperatureK, o.seed);
+    return fmt::format("shear eta_out {:a} eta_in {:a} rate {:a} level {} rotations {:a} random start {} kick {:a} seed {} "
+                       "steady stop {} {:a} {:a} {:a}",
+                       o.etaOut, o.etaIn, o.shearRate, o.level, o.rotations, o.randomStart, o.kickTemperatureK, o.seed,
+                       o.stopWhenSteady, o.steadyRule.minRotations, o.steadyRule.angleToleranceDeg, o.steadyRule.ttfTolerance);
 }
 
 ShearFrameSeries shearSeries(const CellFlowResult& r, const FlowScales& s, double rate) {
@@ -121,6 +123,11 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o) {
         res.integrator.thermal.step = o.thermalStep;
     }
     res.integrator.checkpoint = stageCheckpoint(o.step, "main", shearCaseKey(o));
+    if (o.stopWhenSteady)
+        res.integrator.stopWhen = [rule = o.steadyRule](const CellFlowResult& sofar) {
+            const double since = sofar.stepLog.empty() ? 0.0 : sofar.stepLog.back().t - sofar.stepLog.back().dt;
+            return shearSteadyStateReached(sofar.times, sofar.frames, rule, since);
+        };
     res.setupWallSeconds = secondsSince(tStart);
     res.flow = integrateCellFlow(model, model.toInternal(res.prepared.initial), res.integrator,
                                  stageObserver(o.step, "main", res.integrator.tEnd, res.scales.length, tStart));

@@ -42,6 +42,10 @@ struct ShearCaseOptions {
     bool randomStart = false;
     double kickTemperatureK = 293.15;
     std::uint64_t seed = 1;  ///< of the random start and of the thermal noise
+    /// Stop at the first whole turn (from steadyRule.minRotations on) where the observables are
+    /// steady (shearSteadyStateReached), instead of after all `rotations`.
+    bool stopWhenSteady = false;
+    SteadyStopRule steadyRule;
     std::filesystem::path cacheDir;  ///< SFS cache; empty: none
     FlowCaseStepping step;    ///< times in 1/rate
 };

@@ -310,4 +310,36 @@ ShearObservables analyzeShearFrames(const std::vector<double>& t, const std::vec
     return o;
 }
 
+bool shearSteadyStateReached(const std::vector<double>& t, const std::vector<Vertices>& frames, const SteadyStopRule& rule,
+                             double since) {
+    const std::size_t n = t.size();
+    if (n < 2 || frames.size() != n) return false;
+    const double turn = 4.0 * kPi;
+    const double k = std::floor(t[n - 1] / turn * (1.0 + 1e-12));
+    if (k < rule.minRotations) return false;
+    // Frames up to the first one at or after time `end`.
+    const auto upTo = [&](double end) {
+        std::size_t m = 0;
+        while (m < n && t[m] < end * (1.0 - 1e-12)) ++m;
+        return std::min(n, m + 1);
+    };
+    const std::size_t atTurn = upTo(k * turn);
+    if (!(t[atTurn - 1] > since)) return false;  // turn k was looked at after an earlier step
+    const auto analyse = [&](std::size_t m) {
+        return analyzeShearFrames(std::vector<double>(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(m)),
+                                  std::vector<Vertices>(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(m)), 1.0);
+    };
+    try {
+        const ShearObservables now = analyse(atTurn), before = analyse(upTo((k - 1.0) * turn));
+        if (now.regime == ShearRegime::Tumbling && before.regime == ShearRegime::Tumbling) return true;
+        if (now.regime != ShearRegime::TankTreading || before.regime != ShearRegime::TankTreading) return false;
+        if (!now.ttf.defined || !before.ttf.defined) return false;
+        return std::abs(now.inclinationDeg - before.inclinationDeg) <= rule.angleToleranceDeg &&
+               std::abs(now.swingAmplitudeDeg - before.swingAmplitudeDeg) <= rule.angleToleranceDeg &&
+               std::abs(now.ttf4piFOverRate - before.ttf4piFOverRate) <= rule.ttfTolerance * std::abs(now.ttf4piFOverRate);
+    } catch (const InputError&) {  // too few frames so far
+        return false;
+    }
+}
+
 }  // namespace trbc

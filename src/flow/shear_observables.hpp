@@ -95,4 +95,23 @@ struct ShearObservables {
 ShearObservables analyzeShearFrames(const std::vector<double>& t, const std::vector<Vertices>& frames,
                                     double shearRate, double discardFraction = 0.25);
 
+/// When a shear run may stop before its full duration (ShearCaseOptions::stopWhenSteady): at each
+/// whole rigid-sphere turn k >= minRotations (t = 4 pi k / rate), the observables of the frames up
+/// to turn k are compared with those up to turn k - 1 (each with the first quarter discarded, as
+/// the final analysis does). Steady: both tumbling, or both tank-treading with the inclination and
+/// the swing amplitude within angleToleranceDeg and the TTF within ttfTolerance (relative).
+/// Intermittent cells run to the end.
+struct SteadyStopRule {
+    double minRotations = 4.0;
+    double angleToleranceDeg = 0.1;
+    double ttfTolerance = 0.005;
+};
+
+/// Whether the frames (times in units of 1/rate from 0) are steady by the rule at the last whole turn
+/// k they reach; evaluated only when the first frame at or after turn k is later than `since` (the
+/// start of the step that recorded the newest frames), so that it can be asked after every step and
+/// looks once per turn. Stateless: a resumed run stops where an uninterrupted one does.
+bool shearSteadyStateReached(const std::vector<double>& t, const std::vector<Vertices>& frames, const SteadyStopRule& rule,
+                             double since);
+
 }  // namespace trbc
