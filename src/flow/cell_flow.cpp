@@ -727,7 +727,10 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     // Thermal runs: fixed steps that land on the frames, the trapezoidal rule (ThermalOptions).
     const bool thermal = opt.thermal.kT > 0.0;
     if (thermal && env) throw InputError("cell flow: thermal fluctuations are for a cell in unbounded fluid, not in a tube");
-    const double thermalStep = opt.frameInterval / std::ceil(opt.frameInterval / opt.thermal.step * (1.0 - 1e-12));
+    // A whole number of steps per frame interval, or of frame intervals per step (frames between the
+    // steps by the dense output).
+    const double fi = opt.frameInterval, ts = opt.thermal.step;
+    const double thermalStep = ts <= fi ? fi / std::ceil(fi / ts * (1.0 - 1e-12)) : fi * std::floor(ts / fi * (1.0 + 1e-12));
     const auto thermalProposal = [&] {
         bdf2::Step s;
         s.wanted = thermalStep;
