@@ -610,9 +610,10 @@ py::dict stepDict(const CellFlowResult& r) {
 py::dict flowShear(double etaOut, double rate, double etaIn, double v, double mu, std::optional<double> FvK, std::optional<double> kbJ,
                    double b2, double etam, bool allowOutside, int level, double rotations, double tiltDeg,
                    const std::string& start, double kickTemperatureK, double temperatureK, double thermalStep,
-                   std::uint64_t seed, double stepTol, double frameInterval, std::optional<double> dt, int maxSteps,
-                   int threads, bool cache, const std::optional<std::string>& cacheDir) {
+                   std::uint64_t seed, bool stopWhenSteady, double stepTol, double frameInterval, std::optional<double> dt,
+                   int maxSteps, int threads, bool cache, const std::optional<std::string>& cacheDir) {
     ShearCaseOptions o;
+    o.stopWhenSteady = stopWhenSteady;
     if (start != "in-plane" && start != "random")
         throw InputError(fmt::format("flow_shear: start = '{}': must be 'in-plane' or 'random'", start));
     o.randomStart = start == "random";
@@ -847,7 +848,7 @@ PYBIND11_MODULE(_core, m) {
     m.def("predict", &predict, "posterior"_a, "surrogate"_a, "data_set"_a, "grid"_a, "max_samples"_a, "seed"_a);
     m.def("flow_shear", &flowShear, py::kw_only(), "eta_out_mPa_s"_a, "shear_rate_per_s"_a, "eta_in_mPa_s"_a, "v"_a, "mu_uN_per_m"_a,
           "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a, "rotations"_a, "tilt_deg"_a,
-          "start"_a, "kick_temperature_K"_a, "temperature_K"_a, "thermal_step"_a, "seed"_a,
+          "start"_a, "kick_temperature_K"_a, "temperature_K"_a, "thermal_step"_a, "seed"_a, "stop_when_steady"_a,
           "step_tol"_a, "frame_interval"_a, "dt"_a, "max_steps"_a, "threads"_a, "cache"_a, "cache_dir"_a);
     m.def("flow_tube", &flowTube, py::kw_only(), "radius_um"_a, "pressure_gradient_mmHg_per_mm"_a, "eta_out_mPa_s"_a,
           "viscosity_ratio"_a, "v"_a, "mu_uN_per_m"_a, "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a,

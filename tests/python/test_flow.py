@@ -54,6 +54,17 @@ def test_flow_shear_random_start_and_fluctuations_are_seeded(run_cli, cache):
     assert a["diagnostics"]["steps"] == cli["diagnostics"]["steps"]
 
 
+def test_flow_shear_stops_when_steady_like_the_cli(run_cli, cache):
+    kw = dict(eta_out_mPa_s=28.9, shear_rate_per_s=50.0, level=1, rotations=10.0, cache_dir=cache, threads=1)
+    py = trbc.flow_shear(**kw, stop_when_steady=True)
+    cli = run_cli("flow", "shear", "--eta-out", 28.9, "--shear-rate", 50.0, "--level", 1, "--rotations", 10.0,
+                  "--stop-when-steady", "--cache", cache, "--threads", 1)
+    assert cli["diagnostics"]["stopped_when_steady"]
+    assert 4.0 <= cli["diagnostics"]["rotations_run"] < 10.0
+    assert py["observables"] == cli["observables"]
+    assert py["time_series"]["shear_strain"][-1] < 10.0 * 4 * np.pi
+
+
 TUBE = dict(radius_um=3.3, pressure_gradient_mmHg_per_mm=30.0, level=1, wall_points=12, settle_R_over_V=10.0,
             duration_R_over_V=8.0, frame_interval=0.5)
 

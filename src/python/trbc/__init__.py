@@ -367,7 +367,8 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
                mu_uN_per_m: float = 4.99, FvK: Optional[float] = None, kb_J: Optional[float] = None, b2: float = 1.84,
                etam_Pa_s_um: float = 0.69, allow_outside_prior: bool = False, level: int = 3, rotations: float = 10.0,
                tilt_deg: float = 0.0, start: str = "in-plane", kick_temperature_K: float = 293.15,
-               temperature_K: float = 0.0, thermal_step: float = 0.1, seed: int = 1, step_tol: float = 1e-3,
+               temperature_K: float = 0.0, thermal_step: float = 0.1, seed: int = 1, stop_when_steady: bool = False,
+               step_tol: float = 1e-3,
                frame_interval: float = 0.1, dt: Optional[float] = None, max_steps: int = 200000, threads: int = 0,
                cache: bool = True, cache_dir: Optional[_PathLike] = None) -> dict:
     """One cell in unbounded simple shear flow (docs/FLOW.md, shear), as `trbc flow shear`:
@@ -379,6 +380,7 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
     start: "in-plane" or "random" (random orientation with thermal l = 2, 3 undulations at
     kick_temperature_K, from seed: the ensemble start of docs/FLOW_THERMAL.md); temperature_K > 0:
     thermal fluctuations during the run, fixed steps thermal_step (1/rate), noise from seed;
+    stop_when_steady: stop at the first whole turn (from the 4th) with steady observables;
     frame_interval, dt in 1/rate; step_tol in R_A. Returns {"observables": regime, inclination_deg,
     swing_amplitude_deg, ttf_4pi_f_over_shear_rate (None unless tank-treading), "time_series":
     t_s, shear_strain, inclination_deg, orientation_unwrapped_deg, area_drift, volume_drift,
@@ -391,7 +393,8 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
                             etam_Pa_s_um=float(etam_Pa_s_um), allow_outside_prior=bool(allow_outside_prior), level=int(level),
                             rotations=float(rotations), tilt_deg=float(tilt_deg), start=str(start),
                             kick_temperature_K=float(kick_temperature_K), temperature_K=float(temperature_K),
-                            thermal_step=float(thermal_step), seed=int(seed), step_tol=float(step_tol),
+                            thermal_step=float(thermal_step), seed=int(seed), stop_when_steady=bool(stop_when_steady),
+                            step_tol=float(step_tol),
                             frame_interval=float(frame_interval),
                             dt=None if dt is None else float(dt), max_steps=int(max_steps), threads=int(threads),
                             cache=bool(cache), cache_dir=None if cache_dir is None else str(cache_dir))
