@@ -7,7 +7,7 @@ cell (`--temperature 293.15` from the in-plane start, FLUCTUATING seeds per flow
 resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_table.md.
 
     scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
-        [--members 8] [--fluctuating 0] [--thermal-step 0.25] [--jobs 2] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
+        [--members 8] [--fluctuating 0] [--thermal-step 0.2] [--jobs 2] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
         [--dry-run]
 
 Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
@@ -59,7 +59,7 @@ def cases(cells, viscosities, members, fluctuating, level, rotations):
     return out
 
 
-THERMAL_STEP = 0.25
+THERMAL_STEP = 0.2
 
 
 def command(trbc, c, out):

@@ -195,7 +195,7 @@ struct ThermalOptions {
     std::uint64_t seed = 1;
     /// Fixed step, internal time: shortened to divide the frame interval, or (when longer) to a whole
     /// number of frame intervals.
-    double step = 0.1;
+    double step = 0.2;
     double sqrtTolerance = 1e-3;    ///< Lanczos: relative change of M^(1/2) xi between iterations
     int sqrtMaxIterations = 100;
     /// GMRES of (I - k D) y = c S M^-1 F inside M_lambda (lambda != 1): a tenth of the Lanczos tolerance.

@@ -35,7 +35,7 @@ struct ShearCaseOptions {
     /// Thermal fluctuations of the membrane and both fluids during the run (ThermalOptions), K;
     /// 0: none. Fixed steps of thermalStep / rate.
     double temperatureK = 0.0;
-    double thermalStep = 0.1;
+    double thermalStep = 0.2;
     /// The start of the ensemble protocol (docs/FLOW_THERMAL.md): the equilibrium shape turned to a
     /// uniformly random orientation and given the thermal l = 2, 3 undulations
     /// (experiments/thermal_undulations.hpp) at kickTemperatureK, both drawn from `seed`.

@@ -367,7 +367,7 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
                mu_uN_per_m: float = 4.99, FvK: Optional[float] = None, kb_J: Optional[float] = None, b2: float = 1.84,
                etam_Pa_s_um: float = 0.69, allow_outside_prior: bool = False, level: int = 3, rotations: float = 10.0,
                tilt_deg: float = 0.0, start: str = "in-plane", kick_temperature_K: float = 293.15,
-               temperature_K: float = 0.0, thermal_step: float = 0.1, seed: int = 1, stop_when_steady: bool = False,
+               temperature_K: float = 0.0, thermal_step: float = 0.2, seed: int = 1, stop_when_steady: bool = False,
                step_tol: float = 1e-3,
                frame_interval: float = 0.1, dt: Optional[float] = None, max_steps: int = 200000, threads: int = 0,
                cache: bool = True, cache_dir: Optional[_PathLike] = None) -> dict:
