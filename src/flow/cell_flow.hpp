@@ -180,8 +180,9 @@ struct CellFlowCheckpoint {
 /// Thermal fluctuations of the membrane and the fluids (docs/FLOW_THERMAL.md). Off when kT = 0:
 /// the run is then the deterministic one, step for step.
 ///
-/// Scheme. Fixed steps h, linearly implicit trapezoidal rule about X^n:
-///   X^{n+1} = X^n + h u,   u = N (F(X^n) - (h/2) H u - Gamma u + f_Gamma) + N M_lambda^-1 w,
+/// Scheme. Fixed steps h, linearly implicit trapezoidal rule with the operators frozen at the
+/// extrapolated midpoint X* = X^n + (h/2)(X^n - X^{n-1}) / h_{n-1}:
+///   X^{n+1} = X^n + h u,   u = N (F(X*) - H (X^n - X*) - (h/2) H u - Gamma u + f_Gamma) + N M_lambda^-1 w,
 /// the coupled system of one step with the Hessian weight h/2 (instead of BDF2's h/c0), and two
 /// noises: w ~ sqrt(2 kT / h) M_lambda^(1/2) xi (Lanczos, solvers/krylov_sqrt.hpp), with M_lambda =
 /// (I - k D)^-1 c S M^-1 the fluid's mobility of the nodal forces, and f_Gamma = sqrt(2 kT gamma / h)
