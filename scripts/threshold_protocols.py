@@ -7,7 +7,7 @@ cell (`--temperature 293.15` from the in-plane start, FLUCTUATING seeds per flow
 resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_table.md.
 
     scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
-        [--members 8] [--fluctuating 0] [--thermal-step 0.2] [--jobs 2] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
+        [--members 8] [--fluctuating 0] [--thermal-step 0.2] [--jobs 2] [--full-length] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
         [--dry-run]
 
 Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
@@ -60,6 +60,9 @@ def cases(cells, viscosities, members, fluctuating, level, rotations):
 
 
 THERMAL_STEP = 0.2
+STOP_WHEN_STEADY = True
+# Cheap, decisive cases first: the in-plane table is complete before the first ensemble member runs.
+PROTOCOL_ORDER = {"in-plane": 0, "ensemble": 1, "fluctuating": 2}
 
 
 def command(trbc, c, out):
@@ -68,6 +71,8 @@ def command(trbc, c, out):
            "--level", str(c["level"]), "--rotations", f"{c['rotations']:g}", "--threads", "1",
            "--v", repr(p["v"]), "--mu", repr(p["mu"]), "--kb", repr(p["kb"]), "--b2", repr(p["b2"]), "--etam", repr(p["etam"]),
            "--vtk-every", "1000000", "--out", os.path.join(out, "cases", c["id"])]
+    if STOP_WHEN_STEADY:
+        cmd += ["--stop-when-steady"]
     if c["protocol"] == "ensemble":
         cmd += ["--start", "random", "--seed", str(c["seed"])]
     if c["protocol"] == "fluctuating":
@@ -163,7 +168,7 @@ def summarise(out, all_cases, members):
 
 
 def main():
-    global THERMAL_STEP
+    global THERMAL_STEP, STOP_WHEN_STEADY
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trbc", default="build/trbc")
     ap.add_argument("--out", required=True)
@@ -173,6 +178,8 @@ def main():
     ap.add_argument("--fluctuating", type=int, default=0, help="seeds of the fluctuating protocol per condition")
     ap.add_argument("--thermal-step", type=float, default=THERMAL_STEP, help="fixed step of the fluctuating runs, 1/rate")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--full-length", action="store_true",
+                    help="run every case its full --rotations (default: stop at the steady state, `flow shear --stop-when-steady`)")
     ap.add_argument("--cells", default="reference,table1,theta_new")
     ap.add_argument("--viscosities", default="10.7,23.9,30,100")
     ap.add_argument("--dry-run", action="store_true")
@@ -192,17 +199,19 @@ def main():
     if a.members < 1 or a.jobs < 1 or a.fluctuating < 0 or not 1 <= a.level <= 4 or not 0 < a.thermal_step <= 1:
         sys.exit("--members and --jobs must be >= 1, --fluctuating >= 0, --level in [1, 4], --thermal-step in (0, 1]")
     THERMAL_STEP = a.thermal_step
+    STOP_WHEN_STEADY = not a.full_length
     all_cases = cases(cells, viscosities, a.members, a.fluctuating, a.level, a.rotations)
     if a.dry_run:
         for c in all_cases:
             print(" ".join(command(a.trbc, c, a.out)))
         return
     os.makedirs(os.path.join(a.out, "cases"), exist_ok=True)
-    with open(os.path.join(a.out, "command.txt"), "w") as f:
+    with open(os.path.join(a.out, "command.txt"), "a") as f:  # one line per invocation of a resumed scan
         f.write(" ".join(sys.argv) + "\n")
     if not a.summary_only:
         t0, done = time.time(), 0
         todo = [c for c in all_cases if not os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json"))]
+        todo.sort(key=lambda c: PROTOCOL_ORDER[c["protocol"]])
         print(f"{len(all_cases)} cases, {len(all_cases) - len(todo)} finished earlier, {len(todo)} to run", file=sys.stderr)
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
             for cid, what, wall in ex.map(lambda c: run(a.trbc, c, a.out), todo):

@@ -14,7 +14,7 @@ set(below_experiments solvers)
 set(below_sampling experiments)
 set(below_surrogate sampling)
 set(below_inference surrogate)
-set(below_flow experiments)
+set(below_flow sampling)
 set(below_analysis inference)
 
 function(layers_below layer out)

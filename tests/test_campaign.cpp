@@ -90,7 +90,7 @@ TEST(CampaignDesign, ReferenceDesignIsSixDimensionalUniform) {
 TEST(CampaignDesign, RejectsBadSizes) {
     EXPECT_THROW(campaignDesign(DesignKind::Uniform, 0, 1, 1), InputError);
     EXPECT_THROW(campaignDesign(DesignKind::Uniform, 10, 0, 1), InputError);
-    EXPECT_THROW(parseDesignKind("sobol"), InputError);
+    EXPECT_THROW(parseDesignKind("halton"), InputError);
 }
 
 // --- Table -----------------------------------------------------------------------------------------
@@ -563,7 +563,8 @@ TEST(CampaignCli, RejectsBadOptions) {
     const std::string out = " --out " + shellQuote((tmp.path() / "x").string());
     const std::pair<std::string, std::string> cases[] = {
         {"--samples 0", "--samples: 0 is out of range (valid: [1, 1e8])"},
-        {"--samples 4 " "--design sobol", "unknown design 'sobol' (valid: uniform, lhs)"},
+        {"--samples 4 " "--design halton", "unknown design 'halton' (valid: uniform, lhs, sobol)"},
+        {"--samples 4 " "--design sobol", "--design sobol is for `trbc flow campaign`"},
         {"--samples 4 " "--forces-per-cell 0", "--forces-per-cell: 0 is out of range (valid: [1, 1000])"},
         {"--samples 4 " "--threads 0", "--threads: 0 is out of range (valid: [1, 1024])"},
         {"--samples 4 " "--level 9", "--level: 9 is out of range (valid: [2, 6])"},

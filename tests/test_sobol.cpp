@@ -21,7 +21,7 @@
 #include "core/error.hpp"
 #include "surrogate/sobol.hpp"
 #include "surrogate/sobol_io.hpp"
-#include "surrogate/sobol_sequence.hpp"
+#include "sampling/sobol_sequence.hpp"
 #include "surrogate/surrogate_sobol.hpp"
 
 namespace {

@@ -881,6 +881,7 @@ void registerFlow(CLI::App& app) {
     registerRamp(flow);
     registerTube(flow);
     registerFlowCapsule(flow);
+    registerFlowCampaign(flow);
 }
 
 }  // namespace trbc::cli

@@ -1,9 +1,7 @@
 #include "sampling/campaign.hpp"
 
-#include <fcntl.h>
 #include <fmt/format.h>
 #include <omp.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -13,6 +11,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
@@ -23,6 +22,7 @@
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
+#include "sampling/part_file.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
@@ -88,6 +88,10 @@ bool canGrow(const nlohmann::json& oldSettings, const nlohmann::json& settings) 
 }
 
 void validateOptions(const CampaignOptions& o) {
+    // The cells' 5-D and the forces' 1-D Sobol' sequences would share their first coordinate (v
+    // and Fext perfectly correlated); the flow campaign has one design of all its inputs.
+    if (o.design == DesignKind::Sobol)
+        throw InputError("--design sobol is for `trbc flow campaign`; the cell campaign takes uniform or lhs");
     if (o.samples < 1 || o.samples > 100'000'000)
         throw InputError(fmt::format("--samples {} is outside [1, 1e8]", o.samples));
     if (o.forcesPerCell < 1 || o.forcesPerCell > 1000)
@@ -257,33 +261,15 @@ std::map<long, CampaignRow> finishedRows(const CampaignOptions& o, const std::ve
     return rows;
 }
 
-/// Rewrites this rank's part file with its finished cells only (so new rows never follow a torn
-/// line), then opens it for appending.
-int openPartFile(const CampaignOptions& o, int rank, const std::map<long, CampaignRow>& finished) {
+/// This rank's part file, holding its finished cells only (PartFile), open for appending.
+std::unique_ptr<PartFile> openPartFile(const CampaignOptions& o, int rank, const std::map<long, CampaignRow>& finished) {
     const fs::path part = partPath(o, rank);
-    std::string keep = campaignCsvHeader() + "\n";
+    std::string keep;
     if (fs::exists(part) && fs::file_size(part) > 0) {
         for (const CampaignRow& r : readCampaignCsv(part, true))
             if (finished.count(r.point.sampleId)) keep += formatCampaignRow(r) + "\n";
     }
-    writeFileAtomically(part, keep);
-    const int fd = ::open(part.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
-    if (fd < 0) throw IoError(fmt::format("cannot open {} for appending: {}", part.string(), std::strerror(errno)));
-    return fd;
-}
-
-/// One write() per cell, then fsync: a kill leaves either the whole block, a torn block (its cell
-/// is then incomplete and recomputed) or nothing.
-void appendBlock(int fd, const std::string& block, const fs::path& part) {
-    std::size_t off = 0;
-    while (off < block.size()) {
-        const ssize_t n = ::write(fd, block.data() + off, block.size() - off);
-        if (n < 0 && errno == EINTR) continue;
-        if (n < 0) throw IoError(fmt::format("cannot append to {}: {}", part.string(), std::strerror(errno)));
-        off += std::size_t(n);
-    }
-    if (::fsync(fd) != 0 && errno != EINVAL && errno != EROFS)
-        throw IoError(fmt::format("cannot append to {}: {}", part.string(), std::strerror(errno)));
+    return std::make_unique<PartFile>(part, campaignCsvHeader(), keep);
 }
 
 void markFailed(std::vector<CampaignRow>& rows, const std::string& reason) {
@@ -461,7 +447,7 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
     const auto cells = cellsOf(campaignDesign(o.design, o.samples, o.forcesPerCell, o.seed));
     const auto finished = finishedRows(o, cells);
     const auto donor = donorRows(o);
-    const int fd = openPartFile(o, rank, finished);
+    const auto part = openPartFile(o, rank, finished);
     std::error_code ec;
     fs::create_directories(equilibriaDir(o), ec);
     std::ofstream records(equilibriaPart(o, rank), std::ios::app);
@@ -510,7 +496,7 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
                 records << formatCellRecord(record) << std::endl;
                 if (!records)
                     throw IoError(fmt::format("cannot append to {}: {}", equilibriaPart(o, rank).string(), std::strerror(errno)));
-                appendBlock(fd, block, partPath(o, rank));
+                part->append(block);
             } catch (const std::exception& e) {
                 if (error.empty()) error = e.what();
                 stop = true;
@@ -521,7 +507,6 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
             if (o.progress) o.progress(prog);
         }
     }
-    ::close(fd);
     if (!error.empty()) throw IoError(error);
 
     CampaignSummary s;

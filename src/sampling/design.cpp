@@ -7,16 +7,24 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "sampling/sobol_sequence.hpp"
 
 namespace trbc {
 
 DesignKind parseDesignKind(const std::string& name) {
     if (name == "uniform") return DesignKind::Uniform;
     if (name == "lhs") return DesignKind::LatinHypercube;
-    throw InputError(fmt::format("--design: unknown design '{}' (valid: uniform, lhs)", name));
+    if (name == "sobol") return DesignKind::Sobol;
+    throw InputError(fmt::format("--design: unknown design '{}' (valid: uniform, lhs, sobol)", name));
 }
 
-std::string designName(DesignKind kind) { return kind == DesignKind::Uniform ? "uniform" : "lhs"; }
+std::string designName(DesignKind kind) {
+    switch (kind) {
+        case DesignKind::Uniform: return "uniform";
+        case DesignKind::LatinHypercube: return "lhs";
+        default: return "sobol";
+    }
+}
 
 Eigen::MatrixXd unitDesign(DesignKind kind, long n, int d, std::uint64_t seed) {
     if (n < 1) throw InputError(fmt::format("design size {} must be at least 1", n));
@@ -26,6 +34,21 @@ Eigen::MatrixXd unitDesign(DesignKind kind, long n, int d, std::uint64_t seed) {
     if (kind == DesignKind::Uniform) {
         for (long i = 0; i < n; ++i)  // row by row: a longer design extends a shorter one
             for (int j = 0; j < d; ++j) u(i, j) = U(rng);
+        return u;
+    }
+    if (kind == DesignKind::Sobol) {
+        if (d < 1 || d > SobolSequence::kMaxDimensions)
+            throw InputError(fmt::format("a Sobol' design has 1 to {} dimensions, not {}", SobolSequence::kMaxDimensions, d));
+        Eigen::RowVectorXd shift(d);
+        for (int j = 0; j < d; ++j) shift(j) = U(rng);
+        SobolSequence seq(d);
+        for (long i = 0; i < n; ++i) {
+            const Eigen::VectorXd x = seq.next();
+            for (int j = 0; j < d; ++j) {
+                const double y = x(j) + shift(j);
+                u(i, j) = y >= 1.0 ? y - 1.0 : y;
+            }
+        }
         return u;
     }
     std::vector<long> strata(n);

@@ -1,6 +1,7 @@
 #pragma once
 // Experimental designs over the input box of docs/CAMPAIGN_AND_SURROGATE.md: i.i.d. uniform (the reference's
-// design, 2.1) and Latin hypercube, both seeded; points are rows of [0, 1]^d, then mapped to the box.
+// design, 2.1), Latin hypercube and a randomly shifted Sobol' sequence, all seeded; points are rows of
+// [0, 1]^d, then mapped to the box.
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
@@ -10,12 +11,16 @@
 
 namespace trbc {
 
-enum class DesignKind { Uniform, LatinHypercube };
-DesignKind parseDesignKind(const std::string& name);  ///< "uniform" | "lhs"; InputError otherwise
+enum class DesignKind { Uniform, LatinHypercube, Sobol };
+DesignKind parseDesignKind(const std::string& name);  ///< "uniform" | "lhs" | "sobol"; InputError otherwise
 std::string designName(DesignKind kind);
 
-/// n x d points in [0, 1)^d: i.i.d. uniform, or a Latin hypercube (each column one point per
-/// stratum [k/n, (k+1)/n), uniformly jittered, strata randomly permuted per column).
+/// n x d points in [0, 1)^d: i.i.d. uniform, a Latin hypercube (each column one point per
+/// stratum [k/n, (k+1)/n), uniformly jittered, strata randomly permuted per column), or points
+/// 1..n of the Sobol' sequence (sampling/sobol_sequence.hpp, d <= 21) shifted by one seeded uniform
+/// vector modulo 1 (Cranley-Patterson rotation: every point stays uniform, the set keeps its low
+/// discrepancy). Uniform and Sobol' designs are prefixes: n points are the first n of any larger design
+/// with the same seed, so a campaign grows and every prefix is a valid smaller design (learning curves).
 Eigen::MatrixXd unitDesign(DesignKind kind, long n, int d, std::uint64_t seed);
 
 /// The five cell inputs (v, mu, FvK, b2, etam) in design order, and the bead force.

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "core/error.hpp"
-#include "surrogate/sobol_sequence.hpp"
+#include "sampling/sobol_sequence.hpp"
 
 namespace trbc {
 

@@ -1,4 +1,4 @@
-#include "surrogate/sobol_sequence.hpp"
+#include "sampling/sobol_sequence.hpp"
 
 #include <bit>
 #include <string>

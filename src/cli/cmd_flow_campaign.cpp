@@ -1,0 +1,116 @@
+// trbc flow campaign: the shear-flow campaign (flow/shear_campaign.hpp, docs/FLOW_CAMPAIGN.md).
+// Parses, then runs the library's three phases on the ranks of cli/campaign_ranks.hpp.
+#include <fmt/format.h>
+
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+#include "cli/campaign_ranks.hpp"
+#include "cli/common.hpp"
+#include "core/clock.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/output_dir.hpp"
+#include "flow/shear_campaign.hpp"
+
+namespace trbc::cli {
+namespace {
+
+struct FlowCampaignCli {
+    ShearCampaignOptions c;
+    std::string design = "sobol", start = "random", out, inject;
+    CacheOptions cache;
+};
+
+std::set<long> parseCaseIds(const std::string& text) {
+    std::set<long> ids;
+    std::stringstream ss(text);
+    for (std::string item; std::getline(ss, item, ',');) {
+        std::size_t used = 0;
+        long id = -1;
+        try {
+            id = std::stol(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != item.size() || id < 0)
+            throw InputError(fmt::format("--inject-failures: '{}' is not a case id (non-negative integer)", item));
+        ids.insert(id);
+    }
+    return ids;
+}
+
+void runFlowCampaign(FlowCampaignCli& o) {
+    ShearCampaignOptions c = o.c;
+    c.design = parseDesignKind(o.design);
+    if (o.start != "random" && o.start != "in-plane")
+        throw InputError(fmt::format("--start: '{}' is not a start (valid: random, in-plane)", o.start));
+    c.randomStart = o.start == "random";
+    c.outDir = o.out;
+    c.command = commandLine();
+    c.cacheDir = cacheDirectory(o.cache);
+    setProvenanceSeed(c.seed);
+    if (!o.inject.empty()) c.injectFailures = parseCaseIds(o.inject);
+    const Ranks ranks = startRanks();
+    c.ranks = ranks.size;
+    ProgressReporter reporter(ranks.size, "cases", "flow campaign");
+    if (ranks.rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
+    const auto t0 = SteadyClock::now();
+    CampaignSummary share, s;
+    std::optional<OutputDirectory> outDir;
+    runOnRanks(
+        ranks,
+        [&] {
+            outDir.emplace(c.outDir, "flow campaign", "--out", std::vector<std::string>{"campaign.json"});
+            prepareShearCampaign(c);
+        },
+        [&] { share = runShearCampaignShare(c, ranks.rank, ranks.size); },
+        [&] { s = finalizeShearCampaign(c, secondsSince(t0)); });
+    if (ranks.rank != 0) return;
+    std::cout << fmt::format("flow campaign: {} of {} cases done ({} ok, {} failed); {}{} computed now, {} resumed; {:.1f} s\n",
+                             s.samples, c.cases, s.ok, s.failed, ranks.size > 1 ? "rank 0: " : "", share.cellsComputed,
+                             share.cellsResumed, s.wallSeconds);
+    std::cout << (s.complete ? fmt::format("table: {}\n", (c.outDir / "cases.csv").string())
+                             : std::string("incomplete: rerun with --resume\n"));
+    if (!s.complete) throw NumericalError("flow campaign incomplete");
+}
+
+}  // namespace
+
+void registerFlowCampaign(CLI::App* flow) {
+    auto o = std::make_shared<FlowCampaignCli>();
+    CLI::App* cmd = flow->add_subcommand(
+        "campaign",
+        "Shear-flow campaign (docs/FLOW_CAMPAIGN.md): a design over the cell (v, mu, FvK, b2, eta_m) and the flow (eta_out, "
+        "shear stress), one shear case per point at --level, started by --start and stopped at the steady state; one CSV row "
+        "per case (regime, inclination_deg, swing_deg, ttf_4pi_f_over_rate with their uncertainties, turns, status, reason, "
+        "wall_s) in OUT/cases.csv, provenance in OUT/campaign.json. Checkpoints every case; --resume continues a killed run "
+        "or grows a sobol/uniform design to more --cases. Under MPI (mpirun -n P trbc flow campaign ...) the cases are shared "
+        "between ranks");
+    addNumber(cmd, "--cases", o->c.cases, "number of cases", NumberRange::closed(1, 1e7))->capture_default_str();
+    cmd->add_option("--design", o->design,
+                    "sobol (shifted Sobol' sequence: space-filling, and any prefix is a smaller design), uniform (i.i.d.) or lhs")
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o->c.seed, "seed of the design, the shift and the random starts", NumberRange::nonNegative())
+        ->capture_default_str();
+    addNumber(cmd, "--level", o->c.level, "icosphere level of the cell mesh", NumberRange::closed(1, 5))->capture_default_str();
+    addNumber(cmd, "--rotations", o->c.maxRotations,
+              "longest run, rigid-sphere turns 4 pi / rate; a case stops earlier once steady (docs/FLOW.md, steady-state stop)",
+              NumberRange::closed(5, 1000))
+        ->capture_default_str();
+    cmd->add_option("--start", o->start,
+                    "random: the ensemble protocol's start (random orientation and thermal l = 2, 3 undulations at 293.15 K, "
+                    "seeded per case); in-plane: the disc in the shear plane")
+        ->capture_default_str();
+    addNumber(cmd, "--eta-in", o->c.etaIn, "cytosol viscosity", NumberRange::leftOpen(0, 1e6, "mPa s"))->capture_default_str();
+    addThreadsOption(cmd, o->c.threads, "cases run concurrently (one thread each)");
+    addOutOption(cmd, o->out);
+    cmd->add_flag("--resume", o->c.resume, "continue the campaign in --out (same settings; a larger --cases grows a sobol or uniform design)");
+    cmd->add_option("--inject-failures", o->inject, "comma-separated case ids that fail on purpose (to test failure records)");
+    addCacheOptions(cmd, o->cache);
+    cmd->callback([o]() { runFlowCampaign(*o); });
+}
+
+}  // namespace trbc::cli

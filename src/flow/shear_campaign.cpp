@@ -1,0 +1,461 @@
+#include "flow/shear_campaign.hpp"
+
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <optional>
+
+#include "core/clock.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/file_io.hpp"
+#include "core/random.hpp"
+#include "core/version.hpp"
+#include "flow/shear_case.hpp"
+#include "sampling/part_file.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr std::uint64_t kStartSeedStream = 0x7368656172;  // "shear"
+
+fs::path partsDir(const ShearCampaignOptions& o) { return o.outDir / "parts"; }
+fs::path partPath(const ShearCampaignOptions& o, int rank) { return partsDir(o) / fmt::format("rank{}.csv", rank); }
+fs::path provenancePath(const ShearCampaignOptions& o) { return o.outDir / "campaign.json"; }
+fs::path casesPath(const ShearCampaignOptions& o) { return o.outDir / "cases.csv"; }
+
+double fromUnit(const DesignAxis& a, double u) {
+    return a.logScale ? a.lo * std::pow(a.hi / a.lo, u) : a.lo + u * (a.hi - a.lo);
+}
+
+std::string number(double x) { return std::isfinite(x) ? fmt::format("{:.17g}", x) : std::string("nan"); }
+
+/// Everything that decides the rows; a resume must match it exactly.
+nlohmann::json settingsJson(const ShearCampaignOptions& o) {
+    nlohmann::json box = nlohmann::json::array();
+    for (const DesignAxis& a : kShearCampaignAxes)
+        box.push_back({{"name", a.name}, {"lo", a.lo}, {"hi", a.hi}, {"scale", a.logScale ? "log" : "linear"}});
+    const SteadyStopRule rule;
+    return {{"design", designName(o.design)},
+            {"cases", o.cases},
+            {"seed", o.seed},
+            {"level", o.level},
+            {"max_rotations", o.maxRotations},
+            {"start", o.randomStart ? "random" : "in-plane"},
+            {"kick_temperature_K", ShearCaseOptions{}.kickTemperatureK},
+            {"eta_in_mPa_s", o.etaIn},
+            {"box", box},
+            {"steady_rule", {{"min_rotations", rule.minRotations}, {"angle_tolerance_deg", rule.angleToleranceDeg},
+                             {"ttf_tolerance", rule.ttfTolerance}}},
+            {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
+}
+
+void validateOptions(const ShearCampaignOptions& o) {
+    if (o.cases < 1 || o.cases > 10'000'000) throw InputError(fmt::format("--cases {} is outside [1, 1e7]", o.cases));
+    if (o.threads < 1 || o.threads > 1024) throw InputError(fmt::format("--threads {} is outside [1, 1024]", o.threads));
+    if (o.level < 1 || o.level > 5) throw InputError(fmt::format("--level {} is outside [1, 5]", o.level));
+    if (!(o.maxRotations >= 5.0 && o.maxRotations <= 1000.0))
+        throw InputError(fmt::format("--rotations {} is outside [5, 1000] (the steady-state rule compares turns 3 and 4 at the earliest)",
+                                     o.maxRotations));
+    if (!(o.etaIn > 0.0 && o.etaIn <= 1e6)) throw InputError(fmt::format("--eta-in {} is outside (0, 1e6] mPa s", o.etaIn));
+    if (o.outDir.empty()) throw InputError("--out: an output directory is required");
+}
+
+std::string settingsDiff(const nlohmann::json& have, const nlohmann::json& want) {
+    std::string diff;
+    for (auto& [k, v] : want.items())
+        if (!have.contains(k) || have[k] != v)
+            diff += fmt::format(" {} (was {}, now {})", k, have.value(k, nlohmann::json()).dump(), v.dump());
+    return diff;
+}
+
+/// A Sobol' or uniform design is a prefix of any larger one with the same seed.
+bool canGrow(const nlohmann::json& before, const nlohmann::json& now) {
+    if (!before.contains("cases") || now["design"] == "lhs" || before["cases"].get<long>() > now["cases"].get<long>()) return false;
+    nlohmann::json same = before;
+    same["cases"] = now["cases"];
+    return same == now;
+}
+
+bool sameInputs(const ShearCampaignPoint& a, const ShearCampaignPoint& b) {
+    return a.caseId == b.caseId && a.cell.v == b.cell.v && a.cell.mu == b.cell.mu && a.cell.FvK == b.cell.FvK &&
+           a.cell.b2 == b.cell.b2 && a.cell.etam == b.cell.etam && a.etaOut == b.etaOut && a.shearRate == b.shearRate &&
+           a.etaIn == b.etaIn && a.startSeed == b.startSeed;
+}
+
+/// Finished rows of the part files by case id: whole rows whose inputs are the design's (the first
+/// part file in name order wins when a case is in two).
+std::map<long, ShearCampaignRow> finishedRows(const ShearCampaignOptions& o, const std::vector<ShearCampaignPoint>& design) {
+    std::map<long, ShearCampaignRow> rows;
+    if (!fs::exists(partsDir(o))) return rows;
+    std::vector<fs::path> parts;
+    for (const auto& entry : fs::directory_iterator(partsDir(o)))
+        if (entry.path().extension() == ".csv" && fs::file_size(entry.path()) > 0) parts.push_back(entry.path());
+    std::sort(parts.begin(), parts.end());
+    for (const fs::path& part : parts)
+        for (ShearCampaignRow& r : readShearCampaignCsv(part, true)) {
+            const long id = r.point.caseId;
+            if (id < 0 || id >= long(design.size()) || rows.count(id)) continue;
+            if (!sameInputs(r.point, design[std::size_t(id)]))
+                throw InputError(fmt::format("{}: case {} holds inputs other than the design's (eta_out {} against {}): the part "
+                                             "files belong to another design or seed",
+                                             part.string(), id, r.point.etaOut, design[std::size_t(id)].etaOut));
+            rows.emplace(id, std::move(r));
+        }
+    return rows;
+}
+
+/// The observables of the frames up to time tEnd (1/rate), or none when too few frames remain.
+std::optional<ShearObservables> observablesUpTo(const CellFlowResult& flow, double tEnd) {
+    std::vector<double> t;
+    std::vector<Vertices> frames;
+    for (std::size_t k = 0; k < flow.times.size() && flow.times[k] <= tEnd + 1e-9; ++k) {
+        t.push_back(flow.times[k]);
+        frames.push_back(flow.frames[k]);
+    }
+    if (frames.size() < 16) return std::nullopt;
+    return analyzeShearFrames(t, frames, 1.0);
+}
+
+}  // namespace
+
+std::vector<ShearCampaignPoint> shearCampaignDesign(DesignKind kind, long n, std::uint64_t seed, double etaIn) {
+    const Eigen::MatrixXd u = unitDesign(kind, n, 7, seed);
+    std::vector<ShearCampaignPoint> pts(static_cast<std::size_t>(n));
+    for (long i = 0; i < n; ++i) {
+        ShearCampaignPoint& q = pts[std::size_t(i)];
+        double x[7];
+        for (int j = 0; j < 7; ++j) x[j] = fromUnit(kShearCampaignAxes[j], u(i, j));
+        q.caseId = i;
+        q.cell = {x[0], x[1], x[2], x[3], x[4]};
+        q.etaOut = x[5];
+        q.shearRate = x[6] / (x[5] * 1e-3);  // stress / eta_out
+        q.etaIn = etaIn;
+        q.startSeed = Rng(seed, kStartSeedStream, std::uint64_t(i))();
+    }
+    return pts;
+}
+
+const std::string& shearCampaignCsvHeader() {
+    static const std::string h =
+        "case_id,v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,eta_out_mPa_s,shear_rate_per_s,eta_in_mPa_s,start_seed,regime,"
+        "inclination_deg,inclination_se_deg,swing_deg,swing_se_deg,ttf_4pi_f_over_rate,ttf_se,turns,steady,status,reason,wall_s";
+    return h;
+}
+
+std::string formatShearCampaignRow(const ShearCampaignRow& r) {
+    const ShearCampaignPoint& p = r.point;
+    std::vector<std::string> f = {std::to_string(p.caseId), number(p.cell.v), number(p.cell.mu), number(p.cell.FvK),
+                                  number(p.cell.b2), number(p.cell.etam), number(p.etaOut), number(p.shearRate),
+                                  number(p.etaIn), std::to_string(p.startSeed), r.regime, number(r.inclinationDeg),
+                                  number(r.inclinationSeDeg), number(r.swingDeg), number(r.swingSeDeg), number(r.ttf),
+                                  number(r.ttfSe), number(r.turns), r.steady ? "1" : "0", r.status, r.reason,
+                                  fmt::format("{:.3f}", r.wallSeconds)};
+    std::string line = csvRow(f);
+    line.pop_back();  // csvRow ends the line
+    return line;
+}
+
+std::vector<ShearCampaignRow> readShearCampaignCsv(const fs::path& path, bool dropTornTail) {
+    std::string text;
+    {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) throw InputError(fmt::format("cannot read the shear campaign table {}", path.string()));
+        text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    if (dropTornTail && !text.empty() && text.back() != '\n') text.erase(text.rfind('\n') == std::string::npos ? 0 : text.rfind('\n') + 1);
+    const auto records = parseCsvRecords(text);
+    if (records.empty() || csvRow(records.front()) != shearCampaignCsvHeader() + "\n")
+        throw InputError(fmt::format("{}: expected the header {}", path.string(), shearCampaignCsvHeader()));
+    std::vector<ShearCampaignRow> rows;
+    const std::size_t nf = records.front().size();
+    for (std::size_t k = 1; k < records.size(); ++k) {
+        const auto& f = records[k];
+        const std::string where = fmt::format("{}: record {}", path.string(), k + 1);
+        if (f.size() != nf) throw InputError(fmt::format("{}: {} fields, expected {}", where, f.size(), nf));
+        auto num = [&](std::size_t i) {
+            if (f[i] == "nan") return std::numeric_limits<double>::quiet_NaN();
+            std::size_t used = 0;
+            double x = 0.0;
+            try {
+                x = std::stod(f[i], &used);
+            } catch (const std::exception&) {
+                used = 0;
+            }
+            if (used == 0 || used != f[i].size())
+                throw InputError(fmt::format("{}: field {} '{}' is not a number", where, i + 1, f[i]));
+            return x;
+        };
+        auto integer = [&](std::size_t i) {
+            std::size_t used = 0;
+            unsigned long long x = 0;
+            try {
+                x = std::stoull(f[i], &used);
+            } catch (const std::exception&) {
+                used = 0;
+            }
+            if (used == 0 || used != f[i].size())
+                throw InputError(fmt::format("{}: field {} '{}' is not a non-negative integer", where, i + 1, f[i]));
+            return x;
+        };
+        ShearCampaignRow r;
+        r.point.caseId = long(integer(0));
+        r.point.cell = {num(1), num(2), num(3), num(4), num(5)};
+        r.point.etaOut = num(6);
+        r.point.shearRate = num(7);
+        r.point.etaIn = num(8);
+        r.point.startSeed = integer(9);
+        r.regime = f[10];
+        r.inclinationDeg = num(11), r.inclinationSeDeg = num(12), r.swingDeg = num(13), r.swingSeDeg = num(14);
+        r.ttf = num(15), r.ttfSe = num(16), r.turns = num(17);
+        if (f[18] != "0" && f[18] != "1") throw InputError(fmt::format("{}: steady '{}' is not 0 or 1", where, f[18]));
+        r.steady = f[18] == "1";
+        r.status = f[19];
+        if (r.status != "ok" && r.status != "failed")
+            throw InputError(fmt::format("{}: status '{}' is not ok or failed", where, r.status));
+        r.reason = f[20];
+        r.wallSeconds = num(21);
+        rows.push_back(std::move(r));
+    }
+    return rows;
+}
+
+ShearCampaignRow runShearCampaignCase(const ShearCampaignPoint& point, const ShearCampaignOptions& o, bool injectFailure) {
+    const auto t0 = SteadyClock::now();
+    ShearCampaignRow row;
+    row.point = point;
+    try {
+        if (injectFailure) throw NumericalError("injected failure (--inject-failures)");
+        ShearCaseOptions c;
+        c.etaOut = point.etaOut;
+        c.shearRate = point.shearRate;
+        c.etaIn = point.etaIn;
+        c.cell = point.cell;
+        c.allowOutsidePrior = true;  // the campaign's box is wider than the prior (kShearCampaignAxes)
+        c.level = o.level;
+        c.rotations = o.maxRotations;
+        c.randomStart = o.randomStart;
+        c.seed = point.startSeed;
+        c.stopWhenSteady = true;
+        c.cacheDir = o.cacheDir;
+        const ShearCaseResult res = runShearCase(c);
+        if (!res.completed || !res.observables) throw NumericalError(res.message.empty() ? "the run did not complete" : res.message);
+        const ShearObservables& obs = *res.observables;
+        const double tEnd = res.flow.times.empty() ? 0.0 : res.flow.times.back();
+        row.turns = tEnd / (4.0 * kPi);
+        row.steady = res.flow.stoppedEarly;
+        row.regime = regimeName(obs.regime);
+        if (obs.regime == ShearRegime::TankTreading) {
+            row.inclinationDeg = obs.inclinationDeg, row.swingDeg = obs.swingAmplitudeDeg, row.ttf = obs.ttf4piFOverRate;
+            const double lastWholeTurn = std::floor(row.turns + 1e-9);
+            if (lastWholeTurn >= 3.0) {
+                const auto shorter = observablesUpTo(res.flow, 4.0 * kPi * (lastWholeTurn - 1.0));
+                if (shorter && shorter->regime == ShearRegime::TankTreading) {
+                    row.inclinationSeDeg = std::abs(obs.inclinationDeg - shorter->inclinationDeg);
+                    row.swingSeDeg = std::abs(obs.swingAmplitudeDeg - shorter->swingAmplitudeDeg);
+                    row.ttfSe = std::abs(obs.ttf4piFOverRate - shorter->ttf4piFOverRate);
+                }
+            }
+        }
+    } catch (const std::exception& e) {
+        row.status = "failed";
+        row.regime.clear();
+        row.reason = csvSafe(e.what());
+    }
+    row.wallSeconds = secondsSince(t0);
+    return row;
+}
+
+void prepareShearCampaign(const ShearCampaignOptions& o) {
+    validateOptions(o);
+    std::error_code ec;
+    fs::create_directories(partsDir(o), ec);
+    if (ec) throw InputError(fmt::format("--out: cannot create {}: {}", partsDir(o).string(), ec.message()));
+    const nlohmann::json settings = settingsJson(o);
+    if (fs::exists(provenancePath(o))) {
+        if (!o.resume)
+            throw InputError(fmt::format("--out: {} already holds a campaign; add --resume to continue it or choose another directory",
+                                         o.outDir.string()));
+        nlohmann::json old;
+        try {
+            std::ifstream in(provenancePath(o));
+            old = nlohmann::json::parse(in);
+        } catch (const std::exception& e) {
+            throw InputError(fmt::format("{}: cannot parse: {}", provenancePath(o).string(), e.what()));
+        }
+        const nlohmann::json before = old.contains("settings") && old["settings"].is_object() ? old["settings"] : nlohmann::json::object();
+        const bool grows = canGrow(before, settings);
+        if (!grows && before != settings)
+            throw InputError(fmt::format("--resume: {} was made with different settings:{}{}", provenancePath(o).string(),
+                                         settingsDiff(before, settings),
+                                         before.value("cases", settings["cases"]) != settings["cases"]
+                                             ? "; only a sobol or uniform design grows, to more cases"
+                                             : ""));
+        nlohmann::json entry = {{"command", o.command}, {"version", kVersion}, {"ranks", o.ranks}, {"threads", o.threads}};
+        if (before["cases"] != settings["cases"]) {
+            entry["grown_from_cases"] = before["cases"];
+            old["settings"] = settings;
+            old["status"] = "incomplete";
+            fs::remove(casesPath(o));
+        }
+        old["resumed_by"].push_back(entry);
+        writeFileAtomically(provenancePath(o), old.dump(2) + "\n");
+        return;
+    }
+    if (fs::exists(casesPath(o)) || !fs::is_empty(partsDir(o)))
+        throw InputError(fmt::format("--out: {} holds campaign files but no campaign.json; choose another directory", o.outDir.string()));
+    const nlohmann::json j = {{"command", o.command},
+                              {"version", kVersion},
+                              {"experiment", "shear"},
+                              {"ranks", o.ranks},
+                              {"threads", o.threads},
+                              {"status", "running"},
+                              {"settings", settings},
+                              {"columns", shearCampaignCsvHeader()},
+                              {"units", "mu in uN/m, etam in Pa s um, viscosities in mPa s, rate in 1/s; ttf = 4 pi f / rate"}};
+    writeFileAtomically(provenancePath(o), j.dump(2) + "\n");
+}
+
+CampaignSummary runShearCampaignShare(const ShearCampaignOptions& o, int rank, int ranks) {
+    validateOptions(o);
+    if (rank < 0 || rank >= ranks) throw InputError(fmt::format("rank {} is outside [0, {})", rank, ranks));
+    const auto t0 = SteadyClock::now();
+    const auto design = shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn);
+    const auto finished = finishedRows(o, design);
+    std::string keep;
+    {
+        const fs::path mine = partPath(o, rank);
+        if (fs::exists(mine) && fs::file_size(mine) > 0)
+            for (const ShearCampaignRow& r : readShearCampaignCsv(mine, true))
+                if (finished.count(r.point.caseId) && sameInputs(finished.at(r.point.caseId).point, r.point))
+                    keep += formatShearCampaignRow(r) + "\n";
+    }
+    PartFile part(partPath(o, rank), shearCampaignCsvHeader(), keep);
+
+    std::vector<long> pending;
+    CampaignProgress prog;
+    for (long id = 0; id < o.cases; ++id) {
+        if (id % ranks != rank) continue;
+        ++prog.cellsTotal;
+        const auto it = finished.find(id);
+        if (it != finished.end()) {
+            ++prog.cellsResumed;
+            (it->second.ok() ? prog.rowsOk : prog.rowsFailed)++;
+        } else {
+            pending.push_back(id);
+        }
+    }
+    prog.cellsDone = prog.cellsResumed;
+    if (o.progress) o.progress(prog);
+
+    std::string error;
+    std::atomic<bool> stop{false};
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.threads)
+    for (std::size_t k = 0; k < pending.size(); ++k) {
+        if (stop.load()) continue;
+        omp_set_num_threads(1);  // one thread per case
+        const long id = pending[k];
+        const ShearCampaignRow row = runShearCampaignCase(design[std::size_t(id)], o, o.injectFailures.count(id) > 0);
+#pragma omp critical(trbc_shear_campaign_append)
+        {
+            try {
+                part.append(formatShearCampaignRow(row) + "\n");
+            } catch (const std::exception& e) {
+                if (error.empty()) error = e.what();
+                stop = true;
+            }
+            ++prog.cellsDone;
+            (row.ok() ? prog.rowsOk : prog.rowsFailed)++;
+            prog.elapsedSeconds = secondsSince(t0);
+            if (o.progress) o.progress(prog);
+        }
+    }
+    if (!error.empty()) throw IoError(error);
+    CampaignSummary s;
+    s.cellsComputed = long(pending.size());
+    s.cellsResumed = prog.cellsResumed;
+    s.ok = prog.rowsOk;
+    s.failed = prog.rowsFailed;
+    s.samples = s.ok + s.failed;
+    s.wallSeconds = secondsSince(t0);
+    return s;
+}
+
+CampaignSummary finalizeShearCampaign(const ShearCampaignOptions& o, double wallSeconds) {
+    const auto rows = finishedRows(o, shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn));
+    CampaignSummary s;
+    s.wallSeconds = wallSeconds;
+    std::map<std::string, long> regimes;
+    double caseSeconds = 0.0;
+    for (const auto& [id, r] : rows) {
+        (r.ok() ? s.ok : s.failed)++;
+        ++regimes[r.ok() ? r.regime : std::string("failed")];
+        caseSeconds += r.wallSeconds;
+    }
+    s.samples = long(rows.size());
+    s.complete = s.samples == o.cases;
+    nlohmann::json j;
+    {
+        std::ifstream in(provenancePath(o));
+        j = nlohmann::json::parse(in);
+    }
+    if (s.complete) {
+        std::string csv = csvProvenance() + shearCampaignCsvHeader() + "\n";
+        for (const auto& [id, r] : rows) csv += formatShearCampaignRow(r) + "\n";
+        writeFileAtomically(casesPath(o), csv);
+    }
+    j["status"] = s.complete ? "complete" : "incomplete";
+    j["cases_ok"] = s.ok;
+    j["cases_failed"] = s.failed;
+    j["cases_done"] = s.samples;
+    j["regimes"] = regimes;
+    j["mean_case_wall_s"] = s.samples ? caseSeconds / double(s.samples) : 0.0;
+    j["last_run_wall_s"] = wallSeconds;
+    writeFileAtomically(provenancePath(o), j.dump(2) + "\n");
+    return s;
+}
+
+CampaignSummary runShearCampaign(const ShearCampaignOptions& o) {
+    prepareShearCampaign(o);
+    const CampaignSummary share = runShearCampaignShare(o, 0, 1);
+    CampaignSummary s = finalizeShearCampaign(o, share.wallSeconds);
+    s.cellsComputed = share.cellsComputed;
+    s.cellsResumed = share.cellsResumed;
+    return s;
+}
+
+std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* complete) {
+    if (complete) *complete = true;
+    if (fs::is_regular_file(path)) return readShearCampaignCsv(path);
+    if (!fs::is_directory(path)) throw InputError(fmt::format("shear campaign {} does not exist", path.string()));
+    if (fs::exists(path / "cases.csv")) return readShearCampaignCsv(path / "cases.csv");
+    if (complete) *complete = false;
+    ShearCampaignOptions o;
+    o.outDir = path;
+    try {
+        std::ifstream in(provenancePath(o));
+        const nlohmann::json j = nlohmann::json::parse(in).at("settings");
+        o.design = parseDesignKind(j.at("design").get<std::string>());
+        o.cases = j.at("cases").get<long>();
+        o.seed = j.at("seed").get<std::uint64_t>();
+        o.etaIn = j.at("eta_in_mPa_s").get<double>();
+    } catch (const std::exception& e) {
+        throw InputError(fmt::format("{}: not a shear campaign ({})", provenancePath(o).string(), e.what()));
+    }
+    std::vector<ShearCampaignRow> rows;
+    for (auto& [id, r] : finishedRows(o, shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn))) rows.push_back(std::move(r));
+    return rows;
+}
+
+}  // namespace trbc
