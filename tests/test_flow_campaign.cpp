@@ -16,6 +16,7 @@
 
 #include "core/error.hpp"
 #include "flow/shear_campaign.hpp"
+#include "sampling/shear_campaign_table.hpp"
 #include "test_support.hpp"
 
 namespace trbc {

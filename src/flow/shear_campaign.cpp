@@ -17,7 +17,6 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
-#include "core/random.hpp"
 #include "core/version.hpp"
 #include "flow/shear_case.hpp"
 #include "sampling/part_file.hpp"
@@ -28,18 +27,11 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr std::uint64_t kStartSeedStream = 0x7368656172;  // "shear"
 
 fs::path partsDir(const ShearCampaignOptions& o) { return o.outDir / "parts"; }
 fs::path partPath(const ShearCampaignOptions& o, int rank) { return partsDir(o) / fmt::format("rank{}.csv", rank); }
 fs::path provenancePath(const ShearCampaignOptions& o) { return o.outDir / "campaign.json"; }
 fs::path casesPath(const ShearCampaignOptions& o) { return o.outDir / "cases.csv"; }
-
-double fromUnit(const DesignAxis& a, double u) {
-    return a.logScale ? a.lo * std::pow(a.hi / a.lo, u) : a.lo + u * (a.hi - a.lo);
-}
-
-std::string number(double x) { return std::isfinite(x) ? fmt::format("{:.17g}", x) : std::string("nan"); }
 
 /// Everything that decides the rows; a resume must match it exactly.
 nlohmann::json settingsJson(const ShearCampaignOptions& o) {
@@ -88,34 +80,6 @@ bool canGrow(const nlohmann::json& before, const nlohmann::json& now) {
     return same == now;
 }
 
-bool sameInputs(const ShearCampaignPoint& a, const ShearCampaignPoint& b) {
-    return a.caseId == b.caseId && a.cell.v == b.cell.v && a.cell.mu == b.cell.mu && a.cell.FvK == b.cell.FvK &&
-           a.cell.b2 == b.cell.b2 && a.cell.etam == b.cell.etam && a.etaOut == b.etaOut && a.shearRate == b.shearRate &&
-           a.etaIn == b.etaIn && a.startSeed == b.startSeed;
-}
-
-/// Finished rows of the part files by case id: whole rows whose inputs are the design's (the first
-/// part file in name order wins when a case is in two).
-std::map<long, ShearCampaignRow> finishedRows(const ShearCampaignOptions& o, const std::vector<ShearCampaignPoint>& design) {
-    std::map<long, ShearCampaignRow> rows;
-    if (!fs::exists(partsDir(o))) return rows;
-    std::vector<fs::path> parts;
-    for (const auto& entry : fs::directory_iterator(partsDir(o)))
-        if (entry.path().extension() == ".csv" && fs::file_size(entry.path()) > 0) parts.push_back(entry.path());
-    std::sort(parts.begin(), parts.end());
-    for (const fs::path& part : parts)
-        for (ShearCampaignRow& r : readShearCampaignCsv(part, true)) {
-            const long id = r.point.caseId;
-            if (id < 0 || id >= long(design.size()) || rows.count(id)) continue;
-            if (!sameInputs(r.point, design[std::size_t(id)]))
-                throw InputError(fmt::format("{}: case {} holds inputs other than the design's (eta_out {} against {}): the part "
-                                             "files belong to another design or seed",
-                                             part.string(), id, r.point.etaOut, design[std::size_t(id)].etaOut));
-            rows.emplace(id, std::move(r));
-        }
-    return rows;
-}
-
 /// The observables of the frames up to time tEnd (1/rate), or none when too few frames remain.
 std::optional<ShearObservables> observablesUpTo(const CellFlowResult& flow, double tEnd) {
     std::vector<double> t;
@@ -129,107 +93,6 @@ std::optional<ShearObservables> observablesUpTo(const CellFlowResult& flow, doub
 }
 
 }  // namespace
-
-std::vector<ShearCampaignPoint> shearCampaignDesign(DesignKind kind, long n, std::uint64_t seed, double etaIn) {
-    const Eigen::MatrixXd u = unitDesign(kind, n, 7, seed);
-    std::vector<ShearCampaignPoint> pts(static_cast<std::size_t>(n));
-    for (long i = 0; i < n; ++i) {
-        ShearCampaignPoint& q = pts[std::size_t(i)];
-        double x[7];
-        for (int j = 0; j < 7; ++j) x[j] = fromUnit(kShearCampaignAxes[j], u(i, j));
-        q.caseId = i;
-        q.cell = {x[0], x[1], x[2], x[3], x[4]};
-        q.etaOut = x[5];
-        q.shearRate = x[6] / (x[5] * 1e-3);  // stress / eta_out
-        q.etaIn = etaIn;
-        q.startSeed = Rng(seed, kStartSeedStream, std::uint64_t(i))();
-    }
-    return pts;
-}
-
-const std::string& shearCampaignCsvHeader() {
-    static const std::string h =
-        "case_id,v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,eta_out_mPa_s,shear_rate_per_s,eta_in_mPa_s,start_seed,regime,"
-        "inclination_deg,inclination_se_deg,swing_deg,swing_se_deg,ttf_4pi_f_over_rate,ttf_se,turns,steady,status,reason,wall_s";
-    return h;
-}
-
-std::string formatShearCampaignRow(const ShearCampaignRow& r) {
-    const ShearCampaignPoint& p = r.point;
-    std::vector<std::string> f = {std::to_string(p.caseId), number(p.cell.v), number(p.cell.mu), number(p.cell.FvK),
-                                  number(p.cell.b2), number(p.cell.etam), number(p.etaOut), number(p.shearRate),
-                                  number(p.etaIn), std::to_string(p.startSeed), r.regime, number(r.inclinationDeg),
-                                  number(r.inclinationSeDeg), number(r.swingDeg), number(r.swingSeDeg), number(r.ttf),
-                                  number(r.ttfSe), number(r.turns), r.steady ? "1" : "0", r.status, r.reason,
-                                  fmt::format("{:.3f}", r.wallSeconds)};
-    std::string line = csvRow(f);
-    line.pop_back();  // csvRow ends the line
-    return line;
-}
-
-std::vector<ShearCampaignRow> readShearCampaignCsv(const fs::path& path, bool dropTornTail) {
-    std::string text;
-    {
-        std::ifstream in(path, std::ios::binary);
-        if (!in) throw InputError(fmt::format("cannot read the shear campaign table {}", path.string()));
-        text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    }
-    if (dropTornTail && !text.empty() && text.back() != '\n') text.erase(text.rfind('\n') == std::string::npos ? 0 : text.rfind('\n') + 1);
-    const auto records = parseCsvRecords(text);
-    if (records.empty() || csvRow(records.front()) != shearCampaignCsvHeader() + "\n")
-        throw InputError(fmt::format("{}: expected the header {}", path.string(), shearCampaignCsvHeader()));
-    std::vector<ShearCampaignRow> rows;
-    const std::size_t nf = records.front().size();
-    for (std::size_t k = 1; k < records.size(); ++k) {
-        const auto& f = records[k];
-        const std::string where = fmt::format("{}: record {}", path.string(), k + 1);
-        if (f.size() != nf) throw InputError(fmt::format("{}: {} fields, expected {}", where, f.size(), nf));
-        auto num = [&](std::size_t i) {
-            if (f[i] == "nan") return std::numeric_limits<double>::quiet_NaN();
-            std::size_t used = 0;
-            double x = 0.0;
-            try {
-                x = std::stod(f[i], &used);
-            } catch (const std::exception&) {
-                used = 0;
-            }
-            if (used == 0 || used != f[i].size())
-                throw InputError(fmt::format("{}: field {} '{}' is not a number", where, i + 1, f[i]));
-            return x;
-        };
-        auto integer = [&](std::size_t i) {
-            std::size_t used = 0;
-            unsigned long long x = 0;
-            try {
-                x = std::stoull(f[i], &used);
-            } catch (const std::exception&) {
-                used = 0;
-            }
-            if (used == 0 || used != f[i].size())
-                throw InputError(fmt::format("{}: field {} '{}' is not a non-negative integer", where, i + 1, f[i]));
-            return x;
-        };
-        ShearCampaignRow r;
-        r.point.caseId = long(integer(0));
-        r.point.cell = {num(1), num(2), num(3), num(4), num(5)};
-        r.point.etaOut = num(6);
-        r.point.shearRate = num(7);
-        r.point.etaIn = num(8);
-        r.point.startSeed = integer(9);
-        r.regime = f[10];
-        r.inclinationDeg = num(11), r.inclinationSeDeg = num(12), r.swingDeg = num(13), r.swingSeDeg = num(14);
-        r.ttf = num(15), r.ttfSe = num(16), r.turns = num(17);
-        if (f[18] != "0" && f[18] != "1") throw InputError(fmt::format("{}: steady '{}' is not 0 or 1", where, f[18]));
-        r.steady = f[18] == "1";
-        r.status = f[19];
-        if (r.status != "ok" && r.status != "failed")
-            throw InputError(fmt::format("{}: status '{}' is not ok or failed", where, r.status));
-        r.reason = f[20];
-        r.wallSeconds = num(21);
-        rows.push_back(std::move(r));
-    }
-    return rows;
-}
 
 ShearCampaignRow runShearCampaignCase(const ShearCampaignPoint& point, const ShearCampaignOptions& o, bool injectFailure) {
     const auto t0 = SteadyClock::now();
@@ -332,13 +195,13 @@ CampaignSummary runShearCampaignShare(const ShearCampaignOptions& o, int rank, i
     if (rank < 0 || rank >= ranks) throw InputError(fmt::format("rank {} is outside [0, {})", rank, ranks));
     const auto t0 = SteadyClock::now();
     const auto design = shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn);
-    const auto finished = finishedRows(o, design);
+    const auto finished = finishedShearCampaignRows(o.outDir, design);
     std::string keep;
     {
         const fs::path mine = partPath(o, rank);
         if (fs::exists(mine) && fs::file_size(mine) > 0)
             for (const ShearCampaignRow& r : readShearCampaignCsv(mine, true))
-                if (finished.count(r.point.caseId) && sameInputs(finished.at(r.point.caseId).point, r.point))
+                if (finished.count(r.point.caseId) && formatShearCampaignRow(finished.at(r.point.caseId)) == formatShearCampaignRow(r))
                     keep += formatShearCampaignRow(r) + "\n";
     }
     PartFile part(partPath(o, rank), shearCampaignCsvHeader(), keep);
@@ -393,7 +256,7 @@ CampaignSummary runShearCampaignShare(const ShearCampaignOptions& o, int rank, i
 }
 
 CampaignSummary finalizeShearCampaign(const ShearCampaignOptions& o, double wallSeconds) {
-    const auto rows = finishedRows(o, shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn));
+    const auto rows = finishedShearCampaignRows(o.outDir, shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn));
     CampaignSummary s;
     s.wallSeconds = wallSeconds;
     std::map<std::string, long> regimes;
@@ -433,29 +296,6 @@ CampaignSummary runShearCampaign(const ShearCampaignOptions& o) {
     s.cellsComputed = share.cellsComputed;
     s.cellsResumed = share.cellsResumed;
     return s;
-}
-
-std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* complete) {
-    if (complete) *complete = true;
-    if (fs::is_regular_file(path)) return readShearCampaignCsv(path);
-    if (!fs::is_directory(path)) throw InputError(fmt::format("shear campaign {} does not exist", path.string()));
-    if (fs::exists(path / "cases.csv")) return readShearCampaignCsv(path / "cases.csv");
-    if (complete) *complete = false;
-    ShearCampaignOptions o;
-    o.outDir = path;
-    try {
-        std::ifstream in(provenancePath(o));
-        const nlohmann::json j = nlohmann::json::parse(in).at("settings");
-        o.design = parseDesignKind(j.at("design").get<std::string>());
-        o.cases = j.at("cases").get<long>();
-        o.seed = j.at("seed").get<std::uint64_t>();
-        o.etaIn = j.at("eta_in_mPa_s").get<double>();
-    } catch (const std::exception& e) {
-        throw InputError(fmt::format("{}: not a shear campaign ({})", provenancePath(o).string(), e.what()));
-    }
-    std::vector<ShearCampaignRow> rows;
-    for (auto& [id, r] : finishedRows(o, shearCampaignDesign(o.design, o.cases, o.seed, o.etaIn))) rows.push_back(std::move(r));
-    return rows;
 }
 
 }  // namespace trbc
