@@ -882,6 +882,7 @@ void registerFlow(CLI::App& app) {
     registerTube(flow);
     registerFlowCapsule(flow);
     registerFlowCampaign(flow);
+    registerFlowTrain(flow);
 }
 
 }  // namespace trbc::cli

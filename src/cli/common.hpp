@@ -152,6 +152,7 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e);
 /// `trbc flow capsule` (cmd_flow_capsule.cpp), a subcommand of `trbc flow`.
 void registerFlowCapsule(CLI::App* flow);
 void registerFlowCampaign(CLI::App* flow);
+void registerFlowTrain(CLI::App* flow);
 void registerForces(CLI::App& app);
 void registerCampaign(CLI::App& app);
 void registerSurrogate(CLI::App& app);

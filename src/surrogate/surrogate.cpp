@@ -473,16 +473,7 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     for (int i = 0; i < networks; ++i) {
         const int k = order[i];
         try {
-            TrainingOptions o = opt.network;
-            // SURROGATE 3.1 (256 / 128) for the paper's 50,000 rows. The schedule counts patience in
-            // epochs, so a small table (one row per cell for the equilibrium and relaxation networks)
-            // needs smaller batches to take enough optimiser steps per epoch: at least 50
-            // mini-batches per epoch, batches of at least 8.
-            o.batchSize = std::clamp(int(0.8 * double(data[k].X.cols()) / 50.0), 8, k == 0 || k == 3 ? 256 : 128);
-            // Likewise the patience: at least ~3000 optimiser steps without improvement before a
-            // rate reduction (the paper's 11 epochs of 50,000 rows are ~3400 steps).
-            const double batchesPerEpoch = std::max(1.0, 0.8 * double(data[k].X.cols()) / o.batchSize);
-            o.patience = std::max(o.patience, int(std::ceil(3000.0 / batchesPerEpoch)));
+            TrainingOptions o = scheduleForRows(opt.network, data[k].X.cols(), k == 0 || k == 3 ? 256 : 128);
             o.testFraction = 0.0;              // the test cells are already out
             if (k == 1 && opt.sqrtB2Stretching) {
                 using T = VariableTransform;

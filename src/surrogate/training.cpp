@@ -199,6 +199,13 @@ TrainingHistory trainMlp(Mlp& net, const Eigen::Ref<const Eigen::MatrixXd>& Xtra
     return h;
 }
 
+TrainingOptions scheduleForRows(TrainingOptions o, Eigen::Index rows, int maxBatch) {
+    o.batchSize = std::clamp(int(0.8 * double(rows) / 50.0), 8, std::max(8, maxBatch));
+    const double batchesPerEpoch = std::max(1.0, 0.8 * double(rows) / o.batchSize);
+    o.patience = std::max(o.patience, int(std::ceil(3000.0 / batchesPerEpoch)));
+    return o;
+}
+
 TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& Y,
                             const TrainingOptions& options, std::vector<std::string> inputNames,
                             std::vector<std::string> outputNames) {

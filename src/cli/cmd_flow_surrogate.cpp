@@ -1,0 +1,145 @@
+// trbc flow train: the flow networks (surrogate/flow_surrogate.hpp, docs/FLOW_CAMPAIGN.md) from a
+// shear campaign, their held-out accuracy, optional k-fold cross-validation and a learning curve
+// over prefixes of the campaign.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/file_io.hpp"
+#include "core/version.hpp"
+#include "surrogate/flow_surrogate.hpp"
+
+namespace trbc::cli {
+namespace {
+
+struct FlowTrainCli {
+    std::string campaign, out, curve;
+    FlowSurrogateTrainingOptions t;
+    int folds = 0, threads = 2;
+};
+
+std::vector<long> parseSizes(const std::string& text) {
+    std::vector<long> out;
+    std::stringstream ss(text);
+    for (std::string item; std::getline(ss, item, ',');) {
+        std::size_t used = 0;
+        long n = 0;
+        try {
+            n = std::stol(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != item.size() || n < 20)
+            throw InputError(fmt::format("--learning-curve: '{}' is not a case count (integer >= 20)", item));
+        out.push_back(n);
+    }
+    return out;
+}
+
+nlohmann::json accuracyJson(const FlowAccuracy& a) {
+    auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+    return {{"cases", a.cases},
+            {"tank_treading_cases", a.tankTreading},
+            {"inclination_rmse_deg", num(a.inclinationRmseDeg)},
+            {"swing_rmse_deg", num(a.swingRmseDeg)},
+            {"ttf_relative_rmse", num(a.ttfRelativeRmse)},
+            {"brier", num(a.brier)},
+            {"far_cases", a.far},
+            {"far_misclassified", a.farMisclassified},
+            {"near_cases", a.near},
+            {"near_misclassified", a.nearMisclassified}};
+}
+
+std::string percent(long k, long n) { return n > 0 ? fmt::format("{:.1f} % ({}/{})", 100.0 * double(k) / double(n), k, n) : "-"; }
+
+std::string accuracyRow(const std::string& label, const FlowAccuracy& a) {
+    return fmt::format("| {} | {} | {:.3f} | {:.3f} | {:.2f} % | {} | {} | {:.4f} |", label, a.cases, a.inclinationRmseDeg, a.swingRmseDeg,
+                       100.0 * a.ttfRelativeRmse, percent(a.farMisclassified, a.far), percent(a.nearMisclassified, a.near), a.brier);
+}
+
+constexpr const char* kTableHead =
+    "| set | cases | angle RMSE (deg) | swing RMSE (deg) | TTF RMSE | misclassified far from the boundary | near it | Brier |\n"
+    "|---|---|---|---|---|---|---|---|";
+
+void runFlowTrain(FlowTrainCli& o) {
+    if (o.threads > 0) omp_set_num_threads(o.threads);
+    const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseSizes(o.curve);
+    bool complete = true;
+    std::vector<ShearCampaignRow> rows = readShearCampaignRows(o.campaign, &complete);
+    o.t.command = commandLine();
+    std::cerr << fmt::format("flow train: {} cases from {}{}\n", rows.size(), o.campaign, complete ? "" : " (campaign not complete: its finished cases)");
+    nlohmann::json j = {{"command", o.t.command}, {"version", kVersion}, {"campaign", o.campaign}, {"campaign_complete", complete},
+                        {"restarts", o.t.restarts}, {"ensemble", o.t.ensemble}, {"boundary_factor", o.t.boundaryFactor}};
+    std::string md = fmt::format("Flow networks from {} ({} cases{}); command: `{}`\n\n{}\n", o.campaign, rows.size(),
+                                 complete ? "" : ", campaign not complete", o.t.command, kTableHead);
+    const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, o.t);
+    rep.model.save(o.out);
+    j["data_hash"] = rep.dataHash;
+    j["rows"] = rep.rows;
+    j["finished_rows"] = rep.used;
+    j["training_rows"] = {{"regime", rep.regimeRows}, {"tank_treading", rep.tankTreadingRows}};
+    j["test"] = accuracyJson(rep.test);
+    j["wall_s"] = rep.wallSeconds;
+    md += accuracyRow(fmt::format("held out ({:.0f} %)", 100.0 * o.t.testFraction), rep.test) + "\n";
+    if (o.folds >= 2) {
+        const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, o.t, o.folds);
+        j["cross_validation"] = {{"folds", cv.folds}, {"pooled", accuracyJson(cv.pooled)}};
+        md += accuracyRow(fmt::format("{}-fold CV", cv.folds), cv.pooled) + "\n";
+    }
+    if (!sizes.empty()) {
+        std::vector<ShearCampaignRow> sorted = rows;
+        std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
+        nlohmann::json curve = nlohmann::json::array();
+        md += fmt::format("\nLearning curve ({}-fold CV on the first N cases of the design)\n\n{}\n", std::max(o.folds, 5), kTableHead);
+        for (long n : sizes) {
+            if (n > long(sorted.size())) {
+                std::cerr << fmt::format("flow train: learning curve: {} cases asked, {} in the campaign; skipped\n", n, sorted.size());
+                continue;
+            }
+            const std::vector<ShearCampaignRow> prefix(sorted.begin(), sorted.begin() + n);
+            const FlowCrossValidation cv = crossValidateFlowSurrogate(prefix, o.t, std::max(o.folds, 5));
+            curve.push_back({{"cases", n}, {"pooled", accuracyJson(cv.pooled)}});
+            md += accuracyRow(fmt::format("N = {}", n), cv.pooled) + "\n";
+        }
+        j["learning_curve"] = curve;
+    }
+    writeFileAtomically(std::filesystem::path(o.out) / "training.json", j.dump(2) + "\n");
+    writeFileAtomically(std::filesystem::path(o.out) / "accuracy.md", md);
+    std::cout << md;
+}
+
+}  // namespace
+
+void registerFlowTrain(CLI::App* flow) {
+    auto o = std::make_shared<FlowTrainCli>();
+    CLI::App* cmd = flow->add_subcommand(
+        "train",
+        "Flow networks from a shear campaign (docs/FLOW_CAMPAIGN.md): the probability of tank-treading and the angle, swing and "
+        "TTF of the tank-treading state. Writes OUT/flow_regime.json, OUT/flow_tank_treading.json, OUT/flow_surrogate.json, "
+        "the accuracy (held-out cases, optional k-fold CV and learning curve) in OUT/training.json and OUT/accuracy.md");
+    cmd->add_option("--campaign", o->campaign, "a `trbc flow campaign` directory (its finished cases) or its cases.csv")
+        ->required()
+        ->check(CLI::ExistingPath);
+    addOutOption(cmd, o->out, "model directory");
+    addNumber(cmd, "--restarts", o->t.restarts, "trainings per network from consecutive seeds", NumberRange::closed(1, 64))
+        ->capture_default_str();
+    cmd->add_flag("!--no-ensemble", o->t.ensemble, "keep only the best restart (default: the restarts' mean)");
+    addNumber(cmd, "--seed", o->t.network.seed, "seed of the first restart's initial weights", NumberRange::nonNegative())
+        ->capture_default_str();
+    addNumber(cmd, "--test-fraction", o->t.testFraction, "share of the finished cases held out", NumberRange::rightOpen(0, 1))
+        ->capture_default_str();
+    addNumber(cmd, "--folds", o->folds, "k-fold cross-validation of the whole procedure (0: none)", NumberRange::closed(0, 50))
+        ->capture_default_str();
+    cmd->add_option("--learning-curve", o->curve,
+                    "comma-separated case counts N: cross-validated accuracy on the first N cases of the design (max(folds, 5) folds)");
+    addThreadsOption(cmd, o->threads, "threads (the two networks train side by side)");
+    cmd->callback([o]() { runFlowTrain(*o); });
+}
+
+}  // namespace trbc::cli

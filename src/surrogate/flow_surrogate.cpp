@@ -1,0 +1,323 @@
+#include "surrogate/flow_surrogate.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "core/file_io.hpp"
+#include "core/hash.hpp"
+#include "core/version.hpp"
+#include "surrogate/network_io.hpp"
+
+namespace trbc {
+namespace fs = std::filesystem;
+
+namespace {
+
+using T = VariableTransform;
+const std::vector<VariableTransform> kInputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log, T::Log, T::Log};
+constexpr int kStressAxis = 6, kEtaOutAxis = 5;
+
+/// Sums over held-out cases, from which FlowAccuracy follows (so that folds pool exactly).
+struct AccuracySums {
+    long cases = 0, tt = 0;
+    double sqAngle = 0, sqSwing = 0, sqTtf = 0, sqBrier = 0;
+    long far = 0, farWrong = 0, near = 0, nearWrong = 0;
+
+    void add(const AccuracySums& o) {
+        cases += o.cases, tt += o.tt, sqAngle += o.sqAngle, sqSwing += o.sqSwing, sqTtf += o.sqTtf, sqBrier += o.sqBrier;
+        far += o.far, farWrong += o.farWrong, near += o.near, nearWrong += o.nearWrong;
+    }
+    FlowAccuracy accuracy() const {
+        FlowAccuracy a;
+        a.cases = cases, a.tankTreading = tt;
+        if (tt > 0) {
+            a.inclinationRmseDeg = std::sqrt(sqAngle / double(tt));
+            a.swingRmseDeg = std::sqrt(sqSwing / double(tt));
+            a.ttfRelativeRmse = std::sqrt(sqTtf / double(tt));
+        }
+        if (cases > 0) a.brier = sqBrier / double(cases);
+        a.far = far, a.farMisclassified = farWrong, a.near = near, a.nearMisclassified = nearWrong;
+        return a;
+    }
+};
+
+std::vector<const ShearCampaignRow*> finishedRows(const std::vector<ShearCampaignRow>& rows) {
+    std::vector<const ShearCampaignRow*> out;
+    for (const ShearCampaignRow& r : rows)
+        if (r.ok() && !r.regime.empty()) out.push_back(&r);
+    return out;
+}
+
+bool hasTankTreadingValues(const ShearCampaignRow& r) {
+    return r.tankTreading() && std::isfinite(r.inclinationDeg) && std::isfinite(r.swingDeg) && std::isfinite(r.ttf) && r.ttf > 0.0;
+}
+
+AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor) {
+    AccuracySums s;
+    if (rows.empty()) return s;
+    const Eigen::MatrixXd x = flowInputs(rows);
+    const FlowPrediction p = model.predict(x);
+    const Eigen::VectorXd tc = model.criticalStressPa(x);
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+        const ShearCampaignRow& r = *rows[k];
+        const Eigen::Index j = Eigen::Index(k);
+        const double label = r.tankTreading() ? 1.0 : 0.0;
+        ++s.cases;
+        s.sqBrier += std::pow(p.pTankTreading(j) - label, 2);
+        const bool wrong = (p.pTankTreading(j) > 0.5) != r.tankTreading();
+        const double stress = r.point.etaOut * 1e-3 * r.point.shearRate;
+        const bool near = std::isfinite(tc(j)) && std::abs(std::log(stress / tc(j))) <= std::log(boundaryFactor);
+        (near ? s.near : s.far)++;
+        if (wrong) (near ? s.nearWrong : s.farWrong)++;
+        if (hasTankTreadingValues(r)) {
+            ++s.tt;
+            s.sqAngle += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
+            s.sqSwing += std::pow(p.swingDeg(j) - r.swingDeg, 2);
+            s.sqTtf += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
+        }
+    }
+    return s;
+}
+
+/// Restarts from seeds seed, seed + 1, ...; the lowest validation loss is the network, the others
+/// its ensemble members when asked.
+TrainedNetwork trainWithRestarts(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y, TrainingOptions o, int restarts, bool ensemble,
+                                 const std::vector<std::string>& outNames) {
+    TrainingResult best;
+    std::vector<EnsembleMember> others;
+    for (int r = 0; r < std::max(1, restarts); ++r) {
+        TrainingOptions ro = o;
+        ro.seed = o.seed + std::uint64_t(r);
+        TrainingResult t = trainNetwork(X, Y, ro, flowSurrogateInputNames(), outNames);
+        const double loss = t.network.history.bestValidationLoss, bestLoss = best.network.history.bestValidationLoss;
+        if (r == 0 || loss < bestLoss || (!std::isfinite(bestLoss) && std::isfinite(loss))) std::swap(best, t);
+        if (r > 0 && ensemble && std::isfinite(t.network.history.bestValidationLoss))
+            others.push_back({std::move(t.network.net), t.network.options.seed, t.network.history.bestValidationLoss});
+    }
+    std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
+    best.network.ensemble = std::move(others);
+    return std::move(best.network);
+}
+
+/// The test positions of a seeded permutation of n cases: every p with p % folds == fold, or the
+/// first testFraction n without folds.
+std::vector<bool> testMask(std::size_t n, const FlowSurrogateTrainingOptions& opt) {
+    const auto perm = seededPermutation(Eigen::Index(n), opt.testSeed);
+    std::vector<bool> test(n, false);
+    const std::size_t nTest = opt.folds >= 2 ? 0 : std::size_t(std::llround(opt.testFraction * double(n)));
+    for (std::size_t p = 0; p < n; ++p)
+        test[std::size_t(perm[p])] = opt.folds >= 2 ? int(p % std::size_t(opt.folds)) == opt.fold : p < nTest;
+    return test;
+}
+
+}  // namespace
+
+const std::vector<std::string>& flowSurrogateInputNames() {
+    static const std::vector<std::string> names = {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um", "eta_out_mPa_s", "shear_rate_per_s"};
+    return names;
+}
+
+Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows) {
+    Eigen::MatrixXd x(7, Eigen::Index(rows.size()));
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+        const ShearCampaignPoint& q = rows[k]->point;
+        x.col(Eigen::Index(k)) << q.cell.v, q.cell.mu, q.cell.FvK, q.cell.b2, q.cell.etam, q.etaOut, q.shearRate;
+    }
+    return x;
+}
+
+FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
+    FlowSurrogate s;
+    s.regime = loadNetwork((dir / "flow_regime.json").string());
+    s.tankTreading = loadNetwork((dir / "flow_tank_treading.json").string());
+    const fs::path meta = dir / "flow_surrogate.json";
+    try {
+        std::ifstream in(meta);
+        if (!in) throw std::runtime_error("cannot open it");
+        s.etaIn = nlohmann::json::parse(in).at("eta_in_mPa_s").get<double>();
+    } catch (const std::exception& e) {
+        throw InputError(fmt::format("{}: not the description of flow networks ({})", meta.string(), e.what()));
+    }
+    if (!(s.etaIn > 0.0)) throw InputError(fmt::format("{}: eta_in_mPa_s {} must be > 0", meta.string(), s.etaIn));
+    for (const TrainedNetwork* n : {&s.regime, &s.tankTreading})
+        if (n->net.numInputs() != 7 || n->inputNames != flowSurrogateInputNames())
+            throw InputError(fmt::format("{}: the flow networks take the 7 inputs {}", dir.string(), fmt::join(flowSurrogateInputNames(), ", ")));
+    if (s.regime.net.numOutputs() != 1 || s.tankTreading.net.numOutputs() != 3)
+        throw InputError(fmt::format("{}: flow_regime.json needs 1 output and flow_tank_treading.json 3", dir.string()));
+    return s;
+}
+
+void FlowSurrogate::save(const fs::path& dir) const {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw InputError(fmt::format("cannot create {}: {}", dir.string(), ec.message()));
+    saveNetwork(regime, (dir / "flow_regime.json").string());
+    saveNetwork(tankTreading, (dir / "flow_tank_treading.json").string());
+    const nlohmann::json meta = {{"eta_in_mPa_s", etaIn},
+                                 {"inputs", flowSurrogateInputNames()},
+                                 {"networks", {{"flow_regime", "probability of tank-treading (random start)"},
+                                               {"flow_tank_treading", "inclination_deg, swing_deg, ttf_4pi_f_over_rate"}}},
+                                 {"trbc_version", kVersion}};
+    writeFileAtomically(dir / "flow_surrogate.json", meta.dump(2) + "\n");
+}
+
+FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& etaInCol) const {
+    if (x.rows() != 7) throw InputError(fmt::format("flow surrogate: inputs have {} rows, expected 7", x.rows()));
+    if (etaInCol.size() != x.cols())
+        throw InputError(fmt::format("flow surrogate: {} cytosol viscosities for {} inputs", etaInCol.size(), x.cols()));
+    Eigen::MatrixXd z = x;
+    FlowPrediction p;
+    p.outsideBox.assign(std::size_t(x.cols()), false);
+    for (Eigen::Index j = 0; j < x.cols(); ++j) {
+        if (!(etaInCol(j) > 0.0)) throw InputError(fmt::format("flow surrogate: eta_in_mPa_s {} must be > 0", etaInCol(j)));
+        const double s = etaIn / etaInCol(j);  // every viscosity times s, the rate over s
+        z(4, j) *= s, z(5, j) *= s, z(6, j) /= s;
+        for (int i = 0; i < 7; ++i) {
+            const DesignAxis& a = kShearCampaignAxes[i];
+            const double v = i == kStressAxis ? z(kEtaOutAxis, j) * 1e-3 * z(kStressAxis, j) : z(i, j);
+            if (!(v >= a.lo && v <= a.hi)) p.outsideBox[std::size_t(j)] = true;
+        }
+    }
+    p.pTankTreading = regime.evaluate(z).row(0).transpose().cwiseMax(0.0).cwiseMin(1.0);
+    const Eigen::MatrixXd tt = tankTreading.evaluate(z);
+    p.inclinationDeg = tt.row(0).transpose();
+    p.swingDeg = tt.row(1).transpose();
+    p.ttf = tt.row(2).transpose();
+    return p;
+}
+
+FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    return predict(x, Eigen::VectorXd::Constant(x.cols(), etaIn));
+}
+
+Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability) const {
+    const DesignAxis& axis = kShearCampaignAxes[kStressAxis];
+    const Eigen::Index n = x.cols();
+    Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, std::log(axis.lo)), hi = Eigen::VectorXd::Constant(n, std::log(axis.hi));
+    auto pAt = [&](const Eigen::VectorXd& logStress) {
+        Eigen::MatrixXd z = x;
+        for (Eigen::Index j = 0; j < n; ++j) z(6, j) = std::exp(logStress(j)) / (z(kEtaOutAxis, j) * 1e-3);
+        return Eigen::VectorXd(regime.evaluate(z).row(0).transpose());
+    };
+    const Eigen::VectorXd pLo = pAt(lo), pHi = pAt(hi);
+    // 40 halvings of 7 decades: far below the networks' resolution.
+    for (int it = 0; it < 40; ++it) {
+        const Eigen::VectorXd mid = 0.5 * (lo + hi);
+        const Eigen::VectorXd pm = pAt(mid);
+        for (Eigen::Index j = 0; j < n; ++j) ((pm(j) < probability) == (pLo(j) < probability) ? lo(j) : hi(j)) = mid(j);
+    }
+    Eigen::VectorXd out(n);
+    for (Eigen::Index j = 0; j < n; ++j)
+        out(j) = (pLo(j) < probability) != (pHi(j) < probability) ? std::exp(0.5 * (lo(j) + hi(j))) : NAN;
+    return out;
+}
+
+FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor) {
+    std::vector<const ShearCampaignRow*> done;
+    for (const ShearCampaignRow* r : rows)
+        if (r->ok() && !r->regime.empty()) done.push_back(r);
+    return accuracySums(model, done, boundaryFactor).accuracy();
+}
+
+std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows) {
+    std::uint64_t h = fnv1a("");
+    for (const ShearCampaignRow& r : rows) {
+        ShearCampaignRow copy = r;
+        copy.wallSeconds = 0.0;  // timings differ between runs of the same campaign
+        h = fnv1a(formatShearCampaignRow(copy) + "\n", h);
+    }
+    return fmt::format("{:016x}", h);
+}
+
+FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (opt.folds == 1 || opt.folds < 0 || (opt.folds >= 2 && (opt.fold < 0 || opt.fold >= opt.folds)))
+        throw InputError(fmt::format("flow surrogate: fold {} of {} folds (folds 0 or >= 2, fold in [0, folds))", opt.fold, opt.folds));
+    if (!(opt.testFraction >= 0.0 && opt.testFraction < 1.0))
+        throw InputError(fmt::format("flow surrogate: test fraction {} is outside [0, 1)", opt.testFraction));
+    checkTrainingOptions(opt.network);
+    FlowSurrogateTrainingReport rep;
+    rep.rows = long(rows.size());
+    rep.dataHash = flowCampaignDataHash(rows);
+    const auto done = finishedRows(rows);
+    rep.used = long(done.size());
+    if (done.size() < 20) throw InputError(fmt::format("flow surrogate: {} finished cases, at least 20 needed", done.size()));
+    const std::vector<bool> test = testMask(done.size(), opt);
+    std::vector<const ShearCampaignRow*> train, held, tt;
+    for (std::size_t k = 0; k < done.size(); ++k) {
+        (test[k] ? held : train).push_back(done[k]);
+        if (!test[k] && hasTankTreadingValues(*done[k])) tt.push_back(done[k]);
+    }
+    rep.testCases = long(held.size());
+    rep.regimeRows = long(train.size());
+    rep.tankTreadingRows = long(tt.size());
+    const long ttCount = long(tt.size());
+    if (ttCount < 10 || long(train.size()) - ttCount < 1)
+        throw InputError(fmt::format("flow surrogate: {} tank-treading and {} other training cases; at least 10 and 1 needed", ttCount,
+                                     long(train.size()) - ttCount));
+
+    const Eigen::MatrixXd Xr = flowInputs(train), Xt = flowInputs(tt);
+    Eigen::MatrixXd Yr(1, Xr.cols()), Yt(3, Xt.cols());
+    for (std::size_t k = 0; k < train.size(); ++k) Yr(0, Eigen::Index(k)) = train[k]->tankTreading() ? 1.0 : 0.0;
+    for (std::size_t k = 0; k < tt.size(); ++k) Yt.col(Eigen::Index(k)) << tt[k]->inclinationDeg, tt[k]->swingDeg, tt[k]->ttf;
+
+    TrainedNetwork nets[2];
+    std::string errors[2];
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::min(2, omp_get_max_threads()))
+    for (int k = 0; k < 2; ++k) {
+        try {
+            TrainingOptions o = scheduleForRows(opt.network, k == 0 ? Xr.cols() : Xt.cols(), 128);
+            o.testFraction = 0.0;  // the test cases are already out
+            o.inputTransforms = kInputTransforms;
+            o.outputTransforms = k == 0 ? std::vector<VariableTransform>{T::Identity}
+                                        : std::vector<VariableTransform>{T::Identity, T::Identity, T::Log};
+            nets[k] = k == 0 ? trainWithRestarts(Xr, Yr, o, opt.restarts, opt.ensemble, {"p_tank_treading"})
+                             : trainWithRestarts(Xt, Yt, o, opt.restarts, opt.ensemble, {"inclination_deg", "swing_deg", "ttf_4pi_f_over_rate"});
+            nets[k].dataHash = rep.dataHash;
+            nets[k].command = opt.command;
+        } catch (const std::exception& e) {
+            errors[k] = fmt::format("{} network: {}", k == 0 ? "regime" : "tank-treading", e.what());
+        }
+    }
+    for (const std::string& e : errors)
+        if (!e.empty()) throw InputError(e);
+    rep.model.regime = std::move(nets[0]);
+    rep.model.tankTreading = std::move(nets[1]);
+    rep.model.etaIn = done.front()->point.etaIn;
+    rep.test = accuracySums(rep.model, held, opt.boundaryFactor).accuracy();
+    rep.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+}
+
+FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRow>& rows, FlowSurrogateTrainingOptions opt, int folds) {
+    if (folds < 2) throw InputError(fmt::format("flow surrogate: {} folds (at least 2)", folds));
+    FlowCrossValidation cv;
+    cv.folds = folds;
+    cv.rows = long(rows.size());
+    opt.folds = folds;
+    AccuracySums pooled;
+    const auto done = finishedRows(rows);
+    for (int f = 0; f < folds; ++f) {
+        opt.fold = f;
+        const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, opt);
+        const std::vector<bool> test = testMask(done.size(), opt);
+        std::vector<const ShearCampaignRow*> held;
+        for (std::size_t k = 0; k < done.size(); ++k)
+            if (test[k]) held.push_back(done[k]);
+        const AccuracySums s = accuracySums(rep.model, held, opt.boundaryFactor);
+        pooled.add(s);
+        cv.perFold.push_back(s.accuracy());
+    }
+    cv.pooled = pooled.accuracy();
+    return cv;
+}
+
+}  // namespace trbc

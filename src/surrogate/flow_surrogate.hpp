@@ -1,0 +1,117 @@
+#pragma once
+// The flow networks (docs/FLOW_CAMPAIGN.md, networks): trained on a shear campaign
+// (sampling/shear_campaign_table.hpp) with the MLPs, schedule and restarts of the cell surrogate.
+//
+//  * regime: (v, mu, FvK, b2, eta_m, eta_out, rate) -> the probability that the cell tank-treads.
+//    Trained on the labels 1 (tank-treading) and 0 (tumbling or intermittent) with the squared
+//    error, i.e. the Brier score: its minimiser is P(tank-treading | inputs), here over the
+//    campaign's random starts (the ensemble protocol), so the network is a probability without a
+//    second loss function. Evaluated values are clipped to [0, 1].
+//  * tank-treading: the same inputs -> (inclination_deg, swing_deg, ttf = 4 pi f / rate), trained
+//    on the tank-treading cases; TTF on a log scale.
+// Inputs mu, FvK, eta_m, eta_out and the rate enter as logarithms: the dimensionless groups of the
+// flow (Ca = eta_out rate R_A / mu, the viscosity ratio, eta_m / (eta_out R_A), FvK) are sums of
+// them, which the first layer forms exactly.
+//
+// The campaign holds the cytosol at one viscosity (10 mPa s). A cell at another eta_in is the same
+// flow as the campaign's cell with every viscosity (eta_in, eta_out, eta_m) scaled by s = 10 / eta_in
+// and the rate by 1 / s: Stokes flow and the membrane forces then give the same shapes at the same
+// strains, so the angle, the swing, the TTF in units of the rate and the regime are unchanged.
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "sampling/shear_campaign_table.hpp"
+#include "surrogate/training.hpp"
+
+namespace trbc {
+
+/// v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, eta_out_mPa_s, shear_rate_per_s
+const std::vector<std::string>& flowSurrogateInputNames();
+
+/// Per column of the inputs.
+struct FlowPrediction {
+    Eigen::VectorXd pTankTreading;
+    Eigen::VectorXd inclinationDeg, swingDeg, ttf;  ///< of the tank-treading state (extrapolated where it does not exist)
+    std::vector<bool> outsideBox;                   ///< the input lies outside the campaign's box (kShearCampaignAxes)
+};
+
+struct FlowSurrogate {
+    TrainedNetwork regime;        ///< 7 -> 1, flow_regime.json
+    TrainedNetwork tankTreading;  ///< 7 -> 3, flow_tank_treading.json
+    double etaIn = 10.0;          ///< the campaign's cytosol viscosity, mPa s (flow_surrogate.json)
+
+    /// Reads the files of `dir`; InputError naming the file when one is missing or bad.
+    static FlowSurrogate load(const std::filesystem::path& dir);
+    void save(const std::filesystem::path& dir) const;
+
+    /// x: 7 x n physical inputs (flowSurrogateInputNames), etaIn: the cytosol viscosity of each
+    /// column (mPa s), mapped to the campaign's by the exact rescaling above.
+    FlowPrediction predict(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& etaIn) const;
+    /// The campaign's eta_in for every column.
+    FlowPrediction predict(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+
+    /// The shear stress eta_out * rate (Pa) at which the probability of tank-treading crosses 1/2,
+    /// at the cell and eta_out of each column of x (the rate row is ignored), by bisection in log
+    /// stress over the campaign's stress range; NaN where it does not cross inside that range.
+    Eigen::VectorXd criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability = 0.5) const;
+};
+
+/// Inputs (7 x n) of campaign rows, in flowSurrogateInputNames order.
+Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows);
+
+struct FlowSurrogateTrainingOptions {
+    TrainingOptions network;  ///< layers, seeds and schedule (scaled to the rows, scheduleForRows)
+    int restarts = 4;         ///< trainings per network from seeds seed, seed+1, ...; the best is kept
+    bool ensemble = true;     ///< the other restarts become ensemble members (mean prediction)
+    double testFraction = 0.1;
+    std::uint64_t testSeed = 20261129;
+    /// k-fold cross-validation: the test cases are those at positions p of the seeded case
+    /// permutation with p % folds == fold (testFraction is then not used).
+    int folds = 0, fold = 0;
+    /// A test case is near the regime boundary when its stress lies within this factor of the
+    /// regressor's critical stress at its cell and eta_out (one bracket step of the threshold scans).
+    double boundaryFactor = 1.5;
+    std::string command;
+};
+
+/// Accuracy on held-out cases.
+struct FlowAccuracy {
+    long cases = 0;            ///< finished test cases
+    long tankTreading = 0;     ///< of them tank-treading (the regressors' test set)
+    double inclinationRmseDeg = NAN, swingRmseDeg = NAN;
+    double ttfRelativeRmse = NAN;  ///< sqrt(mean (pred / truth - 1)^2)
+    double brier = NAN;            ///< mean (p - label)^2
+    long far = 0, farMisclassified = 0;    ///< more than boundaryFactor from the critical stress (or none)
+    long near = 0, nearMisclassified = 0;  ///< within it
+};
+
+/// The accuracy of `model` on `rows` (finished ones only).
+FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor);
+
+struct FlowSurrogateTrainingReport {
+    FlowSurrogate model;
+    std::string dataHash;
+    long rows = 0, used = 0, testCases = 0;
+    long regimeRows = 0, tankTreadingRows = 0;  ///< training rows of each network
+    FlowAccuracy test;
+    double wallSeconds = 0.0;
+};
+
+/// Trains both networks on the finished rows outside the test set. InputError when too few rows
+/// remain (fewer than 20 finished, or no tank-treading and no other case).
+FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt);
+
+struct FlowCrossValidation {
+    int folds = 0;
+    long rows = 0;
+    FlowAccuracy pooled;                 ///< every case predicted by the fold that held it out
+    std::vector<FlowAccuracy> perFold;
+};
+FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRow>& rows, FlowSurrogateTrainingOptions opt, int folds);
+
+/// FNV-1a of the formatted rows.
+std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows);
+
+}  // namespace trbc

@@ -1,0 +1,129 @@
+// The flow networks (surrogate/flow_surrogate.hpp) on a synthetic campaign with known answers: a
+// regime boundary at a known critical capillary number and smooth tank-treading observables. The
+// networks must learn them, find the boundary, honour the exact cytosol-viscosity rescaling, and
+// read back bit for bit.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/error.hpp"
+#include "sampling/shear_campaign_table.hpp"
+#include "surrogate/flow_surrogate.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Ca = eta_out rate R_A / mu with R_A = 3.2776 um, mu in uN/m.
+double capillary(const ShearCampaignPoint& q) { return q.etaOut * 1e-3 * q.shearRate * 3.2776 / q.cell.mu; }
+/// The synthetic critical capillary number: higher for a more viscous membrane.
+double criticalCa(const ShearCampaignPoint& q) { return 0.05 * std::sqrt(q.cell.etam / 0.5); }
+
+std::vector<ShearCampaignRow> syntheticCampaign(long n) {
+    std::vector<ShearCampaignRow> rows;
+    for (const ShearCampaignPoint& q : shearCampaignDesign(DesignKind::Sobol, n, 11)) {
+        ShearCampaignRow r;
+        r.point = q;
+        const double ca = capillary(q);
+        r.regime = ca > criticalCa(q) ? "tank-treading" : "tumbling";
+        if (r.tankTreading()) {
+            r.inclinationDeg = 30.0 - 4.0 * std::log(ca / criticalCa(q)) - 5.0 * (1.0 - q.cell.v);
+            r.swingDeg = 1.0 + 2.0 * q.cell.v;
+            r.ttf = 0.3 + 0.1 * std::tanh(std::log(q.etaOut / 30.0));
+        }
+        r.turns = 4.0;
+        rows.push_back(r);
+    }
+    return rows;
+}
+
+TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
+    const auto rows = syntheticCampaign(1024);
+    FlowSurrogateTrainingOptions opt;
+    opt.restarts = 1;
+    opt.ensemble = false;
+    opt.network.hiddenLayers = {24, 24};
+    opt.network.maxEpochs = 400;
+    const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, opt);
+    EXPECT_EQ(rep.used, 1024);
+    EXPECT_EQ(rep.testCases, 102);
+    EXPECT_EQ(rep.regimeRows, 1024 - 102);
+    EXPECT_LT(rep.test.inclinationRmseDeg, 0.5) << "the angle spans ~25 deg";
+    EXPECT_LT(rep.test.ttfRelativeRmse, 0.01);
+    EXPECT_LT(rep.test.swingRmseDeg, 0.05);
+    EXPECT_LE(rep.test.farMisclassified, 1) << "of " << rep.test.far;
+    EXPECT_GT(rep.test.far, rep.test.near);
+
+    // The classifier's critical stress against the synthetic one, eta_out * rate = Ca_c mu / R_A.
+    std::vector<const ShearCampaignRow*> some;
+    for (std::size_t k = 0; k < rows.size(); k += 37) some.push_back(&rows[k]);
+    const Eigen::MatrixXd x = flowInputs(some);
+    const Eigen::VectorXd tc = rep.model.criticalStressPa(x);
+    int found = 0;
+    double sumAbsLog = 0.0;
+    for (std::size_t k = 0; k < some.size(); ++k) {
+        const double truth = criticalCa(some[k]->point) * some[k]->point.cell.mu / 3.2776;
+        if (truth < 0.012 || truth > 8.0) continue;  // crossings too close to the box's ends
+        ASSERT_TRUE(std::isfinite(tc(Eigen::Index(k)))) << "case " << some[k]->point.caseId;
+        // Within one bracket step of the threshold scans (a factor 1.5 in stress): a step in 7 inputs
+        // seen through ~900 cases is resolved to about the spacing of the cases near it.
+        EXPECT_NEAR(std::log(tc(Eigen::Index(k)) / truth), 0.0, std::log(1.5)) << "case " << some[k]->point.caseId;
+        sumAbsLog += std::abs(std::log(tc(Eigen::Index(k)) / truth));
+        ++found;
+    }
+    EXPECT_GT(found, 15);
+    EXPECT_LT(sumAbsLog / found, std::log(1.2));
+
+    // The exact rescaling: a cell in a cytosol of 5 mPa s is the campaign's cell with every
+    // viscosity doubled and the rate halved.
+    Eigen::MatrixXd scaled = x;
+    scaled.row(4) *= 0.5, scaled.row(5) *= 0.5, scaled.row(6) *= 2.0;
+    const FlowPrediction a = rep.model.predict(x), b = rep.model.predict(scaled, Eigen::VectorXd::Constant(x.cols(), 5.0));
+    for (Eigen::Index j = 0; j < x.cols(); ++j) {
+        EXPECT_NEAR(a.pTankTreading(j), b.pTankTreading(j), 1e-12);
+        EXPECT_NEAR(a.inclinationDeg(j), b.inclinationDeg(j), 1e-9);
+        EXPECT_FALSE(a.outsideBox[std::size_t(j)]);
+    }
+    EXPECT_TRUE((a.pTankTreading.array() >= 0.0).all() && (a.pTankTreading.array() <= 1.0).all());
+    Eigen::MatrixXd outside = x.leftCols(1);
+    outside(5, 0) = 200.0;  // eta_out beyond the box
+    EXPECT_TRUE(rep.model.predict(outside).outsideBox[0]);
+
+    test::TempDir tmp;
+    rep.model.save(tmp.path() / "m");
+    const FlowSurrogate back = FlowSurrogate::load(tmp.path() / "m");
+    const FlowPrediction c = back.predict(x);
+    EXPECT_EQ(c.pTankTreading, a.pTankTreading);
+    EXPECT_EQ(c.ttf, a.ttf);
+    EXPECT_EQ(back.etaIn, 10.0);
+}
+
+TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
+    const auto rows = syntheticCampaign(200);
+    FlowSurrogateTrainingOptions opt;
+    opt.restarts = 1;
+    opt.ensemble = false;
+    opt.network.hiddenLayers = {8};
+    opt.network.maxEpochs = 30;
+    const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, opt, 4);
+    ASSERT_EQ(cv.perFold.size(), 4u);
+    EXPECT_EQ(cv.pooled.cases, 200);
+    long tt = 0;
+    for (const auto& r : rows) tt += r.tankTreading();
+    EXPECT_EQ(cv.pooled.tankTreading, tt);
+    EXPECT_EQ(cv.pooled.far + cv.pooled.near, 200);
+    for (const FlowAccuracy& f : cv.perFold) EXPECT_EQ(f.cases, 50);
+
+    std::vector<ShearCampaignRow> few(rows.begin(), rows.begin() + 19);
+    EXPECT_THROW(trainFlowSurrogate(few, opt), InputError);
+    std::vector<ShearCampaignRow> failed = rows;
+    for (std::size_t k = 0; k < 190; ++k) failed[k].status = "failed";  // failed cases are not training data
+    EXPECT_THROW(trainFlowSurrogate(failed, opt), InputError);
+    opt.folds = 3, opt.fold = 3;
+    EXPECT_THROW(trainFlowSurrogate(rows, opt), InputError);
+}
+
+}  // namespace
+}  // namespace trbc
