@@ -222,6 +222,13 @@ std::string uniqueShearCaseId(const std::string& kind, double etaOut, double rat
 
 std::string tubeCaseId(double pg) { return fmt::format("tube_pg{:g}", pg); }
 
+std::vector<double> thresholdViscosities(const ValidationConfig& c) {
+    std::vector<double> etas;
+    for (const ShearSweep& s : c.sweeps)
+        if (s.kind == "threshold" && std::find(etas.begin(), etas.end(), s.etaOut) == etas.end()) etas.push_back(s.etaOut);
+    return etas;
+}
+
 std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
     std::vector<ValidationCase> cases;
     for (const ShearSweep& s : c.sweeps)

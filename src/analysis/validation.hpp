@@ -76,6 +76,9 @@ std::string memberCaseId(const std::string& caseId, int member);
 /// The id without the member's suffix (the id itself for a case of the configured start).
 std::string baseCaseId(const ValidationCase& c);
 
+/// The outer viscosities of the threshold sweeps, each once, in the config's order.
+std::vector<double> thresholdViscosities(const ValidationConfig& c);
+
 /// The cases of the sweeps and the tube before any refinement, in a fixed order.
 std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c);
 /// "<kind>_eta<eta>_rate<rate>", the rate to `digits` significant digits (17: exact).

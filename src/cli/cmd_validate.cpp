@@ -32,6 +32,7 @@
 #include "core/file_io.hpp"
 #include "core/hash.hpp"
 #include "core/version.hpp"
+#include "analysis/flow_bands.hpp"
 #include "experiments/parameters.hpp"
 #include "flow/tube.hpp"
 
@@ -294,13 +295,6 @@ struct Runner {
         return cfg.thresholdMembers > 0 ? ensembleRegimePoints(p) : p;
     }
 };
-
-std::vector<double> thresholdViscosities(const ValidationConfig& c) {
-    std::vector<double> etas;
-    for (const ShearSweep& s : c.sweeps)
-        if (s.kind == "threshold" && std::find(etas.begin(), etas.end(), s.etaOut) == etas.end()) etas.push_back(s.etaOut);
-    return etas;
-}
 
 /// The predictions against the experimental scatter: records, counts by verdict and the rows of
 /// the markdown table.
@@ -620,7 +614,7 @@ json writeTables(const Runner& R, json& bandRows) {
 }
 
 struct ValidateCommandOptions {
-    std::string config, out, posterior, shard;
+    std::string config, out, posterior, shard, surrogate;
     std::vector<std::string> only, imports;
     int jobs = 0, threads = 0, level = 0, draws = 0;
     std::uint64_t seed = 1;
@@ -664,6 +658,46 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
     cmd->add_flag("--dry-run", o.dryRun, "list the initial cases and their commands, marking those recorded in OUT with the same key "
                                       "([finished], or [failed] for a kept failure); run nothing");
     cmd->add_flag("--quiet", o.quiet, "no progress lines on stderr");
+    cmd->add_option("--surrogate", o.surrogate,
+                    "flow networks (a `trbc flow train` directory): predict every angle, TTF and threshold case of the config "
+                    "for the --draws through them in seconds instead of running any case (surrogate_bands.csv, .md, .json)")
+        ->check(CLI::ExistingDirectory);
+}
+
+/// `validate --surrogate`: the bands of the shear cases through the flow networks (analysis/flow_bands.hpp).
+void runSurrogateBands(const Runner& R, const ValidateCommandOptions& o) {
+    if (R.draws.empty())
+        throw InputError("--surrogate: give --draws N (and --posterior DIR or [cell] posterior): the bands are over posterior draws");
+    const auto t0 = SteadyClock::now();
+    const FlowSurrogate model = FlowSurrogate::load(o.surrogate);
+    ValidationEvidence evidence(R.cfg.dataDir);
+    const std::vector<SurrogateBandRow> rows = surrogateShearBands(R.cfg, model, R.draws, evidence);
+    const OutputDirectory outDir(R.out, "validate", "--out", {"surrogate_bands.json"}, {o.config});
+    ensureWritableDirectory(R.out.string());
+    const std::string md = fmt::format("# Shear validations through the flow networks\n\n{} draws of theta_new ({}, {} samples; seed {}), "
+                                       "networks {}; command: `{}`\n\n",
+                                       R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, o.surrogate, commandLine()) +
+                           surrogateBandsMarkdown(rows);
+    writeFileAtomically(R.out / "surrogate_bands.csv", surrogateBandsCsv(rows));
+    writeFileAtomically(R.out / "surrogate_bands.md", md);
+    json tally = json::object();
+    for (const SurrogateBandRow& r : rows) {
+        json& t = tally[r.c.kind];
+        t["compared"] = t.value("compared", 0) + 1;
+        t["band_overlap"] = t.value("band_overlap", 0) + (r.verdict == "overlap");
+        t["within_mcse"] = t.value("within_mcse", 0) + r.withinMcse;
+    }
+    const json j = {{"provenance", {{"version", kVersion}, {"command", commandLine()}}},
+                    {"surrogate", fs::absolute(o.surrogate).lexically_normal().string()},
+                    {"posterior", R.cfg.posterior.string()},
+                    {"draws", R.draws.size()},
+                    {"seed", R.seed},
+                    {"config", R.cfg.file.string()},
+                    {"kinds", tally},
+                    {"wall_s", secondsSince(t0)}};
+    writeFileAtomically(R.out / "surrogate_bands.json", j.dump(2) + "\n");
+    if (!R.quiet) std::cerr << fmt::format("validate --surrogate: {} rows in {:.2f} s\n", rows.size(), secondsSince(t0));
+    std::cout << md;
 }
 
 /// The configuration with the command line's overrides, the output and import directories, the tools.
@@ -838,6 +872,7 @@ void runValidate(const ValidateCommandOptions& o) {
     const std::vector<ValidationCase> selected = selectedCases(all, o);
     const std::vector<ValidationCase> initial = casesWithDraws(selected, R.draws);
     if (o.dryRun) return listCases(R, initial);
+    if (!o.surrogate.empty()) return runSurrogateBands(R, o);
     const OutputDirectory outDir(R.out, "validate", "--out", {"validation.json", "cases"}, {o.config});
     ensureWritableDirectory(R.out.string());
     fs::create_directories(R.out / "cases");

@@ -43,6 +43,7 @@
 #include "mesh/icosphere.hpp"
 #include "mesh/io.hpp"
 #include "mesh/validate.hpp"
+#include "surrogate/flow_surrogate.hpp"
 #include "surrogate/surrogate.hpp"
 
 namespace py = pybind11;
@@ -350,6 +351,27 @@ py::array surrogateEvaluate(const Surrogate& s, const RowArray& x, int threads) 
     Eigen::MatrixXd y = withoutGil([&] {
         const ThreadScope ts(threads);
         return s.evaluate(X);
+    });
+    return ownedRows(std::move(y));
+}
+
+/// (n, 7) inputs and (n,) cytosol viscosities -> (n, 5): p_tank_treading, inclination_deg, swing_deg,
+/// ttf_4pi_f_over_rate, outside_box (0 or 1).
+py::array flowSurrogatePredict(const FlowSurrogate& s, const RowArray& x, const RowArray& etaIn, int threads) {
+    const auto X = columnsOf(x, 7, "x");
+    if (etaIn.ndim() != 1 || etaIn.shape(0) != X.cols())
+        throw InputError(fmt::format("eta_in_mPa_s: {} values for {} inputs", etaIn.ndim() == 1 ? etaIn.shape(0) : -1, X.cols()));
+    const Eigen::Map<const Eigen::VectorXd> eta(etaIn.data(), etaIn.shape(0));
+    Eigen::MatrixXd y = withoutGil([&] {
+        const ThreadScope ts(threads);
+        const FlowPrediction p = s.predict(X, eta);
+        Eigen::MatrixXd out(5, X.cols());
+        out.row(0) = p.pTankTreading.transpose();
+        out.row(1) = p.inclinationDeg.transpose();
+        out.row(2) = p.swingDeg.transpose();
+        out.row(3) = p.ttf.transpose();
+        for (Eigen::Index j = 0; j < X.cols(); ++j) out(4, j) = p.outsideBox[std::size_t(j)] ? 1.0 : 0.0;
+        return out;
     });
     return ownedRows(std::move(y));
 }
@@ -809,6 +831,15 @@ PYBIND11_MODULE(_core, m) {
         .def("_evaluate", &surrogateEvaluate, "x"_a, "threads"_a = 0)
         .def("_gradient", &surrogateGradient, "x"_a, "weights"_a = py::none(), "threads"_a = 0);
     m.def("outside_training_box", &outsideBox, "x"_a);
+    py::class_<FlowSurrogate, std::shared_ptr<FlowSurrogate>>(m, "FlowSurrogate")
+        .def(py::init([](const std::string& dir) { return std::make_shared<FlowSurrogate>(FlowSurrogate::load(dir)); }), "model_dir"_a)
+        .def_readonly("eta_in_mPa_s", &FlowSurrogate::etaIn)
+        .def("_predict", &flowSurrogatePredict, "x"_a, "eta_in"_a, "threads"_a = 0)
+        .def("_critical_stress", [](const FlowSurrogate& s, const RowArray& x) {
+            const auto X = columnsOf(x, 7, "x");
+            return ownedVector(withoutGil([&] { return Eigen::VectorXd(s.criticalStressPa(X)); }));
+        }, "x"_a);
+    m.attr("flow_surrogate_input_names") = py::cast(flowSurrogateInputNames());
     m.attr("surrogate_input_names") = py::cast(surrogateInputNames());
     m.attr("surrogate_output_names") = py::cast(surrogateOutputNames());
 

@@ -26,7 +26,7 @@ from ._core import Mesh, NumericalError, DataSet
 __version__ = _core.__version__
 
 __all__ = [
-    "Mesh", "NumericalError", "DataSet", "Surrogate", "Posterior", "membrane_energy", "simulate", "sfs",
+    "Mesh", "NumericalError", "DataSet", "Surrogate", "FlowSurrogate", "Posterior", "membrane_energy", "simulate", "sfs",
     "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
     "load_inference", "load_validation", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
 ]
@@ -177,6 +177,55 @@ class Surrogate(_core.Surrogate):
     def outside_training_box(x) -> np.ndarray:
         """(n,) bool: whether each input row lies outside the training box (an extrapolation)."""
         return _core.outside_training_box(_as_inputs(x))
+
+
+class FlowSurrogate(_core.FlowSurrogate):
+    """The flow networks (docs/FLOW_CAMPAIGN.md): the probability that a cell in simple shear
+    tank-treads (over random starts) and its inclination angle, swing amplitude and tank-treading
+    frequency. FlowSurrogate(model_dir=None): a `trbc flow train` directory (default: the shipped
+    networks, data/surrogates/flow)."""
+
+    input_names = tuple(_core.flow_surrogate_input_names)
+    output_names = ("p_tank_treading", "inclination_deg", "swing_deg", "ttf_4pi_f_over_rate")
+
+    def __init__(self, model_dir: Optional[_PathLike] = None):
+        super().__init__(str(model_dir if model_dir is not None else data_dir("surrogates", "flow")))
+
+    def predict(self, *, eta_out_mPa_s, shear_rate_per_s, v, mu_uN_per_m, b2, etam_Pa_s_um, kb_J=None, FvK=None,
+                eta_in_mPa_s=10.0, threads: int = 0) -> dict:
+        """{name: array} of p_tank_treading, inclination_deg, swing_deg, ttf_4pi_f_over_rate (4 pi f /
+        rate) and outside_box (bool: an input outside the campaign's box, an extrapolation). The
+        arguments broadcast against each other like numpy arrays; give the bending modulus as kb_J
+        (J) or FvK. The angle, swing and TTF are those of the tank-treading state (extrapolated where
+        p_tank_treading is small)."""
+        if (kb_J is None) == (FvK is None):
+            raise ValueError("give exactly one of kb_J and FvK")
+        bending = kb_J if FvK is None else FvK
+        args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
+                                     (v, mu_uN_per_m, bending, b2, etam_Pa_s_um, eta_out_mPa_s, shear_rate_per_s, eta_in_mPa_s)))
+        shape = args[0].shape
+        cols = [a.ravel() for a in args]
+        if FvK is None:  # FvK = mu R_A^2 / kb, R_A^2 = A0 / (4 pi) = 10.742958658 um^2, kb in pN um
+            cols[2] = cols[1] * 10.742958658 / (cols[2] * 1e18)
+        x = np.ascontiguousarray(np.stack(cols[:7], axis=1))
+        y = self._predict(x, np.ascontiguousarray(cols[7]), threads)
+        out = {name: y[:, k].reshape(shape) for k, name in enumerate(self.output_names)}
+        out["outside_box"] = (y[:, 4] > 0.5).reshape(shape)
+        return out
+
+    def critical_stress_Pa(self, *, eta_out_mPa_s, v, mu_uN_per_m, b2, etam_Pa_s_um, kb_J=None, FvK=None) -> np.ndarray:
+        """The shear stress (Pa) at which p_tank_treading crosses 1/2 (cytosol at the campaign's
+        viscosity), NaN where it does not cross inside the campaign's stress range; broadcasts."""
+        if (kb_J is None) == (FvK is None):
+            raise ValueError("give exactly one of kb_J and FvK")
+        args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
+                                     (v, mu_uN_per_m, kb_J if FvK is None else FvK, b2, etam_Pa_s_um, eta_out_mPa_s)))
+        shape = args[0].shape
+        cols = [a.ravel() for a in args]
+        if FvK is None:
+            cols[2] = cols[1] * 10.742958658 / (cols[2] * 1e18)
+        x = np.ascontiguousarray(np.stack(cols + [np.ones_like(cols[0])], axis=1))
+        return self._critical_stress(x).reshape(shape)
 
 
 # ---- inference -----------------------------------------------------------------------------------
