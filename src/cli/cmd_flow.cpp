@@ -883,6 +883,7 @@ void registerFlow(CLI::App& app) {
     registerFlowCapsule(flow);
     registerFlowCampaign(flow);
     registerFlowTrain(flow);
+    registerFlowSobol(flow);
 }
 
 }  // namespace trbc::cli

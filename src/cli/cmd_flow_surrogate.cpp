@@ -13,7 +13,12 @@
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
+#include "analysis/flow_sobol.hpp"
+#include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "surrogate/flow_surrogate.hpp"
+#include "surrogate/sobol.hpp"
+#include "surrogate/sobol_io.hpp"
 
 namespace trbc::cli {
 namespace {
@@ -114,7 +119,73 @@ void runFlowTrain(FlowTrainCli& o) {
     std::cout << md;
 }
 
+struct FlowSobolCli {
+    std::string surrogate, config, out;
+    long samples = 4096;
+    std::uint64_t seed = 1;
+    int resamples = 100, threads = 2;
+};
+
+void runFlowSobol(const FlowSobolCli& o) {
+    const FlowSurrogate model = FlowSurrogate::load(o.surrogate);
+    const ValidationConfig cfg = readValidationConfig(o.config, defaultExperimentDirectory());
+    const std::vector<FlowSobolOutput> outputs = flowSobolOutputs(cfg);
+    if (outputs.empty()) throw InputError(fmt::format("--config {}: no angle, TTF or threshold sweep", o.config));
+    omp_set_num_threads(o.threads);
+    setProvenanceSeed(o.seed);
+    Eigen::VectorXd lo(5), hi(5);
+    for (int k = 0; k < 5; ++k) lo(k) = kCellBox[k].lo, hi(k) = kCellBox[k].hi;
+    SobolOptions so;
+    so.nBase = o.samples;
+    so.seed = o.seed;
+    so.resamples = o.resamples;
+    std::vector<std::string> names;
+    for (const FlowSobolOutput& f : outputs) names.push_back(f.name);
+    const auto t0 = SteadyClock::now();
+    const SobolResult r = sobolAnalysis([&](const Eigen::MatrixXd& X) { return flowSobolModel(model, outputs, cfg.etaIn, X); }, lo, hi,
+                                        so, {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"}, names);
+    const double wall = secondsSince(t0);
+    std::error_code ec;
+    std::filesystem::create_directories(o.out, ec);
+    if (ec) throw InputError(fmt::format("--out: cannot create {}: {}", o.out, ec.message()));
+    const std::filesystem::path dir = o.out;
+    writeSobolCsv(dir / "sobol_indices.csv", r);
+    std::string md = fmt::format("First-order / total Sobol' indices (± 95 % bootstrap half-width) of the flow networks' outputs, cell "
+                                 "parameters uniform on the prior box; N = {} base rows, {} evaluations; command: `{}`\n\n"
+                                 "| output | v | mu | FvK | b2 | eta_m |\n|---|---|---|---|---|---|\n",
+                                 r.nBase, r.evaluations, commandLine());
+    for (Eigen::Index k = 0; k < Eigen::Index(names.size()); ++k) {
+        md += "| " + names[std::size_t(k)];
+        for (Eigen::Index i = 0; i < 5; ++i)
+            md += fmt::format(" | {:.2f} ± {:.2f} / {:.2f} ± {:.2f}", r.S1(k, i), r.S1_ci(k, i), r.ST(k, i), r.ST_ci(k, i));
+        md += " |\n";
+    }
+    writeFileAtomically(dir / "sobol_table.md", md);
+    const nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"surrogate", o.surrogate}, {"config", o.config},
+                              {"seed", o.seed}, {"n_base", r.nBase}, {"evaluations", r.evaluations}, {"resamples", r.resamples},
+                              {"wall_s", wall}};
+    writeFileAtomically(dir / "sobol.json", j.dump(2) + "\n");
+    std::cout << md;
+}
+
 }  // namespace
+
+void registerFlowSobol(CLI::App* flow) {
+    auto o = std::make_shared<FlowSobolCli>();
+    CLI::App* cmd = flow->add_subcommand(
+        "sobol",
+        "Sobol' indices of the flow networks' angle, TTF and critical stress at every validation viscosity of --config with respect "
+        "to (v, mu, FvK, b2, eta_m) on the prior box (docs/FLOW_CAMPAIGN.md): OUT/sobol_indices.csv, OUT/sobol_table.md");
+    cmd->add_option("--surrogate", o->surrogate, "flow networks (a `trbc flow train` directory)")->required()->check(CLI::ExistingDirectory);
+    cmd->add_option("--config", o->config, "validation configuration whose sweeps name the outputs")->required()->check(CLI::ExistingFile);
+    addNumber(cmd, "--samples", o->samples, "N, base rows of the Saltelli design", NumberRange::closed(2, double(1L << 22)))
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o->seed, "seed of the bootstrap", NumberRange::nonNegative())->capture_default_str();
+    addNumber(cmd, "--resamples", o->resamples, "bootstrap resamples", NumberRange::closed(2, 100000))->capture_default_str();
+    addOutOption(cmd, o->out);
+    addThreadsOption(cmd, o->threads);
+    cmd->callback([o]() { runFlowSobol(*o); });
+}
 
 void registerFlowTrain(CLI::App* flow) {
     auto o = std::make_shared<FlowTrainCli>();

@@ -153,6 +153,7 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e);
 void registerFlowCapsule(CLI::App* flow);
 void registerFlowCampaign(CLI::App* flow);
 void registerFlowTrain(CLI::App* flow);
+void registerFlowSobol(CLI::App* flow);
 void registerForces(CLI::App& app);
 void registerCampaign(CLI::App& app);
 void registerSurrogate(CLI::App& app);

@@ -198,7 +198,7 @@ FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x
     return predict(x, Eigen::VectorXd::Constant(x.cols(), etaIn));
 }
 
-Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability) const {
+Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability, bool clampToRange) const {
     const DesignAxis& axis = kShearCampaignAxes[kStressAxis];
     const Eigen::Index n = x.cols();
     Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, std::log(axis.lo)), hi = Eigen::VectorXd::Constant(n, std::log(axis.hi));
@@ -215,8 +215,12 @@ Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::Ma
         for (Eigen::Index j = 0; j < n; ++j) ((pm(j) < probability) == (pLo(j) < probability) ? lo(j) : hi(j)) = mid(j);
     }
     Eigen::VectorXd out(n);
-    for (Eigen::Index j = 0; j < n; ++j)
-        out(j) = (pLo(j) < probability) != (pHi(j) < probability) ? std::exp(0.5 * (lo(j) + hi(j))) : NAN;
+    for (Eigen::Index j = 0; j < n; ++j) {
+        if ((pLo(j) < probability) != (pHi(j) < probability))
+            out(j) = std::exp(0.5 * (lo(j) + hi(j)));
+        else
+            out(j) = !clampToRange ? NAN : pLo(j) >= probability ? axis.lo : axis.hi;
+    }
     return out;
 }
 

@@ -54,8 +54,11 @@ struct FlowSurrogate {
 
     /// The shear stress eta_out * rate (Pa) at which the probability of tank-treading crosses 1/2,
     /// at the cell and eta_out of each column of x (the rate row is ignored), by bisection in log
-    /// stress over the campaign's stress range; NaN where it does not cross inside that range.
-    Eigen::VectorXd criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability = 0.5) const;
+    /// stress over the campaign's stress range; NaN where it does not cross inside that range, or
+    /// with `clampToRange` the range's end on the side where the crossing lies (the low end when
+    /// the cell tank-treads over the whole range, the high end when it never does).
+    Eigen::VectorXd criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability = 0.5,
+                                     bool clampToRange = false) const;
 };
 
 /// Inputs (7 x n) of campaign rows, in flowSurrogateInputNames order.

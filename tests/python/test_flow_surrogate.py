@@ -1,0 +1,75 @@
+"""trbc.FlowSurrogate on networks that `trbc flow train` makes from a synthetic shear campaign with a
+known regime boundary: broadcasting, the two ways to give the bending modulus, the exact
+cytosol-viscosity rescaling, probabilities in [0, 1], the box flag and the critical stress."""
+import csv
+
+import numpy as np
+import pytest
+
+import trbc
+
+HEADER = ("case_id,v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,eta_out_mPa_s,shear_rate_per_s,eta_in_mPa_s,start_seed,regime,"
+          "inclination_deg,inclination_se_deg,swing_deg,swing_se_deg,ttf_4pi_f_over_rate,ttf_se,turns,steady,status,reason,wall_s")
+R_A = 10.742958658 ** 0.5
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory, run_cli):
+    """Networks of 800 synthetic cases: tank-treading above Ca = 0.05, the angle falling with log Ca."""
+    d = tmp_path_factory.mktemp("flow")
+    rng = np.random.default_rng(5)
+    with open(d / "cases.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        f.write(HEADER + "\n")
+        for k in range(800):
+            v, mu, fvk, b2 = rng.uniform(0.65, 1.0), np.exp(rng.uniform(0, np.log(12))), np.exp(rng.uniform(np.log(10), np.log(2000))), rng.uniform(0, 8)
+            etam, eta = np.exp(rng.uniform(np.log(0.05), np.log(2.5))), np.exp(rng.uniform(np.log(8), np.log(130)))
+            stress = np.exp(rng.uniform(np.log(0.01), np.log(10)))
+            ca = stress * R_A / mu
+            tt = ca > 0.05
+            row = [k, v, mu, fvk, b2, etam, eta, stress / (eta * 1e-3), 10, k, "tank-treading" if tt else "tumbling"]
+            row += [30 - 4 * np.log(ca / 0.05), 0.01, 1.0 + v, 0.01, 0.4 + 0.01 * np.log(eta), 0.001] if tt else ["nan"] * 6
+            row += [4.0, 1, "ok", "", 1.0]
+            w.writerow(row)
+    run_cli("flow", "train", "--campaign", d / "cases.csv", "--out", d / "m", "--restarts", "1", "--test-fraction", "0.1",
+            json_out=False)
+    return trbc.FlowSurrogate(d / "m")
+
+
+def test_predict_broadcasts_and_agrees_across_inputs(model):
+    r = model.predict(eta_out_mPa_s=23.9, shear_rate_per_s=np.array([[1.0], [50.0], [400.0]]), v=0.93, mu_uN_per_m=[4.0, 6.0],
+                      kb_J=2.3e-19, b2=2.0, etam_Pa_s_um=0.7)
+    assert r["p_tank_treading"].shape == (3, 2)
+    assert set(r) == {"p_tank_treading", "inclination_deg", "swing_deg", "ttf_4pi_f_over_rate", "outside_box"}
+    p = r["p_tank_treading"]
+    assert ((p >= 0) & (p <= 1)).all()
+    assert p[2, 0] > 0.9 and p[0, 1] < 0.1, p  # far above and far below Ca = 0.05
+    assert not r["outside_box"].any()
+    fvk = 4.0 * 10.742958658 / (2.3e-19 * 1e18)
+    same = model.predict(eta_out_mPa_s=23.9, shear_rate_per_s=50.0, v=0.93, mu_uN_per_m=4.0, FvK=fvk, b2=2.0, etam_Pa_s_um=0.7)
+    assert same["inclination_deg"] == pytest.approx(r["inclination_deg"][1, 0], rel=1e-12)
+
+
+def test_cytosol_rescaling_is_exact_and_bad_input_is_refused(model):
+    a = model.predict(eta_out_mPa_s=30.0, shear_rate_per_s=20.0, v=0.9, mu_uN_per_m=5.0, FvK=200.0, b2=1.0, etam_Pa_s_um=0.6)
+    b = model.predict(eta_out_mPa_s=15.0, shear_rate_per_s=40.0, v=0.9, mu_uN_per_m=5.0, FvK=200.0, b2=1.0, etam_Pa_s_um=0.3,
+                      eta_in_mPa_s=5.0)
+    for k in ("p_tank_treading", "inclination_deg", "ttf_4pi_f_over_rate"):
+        assert b[k] == pytest.approx(a[k], rel=1e-12, abs=1e-12)
+    assert model.predict(eta_out_mPa_s=500.0, shear_rate_per_s=1.0, v=0.9, mu_uN_per_m=5.0, FvK=200.0, b2=1.0,
+                         etam_Pa_s_um=0.6)["outside_box"]
+    with pytest.raises(ValueError, match="exactly one of kb_J and FvK"):
+        model.predict(eta_out_mPa_s=30.0, shear_rate_per_s=20.0, v=0.9, mu_uN_per_m=5.0, b2=1.0, etam_Pa_s_um=0.6)
+    with pytest.raises(Exception, match="eta_in_mPa_s"):
+        model.predict(eta_out_mPa_s=30.0, shear_rate_per_s=20.0, v=0.9, mu_uN_per_m=5.0, FvK=200.0, b2=1.0, etam_Pa_s_um=0.6,
+                      eta_in_mPa_s=-1.0)
+
+
+def test_critical_stress_lies_near_the_synthetic_boundary(model):
+    mu = np.array([2.0, 4.0, 8.0])
+    tc = model.critical_stress_Pa(eta_out_mPa_s=30.0, v=0.9, mu_uN_per_m=mu, FvK=200.0, b2=1.0, etam_Pa_s_um=0.6)
+    truth = 0.05 * mu / R_A
+    # The binding's check; the C++ suite measures the resolution of the boundary
+    # (FlowSurrogate.LearnsASyntheticCampaignAndFindsItsBoundary).
+    assert np.all(np.abs(np.log(tc / truth)) < np.log(2.5)), (tc, truth)
+    assert np.all(np.diff(tc) > 0), tc
