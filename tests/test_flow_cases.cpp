@@ -286,6 +286,33 @@ TEST(TubeCase, BadOptionsThrowInputErrorNamingTheOption) {
 // The ramp protocol: the first stage is the shear case at its rate, step for step; the later
 // stages start from the shape where the last ended; the brackets name the rates where the regime
 // changes on each leg; bad rates are refused with the option's name.
+// With the steady-state stop each stage ends at its steady state; the regimes are those of the
+// full-length stages.
+TEST(ShearRamp, StagesStopAtTheSteadyStateWhenAsked) {
+    ShearRampOptions full;
+    full.base = cheapShear(30.0, 2.0);
+    full.base.rotations = 8.0;
+    full.rates = {2.0, 20.0};
+    ShearRampOptions steady = full;
+    steady.base.stopWhenSteady = true;
+    const ShearRampResult a = runShearRamp(full), b = runShearRamp(steady);
+    ASSERT_TRUE(a.completed && b.completed);
+    ASSERT_EQ(a.stages.size(), 3u);
+    ASSERT_EQ(b.stages.size(), 3u);
+    int early = 0;
+    for (std::size_t k = 0; k < 3; ++k) {
+        EXPECT_EQ(a.stages[k].observables->regime, b.stages[k].observables->regime) << "stage " << k;
+        EXPECT_FALSE(a.stages[k].stoppedWhenSteady);
+        EXPECT_NEAR(a.stages[k].turns, 8.0, 0.02);
+        if (b.stages[k].stoppedWhenSteady) {
+            ++early;
+            EXPECT_LT(b.stages[k].turns, 7.9) << "stage " << k;
+            EXPECT_GE(b.stages[k].turns, 4.0) << "stage " << k;
+        }
+    }
+    EXPECT_GT(early, 0);
+}
+
 TEST(ShearRamp, StagesContinueFromTheLastShapeAndBracketTheRegimeChange) {
     ShearRampOptions r;
     r.base = cheapShear(30.0, 2.0);

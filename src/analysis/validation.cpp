@@ -464,8 +464,8 @@ ScatterComparison compareWithBand(double x, double predicted, const Experimental
 
 std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(const ThresholdBracket& b, double etaOut) {
     std::optional<double> lo, hi;
-    if (b.gammaLo) lo = *b.gammaLo * etaOut * 1e-3;
-    if (b.gammaHi) hi = *b.gammaHi * etaOut * 1e-3;
+    if (b.gammaLo) lo = shearStressPa(etaOut, *b.gammaLo);
+    if (b.gammaHi) hi = shearStressPa(etaOut, *b.gammaHi);
     return {lo, hi};
 }
 

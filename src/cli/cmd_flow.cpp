@@ -497,6 +497,8 @@ void runRamp(RampCli& o) {
                          {"shear_stress_Pa", shearStressPa(o.s.c.etaOut, st.shearRate)},
                          {"direction", st.up ? "up" : "down"},
                          {"status", st.completed ? "ok" : "failed"},
+                         {"turns", st.turns},
+                         {"stopped_when_steady", st.stoppedWhenSteady},
                          {"wall_s", st.wallSeconds}};
         if (!st.completed) e["reason"] = st.message;
         if (st.observables) addShearObservables(e, *st.observables);
@@ -510,7 +512,7 @@ void runRamp(RampCli& o) {
     j["parameters"] = {{"eta_out_mPa_s", o.s.c.etaOut},   {"eta_in_mPa_s", o.s.c.etaIn},       {"rates_per_s", o.rates},
                        {"cell", cellJson(o.s.c.cell)},      {"cell_source", cellSource(o.s.cell)}, {"level", o.s.c.level},
                        {"rotations_per_stage", o.s.c.rotations}, {"tilt_deg", o.s.c.tiltDeg},     {"start", o.s.start},
-                       {"temperature_K", o.s.c.temperatureK}, {"seed", o.s.c.seed}};
+                       {"temperature_K", o.s.c.temperatureK}, {"seed", o.s.c.seed}, {"stop_when_steady", o.s.c.stopWhenSteady}};
     j["provenance"] = provenanceJson(o.s.c.level, "the shear rate stepped up and down, each stage from the last stage's "
                                                   "shape (flow/shear_case.hpp, runShearRamp)");
     j["stages"] = stages;
@@ -539,6 +541,8 @@ void registerRamp(CLI::App* flow) {
     addNumber(cmd, "--rotations", o->s.c.rotations, "duration of each stage in rigid-sphere turns 4 pi / rate",
               NumberRange::leftOpen(0.0, 1000.0))
         ->capture_default_str();
+    cmd->add_flag("--stop-when-steady", o->s.c.stopWhenSteady,
+                  "end each stage at the steady state (as `flow shear --stop-when-steady`); --rotations stays its longest duration");
     addShearOptions(cmd, o->s);
     cmd->callback([o]() { runRamp(*o); });
 }

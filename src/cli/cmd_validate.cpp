@@ -365,7 +365,7 @@ std::string shearCase(const ValidationCase& c, const json& rec, const Validation
     const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
     const std::string status = r.value("status", "failed"), regime = regimeOf(o);
     const std::string row = fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), csvField(c.kind),
-                                        c.etaOut, c.rate, c.etaOut * 1e-3 * c.rate, csvField(regime), num(o.value("inclination_deg", json())),
+                                        c.etaOut, c.rate, shearStressPa(c.etaOut, c.rate), csvField(regime), num(o.value("inclination_deg", json())),
                                         num(o.value("swing_amplitude_deg", json())), num(o.value("ttf_4pi_f_over_shear_rate", json())),
                                         csvField(status), num(d.value("area_drift_max", json())),
                                         num(d.value("volume_drift_max", json())), rec.value("wall_s", 0.0), cfg.level);
@@ -391,8 +391,8 @@ std::string thresholdTable(const Runner& R, const ValidationEvidence& evidence, 
         std::string inter;
         for (double r : b.intermittentRates) inter += fmt::format("{}{:.4g}", inter.empty() ? "" : ";", r);
         auto opt = [](std::optional<double> v, double s) { return v ? fmt::format("{:.6g}", *v * s) : std::string(); };
-        thr += fmt::format("{:g},{},{},{},{},{},{}\n", eta, opt(b.gammaLo, 1.0), opt(b.gammaHi, 1.0), opt(b.gammaLo, eta * 1e-3),
-                           opt(b.gammaHi, eta * 1e-3), b.monotone ? "true" : "false", inter);
+        thr += fmt::format("{:g},{},{},{},{},{},{}\n", eta, opt(b.gammaLo, 1.0), opt(b.gammaHi, 1.0), opt(b.gammaLo, shearStressPa(eta, 1.0)),
+                           opt(b.gammaHi, shearStressPa(eta, 1.0)), b.monotone ? "true" : "false", inter);
         const auto [tlo, thi] = criticalStressInterval(b, eta);
         table.record(fmt::format("threshold_eta{:g}", eta), "critical stress [Pa]", thi.value_or(NAN), evidence.criticalStress(eta, tlo, thi),
                      fmt::format("[{}, {}]", tlo ? fmt::format("{:.3g}", *tlo) : "–", thi ? fmt::format("{:.3g}", *thi) : "–"));

@@ -44,6 +44,11 @@ inline CellParameters paperTable1Cell() {
     return {table1::v, table1::mu, CellParameters::fvkFromKb(table1::mu, table1::kbJ), table1::b2, table1::etam};
 }
 
+/// The shear stress eta_out rate in Pa of an outer viscosity in mPa s and a rate in 1/s, and the
+/// rate of a stress.
+inline double shearStressPa(double etaOutMPaS, double shearRatePerS) { return etaOutMPaS * 1e-3 * shearRatePerS; }
+inline double shearRateFromStress(double etaOutMPaS, double stressPa) { return stressPa / (etaOutMPaS * 1e-3); }
+
 /// The prior box of docs/MEMBRANE_MODEL.md, parameters (FvK support [10, 1000], Fext [0, 200] pN).
 struct PriorRange {
     const char* name;

@@ -81,9 +81,6 @@ struct FlowConditions {
     double V0 = cell::volume;  ///< um^3
 };
 
-/// The wall shear stress eta_out rate in Pa of an outer viscosity in mPa s and a rate in 1/s.
-inline double shearStressPa(double etaOutMPaS, double shearRatePerS) { return etaOutMPaS * 1e-3 * shearRatePerS; }
-
 /// Throws InputError naming the parameter and its valid range (viscosities positive and
 /// finite, shear rate >= 0; a time scale when the fluid is quiescent; A0, V0 > 0).
 void validateFlowConditions(const FlowConditions& f);

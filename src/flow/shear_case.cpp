@@ -67,6 +67,27 @@ ShearObservables shearObservables(const CellFlowResult& r, const ShearCaseOption
     }
 }
 
+/// The ensemble protocol's start (ShearCaseOptions::randomStart) of the shape X (um).
+Vertices randomStartOf(const Vertices& X, const CellFlowModel& model, const ShearCaseOptions& o) {
+    const FlowScales& s = model.scales();
+    return randomThermalStart(X, s.length, model.membrane().parameters().bending.kb * s.force() * s.length, o.kickTemperatureK, o.seed);
+}
+
+/// The thermal noise of a stage at o.temperatureK (none at 0 K) from the noise stream `seed`, and
+/// the steady-state stop when o.stopWhenSteady.
+void configureStage(CellFlowOptions& opt, const CellFlowModel& model, const ShearCaseOptions& o, std::uint64_t seed) {
+    if (o.temperatureK > 0.0) {
+        opt.thermal.kT = thermalEnergy(o.temperatureK) / (model.scales().force() * model.scales().length);
+        opt.thermal.seed = seed;
+        opt.thermal.step = o.thermalStep;
+    }
+    if (o.stopWhenSteady)
+        opt.stopWhen = [rule = o.steadyRule](const CellFlowResult& sofar) {
+            const double since = sofar.stepLog.empty() ? 0.0 : sofar.stepLog.back().t - sofar.stepLog.back().dt;
+            return shearSteadyStateReached(sofar.times, sofar.frames, rule, since);
+        };
+}
+
 }  // namespace
 
 void validateShearCaseOptions(const ShearCaseOptions& o) {
@@ -112,22 +133,10 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o) {
     const CellFlowModel model(o.cell, res.conditions, res.prepared.faces, res.prepared.reference);
     res.scales = model.scales();
     res.groups = model.groups();
-    if (o.randomStart)
-        res.prepared.initial = randomThermalStart(res.prepared.initial, res.scales.length,
-                                                  model.membrane().parameters().bending.kb * res.scales.force() * res.scales.length,
-                                                  o.kickTemperatureK, o.seed);
+    if (o.randomStart) res.prepared.initial = randomStartOf(res.prepared.initial, model, o);
     res.integrator = stageOptions(o.step, o.rotations * 4.0 * kPi, 0.0);
-    if (o.temperatureK > 0.0) {
-        res.integrator.thermal.kT = thermalEnergy(o.temperatureK) / (res.scales.force() * res.scales.length);
-        res.integrator.thermal.seed = o.seed;
-        res.integrator.thermal.step = o.thermalStep;
-    }
+    configureStage(res.integrator, model, o, o.seed);
     res.integrator.checkpoint = stageCheckpoint(o.step, "main", shearCaseKey(o));
-    if (o.stopWhenSteady)
-        res.integrator.stopWhen = [rule = o.steadyRule](const CellFlowResult& sofar) {
-            const double since = sofar.stepLog.empty() ? 0.0 : sofar.stepLog.back().t - sofar.stepLog.back().dt;
-            return shearSteadyStateReached(sofar.times, sofar.frames, rule, since);
-        };
     res.setupWallSeconds = secondsSince(tStart);
     res.flow = integrateCellFlow(model, model.toInternal(res.prepared.initial), res.integrator,
                                  stageObserver(o.step, "main", res.integrator.tEnd, res.scales.length, tStart));
@@ -168,19 +177,12 @@ ShearRampResult runShearRamp(const ShearRampOptions& o) {
         ShearCaseOptions c = o.base;
         c.shearRate = plan[k].first;
         const CellFlowModel model(c.cell, shearConditions(c), res.prepared.faces, res.prepared.reference);
-        if (k == 0 && c.randomStart)
-            Xum = randomThermalStart(Xum, model.scales().length,
-                                     model.membrane().parameters().bending.kb * model.scales().force() * model.scales().length,
-                                     c.kickTemperatureK, c.seed);
+        if (k == 0 && c.randomStart) Xum = randomStartOf(Xum, model, c);
         if (k == 0) res.prepared.initial = Xum;
         CellFlowOptions opt = stageOptions(c.step, c.rotations * 4.0 * kPi, 0.0);
         const std::string stage = fmt::format("{}_{}", plan[k].second ? "up" : "down", k);
         opt.checkpoint = stageCheckpoint(c.step, stage, key);
-        if (c.temperatureK > 0.0) {
-            opt.thermal.kT = thermalEnergy(c.temperatureK) / (model.scales().force() * model.scales().length);
-            opt.thermal.seed = c.seed + 1000003ULL * k;  // a stream of its own per stage
-            opt.thermal.step = c.thermalStep;
-        }
+        configureStage(opt, model, c, c.seed + 1000003ULL * k);  // a noise stream of its own per stage
         const CellFlowResult flow = integrateCellFlow(model, model.toInternal(Xum), opt,
                                                       stageObserver(c.step, stage, opt.tEnd, model.scales().length, tStart));
         ShearRampStage st;
@@ -189,6 +191,8 @@ ShearRampResult runShearRamp(const ShearRampOptions& o) {
         st.completed = flow.completed;
         st.message = flow.message;
         if (flow.completed) st.observables = shearObservables(flow, c);
+        st.turns = flow.times.empty() ? 0.0 : flow.times.back() / (4.0 * kPi);
+        st.stoppedWhenSteady = flow.stoppedEarly;
         st.wallSeconds = secondsSince(stageStart);
         res.stages.push_back(st);
         if (!flow.completed) break;

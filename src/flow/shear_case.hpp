@@ -98,7 +98,8 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o);
 
 /// The ramp protocol (docs/FLOW_THERMAL.md, "Ramp"): one cell, the shear rate stepped up through
 /// `rates` and back down (r_1 < ... < r_n, then r_{n-1}, ..., r_1), each stage `base.rotations`
-/// rigid-sphere turns at its rate starting from the shape where the stage before ended; the first
+/// rigid-sphere turns at its rate (or until steady, with base.stopWhenSteady) starting from the
+/// shape where the stage before ended; the first
 /// stage starts as runShearCase does (in-plane, tilted or random). Experiments find the regimes'
 /// boundary at different rates going up and down (Dupire et al. 2012; Minetti et al. 2019).
 struct ShearRampOptions {
@@ -112,6 +113,8 @@ struct ShearRampStage {
     bool completed = false;
     std::string message;
     std::optional<ShearObservables> observables;  ///< when completed (times in 1/rate)
+    double turns = 0.0;               ///< rigid-sphere turns run
+    bool stoppedWhenSteady = false;   ///< ended by the steady-state stop (base.stopWhenSteady)
     double wallSeconds = 0.0;
 };
 

@@ -43,7 +43,7 @@ std::vector<ShearCampaignPoint> shearCampaignDesign(DesignKind kind, long n, std
         q.caseId = i;
         q.cell = {x[0], x[1], x[2], x[3], x[4]};
         q.etaOut = x[5];
-        q.shearRate = x[6] / (x[5] * 1e-3);  // stress / eta_out
+        q.shearRate = shearRateFromStress(x[5], x[6]);
         q.etaIn = etaIn;
         q.startSeed = Rng(seed, kStartSeedStream, std::uint64_t(i))();
     }

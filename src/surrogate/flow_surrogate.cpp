@@ -73,7 +73,7 @@ AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const Sh
         ++s.cases;
         s.sqBrier += std::pow(p.pTankTreading(j) - label, 2);
         const bool wrong = (p.pTankTreading(j) > 0.5) != r.tankTreading();
-        const double stress = r.point.etaOut * 1e-3 * r.point.shearRate;
+        const double stress = shearStressPa(r.point.etaOut, r.point.shearRate);
         const bool near = std::isfinite(tc(j)) && std::abs(std::log(stress / tc(j))) <= std::log(boundaryFactor);
         (near ? s.near : s.far)++;
         if (wrong) (near ? s.nearWrong : s.farWrong)++;
@@ -182,7 +182,7 @@ FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x
         z(4, j) *= s, z(5, j) *= s, z(6, j) /= s;
         for (int i = 0; i < 7; ++i) {
             const DesignAxis& a = kShearCampaignAxes[i];
-            const double v = i == kStressAxis ? z(kEtaOutAxis, j) * 1e-3 * z(kStressAxis, j) : z(i, j);
+            const double v = i == kStressAxis ? shearStressPa(z(kEtaOutAxis, j), z(kStressAxis, j)) : z(i, j);
             if (!(v >= a.lo && v <= a.hi)) p.outsideBox[std::size_t(j)] = true;
         }
     }
@@ -204,7 +204,7 @@ Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::Ma
     Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, std::log(axis.lo)), hi = Eigen::VectorXd::Constant(n, std::log(axis.hi));
     auto pAt = [&](const Eigen::VectorXd& logStress) {
         Eigen::MatrixXd z = x;
-        for (Eigen::Index j = 0; j < n; ++j) z(6, j) = std::exp(logStress(j)) / (z(kEtaOutAxis, j) * 1e-3);
+        for (Eigen::Index j = 0; j < n; ++j) z(6, j) = shearRateFromStress(z(kEtaOutAxis, j), std::exp(logStress(j)));
         return Eigen::VectorXd(regime.evaluate(z).row(0).transpose());
     };
     const Eigen::VectorXd pLo = pAt(lo), pHi = pAt(hi);
