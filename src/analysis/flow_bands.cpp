@@ -77,7 +77,11 @@ std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, c
         const std::optional<double> tau = std::isfinite(b.median) ? std::optional(b.median) : std::nullopt;
         ValidationCase c{fmt::format("threshold_eta{:g}", eta), "threshold", eta, 0.0, 0.0};
         SurrogateBandRow r = bandRow(c, "critical stress [Pa]", outcomes, evidence.criticalStress(eta, tau, tau), false);
-        const FlowPrediction p = model.predict(x, etaIn);
+        // The cell and eta_out decide whether a draw lies in the box; the stress axis is searched whole.
+        const DesignAxis& stress = kShearCampaignAxes[6];
+        Eigen::MatrixXd inside = x;
+        inside.row(6).setConstant(shearRateFromStress(eta, std::sqrt(stress.lo * stress.hi)));
+        const FlowPrediction p = model.predict(inside, etaIn);
         r.outsideBox = long(std::count(p.outsideBox.begin(), p.outsideBox.end(), true));
         rows.push_back(std::move(r));
     }

@@ -683,9 +683,10 @@ void runSurrogateBands(const Runner& R, const ValidateCommandOptions& o) {
     json tally = json::object();
     for (const SurrogateBandRow& r : rows) {
         json& t = tally[r.c.kind];
-        t["compared"] = t.value("compared", 0) + 1;
-        t["band_overlap"] = t.value("band_overlap", 0) + (r.verdict == "overlap");
-        t["within_mcse"] = t.value("within_mcse", 0) + r.withinMcse;
+        if (t.is_null()) t = {{"compared", 0}, {"band_overlap", 0}, {"within_mcse", 0}};
+        t["compared"] = t["compared"].get<int>() + 1;
+        t["band_overlap"] = t["band_overlap"].get<int>() + (r.verdict == "overlap");
+        t["within_mcse"] = t["within_mcse"].get<int>() + r.withinMcse;
     }
     const json j = {{"provenance", {{"version", kVersion}, {"command", commandLine()}}},
                     {"surrogate", fs::absolute(o.surrogate).lexically_normal().string()},

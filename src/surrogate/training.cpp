@@ -201,6 +201,8 @@ TrainingHistory trainMlp(Mlp& net, const Eigen::Ref<const Eigen::MatrixXd>& Xtra
 
 TrainingOptions scheduleForRows(TrainingOptions o, Eigen::Index rows, int maxBatch) {
     o.batchSize = std::clamp(int(0.8 * double(rows) / 50.0), 8, std::max(8, maxBatch));
+    // A table so small that whole batches would take every row: smaller batches leave validation rows.
+    while (o.batchSize > 1 && trainingRowCount(rows, o.batchSize, o.trainFraction) >= rows) --o.batchSize;
     const double batchesPerEpoch = std::max(1.0, 0.8 * double(rows) / o.batchSize);
     o.patience = std::max(o.patience, int(std::ceil(3000.0 / batchesPerEpoch)));
     return o;

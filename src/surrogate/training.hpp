@@ -167,8 +167,9 @@ DataSplit splitRows(Eigen::Index n, const TrainingOptions& options);
 /// The schedule of `o` for a table of `rows` rows. SURROGATE 3.1's batches (256 / 128) and patience
 /// (10 epochs) are for the paper's 50,000 rows; patience counts epochs, so a small table needs
 /// smaller batches to take enough optimiser steps per epoch: at least 50 mini-batches per epoch,
-/// batches of 8 to maxBatch, and at least ~3000 optimiser steps without improvement before a rate
-/// reduction (the paper's 11 epochs of 50,000 rows are ~3400 steps).
+/// batches of 8 to maxBatch (smaller only where whole batches of 8 would leave no validation row),
+/// and at least ~3000 optimiser steps without improvement before a rate reduction (the paper's 11
+/// epochs of 50,000 rows are ~3400 steps).
 TrainingOptions scheduleForRows(TrainingOptions o, Eigen::Index rows, int maxBatch);
 
 /// The epoch loop on already standardised, already split data (columns = samples). `net` holds the

@@ -24,7 +24,7 @@ def model(tmp_path_factory, run_cli):
         for k in range(800):
             v, mu, fvk, b2 = rng.uniform(0.65, 1.0), np.exp(rng.uniform(0, np.log(12))), np.exp(rng.uniform(np.log(10), np.log(2000))), rng.uniform(0, 8)
             etam, eta = np.exp(rng.uniform(np.log(0.05), np.log(2.5))), np.exp(rng.uniform(np.log(8), np.log(130)))
-            stress = np.exp(rng.uniform(np.log(0.01), np.log(10)))
+            stress = np.exp(rng.uniform(np.log(0.01), np.log(25)))
             ca = stress * R_A / mu
             tt = ca > 0.05
             row = [k, v, mu, fvk, b2, etam, eta, stress / (eta * 1e-3), 10, k, "tank-treading" if tt else "tumbling"]
