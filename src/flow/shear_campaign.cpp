@@ -1,10 +1,8 @@
 #include "flow/shear_campaign.hpp"
 
 #include <fmt/format.h>
-#include <omp.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -222,37 +220,14 @@ CampaignSummary runShearCampaignShare(const ShearCampaignOptions& o, int rank, i
     prog.cellsDone = prog.cellsResumed;
     if (o.progress) o.progress(prog);
 
-    std::string error;
-    std::atomic<bool> stop{false};
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.threads)
-    for (std::size_t k = 0; k < pending.size(); ++k) {
-        if (stop.load()) continue;
-        omp_set_num_threads(1);  // one thread per case
+    return runCampaignUnits(pending.size(), o.threads, prog, t0, [&](std::size_t k) {
         const long id = pending[k];
         const ShearCampaignRow row = runShearCampaignCase(design[std::size_t(id)], o, o.injectFailures.count(id) > 0);
-#pragma omp critical(trbc_shear_campaign_append)
-        {
-            try {
-                part.append(formatShearCampaignRow(row) + "\n");
-            } catch (const std::exception& e) {
-                if (error.empty()) error = e.what();
-                stop = true;
-            }
-            ++prog.cellsDone;
-            (row.ok() ? prog.rowsOk : prog.rowsFailed)++;
-            prog.elapsedSeconds = secondsSince(t0);
-            if (o.progress) o.progress(prog);
-        }
-    }
-    if (!error.empty()) throw IoError(error);
-    CampaignSummary s;
-    s.cellsComputed = long(pending.size());
-    s.cellsResumed = prog.cellsResumed;
-    s.ok = prog.rowsOk;
-    s.failed = prog.rowsFailed;
-    s.samples = s.ok + s.failed;
-    s.wallSeconds = secondsSince(t0);
-    return s;
+        CampaignUnit unit;
+        (row.ok() ? unit.ok : unit.failed)++;
+        unit.commit = [&part, line = formatShearCampaignRow(row) + "\n"] { part.append(line); };
+        return unit;
+    }, o.progress);
 }
 
 CampaignSummary finalizeShearCampaign(const ShearCampaignOptions& o, double wallSeconds) {

@@ -469,14 +469,7 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
     prog.cellsDone = prog.cellsResumed;
     if (o.progress) o.progress(prog);
 
-    // A write error stops the run: the cells not started yet are skipped (a full disk would lose
-    // their rows anyway) and the error is reported with the system's reason.
-    std::string error;
-    std::atomic<bool> stop{false};
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.threads)
-    for (std::size_t k = 0; k < pending.size(); ++k) {
-        if (stop.load()) continue;
-        omp_set_num_threads(1);  // one thread per cell: the force loops inside stay serial
+    return runCampaignUnits(pending.size(), o.threads, prog, t0, [&](std::size_t k) {
         const auto& cell = cells[pending[k]];
         const bool inject = std::any_of(cell.begin(), cell.end(), [&](const CampaignPoint& q) { return o.injectFailures.count(q.sampleId); });
         ExperimentOptions experiment = o.experiment;
@@ -487,30 +480,50 @@ CampaignSummary runCampaignShare(const CampaignOptions& o, int rank, int ranks) 
         CampaignCellRecord record;
         record.cellId = cell.front().cellId;
         const auto rows = runCampaignCell(cell, o.seed, experiment, inject, donated ? &*donated : nullptr, &record);
+        CampaignUnit unit;
         std::string block;
-        for (const CampaignRow& r : rows) block += formatCampaignRow(r) + "\n";
-#pragma omp critical(trbc_campaign_append)
+        for (const CampaignRow& r : rows) {
+            block += formatCampaignRow(r) + "\n";
+            (r.ok() ? unit.ok : unit.failed)++;
+        }
+        unit.commit = [&, block = std::move(block), record] {
+            // The record first: a cell counts as done only once its rows are appended.
+            records << formatCellRecord(record) << std::endl;
+            if (!records)
+                throw IoError(fmt::format("cannot append to {}: {}", equilibriaPart(o, rank).string(), std::strerror(errno)));
+            part->append(block);
+        };
+        return unit;
+    }, o.progress);
+}
+
+CampaignSummary runCampaignUnits(std::size_t n, int threads, CampaignProgress prog, SteadyClock::time_point t0,
+                                 const std::function<CampaignUnit(std::size_t)>& work,
+                                 const std::function<void(const CampaignProgress&)>& progress) {
+    std::string error;
+    std::atomic<bool> stop{false};
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (std::size_t k = 0; k < n; ++k) {
+        if (stop.load()) continue;
+        omp_set_num_threads(1);  // one thread per unit: the loops inside stay serial
+        const CampaignUnit unit = work(k);
+#pragma omp critical(trbc_campaign_commit)
         {
             try {
-                // The record first: a cell counts as done only once its rows are appended.
-                records << formatCellRecord(record) << std::endl;
-                if (!records)
-                    throw IoError(fmt::format("cannot append to {}: {}", equilibriaPart(o, rank).string(), std::strerror(errno)));
-                part->append(block);
+                unit.commit();
             } catch (const std::exception& e) {
                 if (error.empty()) error = e.what();
                 stop = true;
             }
             ++prog.cellsDone;
-            for (const CampaignRow& r : rows) (r.ok() ? prog.rowsOk : prog.rowsFailed)++;
+            prog.rowsOk += unit.ok, prog.rowsFailed += unit.failed;
             prog.elapsedSeconds = secondsSince(t0);
-            if (o.progress) o.progress(prog);
+            if (progress) progress(prog);
         }
     }
     if (!error.empty()) throw IoError(error);
-
     CampaignSummary s;
-    s.cellsComputed = long(pending.size());
+    s.cellsComputed = long(n);
     s.cellsResumed = prog.cellsResumed;
     s.ok = prog.rowsOk;
     s.failed = prog.rowsFailed;

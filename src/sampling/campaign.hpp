@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "core/clock.hpp"
 #include "experiments/experiments.hpp"
 #include "sampling/campaign_table.hpp"
 #include "sampling/design.hpp"
@@ -71,6 +72,23 @@ struct CampaignCellRecord {
     double energyGapJ = NAN;     ///< symmetric disc minus the chosen state, J
     bool reused = false;         ///< stretching and relaxation taken from CampaignOptions::reuseFrom
 };
+
+/// A finished unit of a campaign (a cell of rows, a flow case): its rows' counts and how to store
+/// them (append to the part file; called serialised, in completion order).
+struct CampaignUnit {
+    long ok = 0, failed = 0;
+    std::function<void()> commit;
+};
+
+/// The loop both campaigns share: units 0..n-1 run on `threads` OpenMP threads, one thread each
+/// (nested OpenMP off), in dynamic order; `work(k)` computes unit k in parallel, its commit runs
+/// serialised, then `prog` counts it and `progress` (if any) is called. An exception from a commit
+/// (a full disk) stops the units not started yet, whose rows would be lost anyway; it is rethrown as
+/// IoError with the system's reason once the started units finish. `prog` arrives with the
+/// resumed units counted; the summary holds them and the n computed ones.
+CampaignSummary runCampaignUnits(std::size_t n, int threads, CampaignProgress prog, SteadyClock::time_point t0,
+                                 const std::function<CampaignUnit(std::size_t)>& work,
+                                 const std::function<void(const CampaignProgress&)>& progress);
 
 /// Runs the forward model for the rows of one cell (all share SFS, equilibrium, the stretching
 /// continuation over their forces and one relaxation). Never throws for a numerical failure:
