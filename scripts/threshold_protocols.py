@@ -8,7 +8,7 @@ resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_t
 
     scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
         [--members 8] [--fluctuating 0] [--thermal-step 0.2] [--jobs 2] [--full-length] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
-        [--dry-run]
+        [--protocols in-plane,ensemble,fluctuating] [--dry-run]
 
 Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
 Pa s um; v 0.95), the paper's Table 1 means, trbc's theta_new posterior means. Stresses: six per
@@ -182,6 +182,8 @@ def main():
                     help="run every case its full --rotations (default: stop at the steady state, `flow shear --stop-when-steady`)")
     ap.add_argument("--cells", default="reference,table1,theta_new")
     ap.add_argument("--viscosities", default="10.7,23.9,30,100")
+    ap.add_argument("--protocols", default="in-plane,ensemble,fluctuating",
+                    help="which protocols' cases to run now (the table always shows every finished case)")
     ap.add_argument("--dry-run", action="store_true")
     ap.add_argument("--summary-only", action="store_true", help="tabulate the finished cases, run nothing")
     a = ap.parse_args()
@@ -198,21 +200,28 @@ def main():
             sys.exit(f"--viscosities: {v:g} mPa s has no stress range (valid: {', '.join(f'{x:g}' for x in STRESS_RANGE)})")
     if a.members < 1 or a.jobs < 1 or a.fluctuating < 0 or not 1 <= a.level <= 4 or not 0 < a.thermal_step <= 1:
         sys.exit("--members and --jobs must be >= 1, --fluctuating >= 0, --level in [1, 4], --thermal-step in (0, 1]")
+    protocols = a.protocols.split(",")
+    for p in protocols:
+        if p not in PROTOCOL_ORDER:
+            sys.exit(f"--protocols: unknown protocol '{p}' (valid: {', '.join(PROTOCOL_ORDER)})")
     THERMAL_STEP = a.thermal_step
     STOP_WHEN_STEADY = not a.full_length
     all_cases = cases(cells, viscosities, a.members, a.fluctuating, a.level, a.rotations)
     if a.dry_run:
         for c in all_cases:
-            print(" ".join(command(a.trbc, c, a.out)))
+            if c["protocol"] in protocols:
+                print(" ".join(command(a.trbc, c, a.out)))
         return
     os.makedirs(os.path.join(a.out, "cases"), exist_ok=True)
     with open(os.path.join(a.out, "command.txt"), "a") as f:  # one line per invocation of a resumed scan
         f.write(" ".join(sys.argv) + "\n")
     if not a.summary_only:
         t0, done = time.time(), 0
-        todo = [c for c in all_cases if not os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json"))]
+        todo = [c for c in all_cases
+                if c["protocol"] in protocols and not os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json"))]
         todo.sort(key=lambda c: PROTOCOL_ORDER[c["protocol"]])
-        print(f"{len(all_cases)} cases, {len(all_cases) - len(todo)} finished earlier, {len(todo)} to run", file=sys.stderr)
+        finished = sum(os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json")) for c in all_cases)
+        print(f"{len(all_cases)} cases, {finished} finished earlier, {len(todo)} of protocols {a.protocols} to run", file=sys.stderr)
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
             for cid, what, wall in ex.map(lambda c: run(a.trbc, c, a.out), todo):
                 done += 1

@@ -63,12 +63,7 @@ std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, c
     }
     for (double eta : thresholdViscosities(cfg)) {
         const Eigen::MatrixXd x = drawInputs(draws, eta, 1.0);
-        // A cytosol other than the campaign's: the exact rescaling of FlowSurrogate::predict, applied
-        // to the stress axis (every viscosity times s leaves the critical stress unchanged: tau = eta_out rate).
-        Eigen::MatrixXd z = x;
-        const double s = model.etaIn / cfg.etaIn;
-        z.row(4) *= s, z.row(5) *= s;
-        const Eigen::VectorXd tc = model.criticalStressPa(z);
+        const Eigen::VectorXd tc = model.criticalStressPa(x, Eigen::VectorXd::Constant(x.cols(), cfg.etaIn));
         std::vector<DrawOutcome> outcomes;
         for (Eigen::Index k = 0; k < tc.size(); ++k)
             outcomes.push_back(std::isfinite(tc(k)) ? DrawOutcome{true, tc(k), ""}

@@ -32,11 +32,7 @@ Eigen::MatrixXd flowSobolModel(const FlowSurrogate& model, const std::vector<Flo
         x.row(5).setConstant(o.etaOut);
         x.row(6).setConstant(o.rate);
         if (o.kind == "threshold") {
-            // The exact cytosol rescaling (FlowSurrogate::predict) leaves the critical stress unchanged.
-            Eigen::MatrixXd z = x;
-            const double s = model.etaIn / etaIn;
-            z.row(4) *= s, z.row(5) *= s;
-            Y.col(Eigen::Index(k)) = model.criticalStressPa(z, 0.5, true).array().log10().matrix();
+            Y.col(Eigen::Index(k)) = model.criticalStressPa(x, eta, 0.5, true).array().log10().matrix();
         } else {
             const FlowPrediction p = model.predict(x, eta);
             Y.col(Eigen::Index(k)) = o.kind == "angle" ? p.inclinationDeg : p.ttf;

@@ -105,4 +105,18 @@ DrawOutcome criticalStressOutcome(const std::vector<RegimePoint>& points, double
     return o;
 }
 
+NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* option) {
+    const std::filesystem::path file = std::filesystem::is_directory(in) ? in / "samples.csv" : in;
+    if (!std::filesystem::exists(file))
+        throw InputError(fmt::format("{} {}: no samples.csv (run `trbc infer` first; e.g. DIR/phase3/theta_new)", option, in.string()));
+    static const std::vector<std::string> columns = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
+    NumericTable t = readNumericTable(file, columns);
+    for (const std::string& c : columns)
+        if (t.find(c) < 0)
+            throw InputError(fmt::format("{}: column '{}' missing: {} must be a theta_new posterior (columns v, "
+                                         "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c, option));
+    if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
+    return t;
+}
+
 }  // namespace trbc

@@ -15,7 +15,7 @@
 #include "analysis/calibrate_stages.hpp"
 #include "analysis/report.hpp"
 #include "analysis/stage_ledger.hpp"
-#include "cli/child_process.hpp"
+#include "core/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
 #include "core/clock.hpp"
@@ -206,16 +206,15 @@ CalibrateTools calibrateTools() {
 
 void writeSummary(const CalibrateConfig& cfg, const fs::path& out, int threads, const fs::path& modelDir, const StageLedger& ledger,
                   double wall) {
-    const nlohmann::json j = {{"command", commandLine()},
-                              {"version", kVersion},
-                              {"config", cfg.file.string()},
-                              {"seed", cfg.seed},
-                              {"threads", threads},
-                              {"surrogate", modelDir.string()},
-                              {"ran", ledger.ran()},
-                              {"skipped", ledger.skippedStages()},
-                              {"wall_s", wall},
-                              {"report", {(out / "report.html").string(), (out / "report.md").string()}}};
+    const nlohmann::json j = withBuild({{"command", commandLine()},
+                                        {"config", cfg.file.string()},
+                                        {"seed", cfg.seed},
+                                        {"threads", threads},
+                                        {"surrogate", modelDir.string()},
+                                        {"ran", ledger.ran()},
+                                        {"skipped", ledger.skippedStages()},
+                                        {"wall_s", wall},
+                                        {"report", {(out / "report.html").string(), (out / "report.md").string()}}});
     writeFileAtomically(out / "calibrate.json", j.dump(2) + "\n");
     std::cout << fmt::format("trbc calibrate: {} stage(s) ran, {} up to date, {:.1f} s\nreport: {}\n        {}\n", ledger.ran().size(),
                              ledger.skippedStages().size(), wall, (out / "report.html").string(), (out / "report.md").string());

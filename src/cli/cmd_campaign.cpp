@@ -22,25 +22,6 @@
 namespace trbc::cli {
 namespace {
 
-std::set<long> parseIdList(const std::string& text) {
-    std::set<long> ids;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        std::size_t used = 0;
-        long id = -1;
-        try {
-            id = std::stol(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || used != item.size() || id < 0)
-            throw InputError(fmt::format("--inject-failures: '{}' is not a sample id (non-negative integer)", item));
-        ids.insert(id);
-    }
-    return ids;
-}
-
 struct CampaignCommandOptions {
     CampaignOptions c;
     std::string design = "uniform", out, inject, reuseFrom;
@@ -90,7 +71,7 @@ void runCampaign(const CampaignCommandOptions& o) {
     setProvenanceSeed(c.seed);
     c.experiment.level = o.level;
     c.experiment.cacheDir = cacheDirectory(o.cache);
-    if (!o.inject.empty()) c.injectFailures = parseIdList(o.inject);
+    if (!o.inject.empty()) for (long id : parseIntegerList(o.inject, "--inject-failures", "a sample id", 0)) c.injectFailures.insert(id);
     c.reuseFrom = o.reuseFrom;
     const Ranks ranks = startRanks();
     c.ranks = ranks.size;

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <memory>
 
+#include "analysis/validation_draws.hpp"
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
 #include "core/clock.hpp"
@@ -123,7 +124,7 @@ void runExport(const ExportCommandOptions& o) {
                   {"equilibrium", {"equilibrium.off", "equilibrium.ply"}},
                   {"mesh", {{"level", o.level}, {"vertices", meshes.reference.cols()}, {"faces", meshes.faces.cols()}, {"units", "um"}}}};
     j["diagnostics"] = {{"sfs_from_cache", sfs.fromCache}, {"equilibrium_converged", eq.diagnostics.converged}, {"wall_s", wall}};
-    j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
+    j["provenance"] = withBuild({{"command", commandLine()}});
     writeFileAtomically(dir / "cell.json", j.dump(2) + "\n");
     std::cout << j.dump(2) << std::endl;
 }

@@ -12,6 +12,7 @@
 #include <memory>
 #include <numbers>
 
+#include "analysis/validation_draws.hpp"
 #include "cli/common.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -207,15 +208,12 @@ nlohmann::json checkpointJson(const CellFlowResult& r, double timeUnit) {
 }
 
 nlohmann::json provenanceJson(int level, const char* method) {
-    return {{"version", kVersion},
-            {"revision", gitDescribe()},
-            {"compiler", "GCC " __VERSION__},
-            {"command", commandLine()},
-            {"level", level},
-            {"vertices", 10 * (1 << (2 * level)) + 2},
-            {"threads", omp_get_max_threads()},
-            {"sfs_model_version", kSfsModelVersion},
-            {"method", method}};
+    return withBuild({{"command", commandLine()},
+                      {"level", level},
+                      {"vertices", 10 * (1 << (2 * level)) + 2},
+                      {"threads", omp_get_max_threads()},
+                      {"sfs_model_version", kSfsModelVersion},
+                      {"method", method}});
 }
 
 // ---- outputs shared by both flows --------------------------------------------------------------

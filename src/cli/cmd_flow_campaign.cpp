@@ -24,24 +24,6 @@ struct FlowCampaignCli {
     CacheOptions cache;
 };
 
-std::set<long> parseCaseIds(const std::string& text) {
-    std::set<long> ids;
-    std::stringstream ss(text);
-    for (std::string item; std::getline(ss, item, ',');) {
-        std::size_t used = 0;
-        long id = -1;
-        try {
-            id = std::stol(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || used != item.size() || id < 0)
-            throw InputError(fmt::format("--inject-failures: '{}' is not a case id (non-negative integer)", item));
-        ids.insert(id);
-    }
-    return ids;
-}
-
 void runFlowCampaign(FlowCampaignCli& o) {
     ShearCampaignOptions c = o.c;
     c.design = parseDesignKind(o.design);
@@ -52,7 +34,7 @@ void runFlowCampaign(FlowCampaignCli& o) {
     c.command = commandLine();
     c.cacheDir = cacheDirectory(o.cache);
     setProvenanceSeed(c.seed);
-    if (!o.inject.empty()) c.injectFailures = parseCaseIds(o.inject);
+    if (!o.inject.empty()) for (long id : parseIntegerList(o.inject, "--inject-failures", "a case id", 0)) c.injectFailures.insert(id);
     const Ranks ranks = startRanks();
     c.ranks = ranks.size;
     ProgressReporter reporter(ranks.size, "cases", "flow campaign");

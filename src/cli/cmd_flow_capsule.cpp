@@ -41,15 +41,12 @@ void runCapsuleCommand(CapsuleCli& o) {
                        {"membrane_viscosity_etam_over_eta_a", o.c.membraneViscosity},
                        {"strain", o.c.strain},
                        {"step_tol", o.c.stepTolerance}};
-    j["provenance"] = {{"version", kVersion},
-                       {"revision", gitDescribe()},
-                       {"compiler", "GCC " __VERSION__},
-                       {"command", commandLine()},
-                       {"level", o.c.level},
-                       {"vertices", r.vertices},
-                       {"threads", omp_get_max_threads()},
-                       {"method", "boundary-integral Stokes, no global area constraint, exact volume, linearly "
-                                  "implicit adaptive BDF2 (flow/capsule.hpp)"}};
+    j["provenance"] = withBuild({{"command", commandLine()},
+                                 {"level", o.c.level},
+                                 {"vertices", r.vertices},
+                                 {"threads", omp_get_max_threads()},
+                                 {"method", "boundary-integral Stokes, no global area constraint, exact volume, linearly "
+                                            "implicit adaptive BDF2 (flow/capsule.hpp)"}});
     j["diagnostics"] = {{"steps", r.steps},
                         {"rejected_steps", r.rejectedSteps},
                         {"gmres_iterations", r.gmresIterations},

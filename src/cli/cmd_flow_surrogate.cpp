@@ -29,24 +29,6 @@ struct FlowTrainCli {
     int folds = 0, threads = 2;
 };
 
-std::vector<long> parseSizes(const std::string& text) {
-    std::vector<long> out;
-    std::stringstream ss(text);
-    for (std::string item; std::getline(ss, item, ',');) {
-        std::size_t used = 0;
-        long n = 0;
-        try {
-            n = std::stol(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || used != item.size() || n < 20)
-            throw InputError(fmt::format("--learning-curve: '{}' is not a case count (integer >= 20)", item));
-        out.push_back(n);
-    }
-    return out;
-}
-
 nlohmann::json accuracyJson(const FlowAccuracy& a) {
     auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
     return {{"cases", a.cases},
@@ -74,13 +56,13 @@ constexpr const char* kTableHead =
 
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
-    const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseSizes(o.curve);
+    const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseIntegerList(o.curve, "--learning-curve", "a case count", 20);
     bool complete = true;
     std::vector<ShearCampaignRow> rows = readShearCampaignRows(o.campaign, &complete);
     o.t.command = commandLine();
     std::cerr << fmt::format("flow train: {} cases from {}{}\n", rows.size(), o.campaign, complete ? "" : " (campaign not complete: its finished cases)");
-    nlohmann::json j = {{"command", o.t.command}, {"version", kVersion}, {"campaign", o.campaign}, {"campaign_complete", complete},
-                        {"restarts", o.t.restarts}, {"ensemble", o.t.ensemble}, {"boundary_factor", o.t.boundaryFactor}};
+    nlohmann::json j = withBuild({{"command", o.t.command}, {"campaign", o.campaign}, {"campaign_complete", complete},
+                                  {"restarts", o.t.restarts}, {"ensemble", o.t.ensemble}, {"boundary_factor", o.t.boundaryFactor}});
     std::string md = fmt::format("Flow networks from {} ({} cases{}); command: `{}`\n\n{}\n", o.campaign, rows.size(),
                                  complete ? "" : ", campaign not complete", o.t.command, kTableHead);
     const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, o.t);
@@ -161,9 +143,9 @@ void runFlowSobol(const FlowSobolCli& o) {
         md += " |\n";
     }
     writeFileAtomically(dir / "sobol_table.md", md);
-    const nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"surrogate", o.surrogate}, {"config", o.config},
-                              {"seed", o.seed}, {"n_base", r.nBase}, {"evaluations", r.evaluations}, {"resamples", r.resamples},
-                              {"wall_s", wall}};
+    const nlohmann::json j = withBuild({{"command", commandLine()}, {"surrogate", o.surrogate}, {"config", o.config},
+                                        {"seed", o.seed}, {"n_base", r.nBase}, {"evaluations", r.evaluations}, {"resamples", r.resamples},
+                                        {"wall_s", wall}});
     writeFileAtomically(dir / "sobol.json", j.dump(2) + "\n");
     std::cout << md;
 }

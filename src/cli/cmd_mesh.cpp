@@ -71,7 +71,7 @@ void registerMesh(CLI::App& app) {
         writeMesh(o->out, m, geometryFields(m));
         nlohmann::json j = meshSummary(m);
         j["output"] = o->out;
-        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
+        j["provenance"] = withBuild({{"command", commandLine()}});
         std::cout << j.dump(2) << std::endl;
     });
 }

@@ -79,7 +79,7 @@ nlohmann::json minimizeJson(const MembraneParameters& p, const EnergyTerms& term
                         {"evaluations", r.evaluations}, {"max_vertex_force", r.gradientNorm},
                         {"message", r.message}, {"wall_s", wall}};
     j["output"] = ok ? nlohmann::json(out) : nlohmann::json(nullptr);
-    j["provenance"] = {{"version", kVersion}, {"command", commandLine()}};
+    j["provenance"] = withBuild({{"command", commandLine()}});
     return j;
 }
 

@@ -142,18 +142,17 @@ nlohmann::json predictProvenance(const PredictCommandOptions& o, const PredictIn
                               {"rmse", d.surrogate.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.rmse())}});
     std::vector<std::string> fileNames;
     for (const fs::path& f : res.files) fileNames.push_back(f.filename().string());
-    return {{"command", commandLine()},
-            {"version", kVersion},
-            {"seed", o.seed},
-            {"max_samples", o.maxSamples},
-            {"grid_points", o.gridPoints},
-            {"levels", predictiveLevels()},
-            {"model", {{"dir", fs::absolute(in.modelDir).lexically_normal().string()}, {"networks", surrogateNetworksJson(*in.surrogate)}}},
-            {"data_dir", fs::absolute(in.dataDir).lexically_normal().string()},
-            {"inference", o.inference},
-            {"posteriors", res.posteriors},
-            {"direct", {{"samples", o.direct}, {"level", directLevel}, {"comparison", directJson}}},
-            {"files", fileNames}};
+    return withBuild({{"command", commandLine()},
+                      {"seed", o.seed},
+                      {"max_samples", o.maxSamples},
+                      {"grid_points", o.gridPoints},
+                      {"levels", predictiveLevels()},
+                      {"model", {{"dir", fs::absolute(in.modelDir).lexically_normal().string()}, {"networks", surrogateNetworksJson(*in.surrogate)}}},
+                      {"data_dir", fs::absolute(in.dataDir).lexically_normal().string()},
+                      {"inference", o.inference},
+                      {"posteriors", res.posteriors},
+                      {"direct", {{"samples", o.direct}, {"level", directLevel}, {"comparison", directJson}}},
+                      {"files", fileNames}});
 }
 
 void runPredict(const PredictCommandOptions& o) {

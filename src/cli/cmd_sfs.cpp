@@ -62,7 +62,7 @@ void registerSfs(CLI::App& app) {
         j["sfs"] = sfsJson(s);
         j["mesh"] = meshSummary(out);
         j["output"] = o->out;
-        j["provenance"] = {{"version", kVersion}, {"command", commandLine()}, {"sfs_model_version", kSfsModelVersion}};
+        j["provenance"] = withBuild({{"command", commandLine()}, {"sfs_model_version", kSfsModelVersion}});
         std::cout << j.dump(2) << std::endl;
     });
 }

@@ -150,12 +150,12 @@ CellParameters simulatedCell(const SimulateCommandOptions& o) {
 }
 
 nlohmann::json simulateProvenance(const SimulateCommandOptions& o, const ExperimentOptions& eo) {
-    return {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"command", commandLine()}, {"level", o.level},
-            {"vertices", 10 * (1 << (2 * o.level)) + 2}, {"sfs_model_version", kSfsModelVersion},
-            {"threads", o.threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
-            {"preconditioner", eo.multigrid ? "multigrid" : "none"},
-            {"equilibrium_symmetry", equilibriumSymmetryName(eo.equilibriumSymmetry)},
-            {"equilibrium_seed", eo.kicks.seed}, {"equilibrium_kicks", eo.kicks.perRound}};
+    return withBuild({{"forward_model_revision", kForwardModelRevision}, {"command", commandLine()}, {"level", o.level},
+                      {"vertices", 10 * (1 << (2 * o.level)) + 2}, {"sfs_model_version", kSfsModelVersion},
+                      {"threads", o.threads}, {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)},
+                      {"preconditioner", eo.multigrid ? "multigrid" : "none"},
+                      {"equilibrium_symmetry", equilibriumSymmetryName(eo.equilibriumSymmetry)},
+                      {"equilibrium_seed", eo.kicks.seed}, {"equilibrium_kicks", eo.kicks.perRound}});
 }
 
 void runSimulate(const SimulateCommandOptions& o) {

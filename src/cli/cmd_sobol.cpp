@@ -109,10 +109,10 @@ void runSobol(const SobolCommandOptions& o) {
                      : fmt::format("N = {} base rows do not resolve the indices (95 % CI half-widths up to {:.3g}{}): they are "
                                    "sampling noise; use --samples 1024 or more",
                                    r.nBase, res.widestHalfWidth, res.outside > 0.1 ? ", indices outside [0, 1]" : "");
-    nlohmann::json j = {{"command", commandLine()}, {"version", kVersion}, {"model", modelDir.string()},
-                        {"seed", o.seed}, {"base", o.base}, {"n_base", r.nBase},
-                        {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall},
-                        {"resolved", res.resolved}};
+    nlohmann::json j = withBuild({{"command", commandLine()}, {"model", modelDir.string()},
+                                  {"seed", o.seed}, {"base", o.base}, {"n_base", r.nBase},
+                                  {"evaluations", r.evaluations}, {"resamples", r.resamples}, {"wall_s", wall},
+                                  {"resolved", res.resolved}});
     if (!res.resolved) j["warning"] = warning;
     writeFileAtomically(dir / "sobol.json", j.dump(2) + "\n");
     if (!res.resolved) std::cerr << "sobol: warning: " << warning << '\n';

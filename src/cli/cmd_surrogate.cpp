@@ -235,32 +235,31 @@ SwitchAccuracy testSwitchAccuracy(const SurrogateTrainingReport& rep, const std:
 /// MODEL_DIR/accuracy.json: settings, data, per-network training records, held-out accuracy.
 nlohmann::json trainingJson(const TrainCommandOptions& o, const SurrogateTrainingOptions& t, const SurrogateTrainingReport& rep,
                             bool complete, double wall) {
-    nlohmann::json j = {{"command", commandLine()},
-                        {"version", kVersion},
-                        {"data", o.data},
-                        {"data_complete", complete},
-                        {"data_hash", rep.dataHash},
-                        {"rows", rep.rows},
-                        {"cells", rep.cells},
-                        {"test_cells", rep.testCells},
-                        {"test_seed", t.testSeed},
-                        {"seed", t.network.seed},
-                        {"restarts", t.restarts},
-                        {"relaxation_variables", o.relaxationVariables},
-                        {"stretching_variables", o.stretchingVariables},
-                        {"ensemble", o.ensemble},
-                        {"distill", o.distill},
-                        {"distill_samples", t.distillSamples},
-                        {"split_seed", t.network.splitSeed},
-                        {"wall_s", wall},
-                        {"networks", nlohmann::json::object()},
-                        {"dropped_where", rep.droppedWhere},
-                        {"branch", o.branch},
-                        {"branched", rep.model.branched},
-                        {"cup_hmin_um", t.cupHminUm},
-                        {"test", accuracyJson(rep.test)},
-                        {"test_near_switch", switchJson(testSwitchAccuracy(rep, o.kicked))},
-                        {"validation", accuracyJson(rep.validation)}};
+    nlohmann::json j = withBuild({{"command", commandLine()},
+                                  {"data", o.data},
+                                  {"data_complete", complete},
+                                  {"data_hash", rep.dataHash},
+                                  {"rows", rep.rows},
+                                  {"cells", rep.cells},
+                                  {"test_cells", rep.testCells},
+                                  {"test_seed", t.testSeed},
+                                  {"seed", t.network.seed},
+                                  {"restarts", t.restarts},
+                                  {"relaxation_variables", o.relaxationVariables},
+                                  {"stretching_variables", o.stretchingVariables},
+                                  {"ensemble", o.ensemble},
+                                  {"distill", o.distill},
+                                  {"distill_samples", t.distillSamples},
+                                  {"split_seed", t.network.splitSeed},
+                                  {"wall_s", wall},
+                                  {"networks", nlohmann::json::object()},
+                                  {"dropped_where", rep.droppedWhere},
+                                  {"branch", o.branch},
+                                  {"branched", rep.model.branched},
+                                  {"cup_hmin_um", t.cupHminUm},
+                                  {"test", accuracyJson(rep.test)},
+                                  {"test_near_switch", switchJson(testSwitchAccuracy(rep, o.kicked))},
+                                  {"validation", accuracyJson(rep.validation)}});
     const auto& names = surrogateNetworkNames();
     const TrainedNetwork* nets[3] = {&rep.model.equilibrium, &rep.model.stretching, &rep.model.relaxation};
     for (int k = 0; k < 3; ++k)
@@ -313,9 +312,9 @@ void crossValidate(const std::vector<CampaignRow>& rows, const SurrogateTraining
     SurrogateTrainingOptions c = t;
     c.progress = nullptr;
     const CrossValidationReport cv = crossValidateSurrogate(rows, c, folds);
-    nlohmann::json cj = {{"command", commandLine()}, {"version", kVersion},     {"data_hash", dataHash},
-                         {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
-                         {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}};
+    nlohmann::json cj = withBuild({{"command", commandLine()}, {"data_hash", dataHash},
+                                   {"folds", cv.folds},       {"test_seed", t.testSeed}, {"wall_s", cv.wallSeconds},
+                                   {"pooled", accuracyJson(cv.pooled)}, {"per_fold", nlohmann::json::array()}});
     const auto labels = cupLabels(rows, t.cellBranch, t.cupHminUm);
     const SwitchAccuracy near = switchAccuracy(cv.cellIds, cv.inputs, cv.truth, cv.predicted, kicked,
                                                cv.branched ? &cv.branch : nullptr, &labels);
@@ -472,11 +471,11 @@ void registerTest(CLI::App* parent) {
         if (trainedOnIt) std::cerr << "surrogate test: the model was trained on these rows; the numbers are not a test\n";
         if (!o->out.empty()) {
             const std::filesystem::path dir = o->out;
-            const nlohmann::json j = {{"command", commandLine()}, {"version", kVersion},     {"model", modelDir.string()},
-                                      {"data", o->data},         {"data_complete", complete}, {"data_hash", hash},
-                                      {"model_data_hash", s.relaxation.dataHash}, {"trained_on_these_data", trainedOnIt},
-                                      {"rows", rows.size()},     {"outside_training_box", outside},
-                                      {"test", accuracyJson(t.accuracy)}};
+            const nlohmann::json j = withBuild({{"command", commandLine()}, {"model", modelDir.string()},
+                                                {"data", o->data},         {"data_complete", complete}, {"data_hash", hash},
+                                                {"model_data_hash", s.relaxation.dataHash}, {"trained_on_these_data", trainedOnIt},
+                                                {"rows", rows.size()},     {"outside_training_box", outside},
+                                                {"test", accuracyJson(t.accuracy)}});
             writeFileAtomically(dir / "test.json", j.dump(2) + "\n");
             writeFileAtomically(dir / "test.md", md);
             writePredictionsCsv(dir / "test_predictions.csv", t.inputs, t.truth, t.predicted);

@@ -10,8 +10,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/clock.hpp"
 #include "core/csv.hpp"
@@ -201,24 +203,6 @@ void ProgressLine::print(const char* suffix) const {
     std::cerr << fmt::format("{}: {} ({:.0f} s{})\n", command_, stage_, elapsedSeconds(), suffix) << std::flush;
 }
 
-void ensureWritableFile(const std::string& path) {
-    std::filesystem::path dir = std::filesystem::path(path).parent_path();
-    if (dir.empty()) dir = ".";
-    if (!std::filesystem::is_directory(dir))
-        throw InputError(fmt::format("cannot write {}: directory {} does not exist", path, dir.string()));
-    if (::access(dir.c_str(), W_OK) != 0)
-        throw InputError(fmt::format("cannot write {}: directory {} is not writable", path, dir.string()));
-    if (std::filesystem::is_directory(path)) throw InputError(fmt::format("cannot write {}: it is a directory", path));
-}
-
-void ensureWritableDirectory(const std::string& dir) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (!std::filesystem::is_directory(dir))
-        throw InputError(fmt::format("cannot create the output directory {}{}", dir, ec ? ": " + ec.message() : ""));
-    if (::access(dir.c_str(), W_OK) != 0) throw InputError(fmt::format("output directory {} is not writable", dir));
-}
-
 void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
     addNumber(cmd, "--tol", e.staticTolerance, "static states stop when the largest tangential vertex force < tol * mu * l0",
               NumberRange::leftOpen(0.0, 1.0, "(relative)"))
@@ -272,23 +256,27 @@ void addSolverOptions(CLI::App* cmd, ExperimentOptions& e) {
         ->default_str(inPlaneAxisName(InPlaneAxis::FarthestVertex));
 }
 
-NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* option) {
-    const std::filesystem::path file = std::filesystem::is_directory(in) ? in / "samples.csv" : in;
-    if (!std::filesystem::exists(file))
-        throw InputError(fmt::format("{} {}: no samples.csv (run `trbc infer` first; e.g. DIR/phase3/theta_new)", option, in.string()));
-    static const std::vector<std::string> columns = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
-    NumericTable t = readNumericTable(file, columns);
-    for (const std::string& c : columns)
-        if (t.find(c) < 0)
-            throw InputError(fmt::format("{}: column '{}' missing: {} must be a theta_new posterior (columns v, "
-                                         "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c, option));
-    if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
-    return t;
-}
-
 std::filesystem::path pythonInterpreter() {
     if (const char* py = std::getenv("TRBC_PYTHON")) return py;
     return std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+}
+
+std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue) {
+    std::vector<long> out;
+    std::stringstream ss(text);
+    for (std::string item; std::getline(ss, item, ',');) {
+        std::size_t used = 0;
+        long n = 0;
+        try {
+            n = std::stol(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != item.size() || n < minValue)
+            throw InputError(fmt::format("{}: '{}' is not {} (integer >= {})", option, item, what, minValue));
+        out.push_back(n);
+    }
+    return out;
 }
 
 }  // namespace trbc::cli

@@ -13,6 +13,7 @@
 #include <type_traits>
 
 #include "core/csv.hpp"
+#include "core/output_dir.hpp"
 #include "core/shell_quote.hpp"
 #include "membrane/model.hpp"
 #include "experiments/experiments.hpp"
@@ -125,6 +126,10 @@ void addInPlaneLawOptions(CLI::App* app, ModulusOptions& m);
 MembraneParameters checkedParameters(const ModulusOptions& m);
 
 /// The command line as one string, for provenance.
+/// A comma-separated list of integers >= minValue, in the order given; InputError naming `option`,
+/// the bad item and what it should be (`what`, e.g. "a case id").
+std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue);
+
 std::string commandLine();
 void setCommandLine(int argc, char** argv);
 
@@ -132,11 +137,6 @@ void setCommandLine(int argc, char** argv);
 nlohmann::json energyTermsJson(const MembraneParameters& p, const EnergyTerms& t);
 /// Size, area, volume, reduced volume and principal extents of a mesh.
 nlohmann::json meshSummary(const Mesh& m);
-
-/// Throws InputError unless the file's directory exists and is writable (checked before a long run).
-void ensureWritableFile(const std::string& path);
-/// Creates the directory if needed; throws InputError unless it is writable.
-void ensureWritableDirectory(const std::string& dir);
 
 /// SFS cache options (--cache DIR, --no-cache).
 struct CacheOptions {
@@ -179,9 +179,6 @@ std::filesystem::path scriptDirectory();
 /// The Python of the figure scripts: $TRBC_PYTHON, else Debian's /usr/bin/python3 (with
 /// python3-matplotlib, scripts/bootstrap), else python3 on PATH.
 std::filesystem::path pythonInterpreter();
-/// Samples of a theta_new posterior (DIR/samples.csv of `trbc infer`, or the file itself), columns
-/// v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; InputError naming the file and the missing column.
-NumericTable readThetaNewSamples(const std::filesystem::path& posterior, const char* option = "--posterior");
 void registerCalibrate(CLI::App& app);
 void registerValidate(CLI::App& app);
 void registerExport(CLI::App& app);

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "cli/child_process.hpp"
+#include "core/child_process.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
@@ -84,7 +84,7 @@ void keepFreedMemory() {
 }  // namespace
 
 int main(int argc, char** argv) {
-    trbc::cli::dieWithParent();
+    trbc::dieWithParent();
     keepFreedMemory();
     trbc::cli::setCommandLine(argc, argv);
     CLI::App app{"trbc: a calibrated, transferable red-blood-cell membrane model"};

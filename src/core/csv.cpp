@@ -9,6 +9,7 @@
 #include <iterator>
 
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "core/version.hpp"
 
 namespace trbc {
@@ -187,7 +188,8 @@ void setProvenanceCommand(std::string commandLine) {
 void setProvenanceSeed(std::uint64_t seed) { provenanceSeed() = std::to_string(seed); }
 
 std::string csvProvenance() {
-    return fmt::format("# trbc {} ({}) | command: {} | seed: {}\n", kVersion, gitDescribe(), provenanceCommand(), provenanceSeed());
+    return fmt::format("# trbc {} ({}) | command: {} | seed: {} | build: {}\n", kVersion, gitDescribe(), provenanceCommand(),
+                       provenanceSeed(), simd::buildTarget());
 }
 
 std::string csvField(std::string_view text) {

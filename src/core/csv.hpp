@@ -45,10 +45,11 @@ std::vector<std::vector<std::string>> readCsvRecords(const std::filesystem::path
 std::vector<std::vector<std::string>> parseCsvRecords(std::string_view text);
 
 /// The provenance line that opens every CSV table trbc writes, for example
-/// "# trbc 1.4.0 (v1.4.0-12-gabc1234) | command: trbc infer --seed 3 | seed: 3\n": the version, the
-/// revision of the source it was built from (`git describe --always --dirty`, "unknown" outside a git
-/// checkout), the command line and the run seed ("n/a" for a command without one). Every CSV reader of
-/// trbc skips lines that start with '#'.
+/// "# trbc 1.4.0 (v1.4.0-12-gabc1234) | command: trbc infer --seed 3 | seed: 3 | build: GCC 12.2.0,
+/// x86-64 (SSE2 baseline; dispatched kernels: avx2)\n": the version, the revision of the source it was
+/// built from (`git describe --always --dirty`, "unknown" outside a git checkout), the command line,
+/// the run seed ("n/a" for a command without one) and the compiler and instruction set
+/// (simd::buildTarget). Every CSV reader of trbc skips lines that start with '#'.
 std::string csvProvenance();
 /// Records the command line that csvProvenance names (the CLI's main does, once).
 void setProvenanceCommand(std::string commandLine);

@@ -144,4 +144,22 @@ void checkFileName(std::string_view name, std::string_view what) {
                                          kMax));
 }
 
+void ensureWritableFile(const std::string& path) {
+    std::filesystem::path dir = std::filesystem::path(path).parent_path();
+    if (dir.empty()) dir = ".";
+    if (!std::filesystem::is_directory(dir))
+        throw InputError(fmt::format("cannot write {}: directory {} does not exist", path, dir.string()));
+    if (::access(dir.c_str(), W_OK) != 0)
+        throw InputError(fmt::format("cannot write {}: directory {} is not writable", path, dir.string()));
+    if (std::filesystem::is_directory(path)) throw InputError(fmt::format("cannot write {}: it is a directory", path));
+}
+
+void ensureWritableDirectory(const std::string& dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (!std::filesystem::is_directory(dir))
+        throw InputError(fmt::format("cannot create the output directory {}{}", dir, ec ? ": " + ec.message() : ""));
+    if (::access(dir.c_str(), W_OK) != 0) throw InputError(fmt::format("output directory {} is not writable", dir));
+}
+
 }  // namespace trbc

@@ -50,4 +50,9 @@ private:
 /// characters of [A-Za-z0-9_.-], not "." or "..". InputError "<what> '<name>': ..." otherwise.
 void checkFileName(std::string_view name, std::string_view what);
 
+/// Throws InputError unless the file's directory exists and is writable (checked before a long run).
+void ensureWritableFile(const std::string& path);
+/// Creates the directory if needed; throws InputError unless it is writable.
+void ensureWritableDirectory(const std::string& dir);
+
 }  // namespace trbc

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "flow/boundary_integral.hpp"
 #include "flow/far_sum.hpp"
 #include "flow/stokes_kernels.hpp"
@@ -22,10 +23,6 @@ using stokes::Vec3;
 using bie::FarPoints;
 using bie::PointDensity;
 using bie::farSum;
-using bie::kTwoTargetFarSum;
-#if defined(__AVX2__) && defined(__FMA__)
-using bie::farSumTwoTargets;
-#endif
 
 constexpr double kPi = std::numbers::pi;
 
@@ -89,31 +86,37 @@ void BoundaryIntegralOperators::applyLayersIn(const Eigen::Matrix3Xd* f, const E
         if constexpr (kSingle) Sf->col(i) = s;
         if constexpr (kDouble) Du->col(i) = v - 4.0 * kPi * u->col(i);
     };
-    // Targets two at a time in float with AVX2 + FMA (farSumTwoTargets; an odd last target alone),
-    // else one at a time.
-    constexpr bool kTwo = kFloat && kTwoTargetFarSum;
-    constexpr Index kTargets = kTwo ? 2 : 1;
+    // Targets two at a time in float where the CPU has AVX2 + FMA (farSumTwoTargetsAvx2; an odd
+    // last target alone), else one at a time.
+#if defined(TRBC_FAR_SUM_AVX2_DISPATCH)
+    const bool two = kFloat && simd::active() == simd::Path::avx2;
+#else
+    constexpr bool two = false;
+#endif
+    const Index targets = two ? 2 : 1;
     std::vector<T> wgx, wgy, wgz;
-    if constexpr (kTwo && kSingle) {
+    if (two && kSingle) {
         const Index np = numQuadraturePoints();
         wgx.resize(static_cast<std::size_t>(np)), wgy.resize(wgx.size()), wgz.resize(wgx.size());
         for (Index k = 0; k < np; ++k) wgx[k] = qwf_[k] * gx[k], wgy[k] = qwf_[k] * gy[k], wgz[k] = qwf_[k] * gz[k];
     }
     const PointDensity<T> wg{wgx.data(), wgy.data(), wgz.data()};
 #pragma omp parallel for schedule(static)
-    for (Index i0 = 0; i0 < nv; i0 += kTargets) {
-        if constexpr (kTwo) {
-            if (i0 + 1 < nv) {
+    for (Index i0 = 0; i0 < nv; i0 += targets) {
+#if defined(TRBC_FAR_SUM_AVX2_DISPATCH)
+        if constexpr (kFloat) {
+            if (two && i0 + 1 < nv) {
                 T x0[2][3], u0t[2][3];
                 Vec3 s[2], v[2];
                 target(i0, x0[0], u0t[0]);
                 target(i0 + 1, x0[1], u0t[1]);
-                farSumTwoTargets<kSingle, kDouble>(x0, pts, wg, ud, u0t, s, v);
+                bie::farSumTwoTargetsAvx2<kSingle, kDouble>(x0, pts, wg, ud, u0t, s, v);
                 finish(i0, s[0], v[0]);
                 finish(i0 + 1, s[1], v[1]);
                 continue;
             }
         }
+#endif
         {
             T x0[3], u0t[3];
             Vec3 s, v;

@@ -3,14 +3,23 @@
 // elementwise 1 / sqrt for the kernels' 1 / r, and the single- and double-layer sums of the far
 // rule at one target (farSum) or at two targets at once (farSumTwoTargets, AVX2 + FMA). Header
 // templates because the operators instantiate them for double and float and for either layer or
-// both; shared by the operators' files only.
+// both; shared by the operators' files only. Every function here has internal linkage (static):
+// far_sum_avx2.cpp compiles this header for AVX2 + FMA, the other files for the build's baseline,
+// and the linker must never merge the two (core/simd.hpp).
 #include <immintrin.h>
 
 #include <Eigen/Core>
 #include <cmath>
 #include <limits>
 
+#include "flow/far_points.hpp"
 #include "flow/stokes_kernels.hpp"
+
+// The AVX2 + FMA code: where the baseline has it, or in far_sum_avx2.cpp, which compiles this
+// header under `#pragma GCC target("avx2,fma")` (the pragma does not set __AVX2__ in C++).
+#if (defined(__AVX2__) && defined(__FMA__)) || defined(TRBC_FAR_SUM_AVX2_TU)
+#define TRBC_FAR_SUM_HAS_AVX2 1
+#endif
 
 namespace trbc::bie {
 
@@ -27,9 +36,9 @@ constexpr int kBlock = 256;
 /// 6e-14, then rounding), a few ulp from the correctly rounded value; a fused far pass costs 0.88x
 /// of one with packet square root and division (bench_stokes, level 3). Lanes outside the float
 /// range take the exact formula.
-inline void inverseSqrt(double* r, Index n) {
+static inline void inverseSqrt(double* r, Index n) {
     Index k = 0;
-#if defined(__AVX2__) && defined(__FMA__)
+#if defined(TRBC_FAR_SUM_HAS_AVX2)
     const __m256d half = _mm256_set1_pd(0.5), three = _mm256_set1_pd(3.0);
     const __m256d lo = _mm256_set1_pd(static_cast<double>(std::numeric_limits<float>::min()));
     const __m256d hi = _mm256_set1_pd(static_cast<double>(std::numeric_limits<float>::max()));
@@ -51,11 +60,11 @@ inline void inverseSqrt(double* r, Index n) {
     for (; k < n; ++k) r[k] = r[k] > 0.0 ? 1.0 / std::sqrt(r[k]) : 0.0;
 }
 
-#if defined(__AVX2__) && defined(__FMA__)
+#if defined(TRBC_FAR_SUM_HAS_AVX2)
 /// 1 / sqrt(x) for eight floats: the estimate and one Newton step y (3 - x y^2) / 2 (relative
 /// error ~2e-7, the float rounding); lanes outside the normal float range take the exact formula,
 /// 0 where x = 0.
-inline __m256 inverseSqrt8(__m256 x) {
+static inline __m256 inverseSqrt8(__m256 x) {
     const __m256 lo = _mm256_set1_ps(std::numeric_limits<float>::min());
     const __m256 hi = _mm256_set1_ps(std::numeric_limits<float>::max());
     const __m256 inRange = _mm256_and_ps(_mm256_cmp_ps(x, lo, _CMP_GE_OQ), _mm256_cmp_ps(x, hi, _CMP_LE_OQ));
@@ -72,24 +81,13 @@ inline __m256 inverseSqrt8(__m256 x) {
 #endif
 
 /// The same in single precision (inverseSqrt8 with AVX2 + FMA).
-inline void inverseSqrt(float* r, Index n) {
+static inline void inverseSqrt(float* r, Index n) {
     Index k = 0;
-#if defined(__AVX2__) && defined(__FMA__)
+#if defined(TRBC_FAR_SUM_HAS_AVX2)
     for (; k + 8 <= n; k += 8) _mm256_storeu_ps(r + k, inverseSqrt8(_mm256_loadu_ps(r + k)));
 #endif
     for (; k < n; ++k) r[k] = r[k] > 0.0f ? 1.0f / std::sqrt(r[k]) : 0.0f;
 }
-
-/// The far-rule points and a density on them (structure of arrays), in T = double or float.
-template <class T>
-struct FarPoints {
-    const T *x, *y, *z, *w, *wnx, *wny, *wnz;  ///< position, weight, weighted normal
-    Index n;
-};
-template <class T>
-struct PointDensity {
-    const T *x, *y, *z;
-};
 
 /// Far parts at the target x0, in one pass over the points:
 ///   single layer  s = sum_q w_q G(y_q - x0) g_q,
@@ -97,7 +95,7 @@ struct PointDensity {
 /// either or both (template flags). A point at x0 contributes nothing (1/r set to 0). Each block
 /// of kBlock points is summed in T, the block sums in double.
 template <class T, bool kSingle, bool kDouble>
-void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, const PointDensity<T>& u,
+static void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, const PointDensity<T>& u,
             const T (&u0)[3], Vec3& s, Vec3& v) {
     alignas(64) T dx[kBlock], dy[kBlock], dz[kBlock], rinv[kBlock];
     const T* __restrict px = p.x;
@@ -146,8 +144,7 @@ void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T>& g, c
     }
 }
 
-#if defined(__AVX2__) && defined(__FMA__)
-constexpr bool kTwoTargetFarSum = true;
+#if defined(TRBC_FAR_SUM_HAS_AVX2)
 /// farSum<float> for two targets at once (AVX2 + FMA), with the weighted single-layer density
 /// wg_q = w_q g_q: one pass per 8 points, each point's position, normal and densities loaded once
 /// for both targets, 1 / r kept in registers (inverseSqrt8), twelve independent accumulators, the
@@ -155,7 +152,7 @@ constexpr bool kTwoTargetFarSum = true;
 /// pair for both layers), so the gain over two farSum calls is modest (docs/PERFORMANCE.md,
 /// "Flow solver").
 template <bool kSingle, bool kDouble>
-void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
+static void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
                       const PointDensity<float>& u, const float (&u0)[2][3], Vec3 (&s)[2], Vec3 (&v)[2]) {
     alignas(32) static constexpr int kLanes[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
     __m256 X[2][3], U[2][3];
@@ -219,8 +216,6 @@ void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const 
         }
     }
 }
-#else
-constexpr bool kTwoTargetFarSum = false;
 #endif
 
 }  // namespace trbc::bie

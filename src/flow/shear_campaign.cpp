@@ -163,7 +163,7 @@ void prepareShearCampaign(const ShearCampaignOptions& o) {
                                          before.value("cases", settings["cases"]) != settings["cases"]
                                              ? "; only a sobol or uniform design grows, to more cases"
                                              : ""));
-        nlohmann::json entry = {{"command", o.command}, {"version", kVersion}, {"ranks", o.ranks}, {"threads", o.threads}};
+        nlohmann::json entry = withBuild({{"command", o.command}, {"ranks", o.ranks}, {"threads", o.threads}});
         if (before["cases"] != settings["cases"]) {
             entry["grown_from_cases"] = before["cases"];
             old["settings"] = settings;
@@ -176,15 +176,14 @@ void prepareShearCampaign(const ShearCampaignOptions& o) {
     }
     if (fs::exists(casesPath(o)) || !fs::is_empty(partsDir(o)))
         throw InputError(fmt::format("--out: {} holds campaign files but no campaign.json; choose another directory", o.outDir.string()));
-    const nlohmann::json j = {{"command", o.command},
-                              {"version", kVersion},
-                              {"experiment", "shear"},
-                              {"ranks", o.ranks},
-                              {"threads", o.threads},
-                              {"status", "running"},
-                              {"settings", settings},
-                              {"columns", shearCampaignCsvHeader()},
-                              {"units", "mu in uN/m, etam in Pa s um, viscosities in mPa s, rate in 1/s; ttf = 4 pi f / rate"}};
+    const nlohmann::json j = withBuild({{"command", o.command},
+                                        {"experiment", "shear"},
+                                        {"ranks", o.ranks},
+                                        {"threads", o.threads},
+                                        {"status", "running"},
+                                        {"settings", settings},
+                                        {"columns", shearCampaignCsvHeader()},
+                                        {"units", "mu in uN/m, etam in Pa s um, viscosities in mPa s, rate in 1/s; ttf = 4 pi f / rate"}});
     writeFileAtomically(provenancePath(o), j.dump(2) + "\n");
 }
 

@@ -11,7 +11,7 @@
 //   Double-layer kernel contracted with the normal n(x):
 //                   K_ij(d, n) = T_ijk(d) n_k = -6 d_i d_j (d . n) / r^5   (symmetric in i, j).
 // Integral identities on a closed surface D with outward normal n (ch. 2, derived from the
-// divergence theorem, checked in tests/test_stokes.cpp):
+// divergence theorem, checked in tests/flow/test_boundary_integral.cpp):
 //   int_D K_ij(x - x0, n(x)) dS(x) = -8 pi delta_ij (x0 inside), -4 pi delta_ij (x0 on D, principal
 //   value, smooth D), 0 (x0 outside);   int_D G_ij(x - x0) n_j(x) dS(x) = 0 for every x0.
 #include <Eigen/Core>

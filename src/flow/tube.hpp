@@ -26,7 +26,7 @@
 // result would depend on L like a periodic box at fixed body force (a translating sphere's drag
 // was off by 20-45 %). The disturbance decays along the tube like exp(-4.47 |x| / R) (slowest
 // axisymmetric Stokes eigenmode of a circular tube), so a margin of ~2.5 R beyond the cell's
-// ends suffices (checked in tests/test_tube.cpp). Mesh: N points per ring (staggered rings,
+// ends suffices (checked in tests/flow/test_tube.cpp). Mesh: N points per ring (staggered rings,
 // spacing sqrt(3)/2 of the chord: near-equilateral faces), caps with concentric rings; single
 // layer with the quadrature of flow/boundary_integral.hpp. The closed wall's single layer maps
 // n to zero; a rank-one term n (A n)^T removes that null space (it does not affect the cell:

@@ -771,7 +771,7 @@ RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcD
     const fs::path infoFile = o.outputDirectory / "infer.json";
     nlohmann::json info = readJsonOrEmpty(infoFile);
     for (const auto& [k, v] : o.provenance.items()) info[k] = v;
-    info["version"] = kVersion;
+    info = withBuild(std::move(info));
     info["seed"] = o.seed;
     info["samples"] = o.populationSize;
     info["threads"] = omp_get_max_threads();

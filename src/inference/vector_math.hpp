@@ -10,7 +10,7 @@
 // x <= 709 (callers pass x <= 0).
 // fastLog (x > 0, finite, normal): x = 2^e f with f in [sqrt(1/2), sqrt 2), log f = 2 atanh(s),
 // s = (f - 1)/(f + 1), |s| < 0.172, by its odd series to s^23.
-// fastRsqrt: see below. All agree with glibc to a few ulp (tests/test_rbc_inference.cpp).
+// fastRsqrt: see below. All agree with glibc to a few ulp (tests/inference/test_rbc_pipeline.cpp).
 #include <bit>
 #include <cstdint>
 

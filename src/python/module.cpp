@@ -287,11 +287,11 @@ py::dict simulate(double v, double mu, std::optional<double> FvK, std::optional<
         return 0;
     });
     nlohmann::json j = simulationJson(p, fext, level, which, s, wall);
-    j["provenance"] = {{"version", kVersion}, {"forward_model_revision", kForwardModelRevision}, {"level", level},
-                       {"vertices", 10 * (1 << (2 * level)) + 2}, {"sfs_model_version", kSfsModelVersion}, {"threads", threads},
-                       {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)}, {"preconditioner", "multigrid"},
-                       {"equilibrium_symmetry", equilibriumSymmetryName(eo.equilibriumSymmetry)},
-                       {"equilibrium_seed", eo.kicks.seed}, {"equilibrium_kicks", eo.kicks.perRound}};
+    j["provenance"] = withBuild({{"forward_model_revision", kForwardModelRevision}, {"level", level},
+                                 {"vertices", 10 * (1 << (2 * level)) + 2}, {"sfs_model_version", kSfsModelVersion}, {"threads", threads},
+                                 {"in_plane_axis", inPlaneAxisName(eo.inPlaneAxis)}, {"preconditioner", "multigrid"},
+                                 {"equilibrium_symmetry", equilibriumSymmetryName(eo.equilibriumSymmetry)},
+                                 {"equilibrium_seed", eo.kicks.seed}, {"equilibrium_kicks", eo.kicks.perRound}});
     py::dict out = jsonToPython(j).cast<py::dict>();
     // Shapes and curves (what `trbc simulate --save-shapes` writes), um and s.
     const Faces& F = s.sfs.mesh.F;
@@ -355,13 +355,19 @@ py::array surrogateEvaluate(const Surrogate& s, const RowArray& x, int threads) 
     return ownedRows(std::move(y));
 }
 
+/// The cytosol viscosity of each of n inputs.
+Eigen::Map<const Eigen::VectorXd> cytosolOf(const RowArray& etaIn, Eigen::Index n) {
+    if (etaIn.ndim() != 1 || etaIn.shape(0) != n)
+        throw InputError(fmt::format("eta_in_mPa_s: {} values for {} inputs", etaIn.ndim() == 1 ? etaIn.shape(0) : -1, n));
+    return {etaIn.data(), etaIn.shape(0)};
+}
+
 /// (n, 7) inputs and (n,) cytosol viscosities -> (n, 5): p_tank_treading, inclination_deg, swing_deg,
 /// ttf_4pi_f_over_rate, outside_box (0 or 1).
+
 py::array flowSurrogatePredict(const FlowSurrogate& s, const RowArray& x, const RowArray& etaIn, int threads) {
     const auto X = columnsOf(x, 7, "x");
-    if (etaIn.ndim() != 1 || etaIn.shape(0) != X.cols())
-        throw InputError(fmt::format("eta_in_mPa_s: {} values for {} inputs", etaIn.ndim() == 1 ? etaIn.shape(0) : -1, X.cols()));
-    const Eigen::Map<const Eigen::VectorXd> eta(etaIn.data(), etaIn.shape(0));
+    const auto eta = cytosolOf(etaIn, X.cols());
     Eigen::MatrixXd y = withoutGil([&] {
         const ThreadScope ts(threads);
         const FlowPrediction p = s.predict(X, eta);
@@ -835,10 +841,11 @@ PYBIND11_MODULE(_core, m) {
         .def(py::init([](const std::string& dir) { return std::make_shared<FlowSurrogate>(FlowSurrogate::load(dir)); }), "model_dir"_a)
         .def_readonly("eta_in_mPa_s", &FlowSurrogate::etaIn)
         .def("_predict", &flowSurrogatePredict, "x"_a, "eta_in"_a, "threads"_a = 0)
-        .def("_critical_stress", [](const FlowSurrogate& s, const RowArray& x) {
+        .def("_critical_stress", [](const FlowSurrogate& s, const RowArray& x, const RowArray& etaIn) {
             const auto X = columnsOf(x, 7, "x");
-            return ownedVector(withoutGil([&] { return Eigen::VectorXd(s.criticalStressPa(X)); }));
-        }, "x"_a);
+            const auto eta = cytosolOf(etaIn, X.cols());
+            return ownedVector(withoutGil([&] { return Eigen::VectorXd(s.criticalStressPa(X, eta)); }));
+        }, "x"_a, "eta_in"_a);
     m.attr("flow_surrogate_input_names") = py::cast(flowSurrogateInputNames());
     m.attr("surrogate_input_names") = py::cast(surrogateInputNames());
     m.attr("surrogate_output_names") = py::cast(surrogateOutputNames());

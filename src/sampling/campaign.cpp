@@ -405,7 +405,7 @@ void prepareCampaign(const CampaignOptions& o) {
             throw InputError(fmt::format("--resume: {} was made with different settings:{}", provenancePath(o).string(), diff));
         }
         nlohmann::json j = old;
-        nlohmann::json entry = {{"command", o.command}, {"version", kVersion}, {"ranks", o.ranks}, {"threads", o.threads}};
+        nlohmann::json entry = withBuild({{"command", o.command}, {"ranks", o.ranks}, {"threads", o.threads}});
         if (!o.reuseFrom.empty()) entry["reuse_from"] = o.reuseFrom.string();
         if (grows && old["settings"]["samples"] != settings["samples"]) {
             entry["grown_from_samples"] = old["settings"]["samples"];
@@ -421,16 +421,15 @@ void prepareCampaign(const CampaignOptions& o) {
     if (fs::exists(samplesPath(o)) || !fs::is_empty(partsDir(o)))
         throw InputError(fmt::format("--out: {} holds campaign files but no campaign.json; choose another directory",
                                      o.outDir.string()));
-    nlohmann::json j = {{"command", o.command},
-                        {"version", kVersion},
-                        {"ranks", o.ranks},
-                        {"threads", o.threads},
-                        {"status", "running"},
-                        {"settings", settings},
-                        {"columns", campaignCsvHeader()},
-                        {"units", "um, pN, s; mu in uN/m, etam in Pa s um"},
-                        {"note", "rows of one cell share (v, mu, FvK, b2, etam) and differ in Fext; "
-                                 "wall_s is the row's share of its cell's wall time"}};
+    nlohmann::json j = withBuild({{"command", o.command},
+                                  {"ranks", o.ranks},
+                                  {"threads", o.threads},
+                                  {"status", "running"},
+                                  {"settings", settings},
+                                  {"columns", campaignCsvHeader()},
+                                  {"units", "um, pN, s; mu in uN/m, etam in Pa s um"},
+                                  {"note", "rows of one cell share (v, mu, FvK, b2, etam) and differ in Fext; "
+                                           "wall_s is the row's share of its cell's wall time"}});
     if (!o.reuseFrom.empty()) {
         j["reuse_from"] = o.reuseFrom.string();
         j["reuse_note"] = "cells whose equilibrium is the symmetric disc of reuse_from (reused = 1 in equilibria.csv) "

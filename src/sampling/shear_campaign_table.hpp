@@ -65,6 +65,8 @@ struct ShearCampaignRow {
     double wallSeconds = 0.0;
 
     bool ok() const { return status == "ok"; }
+    /// A row the networks learn from: run to the end, with a regime.
+    bool finished() const { return ok() && !regime.empty(); }
     bool tankTreading() const { return regime == "tank-treading"; }
 };
 

@@ -52,7 +52,7 @@ struct AccuracySums {
 std::vector<const ShearCampaignRow*> finishedRows(const std::vector<ShearCampaignRow>& rows) {
     std::vector<const ShearCampaignRow*> out;
     for (const ShearCampaignRow& r : rows)
-        if (r.ok() && !r.regime.empty()) out.push_back(&r);
+        if (r.finished()) out.push_back(&r);
     return out;
 }
 
@@ -169,17 +169,31 @@ void FlowSurrogate::save(const fs::path& dir) const {
     writeFileAtomically(dir / "flow_surrogate.json", meta.dump(2) + "\n");
 }
 
-FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& etaInCol) const {
+namespace {
+
+/// The inputs mapped to the campaign's cytosol viscosity campaignEtaIn (the exact rescaling of
+/// FlowSurrogate::predict): every viscosity times s = campaignEtaIn / eta_in, the rate over s.
+Eigen::MatrixXd atCampaignCytosol(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& etaIn,
+                                  double campaignEtaIn) {
     if (x.rows() != 7) throw InputError(fmt::format("flow surrogate: inputs have {} rows, expected 7", x.rows()));
-    if (etaInCol.size() != x.cols())
-        throw InputError(fmt::format("flow surrogate: {} cytosol viscosities for {} inputs", etaInCol.size(), x.cols()));
+    if (etaIn.size() != x.cols())
+        throw InputError(fmt::format("flow surrogate: {} cytosol viscosities for {} inputs", etaIn.size(), x.cols()));
     Eigen::MatrixXd z = x;
+    for (Eigen::Index j = 0; j < x.cols(); ++j) {
+        if (!(etaIn(j) > 0.0)) throw InputError(fmt::format("flow surrogate: eta_in_mPa_s {} must be > 0", etaIn(j)));
+        const double s = campaignEtaIn / etaIn(j);
+        z(4, j) *= s, z(kEtaOutAxis, j) *= s, z(kStressAxis, j) /= s;
+    }
+    return z;
+}
+
+}  // namespace
+
+FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& etaInCol) const {
+    const Eigen::MatrixXd z = atCampaignCytosol(x, etaInCol, etaIn);
     FlowPrediction p;
     p.outsideBox.assign(std::size_t(x.cols()), false);
     for (Eigen::Index j = 0; j < x.cols(); ++j) {
-        if (!(etaInCol(j) > 0.0)) throw InputError(fmt::format("flow surrogate: eta_in_mPa_s {} must be > 0", etaInCol(j)));
-        const double s = etaIn / etaInCol(j);  // every viscosity times s, the rate over s
-        z(4, j) *= s, z(5, j) *= s, z(6, j) /= s;
         for (int i = 0; i < 7; ++i) {
             const DesignAxis& a = kShearCampaignAxes[i];
             const double v = i == kStressAxis ? shearStressPa(z(kEtaOutAxis, j), z(kStressAxis, j)) : z(i, j);
@@ -199,8 +213,14 @@ FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x
 }
 
 Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability, bool clampToRange) const {
+    return criticalStressPa(x, Eigen::VectorXd::Constant(x.cols(), etaIn), probability, clampToRange);
+}
+
+Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& xIn, const Eigen::Ref<const Eigen::VectorXd>& etaInOf,
+                                                double probability, bool clampToRange) const {
     const DesignAxis& axis = kShearCampaignAxes[kStressAxis];
-    const Eigen::Index n = x.cols();
+    const Eigen::Index n = xIn.cols();
+    const Eigen::MatrixXd x = atCampaignCytosol(xIn, etaInOf, etaIn);  // the critical stress does not change
     Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, std::log(axis.lo)), hi = Eigen::VectorXd::Constant(n, std::log(axis.hi));
     auto pAt = [&](const Eigen::VectorXd& logStress) {
         Eigen::MatrixXd z = x;
@@ -227,7 +247,7 @@ Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::Ma
 FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor) {
     std::vector<const ShearCampaignRow*> done;
     for (const ShearCampaignRow* r : rows)
-        if (r->ok() && !r->regime.empty()) done.push_back(r);
+        if (r->finished()) done.push_back(r);
     return accuracySums(model, done, boundaryFactor).accuracy();
 }
 

@@ -56,7 +56,12 @@ struct FlowSurrogate {
     /// at the cell and eta_out of each column of x (the rate row is ignored), by bisection in log
     /// stress over the campaign's stress range; NaN where it does not cross inside that range, or
     /// with `clampToRange` the range's end on the side where the crossing lies (the low end when
-    /// the cell tank-treads over the whole range, the high end when it never does).
+    /// the cell tank-treads over the whole range, the high end when it never does). `etaIn`: the
+    /// cytosol viscosity of each column (mPa s), mapped to the campaign's by the exact rescaling
+    /// above, which leaves the critical stress unchanged (every viscosity times s: tau = eta_out rate).
+    Eigen::VectorXd criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::Ref<const Eigen::VectorXd>& etaIn,
+                                     double probability = 0.5, bool clampToRange = false) const;
+    /// The campaign's eta_in for every column.
     Eigen::VectorXd criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability = 0.5,
                                      bool clampToRange = false) const;
 };

@@ -73,3 +73,11 @@ def test_critical_stress_lies_near_the_synthetic_boundary(model):
     # (FlowSurrogate.LearnsASyntheticCampaignAndFindsItsBoundary).
     assert np.all(np.abs(np.log(tc / truth)) < np.log(2.5)), (tc, truth)
     assert np.all(np.diff(tc) > 0), tc
+    # Every viscosity times 2 (cytosol included) leaves the critical stress unchanged.
+    tc2 = model.critical_stress_Pa(eta_out_mPa_s=60.0, v=0.9, mu_uN_per_m=mu, FvK=200.0, b2=1.0, etam_Pa_s_um=1.2,
+                                   eta_in_mPa_s=20.0)
+    np.testing.assert_allclose(tc2, tc, rtol=1e-12)
+    # A cytosol twice as viscous with the rest unchanged is another cell in flow: another stress.
+    tc3 = model.critical_stress_Pa(eta_out_mPa_s=30.0, v=0.9, mu_uN_per_m=mu, FvK=200.0, b2=1.0, etam_Pa_s_um=0.6,
+                                   eta_in_mPa_s=20.0)
+    assert np.all(np.isfinite(tc3)) and not np.allclose(tc3, tc, rtol=1e-6), (tc3, tc)

@@ -116,6 +116,14 @@ def sfs(v: float, level: int = 4, *, tol: float = 1e-5, preconditioner: str = "m
 
 # ---- surrogates ----------------------------------------------------------------------------------
 
+_RA2_UM2 = 10.742958658  # R_A^2 = A0 / (4 pi) of the reference cell (um^2)
+
+
+def _fvk_from_kb(mu_uN_per_m, kb_J):
+    """FvK = mu R_A^2 / kb (mu in uN/m, kb in J; kb * 1e18 is in pN um)."""
+    return np.asarray(mu_uN_per_m, dtype=float) * _RA2_UM2 / (np.asarray(kb_J, dtype=float) * 1e18)
+
+
 def _as_inputs(x) -> np.ndarray:
     """(n, 6) float64 C-contiguous inputs from an array or a dict of arrays with the canonical names
     (kb_J instead of FvK is accepted: FvK = mu R_A^2 / kb)."""
@@ -126,8 +134,7 @@ def _as_inputs(x) -> np.ndarray:
         cols = []
         for k in INPUT_NAMES:
             if k == "FvK" and "FvK" not in x:
-                mu = np.asarray(x["mu_uN_per_m"], dtype=float)
-                cols.append(mu * 10.742958658 / (np.asarray(x["kb_J"], dtype=float) * 1e18))
+                cols.append(_fvk_from_kb(x["mu_uN_per_m"], x["kb_J"]))
             else:
                 cols.append(np.asarray(x[k], dtype=float))
         cols = np.broadcast_arrays(*[np.atleast_1d(c) for c in cols])
@@ -191,6 +198,20 @@ class FlowSurrogate(_core.FlowSurrogate):
     def __init__(self, model_dir: Optional[_PathLike] = None):
         super().__init__(str(model_dir if model_dir is not None else data_dir("surrogates", "flow")))
 
+    @staticmethod
+    def _columns(v, mu_uN_per_m, kb_J, FvK, b2, etam_Pa_s_um, eta_out_mPa_s, shear_rate_per_s, eta_in_mPa_s):
+        """The broadcast shape, the (n, 7) inputs in flow_surrogate_input_names order and the (n,)
+        cytosol viscosities."""
+        if (kb_J is None) == (FvK is None):
+            raise ValueError("give exactly one of kb_J and FvK")
+        args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
+                                     (v, mu_uN_per_m, kb_J if FvK is None else FvK, b2, etam_Pa_s_um, eta_out_mPa_s,
+                                      shear_rate_per_s, eta_in_mPa_s)))
+        cols = [a.ravel() for a in args]
+        if FvK is None:
+            cols[2] = _fvk_from_kb(cols[1], cols[2])
+        return args[0].shape, np.ascontiguousarray(np.stack(cols[:7], axis=1)), np.ascontiguousarray(cols[7])
+
     def predict(self, *, eta_out_mPa_s, shear_rate_per_s, v, mu_uN_per_m, b2, etam_Pa_s_um, kb_J=None, FvK=None,
                 eta_in_mPa_s=10.0, threads: int = 0) -> dict:
         """{name: array} of p_tank_treading, inclination_deg, swing_deg, ttf_4pi_f_over_rate (4 pi f /
@@ -198,34 +219,19 @@ class FlowSurrogate(_core.FlowSurrogate):
         arguments broadcast against each other like numpy arrays; give the bending modulus as kb_J
         (J) or FvK. The angle, swing and TTF are those of the tank-treading state (extrapolated where
         p_tank_treading is small)."""
-        if (kb_J is None) == (FvK is None):
-            raise ValueError("give exactly one of kb_J and FvK")
-        bending = kb_J if FvK is None else FvK
-        args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                     (v, mu_uN_per_m, bending, b2, etam_Pa_s_um, eta_out_mPa_s, shear_rate_per_s, eta_in_mPa_s)))
-        shape = args[0].shape
-        cols = [a.ravel() for a in args]
-        if FvK is None:  # FvK = mu R_A^2 / kb, R_A^2 = A0 / (4 pi) = 10.742958658 um^2, kb in pN um
-            cols[2] = cols[1] * 10.742958658 / (cols[2] * 1e18)
-        x = np.ascontiguousarray(np.stack(cols[:7], axis=1))
-        y = self._predict(x, np.ascontiguousarray(cols[7]), threads)
+        shape, x, eta_in = self._columns(v, mu_uN_per_m, kb_J, FvK, b2, etam_Pa_s_um, eta_out_mPa_s, shear_rate_per_s,
+                                         eta_in_mPa_s)
+        y = self._predict(x, eta_in, threads)
         out = {name: y[:, k].reshape(shape) for k, name in enumerate(self.output_names)}
         out["outside_box"] = (y[:, 4] > 0.5).reshape(shape)
         return out
 
-    def critical_stress_Pa(self, *, eta_out_mPa_s, v, mu_uN_per_m, b2, etam_Pa_s_um, kb_J=None, FvK=None) -> np.ndarray:
-        """The shear stress (Pa) at which p_tank_treading crosses 1/2 (cytosol at the campaign's
-        viscosity), NaN where it does not cross inside the campaign's stress range; broadcasts."""
-        if (kb_J is None) == (FvK is None):
-            raise ValueError("give exactly one of kb_J and FvK")
-        args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                     (v, mu_uN_per_m, kb_J if FvK is None else FvK, b2, etam_Pa_s_um, eta_out_mPa_s)))
-        shape = args[0].shape
-        cols = [a.ravel() for a in args]
-        if FvK is None:
-            cols[2] = cols[1] * 10.742958658 / (cols[2] * 1e18)
-        x = np.ascontiguousarray(np.stack(cols + [np.ones_like(cols[0])], axis=1))
-        return self._critical_stress(x).reshape(shape)
+    def critical_stress_Pa(self, *, eta_out_mPa_s, v, mu_uN_per_m, b2, etam_Pa_s_um, kb_J=None, FvK=None,
+                           eta_in_mPa_s=10.0) -> np.ndarray:
+        """The shear stress (Pa) at which p_tank_treading crosses 1/2, NaN where it does not cross
+        inside the campaign's stress range; broadcasts like predict."""
+        shape, x, eta_in = self._columns(v, mu_uN_per_m, kb_J, FvK, b2, etam_Pa_s_um, eta_out_mPa_s, 1.0, eta_in_mPa_s)
+        return self._critical_stress(x, eta_in).reshape(shape)
 
 
 # ---- inference -----------------------------------------------------------------------------------

@@ -167,7 +167,7 @@ TEST(Mlp, BatchedForwardIsIndependentOfThreadCountAndBlocking) {
     const Eigen::MatrixXd Y2 = net.forward(X);
     EXPECT_TRUE(Y1 == Y2);  // bit-identical
     // every column agrees with a one-sample evaluation (different product kernel: round-off only)
-    for (Eigen::Index j : {Eigen::Index(0), Eigen::Index(300), X.cols() - 1}) {
+    for (Eigen::Index j : {Eigen::Index(0), X.cols() / 2, X.cols() - 1}) {
         const Eigen::MatrixXd y = net.forward(X.col(j));
         EXPECT_LT((y - Y1.col(j)).cwiseAbs().maxCoeff(), 1e-14);
     }

@@ -25,6 +25,7 @@
 #include "analysis/validation.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "core/file_io.hpp"
 #include "core/output_dir.hpp"
 #include "core/version.hpp"
@@ -371,8 +372,8 @@ TEST(Provenance, EveryCsvTableOpensWithVersionRevisionCommandAndSeed) {
     setProvenanceSeed(7);
     writePosteriorStats(tmp.path() / "s.csv", {{"p", "v", 1, 1, 1, 1, 0.1, 0.9, 1.1}});
     const std::string stats = test::slurp(tmp.path() / "s.csv");
-    EXPECT_TRUE(stats.starts_with(fmt::format("# trbc {} ({}) | command: trbc infer --seed 7 --out a b | seed: 7\nposterior,parameter,",
-                                              kVersion, gitDescribe())))
+    EXPECT_TRUE(stats.starts_with(fmt::format("# trbc {} ({}) | command: trbc infer --seed 7 --out a b | seed: 7 | build: {}\nposterior,parameter,",
+                                              kVersion, gitDescribe(), simd::buildTarget())))
         << stats;
     EXPECT_EQ(readCsvRecords(tmp.path() / "s.csv").size(), 2u);
     setProvenanceCommand("trbc");

@@ -1,4 +1,4 @@
-#include "cli/child_process.hpp"
+#include "core/child_process.hpp"
 
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -21,7 +21,7 @@
 
 extern char** environ;
 
-namespace trbc::cli {
+namespace trbc {
 namespace {
 
 // Running children (process-group leaders); 0 = free slot. Lock-free so that the signal handler
@@ -157,4 +157,4 @@ void forwardSignalsToChildren() {
     });
 }
 
-}  // namespace trbc::cli
+}  // namespace trbc

@@ -1,7 +1,7 @@
 // The flow protocols as library calls (flow/shear_case.hpp, flow/tube_case.hpp) at level 1 and
 // short durations: a tank-treading and a tumbling cell in shear, a cell moving along a tube, the
 // stages, failures and the checks of the options. `trbc flow` writes its outputs from these
-// results (tests/test_cell_flow.cpp and tests/test_tube.cpp run the commands).
+// results (tests/flow/test_cell_flow.cpp and tests/flow/test_tube.cpp run the commands).
 #include <gtest/gtest.h>
 
 #include <cmath>

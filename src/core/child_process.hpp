@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <string>
 
-namespace trbc::cli {
+namespace trbc {
 
 /// The variable that tells a trbc child the driver's pid (dieWithParent).
 inline constexpr const char* kParentPidVariable = "TRBC_PARENT_PID";
@@ -33,4 +33,4 @@ void forwardSignalsToChildren();
 /// is set was interrupted and must not be recorded as a result.
 int forwardedSignal();
 
-}  // namespace trbc::cli
+}  // namespace trbc

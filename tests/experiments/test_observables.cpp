@@ -178,7 +178,10 @@ TEST(EquilibriumObservables, EvansFungCellMatchesTheAnalyticProfile) {
         ThicknessProfile p;
         const EquilibriumObservables o = equilibriumObservables(X, s.F, &p);
         EXPECT_NEAR(o.D, 2 * ef.R0, 0.01 * 2 * ef.R0);
-        EXPECT_EQ(p.r.size(), 2000u);
+        // Every ray hits, except perhaps the last, at r = D/2, which touches the rim at one point: the
+        // rounding of the build's instruction set decides whether its slice reaches it.
+        EXPECT_GE(p.r.size(), 1999u);
+        EXPECT_LE(p.r.size(), 2000u);
         // Pointwise against h = 2 f inside 0.9 R0 (beyond it f'' ~ (R0 - r)^{-3/2} and the bound is void).
         double worstRatio = 0.0, tolExtrema = 0.0;
         for (std::size_t k = 0; k < p.r.size() && p.r[k] <= 0.9 * ef.R0; ++k) {

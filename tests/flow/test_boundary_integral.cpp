@@ -15,6 +15,7 @@
 #include <numbers>
 
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "flow/boundary_integral.hpp"
 #include "flow/stokes_kernels.hpp"
 #include "flow/stokes_solver.hpp"
@@ -263,11 +264,11 @@ TEST(StokesOperators, SinglePrecisionFarSumAgreesWithDoubleToItsRounding) {
     EXPECT_LT(lin.cwiseAbs().maxCoeff(), 5e-7 * b.singleLayer(f + 2.0 * u).cwiseAbs().maxCoeff());
 }
 
-TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
-    // With AVX2 + FMA the float far sum takes the targets two at a time and the odd last one alone; an
-    // icosphere has an even vertex count, so one face is split at its centroid (lifted onto the
-    // sphere): 163 vertices, the last one on the one-target path, the last points in a partial
-    // chunk of eight.
+/// With AVX2 + FMA the float far sum takes the targets two at a time and the odd last one alone; an
+/// icosphere has an even vertex count, so one face is split at its centroid (lifted onto the
+/// sphere): 163 vertices, the last one on the one-target path, the last points in a partial
+/// chunk of eight; then flattened off-centre.
+Mesh oddVertexCell() {
     Mesh m = icosphere(2);
     const Eigen::Index nv0 = m.X.cols(), nf0 = m.F.cols();
     const Eigen::Vector3i f0 = m.F.col(0);
@@ -278,6 +279,11 @@ TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
     m.F.col(nf0) = Eigen::Vector3i(f0[1], f0[2], int(nv0));
     m.F.col(nf0 + 1) = Eigen::Vector3i(f0[2], f0[0], int(nv0));
     flattenOffCentre(m);
+    return m;
+}
+
+TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
+    const Mesh m = oddVertexCell();
     QuadratureOptions single;
     single.singlePrecisionFar = true;
     const BoundaryIntegralOperators a(m), b(m, single);
@@ -297,6 +303,52 @@ TEST(StokesOperators, SinglePrecisionFarSumOnAnOddVertexCountAgreesWithDouble) {
         EXPECT_LT((Da.col(i) - Db.col(i)).norm(), 5e-7 * Da.cwiseAbs().maxCoeff()) << i;
     }
     EXPECT_TRUE(Sb.allFinite() && Db.allFinite());
+}
+
+TEST(StokesOperators, EverySimdPathTheCpuOffersAgreesWithThePortablePath) {
+    // The far sums' paths (core/simd.hpp) forced one by one on the odd-vertex cell: each agrees with
+    // the portable path to the float rounding, and a path other than the portable one changes the
+    // last bits (it ran).
+    const Mesh m = oddVertexCell();
+    QuadratureOptions single;
+    single.singlePrecisionFar = true;
+    const BoundaryIntegralOperators ops(m, single);
+    Eigen::Matrix3Xd f, u;
+    smoothDensities(m.X, f, u);
+    const simd::Path saved = simd::active();
+    Eigen::Matrix3Xd S0, D0;
+    simd::force(simd::Path::portable);
+    ops.layers(f, u, S0, D0);
+    int tried = 0;
+    for (const simd::Path p : {simd::Path::avx2}) {
+        if (!simd::cpuOffers(p)) continue;
+        ++tried;
+        simd::force(p);
+        Eigen::Matrix3Xd S, D;
+        ops.layers(f, u, S, D);
+        const Eigen::Matrix3Xd Sf = ops.singleLayer(f), Du = ops.doubleLayer(u);
+        EXPECT_LT((S - S0).cwiseAbs().maxCoeff(), 5e-7 * S0.cwiseAbs().maxCoeff()) << simd::name(p);
+        EXPECT_LT((D - D0).cwiseAbs().maxCoeff(), 5e-7 * D0.cwiseAbs().maxCoeff()) << simd::name(p);
+        EXPECT_GT((S - S0).cwiseAbs().maxCoeff(), 0.0) << simd::name(p);
+        EXPECT_LT((Sf - S).cwiseAbs().maxCoeff(), 5e-7 * S0.cwiseAbs().maxCoeff()) << simd::name(p);
+        EXPECT_LT((Du - D).cwiseAbs().maxCoeff(), 5e-7 * D0.cwiseAbs().maxCoeff()) << simd::name(p);
+    }
+    simd::force(saved);
+    if (tried == 0) GTEST_SKIP() << "this CPU offers the portable path only";
+}
+
+TEST(Simd, PathNamesParseAndBadNamesAreRefused) {
+    EXPECT_EQ(simd::parse("portable", "--x"), simd::Path::portable);
+    EXPECT_EQ(simd::parse("avx2", "--x"), simd::Path::avx2);
+    try {
+        simd::parse("avx9", "environment variable TRBC_SIMD");
+        FAIL() << "avx9 accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("TRBC_SIMD: 'avx9' is not a SIMD path (valid: portable, avx2)"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_TRUE(simd::cpuOffers(simd::Path::portable));
+    EXPECT_NE(simd::buildTarget().find(simd::name(simd::active())), std::string::npos) << simd::buildTarget();
 }
 
 TEST(StokesOperators, ResultDoesNotDependOnThreads) {

@@ -1,0 +1,31 @@
+#pragma once
+// The tables and records of `trbc validate` from the runner's finished cases (docs/VALIDATE.md):
+// shear.csv, tube.csv, threshold.csv and comparison.csv (each prediction against the experimental
+// scatter, analysis/validation.hpp), validation.md with the method text, and with posterior draws
+// draws.csv, bands.csv and the band section; validation.json.
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "analysis/validation_runner.hpp"
+
+namespace trbc {
+
+/// What the command line selected, for validation.json.
+struct ValidationSelection {
+    std::vector<std::string> only, imports;
+    std::string shard;
+    std::string command;  ///< the command line, for the provenance
+};
+
+/// Writes the tables and validation.md into R.out; returns the summary (cases, failed, inside,
+/// outside, no_data, other, comparisons; with draws "draws") and the band rows in `bandRows`.
+nlohmann::json writeValidationTables(const ValidationRunner& R, nlohmann::json& bandRows);
+
+/// The content of OUT/validation.json: summary, selection, cell, levels, configuration and timing.
+nlohmann::json validationRecord(const ValidationRunner& R, const ValidationSelection& o, const nlohmann::json& summary,
+                                const nlohmann::json& bandRows, std::size_t configured, double wall);
+
+}  // namespace trbc

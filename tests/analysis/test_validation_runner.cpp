@@ -1,0 +1,143 @@
+// The job runner of `trbc validate` (analysis/validation_runner.hpp) with a stand-in for the flow
+// commands: a shell script that records its arguments and prints a flow result. Each case runs
+// once, a second run resumes from the records, a record of another cell is not reused, an import
+// copies finished cases instead of running them, and a failed case is kept with its reason until
+// retryFailed.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "analysis/validation_runner.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A stand-in for `trbc flow ...`: appends its arguments to calls.log beside it and prints a result;
+/// with FAIL in its folder it exits 3 without one.
+fs::path fakeFlowCommand(const fs::path& dir) {
+    const fs::path exe = test::writeText(dir / "fake_trbc", R"(#!/bin/sh
+here=$(dirname "$0")
+echo "$*" >> "$here/calls.log"
+if [ -e "$here/FAIL" ]; then echo "solver diverged" >&2; exit 3; fi
+echo '{"status": "ok", "observables": {"regime": "tank-treading", "inclination_deg": 12.5, "ttf_4pi_f_over_shear_rate": 0.31}}'
+)");
+    fs::permissions(exe, fs::perms::owner_all);
+    return exe;
+}
+
+int callCount(const fs::path& dir) {
+    std::ifstream in(dir / "calls.log");
+    int n = 0;
+    for (std::string line; std::getline(in, line);) ++n;
+    return n;
+}
+
+const std::vector<ValidationCase> kCases = {{"angle_eta23.9_rate50", "angle", 23.9, 50.0, 0.0, -1, 0},
+                                            {"ttf_eta23.9_rate100", "ttf", 23.9, 100.0, 0.0, -1, 0},
+                                            {"angle_eta55.9_rate20", "angle", 55.9, 20.0, 0.0, -1, 0}};
+
+/// A runner writing into `out`, the cases run by `exe`, quiet, two at a time.
+void configure(ValidationRunner& R, const fs::path& out, const fs::path& exe) {
+    R.cfg.jobs = 2;
+    R.cfg.level = 2;
+    R.out = out;
+    R.exe = exe;
+    R.quiet = true;
+    fs::create_directories(out / "cases");
+}
+
+TEST(ValidationRunner, RunsEachCaseOnceAndResumesFromItsRecords) {
+    const test::TempDir tmp;
+    const fs::path exe = fakeFlowCommand(tmp.path());
+    {
+        ValidationRunner R;
+        configure(R, tmp.path() / "out", exe);
+        R.runAll(kCases);
+        EXPECT_EQ(R.ranHere, 3);
+        EXPECT_EQ(callCount(tmp.path()), 3);
+        for (const ValidationCase& c : kCases) {
+            ASSERT_TRUE(fs::exists(R.caseFile(c))) << c.id;
+            EXPECT_EQ(R.resultOf(c.id).at("status"), "ok");
+            EXPECT_DOUBLE_EQ(R.resultOf(c.id).at("observables").at("inclination_deg").get<double>(), 12.5);
+        }
+        // The command carries the case's flow and the configured cell (Table 1 by default: no cell options).
+        const std::string calls = test::slurp(tmp.path() / "calls.log");
+        EXPECT_NE(calls.find("flow shear --eta-out 55.9 --shear-rate 20 --eta-in 10 --level 2"), std::string::npos) << calls;
+    }
+    {
+        ValidationRunner R;  // the same cases again: nothing runs
+        configure(R, tmp.path() / "out", exe);
+        R.runAll(kCases);
+        EXPECT_EQ(R.ranHere, 0);
+        EXPECT_EQ(R.done, 3);
+        EXPECT_EQ(callCount(tmp.path()), 3);
+    }
+    {
+        ValidationRunner R;  // another cell: another key, every case runs again
+        configure(R, tmp.path() / "out", exe);
+        R.cfg.cellSource = "explicit";
+        R.cfg.etam = 0.3;
+        R.runAll(kCases);
+        EXPECT_EQ(R.ranHere, 3);
+        EXPECT_EQ(callCount(tmp.path()), 6);
+        EXPECT_NE(test::slurp(tmp.path() / "calls.log").find("--etam 0.3"), std::string::npos);
+    }
+}
+
+TEST(ValidationRunner, ImportsFinishedCasesOfAnotherDirectoryInsteadOfRunningThem) {
+    const test::TempDir tmp;
+    const fs::path exe = fakeFlowCommand(tmp.path());
+    {
+        ValidationRunner R;
+        configure(R, tmp.path() / "part1", exe);
+        R.runAll({kCases[0], kCases[1]});
+    }
+    ValidationRunner R;
+    configure(R, tmp.path() / "merged", exe);
+    R.imports = {tmp.path() / "part1"};
+    R.runAll(kCases);
+    EXPECT_EQ(R.imported, 2);
+    EXPECT_EQ(R.ranHere, 1);  // the third case was not in part1
+    EXPECT_EQ(callCount(tmp.path()), 3);
+    for (const ValidationCase& c : kCases) EXPECT_TRUE(fs::exists(R.caseFile(c))) << c.id;
+}
+
+TEST(ValidationRunner, KeepsAFailedCaseWithItsReasonUntilRetryFailed) {
+    const test::TempDir tmp;
+    const fs::path exe = fakeFlowCommand(tmp.path());
+    test::writeText(tmp.path() / "FAIL", "");
+    {
+        ValidationRunner R;
+        configure(R, tmp.path() / "out", exe);
+        R.runAll({kCases[0]});
+        const nlohmann::json& r = R.resultOf(kCases[0].id);
+        EXPECT_EQ(r.at("status"), "failed");
+        EXPECT_NE(r.at("reason").get<std::string>().find("exit 3 without a result: solver diverged"), std::string::npos) << r;
+    }
+    fs::remove(tmp.path() / "FAIL");
+    {
+        ValidationRunner R;  // kept: a failure counts as finished
+        configure(R, tmp.path() / "out", exe);
+        R.runAll({kCases[0]});
+        EXPECT_EQ(R.ranHere, 0);
+        EXPECT_EQ(R.resultOf(kCases[0].id).at("status"), "failed");
+    }
+    {
+        ValidationRunner R;
+        configure(R, tmp.path() / "out", exe);
+        R.retryFailed = true;
+        R.runAll({kCases[0]});
+        EXPECT_EQ(R.ranHere, 1);
+        EXPECT_EQ(R.resultOf(kCases[0].id).at("status"), "ok");
+    }
+    EXPECT_EQ(callCount(tmp.path()), 2);
+}
+
+}  // namespace
+}  // namespace trbc
