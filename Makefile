@@ -1,9 +1,9 @@
-# trbc: make build | make test | make python | make demo | make showcase | make bench
+# trbc: make build | make test | make python | make demo | make showcase | make bench | make results
 BUILD ?= build
 JOBS ?= $(shell nproc)
 VENV ?= .venv
 
-.PHONY: all build test python demo showcase bench bootstrap clean
+.PHONY: all build test python demo showcase bench results bootstrap clean
 
 all: build
 
@@ -42,3 +42,9 @@ bench: bootstrap
 
 clean:
 	rm -rf $(BUILD) $(VENV) trbc.egg-info
+
+# Every shipped result set again (scripts/make_results.py); `make results --dry-run` (or -n) lists
+# the sets, their commands and costs and runs nothing. RESULTS=name,name selects sets.
+results: bootstrap
+	$(MAKE) build
+	+python3 scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)

@@ -32,6 +32,7 @@
 #include "experiments/parameters.hpp"
 #include "experiments/sfs.hpp"
 #include "experiments/simulation_report.hpp"
+#include "flow/flow_record.hpp"
 #include "flow/shear_case.hpp"
 #include "flow/tube_case.hpp"
 #include "inference/hierarchical.hpp"
@@ -623,16 +624,16 @@ FlowCaseStepping pythonStepping(FlowCaseStepping s, double frameInterval, std::o
     return s;
 }
 
-py::object noneUnless(bool ok, double v) { return ok ? py::object(py::float_(v)) : py::object(py::none()); }
+/// Where a flow call's cell came from, for its record.
+constexpr const char* kPythonCellSource = "keyword arguments (those not given: the paper's Table 1 means)";
 
-py::dict cellDict(const CellParameters& p) {
-    return py::dict("v"_a = p.v, "mu_uN_per_m"_a = p.mu, "FvK"_a = p.FvK, "kb_J"_a = p.kbJoule(), "b2"_a = p.b2,
-                    "etam_Pa_s_um"_a = p.etam);
-}
-
-py::dict stepDict(const CellFlowResult& r) {
-    return py::dict("steps"_a = r.steps, "rejected_steps"_a = r.rejectedSteps, "gmres_iterations_total"_a = r.gmresIterations,
-                    "area_drift_max"_a = r.maxAreaDrift, "volume_drift_max"_a = r.maxVolumeDrift, "flow_wall_s"_a = r.wallSeconds);
+/// The provenance of a flow call's record.
+nlohmann::json flowProvenance(int level) {
+    return withBuild({{"command", "trbc Python package"},
+                      {"level", level},
+                      {"vertices", 10 * (1 << (2 * level)) + 2},
+                      {"threads", omp_get_max_threads()},
+                      {"sfs_model_version", kSfsModelVersion}});
 }
 
 py::dict flowShear(double etaOut, double rate, double etaIn, double v, double mu, std::optional<double> FvK, std::optional<double> kbJ,
@@ -664,25 +665,15 @@ py::dict flowShear(double etaOut, double rate, double etaIn, double v, double mu
         return runShearCase(o);
     });
     if (!r.completed) throw NumericalError("flow shear: " + r.message);
-    const ShearObservables& obs = *r.observables;
-    const bool tt = obs.regime == ShearRegime::TankTreading;
     const ShearFrameSeries& s = r.series;
-    const FlowGroups& g = r.groups;
-    return py::dict(
-        "observables"_a = py::dict("regime"_a = regimeName(obs.regime), "inclination_deg"_a = noneUnless(tt, obs.inclinationDeg),
-                                   "swing_amplitude_deg"_a = noneUnless(tt, obs.swingAmplitudeDeg),
-                                   "ttf_4pi_f_over_shear_rate"_a = noneUnless(tt && obs.ttf.defined, obs.ttf4piFOverRate)),
-        "parameters"_a = py::dict("eta_out_mPa_s"_a = etaOut, "eta_in_mPa_s"_a = etaIn, "shear_rate_per_s"_a = rate,
-                                  "cell"_a = cellDict(r.cell), "capillary_number"_a = g.capillary,
-                                  "viscosity_ratio"_a = g.viscosityRatio, "membrane_viscosity_ratio_E"_a = g.membraneViscosity,
-                                  "t_end_s"_a = r.tEndSeconds, "level"_a = level),
-        "time_series"_a = py::dict("t_s"_a = vectorArray(s.time), "shear_strain"_a = vectorArray(s.shearStrain),
-                                   "inclination_deg"_a = vectorArray(s.inclinationDeg),
-                                   "orientation_unwrapped_deg"_a = vectorArray(s.orientationDeg),
-                                   "area_drift"_a = vectorArray(s.areaDrift), "volume_drift"_a = vectorArray(s.volumeDrift),
-                                   "centroid_um"_a = ownedRows(Eigen::Matrix3Xd(s.centroidUm))),
-        "diagnostics"_a = stepDict(r.flow),
-        "final_shape"_a = meshOf(r.flow.final * r.scales.length, r.prepared.faces));
+    py::dict out = jsonToPython(shearRecord(r, o, kPythonCellSource, flowProvenance(level))).cast<py::dict>();
+    out["time_series"] = py::dict("t_s"_a = vectorArray(s.time), "shear_strain"_a = vectorArray(s.shearStrain),
+                                  "inclination_deg"_a = vectorArray(s.inclinationDeg),
+                                  "orientation_unwrapped_deg"_a = vectorArray(s.orientationDeg),
+                                  "area_drift"_a = vectorArray(s.areaDrift), "volume_drift"_a = vectorArray(s.volumeDrift),
+                                  "centroid_um"_a = ownedRows(Eigen::Matrix3Xd(s.centroidUm)));
+    out["final_shape"] = meshOf(r.flow.final * r.scales.length, r.prepared.faces);
+    return out;
 }
 
 py::dict tubeSeriesDict(const TubeFrameSeries& s) {
@@ -693,38 +684,12 @@ py::dict tubeSeriesDict(const TubeFrameSeries& s) {
                     "volume_drift"_a = vectorArray(s.volumeDrift));
 }
 
-/// The observables of `trbc flow tube` (None for fewer than 16 frames).
-py::dict tubeObservablesDict(const TubeCaseResult& r) {
-    const std::optional<TubeObservables>& ob = r.main.observables;
-    const double Uc = r.units.centreLineVelocity;
-    return py::dict("velocity_cm_per_s"_a = noneUnless(ob.has_value(), ob ? ob->velocity * 1e-4 : 0.0),
-                    "length_um"_a = noneUnless(ob.has_value(), ob ? ob->length : 0.0),
-                    "width_um"_a = noneUnless(ob.has_value(), ob ? ob->widthY : 0.0),
-                    "width_z_um"_a = noneUnless(ob.has_value(), ob ? ob->widthZ : 0.0),
-                    "velocity_over_centre_line"_a = noneUnless(ob.has_value(), ob ? ob->velocity / Uc : 0.0),
-                    "velocity_over_mean_poiseuille"_a = noneUnless(ob.has_value(), ob ? ob->velocity / (0.5 * Uc) : 0.0));
-}
-
-py::dict tubeParametersDict(const TubeCaseResult& r, const TubeCaseOptions& o) {
-    const TubeUnits& u = r.units;
-    const TubeGroups& g = r.groups;
-    return py::dict("radius_um"_a = o.radius, "pressure_gradient_mmHg_per_mm"_a = o.pressureGradient,
-                    "pressure_gradient_Pa_per_m"_a = u.pressureGradientPaPerM, "eta_out_mPa_s"_a = r.conditions.etaOut,
-                    "eta_in_mPa_s"_a = r.conditions.etaIn, "velocity_scale_V_cm_per_s"_a = u.velocityScale * 1e-4,
-                    "centre_line_velocity_cm_per_s"_a = u.centreLineVelocity * 1e-4, "time_unit_R_over_V_s"_a = u.timeUnit,
-                    "duration_R_over_V"_a = o.duration, "minimum_radius_um"_a = u.minimumRadius, "cell"_a = cellDict(r.cell),
-                    "level"_a = o.level, "capillary_number"_a = g.capillary, "viscosity_ratio"_a = g.viscosityRatio,
-                    "membrane_viscosity_ratio_E"_a = g.membraneViscosity, "confinement_R_over_R_A"_a = g.confinement,
-                    "wall_points_per_ring"_a = r.setup.pointsPerRing, "wall_vertices"_a = r.wallVertices,
-                    "settling_etam_Pa_s_um"_a = noneUnless(r.settling.ran, r.settlingViscosity.etam));
-}
-
-py::object tubeSettlingDict(const TubeCaseResult& r) {
+/// The settling stage: its diagnostics as flow.json has them and its time series; None when it did not run.
+py::object tubeSettlingDict(const TubeCaseResult& r, const nlohmann::json& record) {
     if (!r.settling.ran) return py::none();
-    const CellFlowResult& f = r.settling.flow;
-    const Eigen::Vector3d e = extents(r.main.startUm);
-    return py::dict("settled"_a = f.stoppedEarly, "t_reached_R_over_V"_a = f.tReached, "final_length_um"_a = e.x(),
-                    "final_width_um"_a = e.y(), "time_series"_a = tubeSeriesDict(r.settling.series), "diagnostics"_a = stepDict(f));
+    py::dict d = jsonToPython(record.at("diagnostics").at("settling")).cast<py::dict>();
+    d["time_series"] = tubeSeriesDict(r.settling.series);
+    return d;
 }
 
 py::dict flowTube(double radius, double pg, double etaOut, double lambda, double v, double mu, std::optional<double> FvK,
@@ -750,16 +715,12 @@ py::dict flowTube(double radius, double pg, double etaOut, double lambda, double
         return runTubeCase(o);
     });
     if (!r.completed) throw NumericalError((r.stage == TubeCaseStage::Fit ? "flow tube: " : "flow tube, ") + r.message);
-    const TubeStageResult& m = r.main;
-    py::dict diagnostics = stepDict(m.flow);
-    diagnostics["wall_clearance_min_um"] = m.minClearanceUm;
-    diagnostics["centroid_off_axis_max_um"] = m.maxOffAxisUm;
-    diagnostics["t_reached_R_over_V"] = m.flow.tReached;
-    diagnostics["plateau_reached"] = m.observables && m.observables->lengthChange < 0.01 && m.observables->velocityChange < 0.01;
-    diagnostics["wall_s"] = r.wallSeconds;
-    return py::dict("observables"_a = tubeObservablesDict(r), "parameters"_a = tubeParametersDict(r, o),
-                    "time_series"_a = tubeSeriesDict(m.series), "settling"_a = tubeSettlingDict(r),
-                    "diagnostics"_a = diagnostics, "final_shape"_a = meshOf(m.flow.final * r.scales.length, r.prepared.faces));
+    const nlohmann::json record = tubeRecord(r, o, kPythonCellSource, flowProvenance(level));
+    py::dict out = jsonToPython(record).cast<py::dict>();
+    out["time_series"] = tubeSeriesDict(r.main.series);
+    out["settling"] = tubeSettlingDict(r, record);
+    out["final_shape"] = meshOf(r.main.flow.final * r.scales.length, r.prepared.faces);
+    return out;
 }
 
 }  // namespace

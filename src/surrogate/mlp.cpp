@@ -9,6 +9,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/simd.hpp"
+#include "surrogate/mlp_avx2.hpp"
+
 namespace trbc {
 
 // ---------------------------------------------------------------------------------------------
@@ -71,6 +74,9 @@ inline Packet tanhPacket(const Packet& x) {
 }  // namespace
 
 void tanhInPlace(double* x, Eigen::Index n) {
+#if defined(TRBC_MLP_AVX2_DISPATCH)
+    if (simd::active() == simd::Path::avx2) return mlp_avx2::tanhInPlace(x, n);
+#endif
     using namespace Eigen::internal;
     Eigen::Index i = 0;
     for (; i + kPacketSize <= n; i += kPacketSize) pstoreu(x + i, tanhPacket(ploadu<Packet>(x + i)));
@@ -212,6 +218,10 @@ void affineRows(const double* W, const double* b, Eigen::Index nOut, Eigen::Inde
 /// Z = W A + b on one feature-major block, then tanh in place if `hidden`.
 void affineBlock(const double* W, const double* b, Eigen::Index nOut, Eigen::Index nIn, const double* A, double* Z,
                  bool hidden) {
+#if defined(TRBC_MLP_AVX2_DISPATCH)
+    static_assert(kForwardBlock % 12 == 0, "the AVX2 kernel's tiles are 12 samples wide");
+    if (simd::active() == simd::Path::avx2) return mlp_avx2::affineBlock(W, b, nOut, nIn, A, Z, hidden, kForwardBlock);
+#endif
     Eigen::Index i = 0;
     for (; i + kTileRows <= nOut; i += kTileRows) affineRows<kTileRows>(W, b, nOut, nIn, A, Z, i);
     switch (nOut - i) {

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <limits>
 #include <numbers>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -17,6 +18,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "surrogate/mlp.hpp"
 #include "surrogate/network_io.hpp"
 #include "surrogate/scaling.hpp"
@@ -172,6 +174,41 @@ TEST(Mlp, BatchedForwardIsIndependentOfThreadCountAndBlocking) {
         EXPECT_LT((y - Y1.col(j)).cwiseAbs().maxCoeff(), 1e-14);
     }
     EXPECT_THROW(net.forward(Eigen::MatrixXd::Zero(4, 3)), std::invalid_argument);
+}
+
+TEST(Mlp, EverySimdPathTheCpuOffersAgreesWithThePortablePath) {
+    // The forward kernels and the tanh (core/simd.hpp) forced one by one: each path agrees with the
+    // portable one to the rounding (FMA or not), NaN and the saturation included, and a path other
+    // than the portable one changes some last bits (it ran).
+    const ThreadCount restore;
+    omp_set_num_threads(1);
+    const Mlp net = Mlp::glorotUniform({7, 32, 32, 30, 3}, 11);  // 30: a remainder of 2 rows per tile
+    const Eigen::MatrixXd X = randomMatrix(7, 3 * Mlp::kBlockColumns + 37, 12, -3.0, 3.0);
+    Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(1001, -25.0, 25.0);
+    t(500) = std::numeric_limits<double>::quiet_NaN();
+    const simd::Path saved = simd::active();
+    simd::force(simd::Path::portable);
+    const Eigen::MatrixXd Y0 = net.forward(X);
+    Eigen::VectorXd t0 = t;
+    tanhInPlace(t0.data(), t0.size());
+    int tried = 0;
+    for (const simd::Path p : {simd::Path::avx2}) {
+        if (!simd::cpuOffers(p)) continue;
+        ++tried;
+        simd::force(p);
+        const Eigen::MatrixXd Y = net.forward(X);
+        EXPECT_LT((Y - Y0).cwiseAbs().maxCoeff(), 1e-13) << simd::name(p);
+        EXPECT_GT((Y - Y0).cwiseAbs().maxCoeff(), 0.0) << simd::name(p);
+        Eigen::VectorXd tp = t;
+        tanhInPlace(tp.data(), tp.size());
+        EXPECT_TRUE(std::isnan(tp(500))) << simd::name(p);
+        tp(500) = t0(500) = 0.0;
+        EXPECT_LT((tp - t0).cwiseAbs().maxCoeff(), 4e-16) << simd::name(p);
+        EXPECT_EQ(tp(0), -1.0);
+        EXPECT_EQ(tp(1000), 1.0);
+    }
+    simd::force(saved);
+    if (tried == 0) GTEST_SKIP() << "this CPU offers the portable path only";
 }
 
 TEST(Mlp, TiledForwardMatchesPlainProductsForAnyLayerSizes) {

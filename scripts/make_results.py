@@ -1,0 +1,166 @@
+#!/usr/bin/env python3
+"""Regenerates the shipped result sets of results/ from configs/ and the current build (`make results`).
+
+    scripts/make_results.py [--trbc build/trbc] [--only NAME,...] [--dry-run] [--work out/results]
+
+--dry-run lists every set with its commands, its cost on the 2-core development machine (from
+the wall times its own records carry, where they do) and the command that made the copy shipped
+now. A run makes each selected set in WORK/<name> and then replaces results/<name> with it, so a
+failed or interrupted set leaves the shipped one untouched; the validation sets resume (`trbc
+validate` keeps its finished cases), the others start again. Sets are listed cheapest first; the
+sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
+when it is missing)."""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+POSTERIOR = "{work}/calibration/inference/phase3/theta_new"  # the posterior the calibration set makes
+
+# name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
+# {trbc} is the binary, {out} the set's work directory, {work} the root of all of them.
+SETS = {
+    "calibration": ("the shipped calibration: posterior statistics, report, stage ledger",
+                    ["{trbc} calibrate --config configs/paper.toml --out {out}"], 0.1,
+                    ["posterior_stats.csv", "report.html", "stages.json"]),
+    "inference": ("trbc infer on the shipped surrogates, seed 1: statistics, corner plots, predictions",
+                  ["{trbc} infer --phase all --seed 1 --out {out}",
+                   "{trbc} predict --inference {out} --out {out}/predict --threads 2 --quiet",
+                   "python3 scripts/plot_posterior.py {out} --out {out}",
+                   "python3 scripts/plot_predict.py {out}/predict"], 0.05, None),
+    "inference_seed_study": ("theta_new of the default trbc infer for seeds 1-8",
+                             ["python3 scripts/seed_study.py --trbc {trbc} --out {out} --seeds 1 2 3 4 5 6 7 8"], 0.3, None),
+    "sobol": ("Sobol' indices of the six observables", ["{trbc} sobol --samples 4096 --seed 1 --threads 2 --out {out}"], 0.05,
+              None),
+    "surrogate_vs_direct": ("the surrogates against direct level-4 simulations at 20 points",
+                            ["python3 scripts/surrogate_vs_direct.py --trbc {trbc} --n 20 --seed 99 --level 4 --out {out}"], 0.05, None),
+    "mesh_convergence": ("the six observables at levels 3-5 at three cells",
+                         ["bash scripts/mesh_convergence.sh {trbc} {out}"], 0.3, None),
+    "branch_map": ("the two equilibrium branches near v = 1", ["python3 scripts/branch_map.py --trbc {trbc} --jobs 2 --out {out} --figure {out}/branch_map.png"], 1.0, None),
+    "relaxation_low_v": ("tc at v 0.65-0.75, inertial and overdamped, levels 3-4",
+                         ["bash scripts/relaxation_low_v.sh {trbc} {out} \"3 4\""], 0.5, None),
+    "flow_scan_etam": ("two shear cases of the Table 1 cell over eta_m", ["bash scripts/flow_scan.sh {trbc} {out} 2 etam"], 1.0,
+                       None),
+    "flow_scan_threshold": ("the 100 mPa s threshold of the Table 1 cell over eta_m, v and a tilt",
+                            ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 2.0, None),
+    "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new"], 0.5,
+                            None),
+    "flow_verification/capsule": ("the spherical-capsule verification table",
+                                  ["python3 scripts/capsule_verification.py --trbc {trbc} --out {out}"], 3.0, None),
+    "flow_threshold/scan": ("the threshold under three protocols, three cells, four viscosities",
+                            ["python3 scripts/threshold_protocols.py --trbc {trbc} --out {out} --level 3 --members 8 "
+                             "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --fluctuating 3"], 18.0, None),
+    "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
+                                    ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
+                                     " --out {out} --jobs 2 --threads 1"], None, None),
+    "validation/theta_new_level3_high_viscosity": ("the 55.9 and 104 mPa s angle sets, theta_new cell",
+                                                   ["{trbc} validate --config configs/validation_high_viscosity.toml --out {out} "
+                                                    "--jobs 2"], None, None),
+    "validation/reference_cell_level3": ("the reference implementation's shear set-up",
+                                         ["{trbc} validate --config configs/validation_reference_cell_subset.toml --out {out} "
+                                          "--jobs 2 --threads 1"], None, None),
+    "validation/table1_level3_angle": ("the Table 1 cell's angles, level 3",
+                                       ["{trbc} validate --config configs/validation.toml --level 3 --only angle --out {out} "
+                                        "--jobs 2 --threads 1"], None, None),
+    "validation/table1_level3_ttf": ("the Table 1 cell's TTF, level 3",
+                                     ["{trbc} validate --config configs/validation.toml --level 3 --only ttf --out {out} "
+                                      "--jobs 2 --threads 1"], None, None),
+    "validation/table1_level3_threshold": ("the Table 1 cell's thresholds, level 3",
+                                           ["{trbc} validate --config configs/validation.toml --level 3 --only threshold --out "
+                                            "{out} --jobs 2 --threads 1"], None, None),
+    "validation/table1_level3_tube_tol6e-5": ("the Table 1 cell in the microtube, level 3",
+                                              ["{trbc} validate --config configs/validation.toml --level 3 --only tube --out {out} "
+                                               "--jobs 2 --threads 1"], None, None),
+    "validation/theta_new_level2_bands": ("the theta_new bands of the shear sets, 32 draws, level 2",
+                                          ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
+                                           " --draws 32 --seed 1 --level 2 --only ttf,threshold,angle --out {out} --jobs 2 --threads 1"], None, None),
+    "validation/theta_new_level3_high_viscosity_steady": ("the 55.9 and 104 mPa s angle sets stopped at the steady state",
+                                                          ["{trbc} validate --config configs/validation_high_viscosity_steady.toml "
+                                                           "--out {out} --jobs 2"], None, None),
+    "validation/theta_new_level3_tube_bands": ("the theta_new bands of the microtube, 32 draws, level 3",
+                                               ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
+                                                " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),
+}
+
+
+def recorded(name):
+    """(command, CPU hours) of the shipped copy, from its own records where it has them."""
+    d = os.path.join(ROOT, "results", name)
+    for record in ("validation.json", "calibrate.json", "infer.json", "sobol.json"):
+        f = os.path.join(d, record)
+        if os.path.exists(f):
+            try:
+                j = json.load(open(f))
+            except (OSError, ValueError):
+                continue
+            command = j.get("provenance", {}).get("command") or j.get("command", "")
+            hours = j["case_wall_s_total"] / 3600 if "case_wall_s_total" in j else None
+            return command, hours
+    for text in ("command.txt", "README.md"):
+        f = os.path.join(d, text)
+        if os.path.exists(f):
+            return open(f).readline().strip()[:160], None
+    return "", None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trbc", default="build/trbc")
+    ap.add_argument("--only", default="", help="comma-separated set names (default: all)")
+    ap.add_argument("--work", default="out/results", help="where the sets are made before they replace results/<name>")
+    ap.add_argument("--dry-run", action="store_true", help="list the sets, their commands and costs; run nothing")
+    a = ap.parse_args()
+    names = [n for n in a.only.split(",") if n] or list(SETS)
+    for n in names:
+        if n not in SETS:
+            sys.exit(f"--only: unknown set '{n}' (valid: {', '.join(SETS)})")
+    cost = {n: SETS[n][2] if SETS[n][2] is not None else (recorded(n)[1] or 0.0) for n in names}
+    names.sort(key=lambda n: cost[n])
+    work = os.path.abspath(a.work)
+    if a.dry_run:
+        total = 0.0
+        for n in names:
+            what, commands, _, keep = SETS[n]
+            command, _ = recorded(n)
+            total += cost[n]
+            print(f"{n}: {what}\n  cost: about {cost[n]:.2g} CPU h on the 2-core machine")
+            for c in commands:
+                print("  $ " + c.format(trbc=a.trbc, out=os.path.join(work, n), work=work))
+            if keep:
+                print("  keeps: " + ", ".join(keep))
+            print(f"  shipped copy made by: {command or '(no record)'}")
+        print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets resume, the others start again")
+        return
+    # The sets drawn from the calibration's posterior need it in WORK: made first when missing.
+    if any(POSTERIOR in c for n in names for c in SETS[n][1]) and "calibration" not in names and \
+            not os.path.isdir(POSTERIOR.format(work=work)):
+        names.insert(0, "calibration")
+    for n in names:
+        what, commands, _, keep = SETS[n]
+        out = os.path.join(work, n)
+        if not n.startswith("validation/"):
+            shutil.rmtree(out, ignore_errors=True)
+        os.makedirs(out, exist_ok=True)
+        t0 = time.time()
+        for c in commands:
+            line = c.format(trbc=a.trbc, out=out, work=work)
+            print(f"make_results: {n}: {line}", file=sys.stderr, flush=True)
+            if subprocess.run(line, shell=True, cwd=ROOT).returncode != 0:
+                sys.exit(f"make_results: {n} failed: {line}; results/{n} is unchanged")
+        dest = os.path.join(ROOT, "results", n)
+        shutil.rmtree(dest, ignore_errors=True)
+        if keep:
+            os.makedirs(dest)
+            for f in keep:
+                shutil.copy2(os.path.join(out, f), dest)
+        else:
+            shutil.copytree(out, dest, ignore=shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout"))
+        print(f"make_results: {n} made in {(time.time() - t0) / 60:.1f} min -> results/{n}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
