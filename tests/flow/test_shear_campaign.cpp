@@ -194,7 +194,11 @@ bool killedAfterRows(const fs::path& dir, long rows) {
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
     ::kill(pid, SIGTERM);  // timeout passes it on to mpiexec, mpiexec to the ranks
     int status = 0;
-    ::waitpid(pid, &status, 0);  // timeout waits for mpiexec, mpiexec for the ranks
+    ::waitpid(pid, &status, 0);  // timeout waits for mpiexec
+    // mpiexec can exit before its ranks are gone (measured under load: a rank still held the output
+    // directory's lock when the resume started); a batch system's next job starts after them too.
+    for (int k = 0; k < 3000 && test::processesMentioning(dir.string()) > 0; ++k)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
     return !(WIFEXITED(status) && WEXITSTATUS(status) == 0) && !fs::exists(dir / "cases.csv");
 }
 
