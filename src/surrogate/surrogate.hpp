@@ -90,6 +90,19 @@ struct OutputAccuracy {
 };
 OutputAccuracy outputAccuracy(const std::string& name, const Eigen::VectorXd& truth, const Eigen::VectorXd& predicted);
 
+/// (v, FvK) of a network's inputs: rows 0 and 2 of the stretching and relaxation inputs, the
+/// equilibrium's two rows.
+Eigen::MatrixXd vFvKOf(const Eigen::Ref<const Eigen::MatrixXd>& x);
+/// b = [score > 0.5] of a branch classifier for the columns of (v, FvK) with v >= kCupMinV, 0 for
+/// the others.
+Eigen::RowVectorXd classifyBranch(const TrainedNetwork& classifier, const Eigen::Ref<const Eigen::MatrixXd>& vFvK,
+                                  Precision precision);
+/// x with the row b appended (the branch input of a branched network).
+Eigen::MatrixXd withBranchRow(const Eigen::Ref<const Eigen::MatrixXd>& x, const Eigen::RowVectorXd& b);
+
+/// The six surrogate inputs of a campaign row (v, mu, FvK, b2, etam, Fext; surrogateInputNames order).
+Eigen::VectorXd campaignRowInputs(const CampaignRow& r);
+
 struct SurrogateTrainingOptions {
     TrainingOptions network;          ///< schedule of 3.4; batch size 256 is used for the equilibrium net
     double testFraction = 0.1;        ///< share of the cells held out as the test set
