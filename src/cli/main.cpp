@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/child_process.hpp"
+#include "core/simd.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
@@ -109,6 +110,8 @@ int main(int argc, char** argv) {
         return fmt::format("trbc: error: {}\nRun with --help for the options and their valid ranges.\n", e.what());
     });
     try {
+        // TRBC_SIMD is read once; a bad value must fail here, not inside a parallel region.
+        (void)trbc::simd::active();
         checkCommandWords(app, argc, argv);
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -27,6 +27,7 @@
 #include "analysis/prediction.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
 #include "experiments/parameters.hpp"
@@ -628,11 +629,11 @@ FlowCaseStepping pythonStepping(FlowCaseStepping s, double frameInterval, std::o
 constexpr const char* kPythonCellSource = "keyword arguments (those not given: the paper's Table 1 means)";
 
 /// The provenance of a flow call's record.
-nlohmann::json flowProvenance(int level) {
+nlohmann::json flowProvenance(int level, int threads) {
     return withBuild({{"command", "trbc Python package"},
                       {"level", level},
                       {"vertices", 10 * (1 << (2 * level)) + 2},
-                      {"threads", omp_get_max_threads()},
+                      {"threads", threads > 0 ? threads : omp_get_max_threads()},
                       {"sfs_model_version", kSfsModelVersion}});
 }
 
@@ -666,7 +667,7 @@ py::dict flowShear(double etaOut, double rate, double etaIn, double v, double mu
     });
     if (!r.completed) throw NumericalError("flow shear: " + r.message);
     const ShearFrameSeries& s = r.series;
-    py::dict out = jsonToPython(shearRecord(r, o, kPythonCellSource, flowProvenance(level))).cast<py::dict>();
+    py::dict out = jsonToPython(shearRecord(r, o, kPythonCellSource, flowProvenance(level, threads))).cast<py::dict>();
     out["time_series"] = py::dict("t_s"_a = vectorArray(s.time), "shear_strain"_a = vectorArray(s.shearStrain),
                                   "inclination_deg"_a = vectorArray(s.inclinationDeg),
                                   "orientation_unwrapped_deg"_a = vectorArray(s.orientationDeg),
@@ -715,7 +716,7 @@ py::dict flowTube(double radius, double pg, double etaOut, double lambda, double
         return runTubeCase(o);
     });
     if (!r.completed) throw NumericalError((r.stage == TubeCaseStage::Fit ? "flow tube: " : "flow tube, ") + r.message);
-    const nlohmann::json record = tubeRecord(r, o, kPythonCellSource, flowProvenance(level));
+    const nlohmann::json record = tubeRecord(r, o, kPythonCellSource, flowProvenance(level, threads));
     py::dict out = jsonToPython(record).cast<py::dict>();
     out["time_series"] = tubeSeriesDict(r.main.series);
     out["settling"] = tubeSettlingDict(r, record);
@@ -730,6 +731,7 @@ PYBIND11_MODULE(_core, m) {
     using namespace trbc;
     using namespace trbc::python;
     m.doc() = "trbc C++ core (pybind11); use the trbc package, which wraps it";
+    (void)simd::active();  // a bad TRBC_SIMD fails the import, not a call inside a parallel region
     m.attr("__version__") = kVersion;
     static py::exception<NumericalError> numericalError(m, "NumericalError", PyExc_RuntimeError);
     py::register_exception_translator([](std::exception_ptr p) {

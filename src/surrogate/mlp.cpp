@@ -307,6 +307,7 @@ void Mlp::forward(const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::Ref<Eigen::
     std::optional<FloatLayers> floatLayers;
     if (single) floatLayers.emplace(*this);
     const SerialEigenScope serial;  // our threads run whole blocks; Eigen must not nest its own
+    (void)simd::active();            // its first call may throw (a bad TRBC_SIMD): not inside the region
 #pragma omp parallel num_threads(std::max(threads, 1)) if (threads > 1)
     {
         Eigen::VectorXd bufA(single ? 0 : Eigen::Index(maxRows()) * kBlockColumns), bufB(bufA.size());

@@ -57,6 +57,18 @@ TEST(BadInput, NonFiniteAndOutOfRangeNumbersNameTheOptionAndItsUnit) {
     EXPECT_FALSE(fs::exists(tmp.path() / "m.off"));
 }
 
+TEST(BadInput, AnUnknownSimdPathInTheEnvironmentIsRefusedBeforeAnyWork) {
+    // Read once at the start: a bad value fails there with exit 2, never inside a parallel region.
+    const TempDir tmp;
+    const CliRun r = runShell("TRBC_SIMD=avx9 " + shellQuote(TRBC_CLI) + " simulate --level 2 --no-cache", tmp.path());
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find("environment variable TRBC_SIMD: 'avx9' is not a SIMD path (valid: portable, avx2)"), std::string::npos)
+        << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    const CliRun ok = runShell("TRBC_SIMD=portable " + shellQuote(TRBC_CLI) + " simulate --level 2 --no-cache", tmp.path());
+    EXPECT_EQ(ok.status, 0) << ok.err;
+}
+
 TEST(BadInput, UnknownCommandsAreNamedWithASuggestion) {
     TempDir tmp;
     CliRun r = runTrbc("simulat --level 2", tmp.path());

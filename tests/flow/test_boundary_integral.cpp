@@ -5,7 +5,7 @@
 //  * drop (viscosity ratio lambda) driven by a force F: Hadamard-Rybczynski velocity;
 //  * freely suspended rigid sphere in simple shear: Omega = -gamma/2 e_z, U = 0.
 // Production resolution: icosphere level 3 (642 vertices), every case within 1 %. The level 1-4
-// table of docs/flow_verification.md comes from the disabled test StokesConvergence.Table.
+// table of docs/flow_verification.md comes from bench/stokes_convergence_table.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -19,6 +19,7 @@
 #include "flow/boundary_integral.hpp"
 #include "flow/stokes_kernels.hpp"
 #include "flow/stokes_solver.hpp"
+#include "flow/stokes_verification.hpp"
 #include "mesh/icosphere.hpp"
 
 namespace trbc {
@@ -27,90 +28,11 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr int kProductionLevel = 3;
 
-double relErr(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).norm() / b.norm(); }
 
-// ---- The verification cases, each returning its relative error (also used by the table).
-
-/// Rigid unit sphere translating with U = (0.3, -0.2, 1) in fluid at rest: F = -6 pi mu a U.
-double translatingSphereError(const BoundaryIntegralOperators& ops, int* iterations = nullptr) {
-    const double mu = 1.7;
-    const Eigen::Vector3d U(0.3, -0.2, 1.0);
-    const RigidBodyResult r =
-        solveRigidBodyResistance(ops, mu, U, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
-    if (iterations) *iterations = r.gmres.iterations;
-    return relErr(r.force, -6.0 * kPi * mu * U);
-}
-
-/// Rigid unit sphere rotating with Omega: torque -8 pi mu a^3 Omega.
-double rotatingSphereError(const BoundaryIntegralOperators& ops) {
-    const double mu = 0.8;
-    const Eigen::Vector3d W(0.5, 1.0, -0.25);
-    const RigidBodyResult r =
-        solveRigidBodyResistance(ops, mu, Eigen::Vector3d::Zero(), W, Eigen::Vector3d::Zero());
-    return relErr(r.torque, -8.0 * kPi * mu * W);
-}
-
-/// Freely suspended unit sphere in u = (gamma y, 0, 0), centred at c (mesh also rotated, so
-/// that its symmetry axes are not aligned with the flow): Omega = (0, 0, -gamma/2),
-/// U = u_inf(c) = (gamma c_y, 0, 0), and the stresslet (symmetric traceless part of the first
-/// moment of the traction; the traction is f = 5 mu E . n up to a pressure) is
-/// S = 20/3 pi mu a^3 E with E the rate of strain (Batchelor 1970). Returns the errors
-/// {max(|Omega - Omega_exact|, |U - U_exact| / a) / (gamma/2), |S - S_exact| / |S_exact|}.
-/// Omega and U alone would be exact up to the GMRES tolerance: the icosphere is centrally
-/// symmetric, so the discrete strain-rotation coupling vanishes; the stresslet tests the quadrature.
-std::pair<double, double> shearedSphereErrors(int level, int* iterations = nullptr) {
-    const double mu = 1.3, gamma = 2.0;
-    const Eigen::Vector3d c(0.3, -0.4, 0.2);
-    Mesh m = icosphere(level);
-    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
-    m.X = (R * m.X).colwise() + c;
-    const BoundaryIntegralOperators ops(m);
-    const LinearFlow shear = LinearFlow::simpleShear(gamma);
-    const RigidBodyResult r = solveRigidBodyMobility(ops, mu, c, shear, Eigen::Vector3d::Zero(),
-                                                     Eigen::Vector3d::Zero());
-    if (iterations) *iterations = r.gmres.iterations;
-    const double w = (r.angularVelocity - Eigen::Vector3d(0, 0, -gamma / 2)).norm() / (gamma / 2);
-    const double u = (r.velocity - Eigen::Vector3d(gamma * c.y(), 0, 0)).norm() / (gamma / 2);
-    const Eigen::Matrix3d M = ops.firstMoment(r.traction, c);
-    const Eigen::Matrix3d S = 0.5 * (M + M.transpose()) - M.trace() / 3.0 * Eigen::Matrix3d::Identity();
-    const Eigen::Matrix3d E = 0.5 * (shear.gradient + shear.gradient.transpose());
-    const Eigen::Matrix3d Sx = 20.0 / 3.0 * kPi * mu * E;
-    return {std::max(w, u), (S - Sx).norm() / Sx.norm()};
-}
-
-/// Drop of viscosity ratio lambda driven by a force F (e.g. a uniform body force density F/V on
-/// its contents, as for a sedimenting drop). Exact: with the modified inside pressure
-/// P = p - (F/V) . x the body force moves into the traction jump, which becomes (modulo a
-/// uniform pressure, whose single layer vanishes since int G . n dS = 0)
-///     Delta f = (sigma_out - sigma_in) . n = -(F . x / V) n,       int Delta f dS = -F,
-/// and the Hadamard-Rybczynski solution (Happel & Brenner 1965, 4-21) satisfies the normal and
-/// tangential stress conditions on the undeformed sphere exactly for this Delta f and any surface
-/// tension. It gives the drop velocity U = F (1 + lambda) / (2 pi mu a (2 + 3 lambda)) and the
-/// interface velocity u = U - (I - n n) U / (2 (1 + lambda)) (tangential slip, lab frame).
-/// Returns the relative errors of U (volume mean of the interface velocity) and of the field u
-/// (max over vertices / |U|).
-std::pair<double, double> hadamardRybczynskiErrors(const BoundaryIntegralOperators& ops, double lambda,
-                                                   int* iterations = nullptr) {
-    const double mu = 1.4, a = 1.0;
-    const Eigen::Vector3d F(0.2, 0.5, -1.0);
-    const Eigen::Matrix3Xd& X = ops.mesh().X;
-    const double V = 4.0 * kPi * a * a * a / 3.0;
-    Eigen::Matrix3Xd df(3, X.cols());
-    for (Eigen::Index i = 0; i < X.cols(); ++i) {
-        const Eigen::Vector3d n = X.col(i).normalized();  // exact sphere normal
-        df.col(i) = -(F.dot(X.col(i)) / V) * n;
-    }
-    const InterfaceResult r = solveInterfaceVelocity(ops, mu, lambda, df);
-    if (iterations) *iterations = r.gmres.iterations;
-    const Eigen::Vector3d U = F * (1.0 + lambda) / (2.0 * kPi * mu * a * (2.0 + 3.0 * lambda));
-    double field = 0.0;
-    for (Eigen::Index i = 0; i < X.cols(); ++i) {
-        const Eigen::Vector3d n = X.col(i).normalized();
-        const Eigen::Vector3d exact = U - (U - n * n.dot(U)) / (2.0 * (1.0 + lambda));
-        field = std::max(field, (r.velocity.col(i) - exact).norm() / U.norm());
-    }
-    return {relErr(ops.volumeMeanVelocity(r.velocity), U), field};
-}
+using stokes_verification::hadamardRybczynskiErrors;
+using stokes_verification::rotatingSphereError;
+using stokes_verification::shearedSphereErrors;
+using stokes_verification::translatingSphereError;
 
 // ---- Kernels and operators.
 
@@ -474,31 +396,6 @@ TEST(StokesErrors, GmresNonConvergenceThrowsNumericalError) {
         const std::string msg = e.what();
         EXPECT_NE(msg.find("residual"), std::string::npos) << msg;
         EXPECT_NE(msg.find("3 iterations"), std::string::npos) << msg;
-    }
-}
-
-// ---- Convergence table of docs/flow_verification.md (levels 1-4, matrix-free at level 4;
-// several minutes on 2 cores):
-//   ./build/tests/trbc_tests --gtest_also_run_disabled_tests --gtest_filter='StokesConvergence.*'
-TEST(StokesConvergence, DISABLED_Table) {
-    std::printf("| level | Nv | drag (transl.) | torque (rot.) | shear: Omega, U | shear: stresslet | "
-                "HR U, lambda=0.1 | HR U, lambda=1 | HR U, lambda=5 | HR field max, lambda=0.1/1/5 | "
-                "GMRES its transl./shear/HR 0.1/HR 5 | seconds |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-    for (int level = 1; level <= 4; ++level) {
-        const auto t0 = std::chrono::steady_clock::now();
-        const BoundaryIntegralOperators ops(icosphere(level));
-        int i1 = 0, i3 = 0, i01 = 0, i5 = 0;
-        const double e1 = translatingSphereError(ops, &i1), e2 = rotatingSphereError(ops);
-        const auto e3 = shearedSphereErrors(level, &i3);
-        const auto h01 = hadamardRybczynskiErrors(ops, 0.1, &i01), h1 = hadamardRybczynskiErrors(ops, 1.0),
-                   h5 = hadamardRybczynskiErrors(ops, 5.0, &i5);
-        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::printf("| %d | %ld | %.2e | %.2e | %.1e | %.2e | %.2e | %.2e | %.2e | %.1e / %.1e / %.1e | "
-                    "%d / %d / %d / %d | %.1f |\n",
-                    level, static_cast<long>(ops.numVertices()), e1, e2, e3.first, e3.second, h01.first,
-                    h1.first, h5.first, h01.second, h1.second, h5.second, i1, i3, i01, i5, s);
-        std::fflush(stdout);
     }
 }
 

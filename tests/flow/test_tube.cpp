@@ -8,7 +8,7 @@
 //    b^2 term is Faxen's law);
 //  * no slip of the total flow u_P + u' at wall points between the collocation nodes;
 //  * truncation of the tube.
-// The table of docs/flow_verification.md comes from the disabled test TubeConvergence.Table.
+// The tables of docs/flow_verification.md come from bench/tube_convergence_table.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <unistd.h>
@@ -22,6 +22,7 @@
 #include "core/error.hpp"
 #include "flow/boundary_integral.hpp"
 #include "flow/cell_flow.hpp"
+#include "flow/stokes_verification.hpp"
 #include "flow/tube.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
@@ -32,36 +33,11 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-double habermanK(double b) {
-    return (1.0 - 0.75857 * std::pow(b, 5)) /
-           (1.0 - 2.1050 * b + 2.0865 * std::pow(b, 3) - 1.7068 * std::pow(b, 5) + 0.72603 * std::pow(b, 6));
-}
-double habermanFreeSpeed(double b) {
-    return (1.0 - 2.0 / 3.0 * b * b - 0.20217 * std::pow(b, 5)) / (1.0 - 0.75857 * std::pow(b, 5));
-}
-
-BoundaryIntegralOperators sphereOps(int level, double a) {
-    Mesh m = icosphere(level);
-    m.X *= a;
-    return BoundaryIntegralOperators(m);
-}
-
-/// Relative drag error of a sphere (radius beta, tube radius 1) translating along the axis.
-double dragError(const BoundaryIntegralOperators& sphere, const TubeWall& wall, double beta) {
-    const double mu = 1.0, U = 1.0;
-    const RigidBodyResult r = solveRigidBodyInTube(sphere, wall, mu, 0.0, Eigen::Vector3d::Zero(), false,
-                                                   Eigen::Vector3d(U, 0, 0));
-    const double exact = -6.0 * kPi * mu * beta * U * habermanK(beta);
-    return r.force.x() / exact - 1.0;
-}
-
-/// Relative velocity error of a free sphere on the axis of Poiseuille flow (U_c = 1).
-double freeSphereError(const BoundaryIntegralOperators& sphere, const TubeWall& wall, double beta,
-                       RigidBodyResult* out = nullptr) {
-    const RigidBodyResult r = solveRigidBodyInTube(sphere, wall, 1.0, 1.0, Eigen::Vector3d::Zero(), true);
-    if (out) *out = r;
-    return r.velocity.x() / habermanFreeSpeed(beta) - 1.0;
-}
+using stokes_verification::dragError;
+using stokes_verification::freeSphereError;
+using stokes_verification::habermanFreeSpeed;
+using stokes_verification::habermanK;
+using stokes_verification::sphereOps;
 
 TEST(TubeGeometry, CapsuleCriterionAndMesh) {
     // V_max(R) = R A / 2 - 2 pi R^3 / 3: a capsule of radius R and cylinder length l has
@@ -409,62 +385,6 @@ TEST(TubeFlowCli, BadInputExitsWithTwoNamingTheOption) {
     EXPECT_EQ(r0.status, 3) << r0.out << r0.err;
     EXPECT_NE(nlohmann::json::parse(r0.out).at("reason").get<std::string>().find("main stage"), std::string::npos);
     EXPECT_NEAR(j.at("parameters").at("minimum_radius_um").get<double>(), 1.4966, 1e-3);
-}
-
-/// Cell velocity (mean vertex velocity, cm/s) at a fixed shape against the wall resolution:
-/// Table 1 cell fitted into the 6.6 um tube at 30 mmHg/mm (the production case's first state).
-TEST(TubeConvergence, DISABLED_CellVelocityVsWall) {
-    for (int level : {2, 3}) {
-        const CellParameters p = paperTable1Cell();
-        const ShearCell c = prepareShearCell(p, level, tubeCache());
-        const double R = 3.3, pg = 30.0, V = pg / 45.0 * 1e4, T = R / V;
-        FlowConditions fc;
-        fc.etaOut = fc.etaIn = 1.003;
-        fc.timeScale = T;
-        const CellFlowModel model(p, fc, c.faces, c.reference);
-        const double L = model.scales().length;
-        const Vertices X0 = model.toInternal(fitIntoTube(c.initial, c.faces, R, 0.1 * R, fc.A0, fc.V0));
-        for (int N : {12, 16, 24, 32, 40}) {
-            TubeSetup s;
-            s.radius = R / L;
-            s.centreLineSpeed = pg * 1.33322e5 * std::pow(R * 1e-6, 2) / (4.0 * 1.003e-3) * 1e6 * T / L;
-            s.halfLength = 1.15 * X0.row(0).cwiseAbs().maxCoeff() + 2.0 * s.radius;
-            s.pointsPerRing = N;
-            s.vertexWeight = model.targetArea() / static_cast<double>(X0.cols());
-            const auto t0 = std::chrono::steady_clock::now();
-            const TubeEnvironment env(s);
-            const VelocityEvaluation u = membraneVelocity(model, X0, {}, &env);
-            const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-            std::printf("| %d | %d | %ld | %.5f | %d | %.1f |\n", level, N, static_cast<long>(env.wall().numVertices()),
-                        u.velocity.row(0).mean() * L / T * 1e-4, u.gmresIterations, sec);
-        }
-    }
-}
-
-TEST(TubeConvergence, DISABLED_FreeSphereLarge) {
-    for (double beta : {0.6, 0.7})
-        for (int N : {16, 24, 32}) {
-            const TubeWall w(1.0, beta + 2.5, N);
-            RigidBodyResult r;
-            const double e = freeSphereError(sphereOps(3, beta), w, beta, &r);
-            std::printf("beta %.1f N %d: U/Uc %.5f (HS %.5f, error %.2e)\n", beta, N, r.velocity.x(), habermanFreeSpeed(beta), e);
-        }
-}
-
-// Level-by-resolution table for docs/flow_verification.md.
-TEST(TubeConvergence, DISABLED_Table) {
-    std::printf("| sphere level | wall points per ring | wall vertices | drag 0.3 | drag 0.5 | free sphere 0.4 | seconds |\n");
-    for (int level : {2, 3})
-        for (int N : {12, 16, 24, 32, 40}) {
-            const auto t0 = std::chrono::steady_clock::now();
-            const TubeWall w3(1.0, 0.3 + 2.5, N), w5(1.0, 0.5 + 2.5, N), w4(1.0, 0.4 + 2.5, N);
-            const double d3 = dragError(sphereOps(level, 0.3), w3, 0.3);
-            const double d5 = dragError(sphereOps(level, 0.5), w5, 0.5);
-            const double f4 = freeSphereError(sphereOps(level, 0.4), w4, 0.4);
-            const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-            std::printf("| %d | %d | %ld | %.2e | %.2e | %.2e | %.1f |\n", level, N, static_cast<long>(w4.numVertices()), d3,
-                        d5, f4, s);
-        }
 }
 
 }  // namespace
