@@ -124,8 +124,13 @@ def summarise(out, all_cases, members):
             continue
         key = (c["cell"], c["eta"], c["protocol"])
         g = groups.setdefault(key, {})
-        n, k = g.get(c["stress"], (0, 0))
-        g[c["stress"]] = (n + 1, k + (reg == "tank-treading"))
+        n, k, bad = g.get(c["stress"], (0, 0, 0))
+        # A failed case (the solver gave up) has no regime: it counts in neither the members nor
+        # the fraction, and the table says how many failed.
+        if status == "ok":
+            g[c["stress"]] = (n + 1, k + (reg == "tank-treading"), bad)
+        else:
+            g[c["stress"]] = (n, k, bad + 1)
     with open(os.path.join(out, "cases.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["id", "cell", "eta_out_mPa_s", "shear_stress_Pa", "shear_rate_per_s", "protocol", "seed", "regime", "status"])
@@ -136,13 +141,18 @@ def summarise(out, all_cases, members):
     table = ["| cell | eta_out (mPa s) | protocol | TT fraction per stress (Pa) | critical stress (Pa) |", "|---|---|---|---|---|"]
     with open(os.path.join(out, "fractions.csv"), "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["cell", "eta_out_mPa_s", "protocol", "shear_stress_Pa", "members", "tank_treading", "fraction", "se"])
-        for (cell, eta, protocol), g in sorted(groups.items()):
+        w.writerow(["cell", "eta_out_mPa_s", "protocol", "shear_stress_Pa", "members", "tank_treading", "fraction", "se", "failed"])
+        for (cell, eta, protocol), g_all in sorted(groups.items()):
+            for x in sorted(g_all):
+                if g_all[x][0] == 0:
+                    w.writerow([cell, eta, protocol, f"{x:.6g}", 0, 0, "", "", g_all[x][2]])
+            g = {x: v for x, v in g_all.items() if v[0] > 0}
             s = sorted(g)
             fr = [g[x][1] / g[x][0] for x in s]
             for x, p in zip(s, fr):
                 n = g[x][0]
-                w.writerow([cell, eta, protocol, f"{x:.6g}", n, g[x][1], f"{p:.4f}", f"{math.sqrt(max(p * (1 - p), 0.25 / n) / n):.4f}"])
+                w.writerow([cell, eta, protocol, f"{x:.6g}", n, g[x][1], f"{p:.4f}", f"{math.sqrt(max(p * (1 - p), 0.25 / n) / n):.4f}",
+                            g[x][2]])
             tc = crossing(s, fr)
             if protocol != "in-plane" and tc is not None:
                 boots = []
@@ -160,7 +170,8 @@ def summarise(out, all_cases, members):
                 crit = f"[{s[k]:.3g}, {s[k + 1]:.3g}]"
             else:
                 crit = "not bracketed"
-            cells_ = ", ".join(f"{x:.3g}: {g[x][1]}/{g[x][0]}" for x in s)
+            cells_ = ", ".join(f"{x:.3g}: {g_all[x][1]}/{g_all[x][0]}" + (f" ({g_all[x][2]} failed)" if g_all[x][2] else "")
+                               for x in sorted(g_all))
             table.append(f"| {cell} | {eta:g} | {protocol} | {cells_} | {crit} |")
     with open(os.path.join(out, "threshold_table.md"), "w") as f:
         f.write("\n".join(table) + "\n")
