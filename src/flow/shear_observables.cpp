@@ -49,8 +49,15 @@ Eigen::VectorXd periodogramPeaks(const std::vector<double>& t, const Eigen::Matr
 
 double inclinationAngle(const Vertices& X) {
     const Eigen::Vector2d c = X.topRows<2>().rowwise().mean();
-    const Eigen::Matrix2Xd Y = X.topRows<2>().colwise() - c;
-    const double sxx = Y.row(0).squaredNorm(), syy = Y.row(1).squaredNorm(), sxy = Y.row(0).dot(Y.row(1));
+    // Second moments summed in vertex order (what Eigen's reductions over these strided rows do;
+    // written out because GCC 12 warns falsely inside them on a baseline x86-64 build).
+    double sxx = 0.0, syy = 0.0, sxy = 0.0;
+    for (Eigen::Index j = 0; j < X.cols(); ++j) {
+        const double x = X(0, j) - c.x(), y = X(1, j) - c.y();
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+    }
     // Leading eigenvector of [[sxx, sxy], [sxy, syy]] (= leading right-singular vector of Y^T).
     double theta = 0.5 * std::atan2(2.0 * sxy, sxx - syy);  // (-pi/2, pi/2]
     if (theta <= -0.5 * kPi) theta += kPi;
