@@ -27,8 +27,6 @@
 namespace trbc::cli {
 namespace {
 
-void writeText(const std::string& path, const std::string& text) { writeFileAtomically(path, text); }
-
 /// The command-line name of each option the library names in its messages (flow/flow_case.hpp).
 std::string cliOptionName(const std::string& name) {
     static const std::map<std::string, std::string> names = {
@@ -342,7 +340,7 @@ void runRamp(RampCli& o) {
                     {"down_end_bracket_per_s", bracket(res.downBracket)},
                     {"hysteresis", res.upBracket && res.downBracket && *res.upBracket != *res.downBracket},
                     {"wall_s", res.wallSeconds}};
-    if (!o.s.step.out.empty()) writeText(o.s.step.out + "/ramp.json", j.dump(2) + "\n");
+    if (!o.s.step.out.empty()) writeFileAtomically(o.s.step.out + "/ramp.json", j.dump(2) + "\n");
     removeCheckpoints(o.s.step);
     std::cout << j.dump(2) << std::endl;
     if (!res.completed) throw NumericalError("flow ramp: " + res.stages.back().message);
