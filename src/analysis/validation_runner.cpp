@@ -13,6 +13,7 @@
 #include <iterator>
 #include <thread>
 
+#include "analysis/calibrated_cell.hpp"
 #include "core/child_process.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -64,7 +65,12 @@ std::string ValidationRunner::cellArgs(const ValidationCase& c) const {
 std::string ValidationRunner::cellKey(const ValidationCase& c) const {
     if (c.sample >= 0) return cellArgs(c);
     if (cfg.cellSource == "posterior")
-        return cellArgs(c) + " " + tableFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior);
+    {
+        // The calibrated cell reads the inference's posterior_stats.csv when there is one (calibratedCell).
+        const fs::path stats = posteriorStatsOf(cfg.posterior);
+        return cellArgs(c) + " " + tableFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior) +
+               (stats.empty() ? std::string() : " " + tableFingerprint(stats));
+    }
     if (cfg.cellSource == "explicit") return cellArgs(c);
     return fmt::format("table1 v={} mu={} kb={} b2={} etam={}", table1::v, table1::mu, table1::kbJ, table1::b2, table1::etam);
 }

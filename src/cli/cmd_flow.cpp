@@ -12,7 +12,7 @@
 #include <memory>
 #include <numbers>
 
-#include "analysis/validation_draws.hpp"
+#include "analysis/calibrated_cell.hpp"
 #include "cli/common.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -66,7 +66,7 @@ void addCellOptions(CLI::App* cmd, CellOptions& c) {
     cmd->add_flag("--allow-outside-prior", c.allowOutside, "accept cell parameters outside the prior box");
     c.opost = cmd->add_option("--posterior", c.posterior,
                               "take the cell from a theta_new posterior (DIR/phase3/theta_new of `trbc infer`, or its "
-                              "samples.csv): the means of v, mu, kb, b2 and etam (docs/FLOW.md)");
+                              "samples.csv): the calibrated cell, the means of v, mu, kb, b2 and etam (docs/FLOW.md)");
     for (CLI::Option* opt : {c.ov, c.omu, c.fvk, c.okb, c.ob2, c.oetam}) c.opost->excludes(opt);
 }
 
@@ -75,13 +75,7 @@ void addCellOptions(CLI::App* cmd, CellOptions& c) {
 CellParameters cellParameters(const CellOptions& c) {
     CellParameters p;
     if (c.opost->count() > 0) {
-        const NumericTable t = readThetaNewSamples(c.posterior);
-        p.v = t.column("v").mean();
-        p.mu = t.column("mu_uN_per_m").mean();
-        p.FvK = CellParameters::fvkFromKb(p.mu, t.column("kb_J").mean());
-        p.b2 = t.column("b2").mean();
-        p.etam = t.column("etam_Pa_s_um").mean();
-        return p;
+        return calibratedCell(c.posterior).cell;
     }
     p.v = c.v;
     p.mu = c.mu;
@@ -98,7 +92,11 @@ CellParameters cellParameters(const CellOptions& c) {
 }
 
 std::string cellSource(const CellOptions& c) {
-    if (c.opost->count() > 0) return "means of the theta_new posterior " + std::filesystem::absolute(c.posterior).lexically_normal().string();
+    if (c.opost->count() > 0) {
+        const CalibratedCell cc = calibratedCell(c.posterior);
+        return fmt::format("the calibrated cell of the theta_new posterior {}: {} of {}",
+                           std::filesystem::absolute(c.posterior).lexically_normal().string(), cc.estimator, cc.source.string());
+    }
     const bool any = c.ov->count() + c.omu->count() + c.okb->count() + c.fvk->count() + c.ob2->count() +
                          c.oetam->count() > 0;
     return any ? "command line (options not given: the paper's Table 1 means)"

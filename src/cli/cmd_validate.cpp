@@ -20,7 +20,7 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
     cmd->add_option("--config", o.config, "validation configuration (TOML), e.g. configs/validation.toml")->required();
     addOutOption(cmd, o.out);
     cmd->add_option("--posterior", o.posterior,
-                    "cell = the means of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]; "
+                    "cell = the calibrated cell (the means) of this theta_new posterior (DIR/phase3/theta_new of `trbc infer`), overriding [cell]; "
                     "--draws takes its samples");
     addNumber(cmd, "--draws", o.draws,
               "also run every case for N draws of the posterior's samples (--posterior or [cell] posterior), chosen with "

@@ -744,5 +744,26 @@ TEST(CellFlowCli, FailedRunGivesStatusFailedAndExitThree) {
     EXPECT_EQ(j.at("parameters").at("cell_source").get<std::string>().find("Table 1") != std::string::npos, true);
 }
 
+// --posterior takes the calibrated cell: the inference's Rao-Blackwellised means where its
+// posterior_stats.csv sits beside the samples (analysis/calibrated_cell.hpp).
+TEST(CellFlowCli, PosteriorCellIsTheCalibratedCellOfTheInference) {
+    test::TempDir dir;
+    const auto post = dir.path() / "infer" / "phase3" / "theta_new";
+    test::writeText(post / "samples.csv", "v,mu_uN_per_m,kb_J,b2,etam_Pa_s_um\n0.9,4,2e-19,1,0.5\n0.96,6,2.4e-19,3,0.9\n");
+    test::writeText(dir.path() / "infer" / "posterior_stats.csv",
+                    "posterior,parameter,mean\ntheta_new,v,0.93\ntheta_new,mu_uN_per_m,4.667\ntheta_new,kb_J,2.258e-19\n"
+                    "theta_new,b2,1.998\ntheta_new,etam_Pa_s_um,0.699\n");
+    const test::CliRun r = test::runTrbc("flow shear --level 2 --eta-out 28.9 --shear-rate 100 --rotations 1 --max-steps 3 --posterior " +
+                                             test::shellQuote(post.string()) + " --cache " + test::shellQuote(flowCache().string()),
+                                         dir.path());
+    EXPECT_EQ(r.status, 3) << r.out << r.err;  // the step limit: only the record's parameters matter here
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    const nlohmann::json& cell = j.at("parameters").at("cell");
+    EXPECT_DOUBLE_EQ(cell.at("mu_uN_per_m").get<double>(), 4.667);
+    EXPECT_NEAR(cell.at("kb_J").get<double>(), 2.258e-19, 1e-30);
+    EXPECT_DOUBLE_EQ(cell.at("b2").get<double>(), 1.998);
+    EXPECT_NE(j.at("parameters").at("cell_source").get<std::string>().find("Rao-Blackwellised"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace trbc
