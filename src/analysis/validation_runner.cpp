@@ -21,6 +21,7 @@
 #include "core/shell_quote.hpp"
 #include "core/version.hpp"
 #include "experiments/parameters.hpp"
+#include "flow/flow_record.hpp"
 #include "flow/tube.hpp"
 
 namespace trbc {
@@ -28,9 +29,12 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-using record::numberOr;
-using record::stringOr;
-const auto num = record::numberText;
+/// A string field of the runner's own case file, "" when absent or not a string.
+std::string stringOr(const json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get<std::string>() : "";
+}
+std::string num(double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : ""; }
 
 /// FNV-1a of a table's bytes after its leading '#' lines, "missing" when it does not exist: the
 /// provenance line names the command and build that wrote the samples, not their values, so a
@@ -64,12 +68,12 @@ std::string ValidationRunner::cellArgs(const ValidationCase& c) const {
 
 std::string ValidationRunner::cellKey(const ValidationCase& c) const {
     if (c.sample >= 0) return cellArgs(c);
-    if (cfg.cellSource == "posterior")
-    {
+    if (cfg.cellSource == "posterior") {
         // The calibrated cell reads the inference's posterior_stats.csv when there is one (calibratedCell).
         const fs::path stats = posteriorStatsOf(cfg.posterior);
-        return cellArgs(c) + " " + tableFingerprint(fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior) +
-               (stats.empty() ? std::string() : " " + tableFingerprint(stats));
+        const fs::path samples = fs::is_directory(cfg.posterior) ? cfg.posterior / "samples.csv" : cfg.posterior;
+        return fmt::format("{} {}{}{}", cellArgs(c), tableFingerprint(samples), stats.empty() ? "" : " ",
+                           stats.empty() ? std::string() : tableFingerprint(stats));
     }
     if (cfg.cellSource == "explicit") return cellArgs(c);
     return fmt::format("table1 v={} mu={} kb={} b2={} etam={}", table1::v, table1::mu, table1::kbJ, table1::b2, table1::etam);
@@ -107,7 +111,7 @@ fs::path ValidationRunner::caseFile(const ValidationCase& c) const { return out 
 std::optional<json> ValidationRunner::matchingRecord(const fs::path& file, const ValidationCase& c) const {
     std::optional<json> j = tryReadJson(file);  // a damaged record is run again
     if (!j || stringOr(*j, "key") != caseKey(c) || !j->contains("result")) return std::nullopt;
-    if (retryFailed && stringOr((*j)["result"], "status") != "ok") return std::nullopt;
+    if (retryFailed && !readFlowRecord((*j)["result"]).ok()) return std::nullopt;
     return j;
 }
 
@@ -172,7 +176,7 @@ void ValidationRunner::runCase(const ValidationCase& c) {
                   {"reason", rc > 128 ? fmt::format("killed by signal {} without a result: {}", rc - 128, tail)
                                       : fmt::format("exit {} without a result: {}", rc, tail)}};
     }
-    if (rc != 0 && stringOr(result, "status") == "ok") result["status"] = "failed";
+    if (rc != 0 && readFlowRecord(result).ok()) result["status"] = "failed";
     json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                    {"exit", rc},         {"wall_s", wall}, {"result", result}};
     if (c.sample >= 0) record["draw"] = drawJson(c.sample);
@@ -185,15 +189,14 @@ void ValidationRunner::runCase(const ValidationCase& c) {
     ++ranHere;
     caseSeconds += wall;
     if (!quiet) {
-        const json& o = result.value("observables", json::object());
-        std::string what = result.value("status", "?");
-        if (what == "ok" && c.kind != "tube")
-            what = fmt::format("{} angle {} TTF {}", o.value("regime", "?"), num(o.value("inclination_deg", json())),
-                               num(o.value("ttf_4pi_f_over_shear_rate", json())));
-        else if (what == "ok")
-            what = fmt::format("v {} cm/s, length {} um", num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())));
+        const FlowRecordView r = readFlowRecord(result);
+        std::string what;
+        if (r.ok() && c.kind != "tube")
+            what = fmt::format("{} angle {} TTF {}", r.regime.empty() ? "?" : r.regime, num(r.inclinationDeg), num(r.ttf));
+        else if (r.ok())
+            what = fmt::format("v {} cm/s, length {} um", num(r.velocityCmPerS), num(r.lengthUm));
         else
-            what = "FAILED: " + shortenedReason(result.value("reason", std::string("?")), 160);
+            what = "FAILED: " + shortenedReason(r.reason.empty() ? "?" : r.reason, 160);
         const double elapsed = secondsSince(start);
         const double eta = (total - done) * (caseSeconds / ranHere) / cfg.jobs;
         std::cerr << fmt::format("validate: [{}/{}] {} ({:.0f} s): {}; elapsed {:.0f} min, ETA {:.0f} min\n", done, total, c.id, wall, what,
@@ -241,9 +244,8 @@ std::vector<RegimePoint> ValidationRunner::thresholdPoints(double eta, long samp
     std::vector<RegimePoint> p;
     for (const ValidationCase& c : cases)
         if (c.kind == "threshold" && c.etaOut == eta && c.sample == sample) {
-            const json& r = resultOf(c.id);
-            const json reg = r.value("observables", json::object()).value("regime", json());
-            p.push_back({c.rate, r.value("status", "") == "ok" && reg.is_string() ? reg.get<std::string>() : ""});
+            const FlowRecordView r = readFlowRecord(resultOf(c.id));
+            p.push_back({c.rate, r.ok() ? r.regime : ""});
         }
     return cfg.thresholdMembers > 0 ? ensembleRegimePoints(p) : p;
 }

@@ -3,10 +3,8 @@
 // shear|tube` child process whose JSON is kept in OUT/cases/<id>.json with a key of its command and
 // cell; a killed run loses no finished case (resume = run again), a finished case of another output
 // directory with the same key is imported instead of run, and `jobs` cases run at a time.
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -20,22 +18,6 @@
 #include "core/clock.hpp"
 
 namespace trbc {
-
-/// Fields of a case record, tolerant of what a failed case lacks.
-namespace record {
-/// A number as "%.6g", "" when not a number.
-inline std::string numberText(const nlohmann::json& j) { return j.is_number() ? fmt::format("{:.6g}", j.get<double>()) : ""; }
-/// A string field of an object, "" when absent or not a string.
-inline std::string stringOr(const nlohmann::json& o, const char* key) {
-    const auto it = o.find(key);
-    return it != o.end() && it->is_string() ? it->get<std::string>() : "";
-}
-/// A numeric field of an object, NaN when absent or null (a failed or undefined observable).
-inline double numberOr(const nlohmann::json& o, const char* key) {
-    const auto it = o.find(key);
-    return it != o.end() && it->is_number() ? it->get<double>() : NAN;
-}
-}  // namespace record
 
 struct ValidationRunner {
     ValidationConfig cfg;

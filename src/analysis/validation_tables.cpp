@@ -12,15 +12,15 @@
 #include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "experiments/parameters.hpp"
+#include "flow/flow_record.hpp"
 
 namespace trbc {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-using record::numberOr;
-using record::stringOr;
-const auto num = record::numberText;
+/// A number as the tables write it: "%.6g", "" for NaN (a failed or undefined observable).
+std::string num(double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : ""; }
 
 /// The predictions against the experimental scatter: records, counts by verdict and the rows of
 /// the markdown table.
@@ -57,28 +57,17 @@ const char* kTubeHeader = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,le
                           "length_change_main_vs_settled,cell_frame_motion_ratio,status,area_drift_max,volume_drift_max,wall_s,"
                           "level\n";
 
-std::string regimeOf(const json& observables) {
-    return observables.value("regime", json()).is_string() ? observables.at("regime").get<std::string>() : "";
-}
-
 /// A row of tube.csv; a finished case's velocity and length against the data.
 std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
                      ComparisonTable& table) {
-    const json& r = rec.at("result");
-    const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
-    const std::string status = r.value("status", "failed");
-    const json plateau = d.value("plateau", json::object()), settling = d.value("settling", json::object()),
-               motion = d.value("cell_frame_motion", json::object());
-    const std::string settled = settling.empty() ? "none" : settling.value("settled", false) ? "true" : "false";
+    const FlowRecordView r = readFlowRecord(rec.at("result"));
     const std::string row = fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), c.pressureGradient,
-                                        cfg.tubeRadius, num(o.value("velocity_cm_per_s", json())), num(o.value("length_um", json())),
-                                        num(o.value("width_um", json())), plateau.value("reached", false) ? "true" : "false",
-                                        settled, num(settling.value("length_change_main_vs_settled", json())),
-                                        num(motion.value("ratio", json())), csvField(status),
-                                        num(d.value("area_drift_max", json())), num(d.value("volume_drift_max", json())),
+                                        cfg.tubeRadius, num(r.velocityCmPerS), num(r.lengthUm), num(r.widthUm),
+                                        r.plateauReached ? "true" : "false", r.settled, num(r.lengthChangeMainVsSettled),
+                                        num(r.cellFrameMotionRatio), csvField(r.status), num(r.areaDriftMax), num(r.volumeDriftMax),
                                         rec.value("wall_s", 0.0), cfg.tubeLevel > 0 ? cfg.tubeLevel : cfg.level);
-    if (status != "ok" || !std::isfinite(numberOr(o, "velocity_cm_per_s"))) return row;
-    const double v = numberOr(o, "velocity_cm_per_s"), l = numberOr(o, "length_um");
+    if (!r.ok() || !std::isfinite(r.velocityCmPerS)) return row;
+    const double v = r.velocityCmPerS, l = r.lengthUm;
     table.record(c.id, "velocity [cm/s]", v, evidence.tubeVelocity(c.pressureGradient, v), fmt::format("{:.3g}", v));
     table.record(c.id, "length [um]", l, evidence.tubeLength(v, l), fmt::format("{:.3g} (at {:.3g} cm/s)", l, v));
     return row;
@@ -87,21 +76,19 @@ std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationC
 /// A row of shear.csv; a finished angle or TTF case against the data.
 std::string shearCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
                       ComparisonTable& table) {
-    const json& r = rec.at("result");
-    const json o = r.value("observables", json::object()), d = r.value("diagnostics", json::object());
-    const std::string status = r.value("status", "failed"), regime = regimeOf(o);
+    const FlowRecordView r = readFlowRecord(rec.at("result"));
+    const std::string& regime = r.regime;
     const std::string row = fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), csvField(c.kind),
-                                        c.etaOut, c.rate, shearStressPa(c.etaOut, c.rate), csvField(regime), num(o.value("inclination_deg", json())),
-                                        num(o.value("swing_amplitude_deg", json())), num(o.value("ttf_4pi_f_over_shear_rate", json())),
-                                        csvField(status), num(d.value("area_drift_max", json())),
-                                        num(d.value("volume_drift_max", json())), rec.value("wall_s", 0.0), cfg.level);
-    if (status != "ok") return row;
+                                        c.etaOut, c.rate, shearStressPa(c.etaOut, c.rate), csvField(regime), num(r.inclinationDeg),
+                                        num(r.swingDeg), num(r.ttf), csvField(r.status), num(r.areaDriftMax), num(r.volumeDriftMax),
+                                        rec.value("wall_s", 0.0), cfg.level);
+    if (!r.ok()) return row;
     if (c.kind == "angle") {
-        const double a = numberOr(o, "inclination_deg");
+        const double a = r.inclinationDeg;
         if (const std::optional<ScatterComparison> s = evidence.inclination(c.etaOut, c.rate, a, regime))
             table.record(c.id, "inclination [deg]", a, *s, std::isfinite(a) ? fmt::format("{:.3g}", a) : regime);
     } else if (c.kind == "ttf") {
-        const double f = numberOr(o, "ttf_4pi_f_over_shear_rate");
+        const double f = r.ttf;
         table.record(c.id, "4 pi f / rate", f, evidence.tankTreadingFrequency(c.rate, f, regime),
                      std::isfinite(f) ? fmt::format("{:.3g}", f) : regime);
     }
@@ -158,13 +145,10 @@ std::vector<std::pair<std::string, std::string>> drawObservables(const std::stri
 /// What a draw's record gives for one observable; a failure's reason up to its first line break
 /// or 100 characters, so that equal failures count together.
 DrawOutcome drawOutcome(const json& rec, const std::string& key) {
-    const json& r = rec.at("result");
-    if (r.value("status", "failed") != "ok") {
-        return {false, NAN, shortenedReason(stringOr(r, "reason"), 100)};
-    }
-    const json o = r.value("observables", json::object());
-    const double x = numberOr(o, key.c_str());
-    return {true, x, std::isfinite(x) ? "" : "no value (" + (regimeOf(o).empty() ? std::string("?") : regimeOf(o)) + ")"};
+    const FlowRecordView r = readFlowRecord(rec.at("result"));
+    if (!r.ok()) return {false, NAN, shortenedReason(r.reason, 100)};
+    const double x = r.observable(key);
+    return {true, x, std::isfinite(x) ? "" : "no value (" + (r.regime.empty() ? std::string("?") : r.regime) + ")"};
 }
 
 /// The bands over the draws against the scatter, beside the configured cell's verdict: rows of
@@ -188,7 +172,7 @@ struct BandTable {
         const std::string& kind = c.kind;
         const auto m = std::find_if(mean.rows.begin(), mean.rows.end(),
                                     [&](const json& r) { return r["case"] == id && r["observable"] == observable; });
-        if (std::isnan(meanValue) && kind != "threshold" && m != mean.rows.end()) meanValue = numberOr(*m, "predicted");
+        if (std::isnan(meanValue) && kind != "threshold" && m != mean.rows.end()) meanValue = (*m)["predicted"].is_number() ? (*m)["predicted"].get<double>() : NAN;
         const std::string meanVerdict = m == mean.rows.end() ? "not compared" : (*m)["verdict"].get<std::string>();
         const std::string verdict = bandVerdict(b, s, kind != "threshold");
         const bool marginal = bandVerdictWithinMcse(b, s);
@@ -270,12 +254,10 @@ BandTable drawTables(const ValidationRunner& R, ValidationEvidence& evidence, co
     for (const ValidationCase& c : R.cases) {
         if (c.sample >= 0) {
             const json& rec = R.results.at(c.id);
-            const json& r = rec.at("result");
-            const json o = r.value("observables", json::object());
+            const FlowRecordView r = readFlowRecord(rec.at("result"));
             runs += fmt::format("{},{},{},{},{},{},{},{},{},{},{:.1f}\n", csvField(c.id), csvField(c.id.substr(0, c.id.rfind("_sample"))),
-                                csvField(c.kind), c.sample, csvField(r.value("status", "failed")), csvField(regimeOf(o)), num(o.value("inclination_deg", json())),
-                                num(o.value("ttf_4pi_f_over_shear_rate", json())), num(o.value("velocity_cm_per_s", json())),
-                                num(o.value("length_um", json())), rec.value("wall_s", 0.0));
+                                csvField(c.kind), c.sample, csvField(r.status), csvField(r.regime), num(r.inclinationDeg), num(r.ttf),
+                                num(r.velocityCmPerS), num(r.lengthUm), rec.value("wall_s", 0.0));
             continue;
         }
         double velocity = NAN;  // the median of the case's draws, where the length's band is read

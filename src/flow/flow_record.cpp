@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 
 #include "core/csv.hpp"
 #include "core/file_io.hpp"
@@ -398,6 +399,63 @@ nlohmann::json tubeRecord(const TubeCaseResult& res, const TubeCaseOptions& c, c
     j["status"] = "ok";
     addTubeObservables(j, res);
     return j;
+}
+
+namespace {
+
+double numberOr(const nlohmann::json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_number() ? it->get<double>() : NAN;
+}
+
+std::string stringOr(const nlohmann::json& o, const char* key, std::string fallback = "") {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get<std::string>() : fallback;
+}
+
+const nlohmann::json& objectOr(const nlohmann::json& o, const char* key) {
+    static const nlohmann::json empty = nlohmann::json::object();
+    const auto it = o.find(key);
+    return it != o.end() && it->is_object() ? *it : empty;
+}
+
+}  // namespace
+
+FlowRecordView readFlowRecord(const nlohmann::json& record) {
+    FlowRecordView v;
+    if (!record.is_object()) return v;
+    v.status = stringOr(record, "status", "failed");
+    v.reason = stringOr(record, "reason");
+    const nlohmann::json& o = objectOr(record, "observables");
+    const nlohmann::json& d = objectOr(record, "diagnostics");
+    v.regime = stringOr(o, "regime");
+    v.inclinationDeg = numberOr(o, "inclination_deg");
+    v.swingDeg = numberOr(o, "swing_amplitude_deg");
+    v.ttf = numberOr(o, "ttf_4pi_f_over_shear_rate");
+    v.velocityCmPerS = numberOr(o, "velocity_cm_per_s");
+    v.lengthUm = numberOr(o, "length_um");
+    v.widthUm = numberOr(o, "width_um");
+    const nlohmann::json& plateau = objectOr(d, "plateau");
+    v.plateauReached = plateau.contains("reached") && plateau["reached"].is_boolean() && plateau["reached"].get<bool>();
+    const nlohmann::json& settling = objectOr(d, "settling");
+    if (!settling.empty()) {
+        v.settled = settling.contains("settled") && settling["settled"].is_boolean() && settling["settled"].get<bool>() ? "true" : "false";
+        v.lengthChangeMainVsSettled = numberOr(settling, "length_change_main_vs_settled");
+    }
+    v.cellFrameMotionRatio = numberOr(objectOr(d, "cell_frame_motion"), "ratio");
+    v.areaDriftMax = numberOr(d, "area_drift_max");
+    v.volumeDriftMax = numberOr(d, "volume_drift_max");
+    return v;
+}
+
+double FlowRecordView::observable(const std::string& key) const {
+    if (key == "inclination_deg") return inclinationDeg;
+    if (key == "swing_amplitude_deg") return swingDeg;
+    if (key == "ttf_4pi_f_over_shear_rate") return ttf;
+    if (key == "velocity_cm_per_s") return velocityCmPerS;
+    if (key == "length_um") return lengthUm;
+    if (key == "width_um") return widthUm;
+    throw std::invalid_argument("FlowRecordView: no observable '" + key + "'");
 }
 
 }  // namespace trbc

@@ -11,6 +11,7 @@
 // width_z_um, velocity_over_centre_line, velocity_over_mean_poiseuille.
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <string>
 
 #include "experiments/parameters.hpp"
@@ -33,6 +34,26 @@ nlohmann::json shearRecord(const ShearCaseResult& res, const ShearCaseOptions& c
 /// The same for a tube case.
 nlohmann::json tubeRecord(const TubeCaseResult& res, const TubeCaseOptions& c, const std::string& cellSource,
                           nlohmann::json provenance);
+
+/// What the validation reads back from a record of shearRecord or tubeRecord. A field the record
+/// lacks (a failed case has no observables) or holds as null is NaN, "" or "none".
+struct FlowRecordView {
+    std::string status = "failed", reason;
+    std::string regime;                   ///< shear: "tank-treading", "tumbling", "intermittent"
+    double inclinationDeg = NAN, swingDeg = NAN, ttf = NAN;           ///< shear; ttf = 4 pi f / rate
+    double velocityCmPerS = NAN, lengthUm = NAN, widthUm = NAN;       ///< tube
+    bool plateauReached = false;          ///< tube: tubePlateauReached
+    std::string settled = "none";         ///< tube: "true", "false", or "none" without a settling stage
+    double lengthChangeMainVsSettled = NAN, cellFrameMotionRatio = NAN;  ///< tube
+    double areaDriftMax = NAN, volumeDriftMax = NAN;
+
+    bool ok() const { return status == "ok"; }
+    /// The observable of the schema's key (inclination_deg, swing_amplitude_deg,
+    /// ttf_4pi_f_over_shear_rate, velocity_cm_per_s, length_um, width_um); std::invalid_argument
+    /// for another key.
+    double observable(const std::string& key) const;
+};
+FlowRecordView readFlowRecord(const nlohmann::json& record);
 
 /// j["observables"] and j["analysis"] of a finished shear run (also a ramp's stage).
 void addShearObservables(nlohmann::json& j, const ShearObservables& obs);
