@@ -170,8 +170,9 @@ std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>
 /// A finished row belongs to the design point of its sample id (rows are written with 17
 /// significant digits, so the round trip is exact).
 bool sameInputs(const CampaignPoint& row, const CampaignPoint& design) {
-    return row.cellId == design.cellId && row.p.v == design.p.v && row.p.mu == design.p.mu && row.p.FvK == design.p.FvK &&
-           row.p.b2 == design.p.b2 && row.p.etam == design.p.etam && row.fext == design.fext;
+    const auto same = sameDesignValue;
+    return row.cellId == design.cellId && same(row.p.v, design.p.v) && same(row.p.mu, design.p.mu) && same(row.p.FvK, design.p.FvK) &&
+           same(row.p.b2, design.p.b2) && same(row.p.etam, design.p.etam) && same(row.fext, design.fext);
 }
 
 /// The donor rows of one cell in its order, or none when any is missing or holds other inputs.

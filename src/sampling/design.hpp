@@ -3,6 +3,8 @@
 // design, 2.1), Latin hypercube and a randomly shifted Sobol' sequence, all seeded; points are rows of
 // [0, 1]^d, then mapped to the box.
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -22,6 +24,14 @@ std::string designName(DesignKind kind);
 /// discrepancy). Uniform and Sobol' designs are prefixes: n points are the first n of any larger design
 /// with the same seed, so a campaign grows and every prefix is a valid smaller design (learning curves).
 Eigen::MatrixXd unitDesign(DesignKind kind, long n, int d, std::uint64_t seed);
+
+/// Whether a recorded input is the design's value. Builds for other instruction sets (FMA
+/// contraction, libm's exp and log) map the same unit point to values that differ in the last
+/// bits, so a campaign resumed or read by another build compares within 1e-12 relative; another
+/// seed or design differs in the leading digits.
+inline bool sameDesignValue(double recorded, double design) {
+    return recorded == design || std::abs(recorded - design) <= 1e-12 * std::max(std::abs(recorded), std::abs(design));
+}
 
 /// The five cell inputs (v, mu, FvK, b2, etam) in design order, and the bead force.
 inline constexpr PriorRange kCellBox[5] = {kPriorV, kPriorMu, kPriorFvK, kPriorB2, kPriorEtam};

@@ -26,9 +26,10 @@ double fromUnit(const DesignAxis& a, double u) {
 std::string number(double x) { return std::isfinite(x) ? fmt::format("{:.17g}", x) : std::string("nan"); }
 
 bool sameInputs(const ShearCampaignPoint& a, const ShearCampaignPoint& b) {
-    return a.caseId == b.caseId && a.cell.v == b.cell.v && a.cell.mu == b.cell.mu && a.cell.FvK == b.cell.FvK &&
-           a.cell.b2 == b.cell.b2 && a.cell.etam == b.cell.etam && a.etaOut == b.etaOut && a.shearRate == b.shearRate &&
-           a.etaIn == b.etaIn && a.startSeed == b.startSeed;
+    const auto same = sameDesignValue;
+    return a.caseId == b.caseId && same(a.cell.v, b.cell.v) && same(a.cell.mu, b.cell.mu) && same(a.cell.FvK, b.cell.FvK) &&
+           same(a.cell.b2, b.cell.b2) && same(a.cell.etam, b.cell.etam) && same(a.etaOut, b.etaOut) &&
+           same(a.shearRate, b.shearRate) && same(a.etaIn, b.etaIn) && a.startSeed == b.startSeed;
 }
 
 }  // namespace
@@ -148,7 +149,7 @@ std::map<long, ShearCampaignRow> finishedShearCampaignRows(const fs::path& dir, 
             if (!sameInputs(r.point, design[std::size_t(id)]))
                 throw InputError(fmt::format("{}: case {} holds inputs other than the design's (eta_out {} against {}): the part "
                                              "files belong to another design or seed",
-                                             part.string(), id, r.point.etaOut, design[std::size_t(id)].etaOut));
+                                             part.string(), id, fmt::format("{:.17g}", r.point.etaOut), fmt::format("{:.17g}", design[std::size_t(id)].etaOut)));
             rows.emplace(id, std::move(r));
         }
     return rows;

@@ -119,6 +119,33 @@ long dataLines(const fs::path& part) {
 // Level 2 (162 vertices): 2-6 s a case; case 2 fails on purpose.
 const std::string kTiny = "flow campaign --cases 6 --level 2 --rotations 5 --seed 3 --no-cache --inject-failures 2";
 
+// Another build (FMA, another libm) maps the design to values a few ulps away: its rows still
+// count; a row of another design or seed is refused, naming the file and the case.
+TEST(ShearCampaignTable, RowsOfAnotherBuildCountAndRowsOfAnotherDesignAreRefused) {
+    TempDir tmp;
+    const std::vector<ShearCampaignPoint> design = shearCampaignDesign(DesignKind::Sobol, 3, 2);
+    auto write = [&](double etaOutFactor, int ulps) {
+        ShearCampaignRow r;
+        r.point = design[1];
+        r.regime = "tumbling";
+        r.point.etaOut *= etaOutFactor;
+        for (int k = 0; k < ulps; ++k) r.point.etaOut = std::nextafter(r.point.etaOut, 1e9), r.point.cell.mu = std::nextafter(r.point.cell.mu, 0.0);
+        fs::create_directories(tmp.path() / "parts");
+        std::ofstream(tmp.path() / "parts" / "rank0.csv") << shearCampaignCsvHeader() << "\n" << formatShearCampaignRow(r) << "\n";
+    };
+    write(1.0, 2);
+    const auto rows = finishedShearCampaignRows(tmp.path(), design);
+    ASSERT_EQ(rows.size(), 1u);
+    EXPECT_EQ(rows.begin()->first, 1);
+    write(1.0 + 1e-9, 0);
+    try {
+        finishedShearCampaignRows(tmp.path(), design);
+        FAIL() << "a row of another design was accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("rank0.csv: case 1 holds inputs other than the design's"), std::string::npos) << e.what();
+    }
+}
+
 TEST(ShearCampaignRunner, RecordsFailuresAndRefusesAnotherDesignOnResume) {
     TempDir tmp;
     const fs::path out = tmp.path() / "c";
