@@ -82,79 +82,107 @@ TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const std::vector
     return student;
 }
 
-}  // namespace
-
-SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt) {
+void checkSplitOptions(const SurrogateTrainingOptions& opt) {
     if (!(opt.testFraction >= 0.0 && opt.testFraction < 0.5))
         throw InputError(fmt::format("surrogate training: test fraction {} is outside [0, 0.5)", opt.testFraction));
     if (opt.folds == 1 || opt.folds < 0 || (opt.folds >= 2 && (opt.fold < 0 || opt.fold >= opt.folds)))
         throw InputError(fmt::format("surrogate training: fold {} of {} folds (folds must be 0 or >= 2, fold in [0, folds))", opt.fold,
                                      opt.folds));
-    SurrogateTrainingReport rep;
-    rep.rows = long(rows.size());
+}
+
+/// The table's cells and which of them are held out as test cells.
+struct CellSplit {
     std::map<long, std::vector<const CampaignRow*>> byCell;
-    for (const CampaignRow& r : rows) byCell[r.point.cellId].push_back(&r);
+    std::vector<long> cellIds;  ///< ascending
+    std::vector<bool> isTest;   ///< per entry of cellIds
+};
+
+/// Groups the rows by cell and holds out the test cells of a seeded permutation perm of the cells:
+/// perm[k] for k = fold (mod folds) with K-fold cross-validation, else perm[0 .. ceil(testFraction x
+/// cells) - 1]. Sets rep.dataHash, rep.cells and rep.testCells.
+CellSplit splitCells(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt, SurrogateTrainingReport& rep) {
+    CellSplit s;
+    for (const CampaignRow& r : rows) s.byCell[r.point.cellId].push_back(&r);
     rep.dataHash = campaignDataHash(rows);
-    rep.cells = long(byCell.size());
+    rep.cells = long(s.byCell.size());
     if (rep.cells < 10) throw InputError(fmt::format("surrogate training: {} cells in the table; at least 10 are needed", rep.cells));
 
-    std::vector<long> cellIds;
-    for (const auto& [id, v] : byCell) cellIds.push_back(id);
-    const auto perm = seededPermutation(Eigen::Index(cellIds.size()), opt.testSeed);
-    std::vector<bool> isTest(cellIds.size(), false);
+    for (const auto& [id, v] : s.byCell) s.cellIds.push_back(id);
+    const auto perm = seededPermutation(Eigen::Index(s.cellIds.size()), opt.testSeed);
+    s.isTest.assign(s.cellIds.size(), false);
     if (opt.folds >= 2) {
-        for (std::size_t k = 0; k < cellIds.size(); ++k) isTest[perm[Eigen::Index(k)]] = int(k % std::size_t(opt.folds)) == opt.fold;
-        rep.testCells = long(std::count(isTest.begin(), isTest.end(), true));
+        for (std::size_t k = 0; k < s.cellIds.size(); ++k) s.isTest[perm[Eigen::Index(k)]] = int(k % std::size_t(opt.folds)) == opt.fold;
+        rep.testCells = long(std::count(s.isTest.begin(), s.isTest.end(), true));
     } else {
-        rep.testCells = long(std::ceil(opt.testFraction * double(cellIds.size())));
-        for (long k = 0; k < rep.testCells; ++k) isTest[perm[k]] = true;
+        rep.testCells = long(std::ceil(opt.testFraction * double(s.cellIds.size())));
+        for (long k = 0; k < rep.testCells; ++k) s.isTest[perm[k]] = true;
     }
+    return s;
+}
 
-    // Branched when the training cells hold both branches (the test cells play no part in the choice).
-    rep.cellLabel = cupLabels(rows, opt.cellBranch, opt.cupHminUm);
-    const std::map<long, int>& labels = rep.cellLabel;
-    const auto branchOf = [&](long cellId) {
+/// The equilibrium branch label of each cell (0 disc, 1 cup) and whether the networks take it as an
+/// input (branched: the training cells hold both branches).
+struct CellBranches {
+    const SurrogateTrainingOptions& opt;
+    const std::map<long, int>& labels;
+    bool branched = false;
+
+    int of(long cellId) const {
         if (!opt.cellBranch.count(cellId))
             throw InputError(fmt::format("surrogate training: cell {} has no equilibrium branch record (the campaign's "
                                          "equilibria.csv lacks it)", cellId));
         return labels.at(cellId);
-    };
-    bool branched = false;
-    if (!opt.cellBranch.empty()) {
-        bool seen[2] = {false, false};
-        for (std::size_t c = 0; c < cellIds.size(); ++c)
-            if (!isTest[c]) seen[branchOf(cellIds[c]) != 0] = true;
-        branched = seen[0] && seen[1];
     }
-    const auto withBranch = [&](Eigen::VectorXd x, long cellId) {
+    Eigen::VectorXd withBranch(Eigen::VectorXd x, long cellId) const {
         if (!branched) return x;
         x.conservativeResize(x.size() + 1);
-        x(x.size() - 1) = branchOf(cellId);
+        x(x.size() - 1) = of(cellId);
         return x;
-    };
+    }
+};
 
+bool trainingCellsHoldBothBranches(const CellSplit& split, const CellBranches& branches) {
+    if (branches.opt.cellBranch.empty()) return false;
+    bool seen[2] = {false, false};
+    for (std::size_t c = 0; c < split.cellIds.size(); ++c)
+        if (!split.isTest[c]) seen[branches.of(split.cellIds[c]) != 0] = true;
+    return seen[0] && seen[1];
+}
+
+/// Input and output columns of each network (equilibrium, stretching, relaxation, branch), the
+/// rows with failed outputs and the rows of the test cells.
+struct TrainingSamples {
+    std::vector<Eigen::VectorXd> xs[4], ys[4];
+    std::vector<const CampaignRow*> droppedRows, testRows;
+};
+
+/// Equilibrium and relaxation once per training cell (from its first row), stretching once per row;
+/// counts the samples without a finite output in rep.dropped.
+TrainingSamples collectSamples(const CellSplit& split, const CellBranches& branches, SurrogateTrainingReport& rep) {
     auto eqOk = [](const CampaignRow& r) { return std::isfinite(r.D) && std::isfinite(r.hmin) && std::isfinite(r.hmax); };
     auto stOk = [](const CampaignRow& r) { return std::isfinite(r.D0) && std::isfinite(r.D1); };
     auto rxOk = [](const CampaignRow& r) { return std::isfinite(r.tc) && r.tc > 0; };
+    const bool branched = branches.branched;
 
-    std::vector<Eigen::VectorXd> xs[4], ys[4];  // equilibrium, stretching, relaxation, branch
-    std::vector<const CampaignRow*> droppedRows, testRows;
-    for (std::size_t c = 0; c < cellIds.size(); ++c) {
-        const auto& cell = byCell[cellIds[c]];
-        if (isTest[c]) {
-            testRows.insert(testRows.end(), cell.begin(), cell.end());
+    TrainingSamples s;
+    auto& xs = s.xs;
+    auto& ys = s.ys;
+    for (std::size_t c = 0; c < split.cellIds.size(); ++c) {
+        const auto& cell = split.byCell.at(split.cellIds[c]);
+        if (split.isTest[c]) {
+            s.testRows.insert(s.testRows.end(), cell.begin(), cell.end());
             continue;
         }
         const CampaignRow& first = *cell.front();
         const Eigen::VectorXd x0 = campaignRowInputs(first);
-        const long id = cellIds[c];
+        const long id = split.cellIds[c];
         if (eqOk(first)) {
-            xs[0].push_back(withBranch((Eigen::VectorXd(2) << x0(0), x0(2)).finished(), id));
+            xs[0].push_back(branches.withBranch((Eigen::VectorXd(2) << x0(0), x0(2)).finished(), id));
             ys[0].push_back((Eigen::VectorXd(3) << first.D, first.hmin, first.hmax).finished());
             if (branched && x0(0) >= kCupMinV) {
                 xs[3].push_back((Eigen::VectorXd(2) << x0(0), x0(2)).finished());
-                ys[3].push_back(Eigen::VectorXd::Constant(1, branchOf(id)));
-            } else if (branched && branchOf(id) != 0) {
+                ys[3].push_back(Eigen::VectorXd::Constant(1, branches.of(id)));
+            } else if (branched && branches.of(id) != 0) {
                 throw InputError(fmt::format("surrogate training: cell {} is a cup at v {} < {}, where a branched "
                                              "surrogate takes the disc (kCupMinV)", id, x0(0), kCupMinV));
             }
@@ -162,46 +190,110 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
             ++rep.dropped[0];
         }
         if (rxOk(first)) {
-            xs[2].push_back(withBranch(x0.head(5), id));
+            xs[2].push_back(branches.withBranch(x0.head(5), id));
             ys[2].push_back(Eigen::VectorXd::Constant(1, first.tc * first.point.p.mu / first.point.p.etam));
         } else {
             ++rep.dropped[2];
         }
         for (const CampaignRow* r : cell) {
-            if (!r->ok()) droppedRows.push_back(r);
+            if (!r->ok()) s.droppedRows.push_back(r);
             if (!stOk(*r)) {
                 ++rep.dropped[1];
                 continue;
             }
             const Eigen::VectorXd x = campaignRowInputs(*r);
-            xs[1].push_back(withBranch((Eigen::VectorXd(5) << x(0), x(1), x(2), x(3), x(5)).finished(), id));
+            xs[1].push_back(branches.withBranch((Eigen::VectorXd(5) << x(0), x(1), x(2), x(3), x(5)).finished(), id));
             ys[1].push_back((Eigen::VectorXd(2) << r->D0, r->D1).finished());
         }
     }
-    rep.droppedWhere = describeDropped(droppedRows);
+    return s;
+}
 
-    const int networks = branched ? 4 : 3;
-    const auto networkName = [](int k) { return k == 3 ? std::string("branch") : surrogateNetworkNames()[std::size_t(k)]; };
-    NetworkData data[4];
+std::string networkName(int k) { return k == 3 ? std::string("branch") : surrogateNetworkNames()[std::size_t(k)]; }
+
+/// The samples of the first `networks` networks as matrices (one column per sample); sets rep.used
+/// and rep.branchUsed.
+void assembleNetworkData(const TrainingSamples& s, int networks, NetworkData (&data)[4], SurrogateTrainingReport& rep) {
     for (int k = 0; k < networks; ++k) {
-        (k < 3 ? rep.used[k] : rep.branchUsed) = long(xs[k].size());
-        if (xs[k].size() < 10)
-            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", xs[k].size(), networkName(k)));
-        data[k].X.resize(xs[k].front().size(), Eigen::Index(xs[k].size()));
-        data[k].Y.resize(ys[k].front().size(), Eigen::Index(ys[k].size()));
-        for (std::size_t j = 0; j < xs[k].size(); ++j) data[k].X.col(Eigen::Index(j)) = xs[k][j], data[k].Y.col(Eigen::Index(j)) = ys[k][j];
+        (k < 3 ? rep.used[k] : rep.branchUsed) = long(s.xs[k].size());
+        if (s.xs[k].size() < 10)
+            throw InputError(fmt::format("surrogate training: only {} usable samples for the {} network", s.xs[k].size(), networkName(k)));
+        data[k].X.resize(s.xs[k].front().size(), Eigen::Index(s.xs[k].size()));
+        data[k].Y.resize(s.ys[k].front().size(), Eigen::Index(s.ys[k].size()));
+        for (std::size_t j = 0; j < s.xs[k].size(); ++j) data[k].X.col(Eigen::Index(j)) = s.xs[k][j], data[k].Y.col(Eigen::Index(j)) = s.ys[k][j];
     }
+}
 
-    std::vector<std::string> inNames[4] = {{"v", "FvK"},
-                                           {"v", "mu_uN_per_m", "FvK", "b2", "Fext_pN"},
-                                           {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"},
-                                           {"v", "FvK"}};
+/// Input and output names of each network (equilibrium, stretching, relaxation, branch).
+struct NetworkColumns {
+    std::vector<std::string> in[4];
+    std::vector<std::string> out[4];
+};
+
+NetworkColumns networkColumns(bool branched) {
+    NetworkColumns n{{{"v", "FvK"},
+                      {"v", "mu_uN_per_m", "FvK", "b2", "Fext_pN"},
+                      {"v", "mu_uN_per_m", "FvK", "b2", "etam_Pa_s_um"},
+                      {"v", "FvK"}},
+                     {{"D_um", "hmin_um", "hmax_um"}, {"D0_um", "D1_um"}, {"tc_mu_over_etam"}, {kBranchInputName}}};
     if (branched)
-        for (int k = 0; k < 3; ++k) inNames[k].push_back(kBranchInputName);
-    const std::vector<std::string> outNames[4] = {
-        {"D_um", "hmin_um", "hmax_um"}, {"D0_um", "D1_um"}, {"tc_mu_over_etam"}, {kBranchInputName}};
-    TrainingResult results[4];
-    TrainingOptions distillOptions[4];
+        for (int k = 0; k < 3; ++k) n.in[k].push_back(kBranchInputName);
+    return n;
+}
+
+/// The training schedule and variable transforms of network k.
+TrainingOptions networkTrainingOptions(int k, Eigen::Index samples, const SurrogateTrainingOptions& opt, bool branched) {
+    TrainingOptions o = scheduleForRows(opt.network, samples, k == 0 || k == 3 ? 256 : 128);
+    o.testFraction = 0.0;              // the test cells are already out
+    if (k == 1 && opt.sqrtB2Stretching) {
+        using T = VariableTransform;
+        o.inputTransforms = {T::Identity, T::Identity, T::Identity, T::Sqrt, T::Identity};
+    }
+    if (k == 2 && opt.logRelaxation) {
+        // tc mu / eta_m > 0 spans two decades and depends on mu and eta_m through tc's
+        // sampling window and the vertex-mass group Pi ~ mu / eta_m^2 (docs/FORWARD_MODEL.md, relaxation): products
+        // and powers that are sums in log space.
+        using T = VariableTransform;
+        o.inputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log};
+        o.outputTransforms = {T::Log};
+    }
+    // The branch input (0 or 1) enters as it is.
+    if (branched && k < 3 && !o.inputTransforms.empty()) o.inputTransforms.push_back(VariableTransform::Identity);
+    if (opt.progress) o.progress = [&opt, k](const EpochRecord& e) {
+#pragma omp critical(trbc_surrogate_progress)
+        opt.progress(networkName(k), e);
+    };
+    return o;
+}
+
+/// Restarts from different initial weights (seeds seed, seed+1, ...); the one with the lowest
+/// validation loss is the network (the test cells play no part in the choice), the others are its
+/// ensemble members when opt.ensemble[k].
+TrainingResult trainWithRestarts(int k, const NetworkData& d, const TrainingOptions& o, const SurrogateTrainingOptions& opt,
+                                 const NetworkColumns& columns) {
+    TrainingResult best;
+    std::vector<EnsembleMember> others;
+    for (int r = 0; r < std::max(1, opt.restarts); ++r) {
+        TrainingOptions ro = o;
+        ro.seed = o.seed + std::uint64_t(r);
+        TrainingResult t = trainNetwork(d.X, d.Y, ro, columns.in[k], columns.out[k]);
+        const double loss = t.network.history.bestValidationLoss, bestLoss = best.network.history.bestValidationLoss;
+        if (r == 0 || loss < bestLoss || (!std::isfinite(bestLoss) && std::isfinite(loss))) std::swap(best, t);
+        // a diverged restart (non-finite validation loss) is not averaged in
+        if (r > 0 && k < 3 && opt.ensemble[k] && std::isfinite(t.network.history.bestValidationLoss))
+            others.push_back({std::move(t.network.net), t.network.options.seed, t.network.history.bestValidationLoss});
+    }
+    std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
+    best.network.ensemble = std::move(others);
+    return best;
+}
+
+/// Trains the networks concurrently, largest first; an unbranched ensemble is distilled at once, a
+/// branched one keeps its schedule in distillOptions for distillBranched. All networks finish before
+/// the first error (in network order) is thrown.
+void trainNetworks(const NetworkData (&data)[4], int networks, bool branched, const SurrogateTrainingOptions& opt,
+                   TrainingResult (&results)[4], TrainingOptions (&distillOptions)[4], SurrogateTrainingReport& rep) {
+    const NetworkColumns columns = networkColumns(branched);
     std::string errors[4];
     // Largest first so that two threads finish together: stretching, relaxation, equilibrium, branch.
     const int order[4] = {1, 2, 0, 3};
@@ -209,44 +301,10 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     for (int i = 0; i < networks; ++i) {
         const int k = order[i];
         try {
-            TrainingOptions o = scheduleForRows(opt.network, data[k].X.cols(), k == 0 || k == 3 ? 256 : 128);
-            o.testFraction = 0.0;              // the test cells are already out
-            if (k == 1 && opt.sqrtB2Stretching) {
-                using T = VariableTransform;
-                o.inputTransforms = {T::Identity, T::Identity, T::Identity, T::Sqrt, T::Identity};
-            }
-            if (k == 2 && opt.logRelaxation) {
-                // tc mu / eta_m > 0 spans two decades and depends on mu and eta_m through tc's
-                // sampling window and the vertex-mass group Pi ~ mu / eta_m^2 (docs/FORWARD_MODEL.md, relaxation): products
-                // and powers that are sums in log space.
-                using T = VariableTransform;
-                o.inputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log};
-                o.outputTransforms = {T::Log};
-            }
-            // The branch input (0 or 1) enters as it is.
-            if (branched && k < 3 && !o.inputTransforms.empty()) o.inputTransforms.push_back(VariableTransform::Identity);
-            if (opt.progress) o.progress = [&, k](const EpochRecord& e) {
-#pragma omp critical(trbc_surrogate_progress)
-                opt.progress(networkName(k), e);
-            };
+            const TrainingOptions o = networkTrainingOptions(k, data[k].X.cols(), opt, branched);
             const auto t0 = std::chrono::steady_clock::now();
-            // Restarts from different initial weights (seeds seed, seed+1, ...); the one with the
-            // lowest validation loss is the network (the test cells play no part in the choice), the
-            // others are its ensemble members when opt.ensemble[k].
-            std::vector<EnsembleMember> others;
-            for (int r = 0; r < std::max(1, opt.restarts); ++r) {
-                TrainingOptions ro = o;
-                ro.seed = o.seed + std::uint64_t(r);
-                TrainingResult t = trainNetwork(data[k].X, data[k].Y, ro, inNames[k], outNames[k]);
-                const double loss = t.network.history.bestValidationLoss, best = results[k].network.history.bestValidationLoss;
-                if (r == 0 || loss < best || (!std::isfinite(best) && std::isfinite(loss))) std::swap(results[k], t);
-                // a diverged restart (non-finite validation loss) is not averaged in
-                if (r > 0 && k < 3 && opt.ensemble[k] && std::isfinite(t.network.history.bestValidationLoss))
-                    others.push_back({std::move(t.network.net), t.network.options.seed, t.network.history.bestValidationLoss});
-            }
-            std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
-            results[k].network.ensemble = std::move(others);
-            // A branched network is distilled once the classifier is trained (below).
+            results[k] = trainWithRestarts(k, data[k], o, opt, columns);
+            // A branched network is distilled once the classifier is trained (distillBranched).
             if (!branched && k < 3 && opt.distill[k] && !results[k].network.ensemble.empty())
                 results[k].network = distilledNetwork(results[k].network, kNetworkBoxes[k], opt.distillSamples,
                                                       opt.distillSeed, o, nullptr);
@@ -261,25 +319,25 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
     }
     for (const std::string& e : errors)
         if (!e.empty()) throw InputError(e);
-    if (branched) {
-        rep.model.branch = results[3].network;
-        rep.model.branched = true;
-        for (int k = 0; k < 3; ++k) {
-            if (!opt.distill[k] || results[k].network.ensemble.empty()) continue;
-            const auto t0 = std::chrono::steady_clock::now();
-            TrainedNetwork student = distilledNetwork(results[k].network, kNetworkBoxes[k], opt.distillSamples, opt.distillSeed,
-                                                      distillOptions[k], &rep.model.branch);
-            student.dataHash = rep.dataHash;
-            student.command = opt.command;
-            results[k].network = std::move(student);
-            rep.wallSeconds[k] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        }
-    }
-    rep.model.equilibrium = results[0].network;
-    rep.model.stretching = results[1].network;
-    rep.model.relaxation = results[2].network;
+}
 
-    // Validation split of each network (the rows its early stopping saw), physical units.
+/// The ensembles of a branched surrogate distilled with the classifier's branch as the last input.
+void distillBranched(const SurrogateTrainingOptions& opt, const TrainingOptions (&distillOptions)[4], TrainingResult (&results)[4],
+                     SurrogateTrainingReport& rep) {
+    for (int k = 0; k < 3; ++k) {
+        if (!opt.distill[k] || results[k].network.ensemble.empty()) continue;
+        const auto t0 = std::chrono::steady_clock::now();
+        TrainedNetwork student = distilledNetwork(results[k].network, kNetworkBoxes[k], opt.distillSamples, opt.distillSeed,
+                                                  distillOptions[k], &rep.model.branch);
+        student.dataHash = rep.dataHash;
+        student.command = opt.command;
+        results[k].network = std::move(student);
+        rep.wallSeconds[k] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+}
+
+/// Accuracy of each network on its validation split (the rows its early stopping saw), physical units.
+void addValidationAccuracy(const NetworkData (&data)[4], const TrainingResult (&results)[4], SurrogateTrainingReport& rep) {
     const int firstOutput[3] = {0, 3, 5};
     for (int k = 0; k < 3; ++k) {
         const auto& val = results[k].split.validation;
@@ -294,17 +352,55 @@ SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, con
         for (Eigen::Index o = 0; o < P.rows(); ++o)
             rep.validation.push_back(outputAccuracy(surrogateOutputNames()[firstOutput[k] + o], Yv.row(o).transpose(), P.row(o).transpose()));
     }
+}
 
-    // Held-out cells: every output of every test row (equilibrium and relaxation once per cell).
-    if (!testRows.empty()) {
-        SurrogateTest t = testSurrogate(rep.model, std::move(testRows));
-        rep.testInputs = std::move(t.inputs);
-        rep.testTruth = std::move(t.truth);
-        rep.testPredicted = std::move(t.predicted);
-        rep.testBranch = std::move(t.branch);
-        rep.testCellIds = std::move(t.cellIds);
-        rep.test = std::move(t.accuracy);
+/// Every output of every row of the held-out cells (equilibrium and relaxation once per cell).
+void addTestAccuracy(std::vector<const CampaignRow*> testRows, SurrogateTrainingReport& rep) {
+    if (testRows.empty()) return;
+    SurrogateTest t = testSurrogate(rep.model, std::move(testRows));
+    rep.testInputs = std::move(t.inputs);
+    rep.testTruth = std::move(t.truth);
+    rep.testPredicted = std::move(t.predicted);
+    rep.testBranch = std::move(t.branch);
+    rep.testCellIds = std::move(t.cellIds);
+    rep.test = std::move(t.accuracy);
+}
+
+}  // namespace
+
+SurrogateTrainingReport trainSurrogate(const std::vector<CampaignRow>& rows, const SurrogateTrainingOptions& opt) {
+    checkSplitOptions(opt);
+    SurrogateTrainingReport rep;
+    rep.rows = long(rows.size());
+    const CellSplit split = splitCells(rows, opt, rep);
+
+    // Branched when the training cells hold both branches (the test cells play no part in the choice).
+    rep.cellLabel = cupLabels(rows, opt.cellBranch, opt.cupHminUm);
+    CellBranches branches{opt, rep.cellLabel, false};
+    branches.branched = trainingCellsHoldBothBranches(split, branches);
+    const bool branched = branches.branched;
+
+    TrainingSamples samples = collectSamples(split, branches, rep);
+    rep.droppedWhere = describeDropped(samples.droppedRows);
+
+    const int networks = branched ? 4 : 3;
+    NetworkData data[4];
+    assembleNetworkData(samples, networks, data, rep);
+
+    TrainingResult results[4];
+    TrainingOptions distillOptions[4];
+    trainNetworks(data, networks, branched, opt, results, distillOptions, rep);
+    if (branched) {
+        rep.model.branch = results[3].network;
+        rep.model.branched = true;
+        distillBranched(opt, distillOptions, results, rep);
     }
+    rep.model.equilibrium = results[0].network;
+    rep.model.stretching = results[1].network;
+    rep.model.relaxation = results[2].network;
+
+    addValidationAccuracy(data, results, rep);
+    addTestAccuracy(std::move(samples.testRows), rep);
     return rep;
 }
 
