@@ -36,6 +36,11 @@ nlohmann::json accuracyJson(const FlowAccuracy& a) {
             {"inclination_rmse_deg", num(a.inclinationRmseDeg)},
             {"swing_rmse_deg", num(a.swingRmseDeg)},
             {"ttf_relative_rmse", num(a.ttfRelativeRmse)},
+            {"steady_cases", a.steady},
+            {"inclination_rmse_steady_deg", num(a.inclinationRmseSteadyDeg)},
+            {"ttf_relative_rmse_steady", num(a.ttfRelativeRmseSteady)},
+            {"campaign_inclination_se_rms_deg", num(a.inclinationNoiseDeg)},
+            {"campaign_ttf_relative_se_rms", num(a.ttfRelativeNoise)},
             {"brier", num(a.brier)},
             {"far_cases", a.far},
             {"far_misclassified", a.farMisclassified},
@@ -46,13 +51,16 @@ nlohmann::json accuracyJson(const FlowAccuracy& a) {
 std::string percent(long k, long n) { return n > 0 ? fmt::format("{:.1f} % ({}/{})", 100.0 * double(k) / double(n), k, n) : "-"; }
 
 std::string accuracyRow(const std::string& label, const FlowAccuracy& a) {
-    return fmt::format("| {} | {} | {:.3f} | {:.3f} | {:.2f} % | {} | {} | {:.4f} |", label, a.cases, a.inclinationRmseDeg, a.swingRmseDeg,
-                       100.0 * a.ttfRelativeRmse, percent(a.farMisclassified, a.far), percent(a.nearMisclassified, a.near), a.brier);
+    return fmt::format("| {} | {} | {:.3f} | {:.3f} | {:.2f} % | {:.3f} / {:.2f} % ({}) | {:.3f} / {:.2f} % | {} | {} | {:.4f} |", label,
+                       a.cases, a.inclinationRmseDeg, a.swingRmseDeg, 100.0 * a.ttfRelativeRmse, a.inclinationRmseSteadyDeg,
+                       100.0 * a.ttfRelativeRmseSteady, a.steady, a.inclinationNoiseDeg, 100.0 * a.ttfRelativeNoise,
+                       percent(a.farMisclassified, a.far), percent(a.nearMisclassified, a.near), a.brier);
 }
 
 constexpr const char* kTableHead =
-    "| set | cases | angle RMSE (deg) | swing RMSE (deg) | TTF RMSE | misclassified far from the boundary | near it | Brier |\n"
-    "|---|---|---|---|---|---|---|---|";
+    "| set | cases | angle RMSE (deg) | swing RMSE (deg) | TTF RMSE | angle / TTF RMSE, steady cases (count) | campaign's own "
+    "uncertainty, angle / TTF (RMS of *_se) | misclassified far from the boundary | near it | Brier |\n"
+    "|---|---|---|---|---|---|---|---|---|---|";
 
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);

@@ -30,10 +30,14 @@ struct AccuracySums {
     long cases = 0, tt = 0;
     double sqAngle = 0, sqSwing = 0, sqTtf = 0, sqBrier = 0;
     long far = 0, farWrong = 0, near = 0, nearWrong = 0;
+    long steady = 0, withSe = 0;
+    double sqAngleSteady = 0, sqTtfSteady = 0, sqAngleSe = 0, sqTtfSe = 0;
 
     void add(const AccuracySums& o) {
         cases += o.cases, tt += o.tt, sqAngle += o.sqAngle, sqSwing += o.sqSwing, sqTtf += o.sqTtf, sqBrier += o.sqBrier;
         far += o.far, farWrong += o.farWrong, near += o.near, nearWrong += o.nearWrong;
+        steady += o.steady, withSe += o.withSe;
+        sqAngleSteady += o.sqAngleSteady, sqTtfSteady += o.sqTtfSteady, sqAngleSe += o.sqAngleSe, sqTtfSe += o.sqTtfSe;
     }
     FlowAccuracy accuracy() const {
         FlowAccuracy a;
@@ -43,6 +47,9 @@ struct AccuracySums {
             a.swingRmseDeg = std::sqrt(sqSwing / double(tt));
             a.ttfRelativeRmse = std::sqrt(sqTtf / double(tt));
         }
+        a.steady = steady;
+        if (steady > 0) a.inclinationRmseSteadyDeg = std::sqrt(sqAngleSteady / double(steady)), a.ttfRelativeRmseSteady = std::sqrt(sqTtfSteady / double(steady));
+        if (withSe > 0) a.inclinationNoiseDeg = std::sqrt(sqAngleSe / double(withSe)), a.ttfRelativeNoise = std::sqrt(sqTtfSe / double(withSe));
         if (cases > 0) a.brier = sqBrier / double(cases);
         a.far = far, a.farMisclassified = farWrong, a.near = near, a.nearMisclassified = nearWrong;
         return a;
@@ -82,6 +89,16 @@ AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const Sh
             s.sqAngle += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
             s.sqSwing += std::pow(p.swingDeg(j) - r.swingDeg, 2);
             s.sqTtf += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
+            if (r.steady) {
+                ++s.steady;
+                s.sqAngleSteady += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
+                s.sqTtfSteady += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
+            }
+            if (std::isfinite(r.inclinationSeDeg) && std::isfinite(r.ttfSe)) {
+                ++s.withSe;
+                s.sqAngleSe += r.inclinationSeDeg * r.inclinationSeDeg;
+                s.sqTtfSe += std::pow(r.ttfSe / r.ttf, 2);
+            }
         }
     }
     return s;

@@ -90,6 +90,12 @@ struct FlowAccuracy {
     long tankTreading = 0;     ///< of them tank-treading (the regressors' test set)
     double inclinationRmseDeg = NAN, swingRmseDeg = NAN;
     double ttfRelativeRmse = NAN;  ///< sqrt(mean (pred / truth - 1)^2)
+    /// The same on the cases the steady-state rule stopped (their values move by less than the
+    /// rule's tolerances between the last two turns), and the campaign's own uncertainty: the RMS
+    /// of the rows' *_se over the tank-treading test cases, a floor no network can beat.
+    long steady = 0;
+    double inclinationRmseSteadyDeg = NAN, ttfRelativeRmseSteady = NAN;
+    double inclinationNoiseDeg = NAN, ttfRelativeNoise = NAN;
     double brier = NAN;            ///< mean (p - label)^2
     long far = 0, farMisclassified = 0;    ///< more than boundaryFactor from the critical stress (or none)
     long near = 0, nearMisclassified = 0;  ///< within it

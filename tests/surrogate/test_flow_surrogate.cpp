@@ -100,6 +100,27 @@ TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
     outside(5, 0) = 200.0;  // eta_out beyond the box
     EXPECT_TRUE(rep.model.predict(outside).outsideBox[0]);
 
+    // The steady cases' RMSE is the RMSE of the steady cases alone; the campaign's own
+    // uncertainty is the RMS of the rows' standard errors.
+    std::vector<ShearCampaignRow> marked(rows.begin(), rows.begin() + 200);
+    std::vector<const ShearCampaignRow*> all, steadyOnly;
+    for (ShearCampaignRow& r : marked) {
+        r.steady = r.point.caseId % 3 == 0;
+        r.inclinationSeDeg = r.steady ? 0.1 : 0.3;
+        r.ttfSe = 0.02 * r.ttf;
+        all.push_back(&r);
+        if (r.steady) steadyOnly.push_back(&r);
+    }
+    const FlowAccuracy whole = flowAccuracy(rep.model, all, 1.5), part = flowAccuracy(rep.model, steadyOnly, 1.5);
+    EXPECT_EQ(whole.steady, part.tankTreading);
+    EXPECT_GT(whole.steady, 20);
+    EXPECT_NEAR(whole.inclinationRmseSteadyDeg, part.inclinationRmseDeg, 1e-12);
+    EXPECT_NEAR(whole.ttfRelativeRmseSteady, part.ttfRelativeRmse, 1e-12);
+    EXPECT_NEAR(part.inclinationNoiseDeg, 0.1, 1e-12);
+    EXPECT_NEAR(whole.ttfRelativeNoise, 0.02, 1e-12);
+    EXPECT_GT(whole.inclinationNoiseDeg, 0.1);
+    EXPECT_LT(whole.inclinationNoiseDeg, 0.3);
+
     test::TempDir tmp;
     rep.model.save(tmp.path() / "m");
     const FlowSurrogate back = FlowSurrogate::load(tmp.path() / "m");
