@@ -16,7 +16,7 @@ Eigen::MatrixXd drawInputs(const std::vector<PosteriorDraw>& draws, double etaOu
     Eigen::MatrixXd x(7, Eigen::Index(draws.size()));
     for (std::size_t k = 0; k < draws.size(); ++k) {
         const PosteriorDraw& d = draws[k];
-        x.col(Eigen::Index(k)) << d.v, d.mu, CellParameters::fvkFromKb(d.mu, d.kbJ), d.b2, d.etam, etaOut, rate;
+        x.col(Eigen::Index(k)) = flowInput({d.v, d.mu, CellParameters::fvkFromKb(d.mu, d.kbJ), d.b2, d.etam}, etaOut, rate);
     }
     return x;
 }

@@ -142,11 +142,17 @@ const std::vector<std::string>& flowSurrogateInputNames() {
     return names;
 }
 
+Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutMPaS, double shearRatePerS) {
+    Eigen::Matrix<double, 7, 1> x;
+    x << cell.v, cell.mu, cell.FvK, cell.b2, cell.etam, etaOutMPaS, shearRatePerS;
+    return x;
+}
+
 Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows) {
     Eigen::MatrixXd x(7, Eigen::Index(rows.size()));
     for (std::size_t k = 0; k < rows.size(); ++k) {
         const ShearCampaignPoint& q = rows[k]->point;
-        x.col(Eigen::Index(k)) << q.cell.v, q.cell.mu, q.cell.FvK, q.cell.b2, q.cell.etam, q.etaOut, q.shearRate;
+        x.col(Eigen::Index(k)) = flowInput(q.cell, q.etaOut, q.shearRate);
     }
     return x;
 }

@@ -66,7 +66,9 @@ struct FlowSurrogate {
                                      bool clampToRange = false) const;
 };
 
-/// Inputs (7 x n) of campaign rows, in flowSurrogateInputNames order.
+/// One column of inputs, in flowSurrogateInputNames order.
+Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutMPaS, double shearRatePerS);
+/// Inputs (7 x n) of campaign rows.
 Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows);
 
 struct FlowSurrogateTrainingOptions {
