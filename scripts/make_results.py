@@ -22,16 +22,21 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 POSTERIOR = "{work}/calibration/inference/phase3/theta_new"  # the posterior the calibration set makes
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
+# A kept entry "SRC" copies OUT/SRC to results/<name>/SRC, "SRC=DEST" to results/<name>/DEST; a
+# directory is copied whole. The set's README.md (the hand-written description) is carried over.
 # {trbc} is the binary, {out} the set's work directory, {work} the root of all of them.
 SETS = {
     "calibration": ("the shipped calibration: posterior statistics, report, stage ledger",
-                    ["{trbc} calibrate --config configs/paper.toml --out {out}"], 0.1,
-                    ["posterior_stats.csv", "report.html", "stages.json"]),
+                    ["{trbc} calibrate --config configs/paper.toml --out {out}"], 0.3,
+                    ["inference/posterior_stats.csv=posterior_stats.csv", "report.html", "calibrate.json=stages.json"]),
     "inference": ("trbc infer on the shipped surrogates, seed 1: statistics, corner plots, predictions",
                   ["{trbc} infer --phase all --seed 1 --out {out}",
                    "{trbc} predict --inference {out} --out {out}/predict --threads 2 --quiet",
                    "python3 scripts/plot_posterior.py {out} --out {out}",
-                   "python3 scripts/plot_predict.py {out}/predict"], 0.05, None),
+                   "python3 scripts/plot_predict.py {out}/predict"], 0.3,
+                  ["infer.json", "posterior_stats.csv", "posterior_table.md", "corner_evans_fung_1972.png", "corner_mills_2004.png",
+                   "corner_suresh_2005.png", "corner_hochmuth_1979_cell1.png", "corner_hochmuth_1979_cell2.png",
+                   "corner_hochmuth_1979_cell3.png", "corner_hochmuth_1979_cell4.png", "corner_theta_new.png", "predict"]),
     "inference_seed_study": ("theta_new of the default trbc infer for seeds 1-8",
                              ["python3 scripts/seed_study.py --trbc {trbc} --out {out} --seeds 1 2 3 4 5 6 7 8"], 0.3, None),
     "sobol": ("Sobol' indices of the six observables", ["{trbc} sobol --samples 4096 --seed 1 --threads 2 --out {out}"], 0.05,
@@ -151,14 +156,31 @@ def main():
             print(f"make_results: {n}: {line}", file=sys.stderr, flush=True)
             if subprocess.run(line, shell=True, cwd=ROOT).returncode != 0:
                 sys.exit(f"make_results: {n} failed: {line}; results/{n} is unchanged")
+        # Staged beside results/<name> and swapped in only when every kept file is there.
         dest = os.path.join(ROOT, "results", n)
-        shutil.rmtree(dest, ignore_errors=True)
+        staged = dest + ".new"
+        shutil.rmtree(staged, ignore_errors=True)
+        ignore = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output")
         if keep:
-            os.makedirs(dest)
-            for f in keep:
-                shutil.copy2(os.path.join(out, f), dest)
+            os.makedirs(staged)
+            for entry in keep:
+                src, _, to = entry.partition("=")
+                src_path, to_path = os.path.join(out, src), os.path.join(staged, to or src)
+                if not os.path.exists(src_path):
+                    shutil.rmtree(staged, ignore_errors=True)
+                    sys.exit(f"make_results: {n}: {src_path} was not made; results/{n} is unchanged")
+                os.makedirs(os.path.dirname(to_path), exist_ok=True)
+                if os.path.isdir(src_path):
+                    shutil.copytree(src_path, to_path, ignore=ignore)
+                else:
+                    shutil.copy2(src_path, to_path)
         else:
-            shutil.copytree(out, dest, ignore=shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout"))
+            shutil.copytree(out, staged, ignore=ignore)
+        readme = os.path.join(dest, "README.md")
+        if os.path.exists(readme) and not os.path.exists(os.path.join(staged, "README.md")):
+            shutil.copy2(readme, staged)
+        shutil.rmtree(dest, ignore_errors=True)
+        os.rename(staged, dest)
         print(f"make_results: {n} made in {(time.time() - t0) / 60:.1f} min -> results/{n}", file=sys.stderr)
 
 
