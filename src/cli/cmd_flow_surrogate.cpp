@@ -24,7 +24,8 @@ namespace trbc::cli {
 namespace {
 
 struct FlowTrainCli {
-    std::string campaign, out, curve;
+    std::vector<std::string> campaigns;
+    std::string out, curve;
     FlowSurrogateTrainingOptions t;
     int folds = 0, threads = 2;
 };
@@ -65,22 +66,37 @@ constexpr const char* kTableHead =
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseIntegerList(o.curve, "--learning-curve", "a case count", 20);
-    bool complete = true;
-    std::vector<ShearCampaignRow> rows = readShearCampaignRows(o.campaign, &complete);
+    std::vector<ShearCampaignRow> rows;
+    nlohmann::json sources = nlohmann::json::array();
+    std::string from;
+    for (const std::string& c : o.campaigns) {
+        bool complete = true;
+        std::vector<ShearCampaignRow> part = readShearCampaignRows(c, &complete);
+        const int level = part.empty() ? 0 : part.front().meshLevel;
+        std::cerr << fmt::format("flow train: {} cases from {}{}{}\n", part.size(), c, level > 0 ? fmt::format(" (level {})", level) : "",
+                                 complete ? "" : " (campaign not complete: its finished cases)");
+        sources.push_back({{"campaign", c}, {"cases", part.size()}, {"level", level}, {"complete", complete}});
+        from += fmt::format("{}{} ({} cases{}{})", from.empty() ? "" : " and ", c, part.size(), level > 0 ? fmt::format(", level {}", level) : "",
+                            complete ? "" : ", not complete");
+        rows.insert(rows.end(), std::make_move_iterator(part.begin()), std::make_move_iterator(part.end()));
+    }
     o.t.command = commandLine();
-    std::cerr << fmt::format("flow train: {} cases from {}{}\n", rows.size(), o.campaign, complete ? "" : " (campaign not complete: its finished cases)");
-    nlohmann::json j = withBuild({{"command", o.t.command}, {"campaign", o.campaign}, {"campaign_complete", complete},
-                                  {"restarts", o.t.restarts}, {"ensemble", o.t.ensemble}, {"boundary_factor", o.t.boundaryFactor}});
-    std::string md = fmt::format("Flow networks from {} ({} cases{}); command: `{}`\n\n{}\n", o.campaign, rows.size(),
-                                 complete ? "" : ", campaign not complete", o.t.command, kTableHead);
+    nlohmann::json j = withBuild({{"command", o.t.command}, {"campaigns", sources}, {"restarts", o.t.restarts},
+                                  {"ensemble", o.t.ensemble}, {"boundary_factor", o.t.boundaryFactor}});
+    std::string md = fmt::format("Flow networks from {}; command: `{}`\n\n{}\n", from, o.t.command, kTableHead);
     const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, o.t);
     rep.model.save(o.out);
+    j["levels"] = rep.model.levels;
+    j["predicts_level"] = rep.model.level;
     j["data_hash"] = rep.dataHash;
     j["rows"] = rep.rows;
     j["finished_rows"] = rep.used;
     j["training_rows"] = {{"regime", rep.regimeRows}, {"tank_treading", rep.tankTreadingRows}};
     j["test"] = accuracyJson(rep.test);
     j["wall_s"] = rep.wallSeconds;
+    if (rep.model.multiLevel())
+        md = fmt::format("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-{} cases, "
+                         "with every coarser case in training.\n\n", rep.model.level) + md;
     md += accuracyRow(fmt::format("held out ({:.0f} %)", 100.0 * o.t.testFraction), rep.test) + "\n";
     if (o.folds >= 2) {
         const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, o.t, o.folds);
@@ -88,7 +104,9 @@ void runFlowTrain(FlowTrainCli& o) {
         md += accuracyRow(fmt::format("{}-fold CV", cv.folds), cv.pooled) + "\n";
     }
     if (!sizes.empty()) {
-        std::vector<ShearCampaignRow> sorted = rows;
+        // The prefixes are of the finest level's cases; the coarser levels' cases all stay in.
+        std::vector<ShearCampaignRow> sorted, coarser;
+        for (const ShearCampaignRow& r : rows) (r.meshLevel == rep.model.level ? sorted : coarser).push_back(r);
         std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
         nlohmann::json curve = nlohmann::json::array();
         md += fmt::format("\nLearning curve ({}-fold CV on the first N cases of the design)\n\n{}\n", std::max(o.folds, 5), kTableHead);
@@ -97,7 +115,8 @@ void runFlowTrain(FlowTrainCli& o) {
                 std::cerr << fmt::format("flow train: learning curve: {} cases asked, {} in the campaign; skipped\n", n, sorted.size());
                 continue;
             }
-            const std::vector<ShearCampaignRow> prefix(sorted.begin(), sorted.begin() + n);
+            std::vector<ShearCampaignRow> prefix(sorted.begin(), sorted.begin() + n);
+            prefix.insert(prefix.end(), coarser.begin(), coarser.end());
             const FlowCrossValidation cv = crossValidateFlowSurrogate(prefix, o.t, std::max(o.folds, 5));
             curve.push_back({{"cases", n}, {"pooled", accuracyJson(cv.pooled)}});
             md += accuracyRow(fmt::format("N = {}", n), cv.pooled) + "\n";
@@ -184,7 +203,10 @@ void registerFlowTrain(CLI::App* flow) {
         "Flow networks from a shear campaign (docs/FLOW_CAMPAIGN.md): the probability of tank-treading and the angle, swing and "
         "TTF of the tank-treading state. Writes OUT/flow_regime.json, OUT/flow_tank_treading.json, OUT/flow_surrogate.json, "
         "the accuracy (held-out cases, optional k-fold CV and learning curve) in OUT/training.json and OUT/accuracy.md");
-    cmd->add_option("--campaign", o->campaign, "a `trbc flow campaign` directory (its finished cases) or its cases.csv")
+    cmd->add_option("--campaign", o->campaigns,
+                    "a `trbc flow campaign` directory (its finished cases) or its cases.csv; repeatable: campaigns of "
+                    "several mesh levels (same box) train multi-level networks that answer at the finest level, "
+                    "whose cases are the test set")
         ->required()
         ->check(CLI::ExistingPath);
     addOutOption(cmd, o->out, "model directory");

@@ -159,13 +159,13 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
     if (complete) *complete = true;
     if (fs::is_regular_file(path)) return readShearCampaignCsv(path);
     if (!fs::is_directory(path)) throw InputError(fmt::format("shear campaign {} does not exist", path.string()));
-    if (fs::exists(path / "cases.csv")) return readShearCampaignCsv(path / "cases.csv");
-    if (complete) *complete = false;
     const fs::path provenance = path / "campaign.json";
+    if (fs::exists(path / "cases.csv") && !fs::exists(provenance)) return readShearCampaignCsv(path / "cases.csv");
     DesignKind design = DesignKind::Sobol;
     long cases = 0;
     std::uint64_t seed = 0;
     double etaIn = 0.0;
+    int level = 0;
     try {
         std::ifstream in(provenance);
         const nlohmann::json j = nlohmann::json::parse(in).at("settings");
@@ -173,11 +173,18 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
         cases = j.at("cases").get<long>();
         seed = j.at("seed").get<std::uint64_t>();
         etaIn = j.at("eta_in_mPa_s").get<double>();
+        level = j.at("level").get<int>();
     } catch (const std::exception& e) {
         throw InputError(fmt::format("{}: not a shear campaign ({})", provenance.string(), e.what()));
     }
     std::vector<ShearCampaignRow> rows;
-    for (auto& [id, r] : finishedShearCampaignRows(path, shearCampaignDesign(design, cases, seed, etaIn))) rows.push_back(std::move(r));
+    if (fs::exists(path / "cases.csv")) {
+        rows = readShearCampaignCsv(path / "cases.csv");
+    } else {
+        if (complete) *complete = false;
+        for (auto& [id, r] : finishedShearCampaignRows(path, shearCampaignDesign(design, cases, seed, etaIn))) rows.push_back(std::move(r));
+    }
+    for (ShearCampaignRow& r : rows) r.meshLevel = level;
     return rows;
 }
 

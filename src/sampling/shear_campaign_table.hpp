@@ -63,6 +63,8 @@ struct ShearCampaignRow {
     std::string status = "ok";      ///< "ok" (the run completed and was analysed) or "failed"
     std::string reason;             ///< why it failed
     double wallSeconds = 0.0;
+    /// The campaign's mesh level (its campaign.json; not a column of the table), 0 when not known.
+    int meshLevel = 0;
 
     bool ok() const { return status == "ok"; }
     /// A row the networks learn from: run to the end, with a regime.
@@ -86,7 +88,8 @@ std::map<long, ShearCampaignRow> finishedShearCampaignRows(const std::filesystem
                                                            const std::vector<ShearCampaignPoint>& design);
 
 /// The rows of a shear campaign: cases.csv when complete, otherwise the finished cases of the part
-/// files; a CSV file path reads that table.
+/// files; a CSV file path reads that table. Rows of a directory carry the level of its
+/// campaign.json (meshLevel).
 std::vector<ShearCampaignRow> readShearCampaignRows(const std::filesystem::path& dirOrFile, bool* complete = nullptr);
 
 }  // namespace trbc

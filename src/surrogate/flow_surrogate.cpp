@@ -107,13 +107,13 @@ AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const Sh
 /// Restarts from seeds seed, seed + 1, ...; the lowest validation loss is the network, the others
 /// its ensemble members when asked.
 TrainedNetwork trainWithRestarts(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y, TrainingOptions o, int restarts, bool ensemble,
-                                 const std::vector<std::string>& outNames) {
+                                 const std::vector<std::string>& inNames, const std::vector<std::string>& outNames) {
     TrainingResult best;
     std::vector<EnsembleMember> others;
     for (int r = 0; r < std::max(1, restarts); ++r) {
         TrainingOptions ro = o;
         ro.seed = o.seed + std::uint64_t(r);
-        TrainingResult t = trainNetwork(X, Y, ro, flowSurrogateInputNames(), outNames);
+        TrainingResult t = trainNetwork(X, Y, ro, inNames, outNames);
         const double loss = t.network.history.bestValidationLoss, bestLoss = best.network.history.bestValidationLoss;
         if (r == 0 || loss < bestLoss || (!std::isfinite(bestLoss) && std::isfinite(loss))) std::swap(best, t);
         if (r > 0 && ensemble && std::isfinite(t.network.history.bestValidationLoss))
@@ -122,6 +122,29 @@ TrainedNetwork trainWithRestarts(const Eigen::MatrixXd& X, const Eigen::MatrixXd
     std::sort(others.begin(), others.end(), [](const EnsembleMember& a, const EnsembleMember& b) { return a.seed < b.seed; });
     best.network.ensemble = std::move(others);
     return std::move(best.network);
+}
+
+/// Finished rows split into those of the finest mesh level (the test and accuracy set) and the
+/// coarser ones (always trained on); `levels` ascending, empty when every row is of one level.
+struct LevelSplit {
+    std::vector<int> levels;
+    std::vector<const ShearCampaignRow*> finest, coarser;
+};
+
+LevelSplit splitByLevel(const std::vector<const ShearCampaignRow*>& done) {
+    LevelSplit s;
+    for (const ShearCampaignRow* r : done)
+        if (std::find(s.levels.begin(), s.levels.end(), r->meshLevel) == s.levels.end()) s.levels.push_back(r->meshLevel);
+    std::sort(s.levels.begin(), s.levels.end());
+    if (s.levels.size() > 1 && s.levels.front() == 0)
+        throw InputError("flow surrogate: rows of several campaigns, some without a recorded mesh level (campaign.json)");
+    if (s.levels.size() <= 1) {
+        if (!s.levels.empty() && s.levels.front() == 0) s.levels.clear();
+        s.finest = done;
+        return s;
+    }
+    for (const ShearCampaignRow* r : done) (r->meshLevel == s.levels.back() ? s.finest : s.coarser).push_back(r);
+    return s;
 }
 
 /// The test positions of a seeded permutation of n cases: every p with p % folds == fold, or the
@@ -157,6 +180,20 @@ Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows) {
     return x;
 }
 
+std::vector<std::string> FlowSurrogate::inputNames() const {
+    std::vector<std::string> names = flowSurrogateInputNames();
+    if (multiLevel()) names.push_back(kFlowLevelInput);
+    return names;
+}
+
+Eigen::MatrixXd FlowSurrogate::networkInputs(const Eigen::Ref<const Eigen::MatrixXd>& x7) const {
+    if (!multiLevel()) return x7;
+    Eigen::MatrixXd x(8, x7.cols());
+    x.topRows(7) = x7;
+    x.row(7).setConstant(level);
+    return x;
+}
+
 FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     FlowSurrogate s;
     s.regime = loadNetwork((dir / "flow_regime.json").string());
@@ -165,14 +202,18 @@ FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     try {
         std::ifstream in(meta);
         if (!in) throw std::runtime_error("cannot open it");
-        s.etaIn = nlohmann::json::parse(in).at("eta_in_mPa_s").get<double>();
+        const nlohmann::json meta = nlohmann::json::parse(in);
+        s.etaIn = meta.at("eta_in_mPa_s").get<double>();
+        if (meta.contains("levels")) s.levels = meta.at("levels").get<std::vector<int>>();
+        if (!s.levels.empty()) s.level = *std::max_element(s.levels.begin(), s.levels.end());
     } catch (const std::exception& e) {
         throw InputError(fmt::format("{}: not the description of flow networks ({})", meta.string(), e.what()));
     }
     if (!(s.etaIn > 0.0)) throw InputError(fmt::format("{}: eta_in_mPa_s {} must be > 0", meta.string(), s.etaIn));
     for (const TrainedNetwork* n : {&s.regime, &s.tankTreading})
-        if (n->net.numInputs() != 7 || n->inputNames != flowSurrogateInputNames())
-            throw InputError(fmt::format("{}: the flow networks take the 7 inputs {}", dir.string(), fmt::join(flowSurrogateInputNames(), ", ")));
+        if (n->net.numInputs() != int(s.inputNames().size()) || n->inputNames != s.inputNames())
+            throw InputError(fmt::format("{}: the flow networks of the levels [{}] take the {} inputs {}", dir.string(), fmt::join(s.levels, ", "),
+                                         s.inputNames().size(), fmt::join(s.inputNames(), ", ")));
     if (s.regime.net.numOutputs() != 1 || s.tankTreading.net.numOutputs() != 3)
         throw InputError(fmt::format("{}: flow_regime.json needs 1 output and flow_tank_treading.json 3", dir.string()));
     return s;
@@ -185,7 +226,9 @@ void FlowSurrogate::save(const fs::path& dir) const {
     saveNetwork(regime, (dir / "flow_regime.json").string());
     saveNetwork(tankTreading, (dir / "flow_tank_treading.json").string());
     const nlohmann::json meta = {{"eta_in_mPa_s", etaIn},
-                                 {"inputs", flowSurrogateInputNames()},
+                                 {"inputs", inputNames()},
+                                 {"levels", levels},
+                                 {"predicts_level", level},
                                  {"networks", {{"flow_regime", "probability of tank-treading (random start)"},
                                                {"flow_tank_treading", "inclination_deg, swing_deg, ttf_4pi_f_over_rate"}}},
                                  {"trbc_version", kVersion}};
@@ -223,8 +266,9 @@ FlowPrediction FlowSurrogate::predict(const Eigen::Ref<const Eigen::MatrixXd>& x
             if (!(v >= a.lo && v <= a.hi)) p.outsideBox[std::size_t(j)] = true;
         }
     }
-    p.pTankTreading = regime.evaluate(z).row(0).transpose().cwiseMax(0.0).cwiseMin(1.0);
-    const Eigen::MatrixXd tt = tankTreading.evaluate(z);
+    const Eigen::MatrixXd zn = networkInputs(z);
+    p.pTankTreading = regime.evaluate(zn).row(0).transpose().cwiseMax(0.0).cwiseMin(1.0);
+    const Eigen::MatrixXd tt = tankTreading.evaluate(zn);
     p.inclinationDeg = tt.row(0).transpose();
     p.swingDeg = tt.row(1).transpose();
     p.ttf = tt.row(2).transpose();
@@ -248,7 +292,7 @@ Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::Ma
     auto pAt = [&](const Eigen::VectorXd& logStress) {
         Eigen::MatrixXd z = x;
         for (Eigen::Index j = 0; j < n; ++j) z(6, j) = shearRateFromStress(z(kEtaOutAxis, j), std::exp(logStress(j)));
-        return Eigen::VectorXd(regime.evaluate(z).row(0).transpose());
+        return Eigen::VectorXd(regime.evaluate(networkInputs(z)).row(0).transpose());
     };
     const Eigen::VectorXd pLo = pAt(lo), pHi = pAt(hi);
     // 40 halvings of 7 decades: far below the networks' resolution.
@@ -279,7 +323,7 @@ std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows) {
     for (const ShearCampaignRow& r : rows) {
         ShearCampaignRow copy = r;
         copy.wallSeconds = 0.0;  // timings differ between runs of the same campaign
-        h = fnv1a(formatShearCampaignRow(copy) + "\n", h);
+        h = fnv1a(formatShearCampaignRow(copy) + (r.meshLevel > 0 ? fmt::format(",level {}", r.meshLevel) : "") + "\n", h);
     }
     return fmt::format("{:016x}", h);
 }
@@ -296,13 +340,18 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
     rep.dataHash = flowCampaignDataHash(rows);
     const auto done = finishedRows(rows);
     rep.used = long(done.size());
-    if (done.size() < 20) throw InputError(fmt::format("flow surrogate: {} finished cases, at least 20 needed", done.size()));
-    const std::vector<bool> test = testMask(done.size(), opt);
-    std::vector<const ShearCampaignRow*> train, held, tt;
-    for (std::size_t k = 0; k < done.size(); ++k) {
-        (test[k] ? held : train).push_back(done[k]);
-        if (!test[k] && hasTankTreadingValues(*done[k])) tt.push_back(done[k]);
-    }
+    const LevelSplit split = splitByLevel(done);
+    if (split.finest.size() < 20)
+        throw InputError(fmt::format("flow surrogate: {} finished cases{}, at least 20 needed", split.finest.size(),
+                                     split.levels.size() > 1 ? fmt::format(" at the finest level {}", split.levels.back()) : ""));
+    const std::vector<bool> test = testMask(split.finest.size(), opt);
+    std::vector<const ShearCampaignRow*> train = split.coarser, held, tt;
+    for (std::size_t k = 0; k < split.finest.size(); ++k) (test[k] ? held : train).push_back(split.finest[k]);
+    for (const ShearCampaignRow* r : train)
+        if (hasTankTreadingValues(*r)) tt.push_back(r);
+    FlowSurrogate& model = rep.model;
+    model.levels = split.levels;
+    model.level = split.levels.empty() ? 0 : split.levels.back();
     rep.testCases = long(held.size());
     rep.regimeRows = long(train.size());
     rep.tankTreadingRows = long(tt.size());
@@ -311,7 +360,14 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
         throw InputError(fmt::format("flow surrogate: {} tank-treading and {} other training cases; at least 10 and 1 needed", ttCount,
                                      long(train.size()) - ttCount));
 
-    const Eigen::MatrixXd Xr = flowInputs(train), Xt = flowInputs(tt);
+    // Each row at its own level (networkInputs puts the model's level).
+    auto inputsAtOwnLevel = [&](const std::vector<const ShearCampaignRow*>& rs) {
+        Eigen::MatrixXd x = model.networkInputs(flowInputs(rs));
+        if (model.multiLevel())
+            for (std::size_t k = 0; k < rs.size(); ++k) x(7, Eigen::Index(k)) = rs[k]->meshLevel;
+        return x;
+    };
+    const Eigen::MatrixXd Xr = inputsAtOwnLevel(train), Xt = inputsAtOwnLevel(tt);
     Eigen::MatrixXd Yr(1, Xr.cols()), Yt(3, Xt.cols());
     for (std::size_t k = 0; k < train.size(); ++k) Yr(0, Eigen::Index(k)) = train[k]->tankTreading() ? 1.0 : 0.0;
     for (std::size_t k = 0; k < tt.size(); ++k) Yt.col(Eigen::Index(k)) << tt[k]->inclinationDeg, tt[k]->swingDeg, tt[k]->ttf;
@@ -324,10 +380,12 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
             TrainingOptions o = scheduleForRows(opt.network, k == 0 ? Xr.cols() : Xt.cols(), 128);
             o.testFraction = 0.0;  // the test cases are already out
             o.inputTransforms = kInputTransforms;
+            if (model.multiLevel()) o.inputTransforms.push_back(T::Identity);
             o.outputTransforms = k == 0 ? std::vector<VariableTransform>{T::Identity}
                                         : std::vector<VariableTransform>{T::Identity, T::Identity, T::Log};
-            nets[k] = k == 0 ? trainWithRestarts(Xr, Yr, o, opt.restarts, opt.ensemble, {"p_tank_treading"})
-                             : trainWithRestarts(Xt, Yt, o, opt.restarts, opt.ensemble, {"inclination_deg", "swing_deg", "ttf_4pi_f_over_rate"});
+            const std::vector<std::string> in = model.inputNames();
+            nets[k] = k == 0 ? trainWithRestarts(Xr, Yr, o, opt.restarts, opt.ensemble, in, {"p_tank_treading"})
+                             : trainWithRestarts(Xt, Yt, o, opt.restarts, opt.ensemble, in, {"inclination_deg", "swing_deg", "ttf_4pi_f_over_rate"});
             nets[k].dataHash = rep.dataHash;
             nets[k].command = opt.command;
         } catch (const std::exception& e) {
@@ -336,9 +394,9 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
     }
     for (const std::string& e : errors)
         if (!e.empty()) throw InputError(e);
-    rep.model.regime = std::move(nets[0]);
-    rep.model.tankTreading = std::move(nets[1]);
-    rep.model.etaIn = done.front()->point.etaIn;
+    model.regime = std::move(nets[0]);
+    model.tankTreading = std::move(nets[1]);
+    model.etaIn = done.front()->point.etaIn;
     rep.test = accuracySums(rep.model, held, opt.boundaryFactor).accuracy();
     rep.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
@@ -351,14 +409,14 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
     cv.rows = long(rows.size());
     opt.folds = folds;
     AccuracySums pooled;
-    const auto done = finishedRows(rows);
+    const LevelSplit split = splitByLevel(finishedRows(rows));
     for (int f = 0; f < folds; ++f) {
         opt.fold = f;
         const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, opt);
-        const std::vector<bool> test = testMask(done.size(), opt);
+        const std::vector<bool> test = testMask(split.finest.size(), opt);
         std::vector<const ShearCampaignRow*> held;
-        for (std::size_t k = 0; k < done.size(); ++k)
-            if (test[k]) held.push_back(done[k]);
+        for (std::size_t k = 0; k < split.finest.size(); ++k)
+            if (test[k]) held.push_back(split.finest[k]);
         const AccuracySums s = accuracySums(rep.model, held, opt.boundaryFactor);
         pooled.add(s);
         cv.perFold.push_back(s.accuracy());

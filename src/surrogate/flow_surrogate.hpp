@@ -30,6 +30,9 @@ namespace trbc {
 /// v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, eta_out_mPa_s, shear_rate_per_s
 const std::vector<std::string>& flowSurrogateInputNames();
 
+/// The name of the eighth input of multi-level networks.
+inline constexpr const char* kFlowLevelInput = "mesh_level";
+
 /// Per column of the inputs.
 struct FlowPrediction {
     Eigen::VectorXd pTankTreading;
@@ -37,10 +40,21 @@ struct FlowPrediction {
     std::vector<bool> outsideBox;                   ///< the input lies outside the campaign's box (kShearCampaignAxes)
 };
 
+/// Campaigns at several mesh levels train one pair of networks with the level as an eighth input
+/// (multi-fidelity: the cheap level's many cases carry the shape of the functions, the paired
+/// cases of the finer level their offset); the networks answer at the finest level.
 struct FlowSurrogate {
-    TrainedNetwork regime;        ///< 7 -> 1, flow_regime.json
-    TrainedNetwork tankTreading;  ///< 7 -> 3, flow_tank_treading.json
+    TrainedNetwork regime;        ///< 7 (or 8) -> 1, flow_regime.json
+    TrainedNetwork tankTreading;  ///< 7 (or 8) -> 3, flow_tank_treading.json
     double etaIn = 10.0;          ///< the campaign's cytosol viscosity, mPa s (flow_surrogate.json)
+    std::vector<int> levels;      ///< the mesh levels of the training campaigns (empty: one, unrecorded)
+    int level = 0;                ///< the level the predictions are for: the finest of `levels`
+
+    bool multiLevel() const { return levels.size() > 1; }
+    /// flowSurrogateInputNames, with kFlowLevelInput when multiLevel.
+    std::vector<std::string> inputNames() const;
+    /// The networks' inputs: the 7 physical rows, with the row of `level` appended when multiLevel.
+    Eigen::MatrixXd networkInputs(const Eigen::Ref<const Eigen::MatrixXd>& x7) const;
 
     /// Reads the files of `dir`; InputError naming the file when one is missing or bad.
     static FlowSurrogate load(const std::filesystem::path& dir);
@@ -70,6 +84,7 @@ struct FlowSurrogate {
 Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutMPaS, double shearRatePerS);
 /// Inputs (7 x n) of campaign rows.
 Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows);
+
 
 struct FlowSurrogateTrainingOptions {
     TrainingOptions network;  ///< layers, seeds and schedule (scaled to the rows, scheduleForRows)
@@ -115,8 +130,10 @@ struct FlowSurrogateTrainingReport {
     double wallSeconds = 0.0;
 };
 
-/// Trains both networks on the finished rows outside the test set. InputError when too few rows
-/// remain (fewer than 20 finished, or no tank-treading and no other case).
+/// Trains both networks on the finished rows outside the test set. Rows of several mesh levels
+/// (ShearCampaignRow::meshLevel) train multi-level networks; the test set and the accuracy are
+/// then those of the finest level's cases, and every coarser case trains. InputError when too few
+/// rows remain (fewer than 20 finished, or no tank-treading and no other case).
 FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt);
 
 struct FlowCrossValidation {

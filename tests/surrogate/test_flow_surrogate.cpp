@@ -130,6 +130,48 @@ TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
     EXPECT_EQ(back.etaIn, 10.0);
 }
 
+// Multi-level networks: many cases of a coarse level whose angle is 1.5 deg low, a few of the
+// fine level. The networks answer at the fine level, learn the offset from the paired cases, are
+// scored on held-out fine cases only, and read back with their levels.
+TEST(FlowSurrogate, MultiLevelNetworksAnswerAtTheFinestLevel) {
+    std::vector<ShearCampaignRow> rows = syntheticCampaign(768);
+    for (ShearCampaignRow& r : rows) {
+        r.meshLevel = 2;
+        if (r.tankTreading()) r.inclinationDeg -= 1.5;
+    }
+    std::vector<ShearCampaignRow> fine = syntheticCampaign(160);
+    for (ShearCampaignRow& r : fine) r.meshLevel = 3;
+    rows.insert(rows.end(), fine.begin(), fine.end());
+    const FlowSurrogateTrainingReport rep = syntheticNetworks(rows);
+    EXPECT_TRUE(rep.model.multiLevel());
+    EXPECT_EQ(rep.model.level, 3);
+    EXPECT_EQ(rep.model.levels, (std::vector<int>{2, 3}));
+    EXPECT_EQ(rep.testCases, 16);  // 10 % of the fine cases
+    EXPECT_EQ(rep.regimeRows, 768 + 160 - 16);
+    EXPECT_EQ(rep.model.regime.net.numInputs(), 8);
+    EXPECT_LT(rep.test.inclinationRmseDeg, 0.75) << "the fine level's angle, not the coarse level's (1.5 deg off)";
+
+    std::vector<const ShearCampaignRow*> some;
+    for (const ShearCampaignRow& r : fine)
+        if (r.tankTreading()) some.push_back(&r);
+    const Eigen::MatrixXd x = flowInputs(some);
+    FlowSurrogate coarse = rep.model;
+    coarse.level = 2;
+    const Eigen::VectorXd offset = rep.model.predict(x).inclinationDeg - coarse.predict(x).inclinationDeg;
+    EXPECT_NEAR(offset.mean(), 1.5, 0.4);
+
+    test::TempDir tmp;
+    rep.model.save(tmp.path() / "m");
+    const FlowSurrogate back = FlowSurrogate::load(tmp.path() / "m");
+    EXPECT_EQ(back.levels, rep.model.levels);
+    EXPECT_EQ(back.level, 3);
+    EXPECT_EQ(back.predict(x).inclinationDeg, rep.model.predict(x).inclinationDeg);
+
+    // Rows of several campaigns, one without a recorded level, are refused.
+    rows.back().meshLevel = 0;
+    EXPECT_THROW(syntheticNetworks(rows), InputError);
+}
+
 TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
     const auto rows = syntheticCampaign(200);
     FlowSurrogateTrainingOptions opt;
