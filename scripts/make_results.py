@@ -28,7 +28,7 @@ POSTERIOR = "{work}/calibration/inference/phase3/theta_new"  # the posterior the
 SETS = {
     "calibration": ("the shipped calibration: posterior statistics, report, stage ledger",
                     ["{trbc} calibrate --config configs/paper.toml --out {out}"], 0.3,
-                    ["inference/posterior_stats.csv=posterior_stats.csv", "report.html", "calibrate.json=stages.json"]),
+                    ["inference/posterior_stats.csv=posterior_stats.csv", "report.html", "stages.json"]),
     "inference": ("trbc infer on the shipped surrogates, seed 1: statistics, corner plots, predictions",
                   ["{trbc} infer --phase all --seed 1 --out {out}",
                    "{trbc} predict --inference {out} --out {out}/predict --threads 2 --quiet",
@@ -179,7 +179,8 @@ def main():
         readme = os.path.join(dest, "README.md")
         if os.path.exists(readme) and not os.path.exists(os.path.join(staged, "README.md")):
             shutil.copy2(readme, staged)
-        shutil.rmtree(dest, ignore_errors=True)
+        if os.path.exists(dest):
+            shutil.rmtree(dest)
         os.rename(staged, dest)
         print(f"make_results: {n} made in {(time.time() - t0) / 60:.1f} min -> results/{n}", file=sys.stderr)
 

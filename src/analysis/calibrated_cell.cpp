@@ -50,6 +50,7 @@ double number(const std::string& text, const fs::path& file) {
 
 fs::path posteriorStatsOf(const fs::path& posterior) {
     fs::path dir = fs::absolute(posterior).lexically_normal();
+    if (dir.filename().empty()) dir = dir.parent_path();  // "DIR/" normalises to a trailing separator
     if (!fs::is_directory(dir)) dir = dir.parent_path();
     if (dir.filename() != "theta_new" || dir.parent_path().filename() != "phase3") return {};
     const fs::path stats = dir.parent_path().parent_path() / "posterior_stats.csv";

@@ -293,7 +293,7 @@ json cellJson(const ValidationRunner& R) {
                 : R.cfg.cellSource == "explicit"
                     ? json{{"source", "explicit"}, {"v", R.cfg.v}, {"mu_uN_per_m", R.cfg.mu}, {"kb_J", R.cfg.kbJ}, {"b2", R.cfg.b2},
                            {"etam_Pa_s_um", R.cfg.etam}}
-                    : json{{"source", "means of " + R.cfg.posterior.string()}};
+                    : json{{"source", "the calibrated cell (analysis/calibrated_cell.hpp) of " + R.cfg.posterior.string()}};
     if (R.cfg.cellSource == "posterior")
         for (const ValidationCase& c : R.cases)
             if (c.sample < 0 && R.resultOf(c.id).contains("parameters")) {

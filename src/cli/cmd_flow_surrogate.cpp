@@ -4,8 +4,10 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -63,12 +65,44 @@ constexpr const char* kTableHead =
     "uncertainty, angle / TTF (RMS of *_se) | misclassified far from the boundary | near it | Brier |\n"
     "|---|---|---|---|---|---|---|---|---|---|";
 
+/// Campaigns trained together must differ at most in their level and size: the same box, design,
+/// seed (so that their cases pair), cytosol, start and stopping rule.
+void checkCampaignsMatch(const std::vector<std::string>& campaigns) {
+    std::optional<nlohmann::json> first;
+    for (const std::string& c : campaigns) {
+        std::filesystem::path dir = c;
+        if (std::filesystem::is_regular_file(dir)) dir = dir.parent_path();
+        const std::filesystem::path meta = dir / "campaign.json";
+        if (campaigns.size() < 2 || !std::filesystem::exists(meta)) continue;
+        nlohmann::json settings;
+        try {
+            std::ifstream in(meta);
+            settings = nlohmann::json::parse(in).at("settings");
+        } catch (const std::exception& e) {
+            throw InputError(fmt::format("--campaign {}: {} is not a campaign description ({})", c, meta.string(), e.what()));
+        }
+        settings.erase("level");
+        settings.erase("cases");
+        settings.erase("inject_failures");
+        if (!first) {
+            first = settings;
+            continue;
+        }
+        for (const auto& [key, value] : settings.items())
+            if (!first->contains(key) || (*first)[key] != value)
+                throw InputError(fmt::format("--campaign {}: its setting '{}' ({}) differs from the first campaign's ({}); campaigns trained "
+                                             "together differ only in level and size", c, key, value.dump(),
+                                             first->contains(key) ? (*first)[key].dump() : "absent"));
+    }
+}
+
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseIntegerList(o.curve, "--learning-curve", "a case count", 20);
     std::vector<ShearCampaignRow> rows;
     nlohmann::json sources = nlohmann::json::array();
     std::string from;
+    checkCampaignsMatch(o.campaigns);
     for (const std::string& c : o.campaigns) {
         bool complete = true;
         std::vector<ShearCampaignRow> part = readShearCampaignRows(c, &complete);

@@ -168,7 +168,7 @@ std::vector<std::vector<CampaignPoint>> cellsOf(const std::vector<CampaignPoint>
 }
 
 /// A finished row belongs to the design point of its sample id (rows are written with 17
-/// significant digits, so the round trip is exact).
+/// significant digits; sameDesignValue allows for another build's last bits).
 bool sameInputs(const CampaignPoint& row, const CampaignPoint& design) {
     const auto same = sameDesignValue;
     return row.cellId == design.cellId && same(row.p.v, design.p.v) && same(row.p.mu, design.p.mu) && same(row.p.FvK, design.p.FvK) &&

@@ -157,7 +157,11 @@ std::map<long, ShearCampaignRow> finishedShearCampaignRows(const fs::path& dir, 
 
 std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* complete) {
     if (complete) *complete = true;
-    if (fs::is_regular_file(path)) return readShearCampaignCsv(path);
+    if (fs::is_regular_file(path)) {
+        // A campaign's own cases.csv takes the level of the campaign.json beside it.
+        if (path.filename() == "cases.csv" && fs::exists(path.parent_path() / "campaign.json")) return readShearCampaignRows(path.parent_path(), complete);
+        return readShearCampaignCsv(path);
+    }
     if (!fs::is_directory(path)) throw InputError(fmt::format("shear campaign {} does not exist", path.string()));
     const fs::path provenance = path / "campaign.json";
     if (fs::exists(path / "cases.csv") && !fs::exists(provenance)) return readShearCampaignCsv(path / "cases.csv");

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -133,6 +134,16 @@ struct LevelSplit {
 
 LevelSplit splitByLevel(const std::vector<const ShearCampaignRow*>& done) {
     LevelSplit s;
+    // The networks have no cytosol input, and a case given twice would sit in training and test.
+    std::set<std::pair<int, long>> seen;
+    for (const ShearCampaignRow* r : done) {
+        if (!sameDesignValue(r->point.etaIn, done.front()->point.etaIn))
+            throw InputError(fmt::format("flow surrogate: campaigns with cytosol viscosities {} and {} mPa s; train on one", done.front()->point.etaIn,
+                                         r->point.etaIn));
+        if (!seen.insert({r->meshLevel, r->point.caseId}).second)
+            throw InputError(fmt::format("flow surrogate: case {} of level {} given twice (the same campaign named twice?)", r->point.caseId,
+                                         r->meshLevel));
+    }
     for (const ShearCampaignRow* r : done)
         if (std::find(s.levels.begin(), s.levels.end(), r->meshLevel) == s.levels.end()) s.levels.push_back(r->meshLevel);
     std::sort(s.levels.begin(), s.levels.end());

@@ -38,7 +38,7 @@ TEST(CalibratedCell, AnInferOutputGivesTheRaoBlackwellisedMeansOfItsStatistics) 
     const fs::path post = tmp.path() / "infer" / "phase3" / "theta_new";
     writeText(post / "samples.csv", kSamples);
     writeText(tmp.path() / "infer" / "posterior_stats.csv", stats(4.667));
-    for (const fs::path& p : {post, post / "samples.csv"}) {
+    for (const fs::path& p : {post, post / "samples.csv", fs::path(post.string() + "/"), post / "."}) {
         const CalibratedCell c = calibratedCell(p);
         EXPECT_DOUBLE_EQ(c.cell.v, 0.93);
         EXPECT_DOUBLE_EQ(c.cell.mu, 4.667);  // theta_new's row, not mills_2004's

@@ -146,6 +146,45 @@ TEST(ShearCampaignTable, RowsOfAnotherBuildCountAndRowsOfAnotherDesignAreRefused
     }
 }
 
+// The rows of a campaign directory, or of its cases.csv, carry the level of its campaign.json.
+TEST(ShearCampaignTable, RowsCarryTheirCampaignsLevel) {
+    TempDir tmp;
+    const std::vector<ShearCampaignPoint> design = shearCampaignDesign(DesignKind::Sobol, 4, 7);
+    ShearCampaignRow r;
+    r.point = design[2];
+    r.regime = "tumbling";
+    fs::create_directories(tmp.path() / "c" / "parts");
+    std::ofstream(tmp.path() / "c" / "campaign.json")
+        << R"({"settings": {"design": "sobol", "cases": 4, "seed": 7, "eta_in_mPa_s": 10.0, "level": 2}})";
+    std::ofstream(tmp.path() / "c" / "parts" / "rank0.csv") << shearCampaignCsvHeader() << "\n" << formatShearCampaignRow(r) << "\n";
+    bool complete = true;
+    const auto parts = readShearCampaignRows(tmp.path() / "c", &complete);
+    ASSERT_EQ(parts.size(), 1u);
+    EXPECT_FALSE(complete);
+    EXPECT_EQ(parts[0].meshLevel, 2);
+    std::ofstream(tmp.path() / "c" / "cases.csv") << shearCampaignCsvHeader() << "\n" << formatShearCampaignRow(r) << "\n";
+    EXPECT_EQ(readShearCampaignRows(tmp.path() / "c")[0].meshLevel, 2);
+    EXPECT_EQ(readShearCampaignRows(tmp.path() / "c" / "cases.csv")[0].meshLevel, 2);
+    fs::copy_file(tmp.path() / "c" / "cases.csv", tmp.path() / "alone.csv");
+    EXPECT_EQ(readShearCampaignRows(tmp.path() / "alone.csv")[0].meshLevel, 0);  // no campaign beside it
+}
+
+// Campaigns trained together differ only in level and size.
+TEST(ShearCampaignTable, FlowTrainRefusesCampaignsOfOtherSettings) {
+    TempDir tmp;
+    for (const char* name : {"a", "b"}) fs::create_directories(tmp.path() / name / "parts");
+    std::ofstream(tmp.path() / "a" / "campaign.json")
+        << R"({"settings": {"design": "sobol", "cases": 64, "seed": 7, "eta_in_mPa_s": 10.0, "level": 3, "start": "random"}})";
+    std::ofstream(tmp.path() / "b" / "campaign.json")
+        << R"({"settings": {"design": "sobol", "cases": 4096, "seed": 7, "eta_in_mPa_s": 10.0, "level": 2, "start": "in-plane"}})";
+    const CliRun r = runTrbc("flow train --campaign " + shellQuote((tmp.path() / "a").string()) + " --campaign " +
+                                 shellQuote((tmp.path() / "b").string()) + " --out " + shellQuote((tmp.path() / "m").string()),
+                             tmp.path());
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find("its setting 'start' (\"in-plane\") differs from the first campaign's (\"random\")"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(tmp.path() / "m"));
+}
+
 TEST(ShearCampaignRunner, RecordsFailuresAndRefusesAnotherDesignOnResume) {
     TempDir tmp;
     const fs::path out = tmp.path() / "c";

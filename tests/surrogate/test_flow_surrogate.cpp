@@ -167,7 +167,14 @@ TEST(FlowSurrogate, MultiLevelNetworksAnswerAtTheFinestLevel) {
     EXPECT_EQ(back.level, 3);
     EXPECT_EQ(back.predict(x).inclinationDeg, rep.model.predict(x).inclinationDeg);
 
-    // Rows of several campaigns, one without a recorded level, are refused.
+    // Refused: a case given twice (the same campaign named twice), campaigns of two cytosols, and
+    // rows of several campaigns, one without a recorded level.
+    std::vector<ShearCampaignRow> twice = rows;
+    twice.push_back(fine.front());
+    EXPECT_THROW(syntheticNetworks(twice), InputError);
+    std::vector<ShearCampaignRow> cytosols = rows;
+    cytosols.back().point.etaIn = 5.0;
+    EXPECT_THROW(syntheticNetworks(cytosols), InputError);
     rows.back().meshLevel = 0;
     EXPECT_THROW(syntheticNetworks(rows), InputError);
 }
