@@ -79,7 +79,7 @@ void configureStage(CellFlowOptions& opt, const CellFlowModel& model, const Shea
     if (o.temperatureK > 0.0) {
         opt.thermal.kT = thermalEnergy(o.temperatureK) / (model.scales().force() * model.scales().length);
         opt.thermal.seed = seed;
-        opt.thermal.step = o.thermalStep;
+        opt.thermal.step = thermalStepTimesRate(o.cell, model.conditions().shearRate, o.thermalStep);
     }
     if (o.stopWhenSteady)
         opt.stopWhen = [rule = o.steadyRule](const CellFlowResult& sofar) {
@@ -89,6 +89,10 @@ void configureStage(CellFlowOptions& opt, const CellFlowModel& model, const Shea
 }
 
 }  // namespace
+
+double thermalStepTimesRate(const CellParameters& cell, double shearRate, double requested) {
+    return std::min(requested, shearRate * cell.etam / cell.mu);  // Pa s um / (uN / m) = s
+}
 
 void validateShearCaseOptions(const ShearCaseOptions& o) {
     const OptionNamer& n = o.step.optionName;

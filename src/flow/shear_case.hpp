@@ -33,7 +33,8 @@ struct ShearCaseOptions {
     /// (a stand-in for thermal symmetry breaking).
     double tiltDeg = 0.0;
     /// Thermal fluctuations of the membrane and both fluids during the run (ThermalOptions), K;
-    /// 0: none. Fixed steps of thermalStep / rate.
+    /// 0: none. Fixed steps of thermalStep / rate, at most the membrane's viscous time
+    /// (thermalStepTimesRate).
     double temperatureK = 0.0;
     double thermalStep = 0.2;
     /// The start of the ensemble protocol (docs/FLOW_THERMAL.md): the equilibrium shape turned to a
@@ -95,6 +96,11 @@ struct ShearCaseResult {
 /// analysis, naming rotations and frame_interval). A failed run is no exception: completed =
 /// false with the integrator's reason.
 ShearCaseResult runShearCase(const ShearCaseOptions& o);
+
+/// The step of a thermal run, 1/rate: `requested`, at most the membrane's viscous time eta_m / mu
+/// (times the rate). Longer steps let the noise of a few steps build a fold at one vertex that the
+/// operators frozen over the step do not see, and the run diverges (docs/FLOW_THERMAL.md, "Step").
+double thermalStepTimesRate(const CellParameters& cell, double shearRate, double requested);
 
 /// The ramp protocol (docs/FLOW_THERMAL.md, "Ramp"): one cell, the shear rate stepped up through
 /// `rates` and back down (r_1 < ... < r_n, then r_{n-1}, ..., r_1), each stage `base.rotations`

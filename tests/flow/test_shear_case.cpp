@@ -118,6 +118,25 @@ TEST(ShearCase, AFailedRunIsAResultNotAnException) {
     EXPECT_EQ(r.series.time.size(), r.flow.frames.size());
 }
 
+// The thermal step is the requested one, at most the membrane's viscous time eta_m / mu: the
+// reference set-up's cell (eta_m 0.42 Pa s um, mu 4.99 uN/m: 84.2 ms) at 100 mPa s.
+TEST(ShearCase, TheThermalStepIsAtMostTheMembranesViscousTime) {
+    CellParameters cell;
+    cell.mu = 4.99;
+    cell.etam = 0.42;
+    EXPECT_NEAR(thermalStepTimesRate(cell, 0.3, 0.2), 0.3 * 0.42 / 4.99, 1e-15);  // 25.3 ms of 3.33 s: capped
+    EXPECT_NEAR(thermalStepTimesRate(cell, 0.936, 0.2), 0.936 * 0.42 / 4.99, 1e-15);
+    EXPECT_EQ(thermalStepTimesRate(cell, 20.0, 0.2), 0.2);  // 10 ms of 84 ms: as requested
+    EXPECT_EQ(thermalStepTimesRate(cell, 0.3, 0.01), 0.01);
+    // A run takes it: the reference set-up's cell at 100 mPa s, 0.3 1/s.
+    ShearCaseOptions o = cheapShear(100.0, 0.3);
+    o.cell = cell;
+    o.temperatureK = 293.15;
+    o.rotations = 0.1;
+    const ShearCaseResult r = runShearCase(o);
+    EXPECT_NEAR(r.integrator.thermal.step, 0.3 * 0.42 / 4.99, 1e-15);
+}
+
 TEST(ShearCase, BadOptionsThrowInputErrorNamingTheOption) {
     struct Case {
         std::function<void(ShearCaseOptions&)> change;
