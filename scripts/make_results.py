@@ -21,6 +21,10 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 POSTERIOR = "{work}/calibration/inference/phase3/theta_new"  # the posterior the calibration set makes
 
+SHEAR_TTF32 = "{trbc} flow shear --eta-out 28.9 --shear-rate 32.39631125836553 --eta-in 10 --step-tol 0.001 "
+TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.003 --level 3 --duration 30 --settle 60 "
+             "--settle-relax 1.5 --settle-tol 0.002 --threads 2 --vtk-every 50 ")
+
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
 # A kept entry "SRC" copies OUT/SRC to results/<name>/SRC, "SRC=DEST" to results/<name>/DEST; a
 # directory is copied whole. The set's README.md (the hand-written description) is carried over.
@@ -86,6 +90,21 @@ SETS = {
     "validation/theta_new_level3_high_viscosity_steady": ("the 55.9 and 104 mPa s angle sets stopped at the steady state",
                                                           ["{trbc} validate --config configs/validation_high_viscosity_steady.toml "
                                                            "--out {out} --jobs 2"], None, None),
+    "validation/shear_levels": ("the resolution check: one TTF case of the Table 1 cell at levels 2, 3 and 4",
+                                [SHEAR_TTF32 + "--level 2 --rotations 10 --threads 1 --out {out}/ttf32_L2",
+                                 SHEAR_TTF32 + "--level 2 --rotations 4 --threads 1 --out {out}/ttf32_L2_r4",
+                                 SHEAR_TTF32 + "--level 3 --rotations 10 --threads 1 --out {out}/ttf32_L3",
+                                 SHEAR_TTF32 + "--level 3 --rotations 4 --threads 2 --out {out}/ttf32_L3_r4",
+                                 SHEAR_TTF32 + "--level 4 --rotations 4 --threads 2 --out {out}/ttf32_L4_r4"], 1.3,
+                                [f"ttf32_{r}/{f}" for r in ("L2", "L2_r4", "L3", "L3_r4", "L4_r4")
+                                 for f in ("flow.json", "frames.csv", "steps.csv")]),
+    "validation/step_tolerance": ("the step-tolerance checks of a tube case and a shear case, level 3",
+                                  [TUBE_PG40 + "--step-tol " + t + " --out {out}/tube_pg40_tol_" + t for t in ("1e-3", "2.5e-4", "6.25e-5")] +
+                                  ["{trbc} flow shear --eta-out 28.9 --shear-rate 32.39631125836553 --eta-in 10 --level 3 --rotations 10 "
+                                   "--step-tol 0.00025 --threads 1 --out {out}/shear_ttf32_tol_2.5e-4"], 0.9,
+                                  [f"tube_pg40_tol_{t}/{f}" for t in ("1e-3", "2.5e-4", "6.25e-5")
+                                   for f in ("flow.json", "frames.csv", "settling/frames.csv")] +
+                                  ["shear_ttf32_tol_2.5e-4/flow.json", "shear_ttf32_tol_2.5e-4/frames.csv"]),
     "validation/theta_new_level3_tube_bands": ("the theta_new bands of the microtube, 32 draws, level 3",
                                                ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
                                                 " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),
@@ -105,6 +124,13 @@ def recorded(name):
             command = j.get("provenance", {}).get("command") or j.get("command", "")
             hours = j["case_wall_s_total"] / 3600 if "case_wall_s_total" in j else None
             return command, hours
+    for sub in sorted(os.listdir(d)) if os.path.isdir(d) else []:  # sets of single runs: the first run's record
+        f = os.path.join(d, sub, "flow.json")
+        if os.path.exists(f):
+            try:
+                return json.load(open(f)).get("provenance", {}).get("command", ""), None
+            except (OSError, ValueError):
+                pass
     for text in ("command.txt", "README.md"):
         f = os.path.join(d, text)
         if os.path.exists(f):
