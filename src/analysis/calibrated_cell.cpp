@@ -15,14 +15,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr std::array<const char*, 5> kColumns = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
-
-int column(const std::vector<std::string>& header, const std::string& name) {
-    for (std::size_t i = 0; i < header.size(); ++i)
-        if (header[i] == name) return static_cast<int>(i);
-    return -1;
-}
-
 CalibratedCell fromMeans(const std::array<double, 5>& m, std::string estimator, fs::path source) {
     CalibratedCell c;
     c.cell.v = m[0];
@@ -64,22 +56,22 @@ CalibratedCell calibratedCell(const fs::path& posterior, const char* option) {
     if (!stats.empty()) {
         const auto rows = readCsvRecords(stats);
         if (!rows.empty()) {
-            const int cPost = column(rows[0], "posterior"), cPar = column(rows[0], "parameter"), cMean = column(rows[0], "mean");
+            const int cPost = columnOf(rows[0], "posterior"), cPar = columnOf(rows[0], "parameter"), cMean = columnOf(rows[0], "mean");
             std::array<double, 5> m;
             m.fill(std::nan(""));
             if (cPost >= 0 && cPar >= 0 && cMean >= 0)
                 for (std::size_t r = 1; r < rows.size(); ++r) {
                     const auto& row = rows[r];
                     if (static_cast<int>(row.size()) <= std::max({cPost, cPar, cMean}) || row[cPost] != "theta_new") continue;
-                    for (std::size_t k = 0; k < kColumns.size(); ++k)
-                        if (row[cPar] == kColumns[k]) m[k] = number(row[cMean], stats);
+                    for (std::size_t k = 0; k < kThetaNewColumns.size(); ++k)
+                        if (row[cPar] == kThetaNewColumns[k]) m[k] = number(row[cMean], stats);
                 }
             if (std::all_of(m.begin(), m.end(), [](double x) { return std::isfinite(x); }))
                 return fromMeans(m, "Rao-Blackwellised means (posterior_stats.csv)", stats);
         }
     }
     std::array<double, 5> m;
-    for (std::size_t k = 0; k < kColumns.size(); ++k) m[k] = t.column(kColumns[k]).mean();
+    for (std::size_t k = 0; k < kThetaNewColumns.size(); ++k) m[k] = t.column(kThetaNewColumns[k]).mean();
     return fromMeans(m, "sample means", t.path);
 }
 

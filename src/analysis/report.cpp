@@ -153,12 +153,6 @@ namespace {
 /// Records of one of the pipeline's CSV tables (quoted fields, '#' lines skipped), header first; empty if missing.
 std::vector<std::vector<std::string>> readCsvRows(const fs::path& p) { return readCsvRecords(p); }
 
-/// Column index by name (-1 if absent).
-int columnOf(const std::vector<std::string>& header, const std::string& name) {
-    const auto it = std::find(header.begin(), header.end(), name);
-    return it == header.end() ? -1 : static_cast<int>(it - header.begin());
-}
-
 /// Column c of a record; empty when the record is shorter or c is -1 (a missing column).
 std::string cellOf(const std::vector<std::string>& row, int c) {
     return c >= 0 && static_cast<std::size_t>(c) < row.size() ? row[static_cast<std::size_t>(c)] : std::string();

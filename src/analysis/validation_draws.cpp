@@ -1,6 +1,7 @@
 #include "analysis/validation_draws.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -109,12 +110,11 @@ NumericTable readThetaNewSamples(const std::filesystem::path& in, const char* op
     const std::filesystem::path file = std::filesystem::is_directory(in) ? in / "samples.csv" : in;
     if (!std::filesystem::exists(file))
         throw InputError(fmt::format("{} {}: no samples.csv (run `trbc infer` first; e.g. DIR/phase3/theta_new)", option, in.string()));
-    static const std::vector<std::string> columns = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
-    NumericTable t = readNumericTable(file, columns);
-    for (const std::string& c : columns)
+    NumericTable t = readNumericTable(file, std::vector<std::string>(kThetaNewColumns.begin(), kThetaNewColumns.end()));
+    for (const char* c : kThetaNewColumns)
         if (t.find(c) < 0)
-            throw InputError(fmt::format("{}: column '{}' missing: {} must be a theta_new posterior (columns v, "
-                                         "mu_uN_per_m, kb_J, b2, etam_Pa_s_um)", file.string(), c, option));
+            throw InputError(fmt::format("{}: column '{}' missing: {} must be a theta_new posterior (columns {})", file.string(), c,
+                                         option, fmt::join(kThetaNewColumns, ", ")));
     if (t.values.rows() < 2) throw InputError(fmt::format("{}: fewer than two samples", file.string()));
     return t;
 }

@@ -3,6 +3,7 @@
 // "Posterior draws"): the seeded choice of the draws, the cases of each draw, the median and the
 // 5-95 % band of an observable over the draws, and the band verdict against the experimental
 // scatter.
+#include <array>
 #include <filesystem>
 #include <cstdint>
 #include <limits>
@@ -21,11 +22,15 @@ struct PosteriorDraw {
     double v = 0.0, mu = 0.0, kbJ = 0.0, b2 = 0.0, etam = 0.0;  ///< mu in uN/m, kb in J, etam in Pa s um
 };
 
+/// The parameters of theta_new: the columns of its samples.csv and the parameter names of its rows
+/// of posterior_stats.csv.
+inline constexpr std::array<const char*, 5> kThetaNewColumns = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
+
 /// Samples of a theta_new posterior (DIR/samples.csv of `trbc infer`, or the file itself), columns
-/// v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; InputError naming the file and the missing column.
+/// kThetaNewColumns; InputError naming the file and the missing column.
 NumericTable readThetaNewSamples(const std::filesystem::path& posterior, const char* option = "--posterior");
 
-/// `n` distinct samples of a theta_new table (columns v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um),
+/// `n` distinct samples of a theta_new table (columns kThetaNewColumns),
 /// chosen by subsampleIndices(rows, n, seed) and listed in sample order. The choice is a partial
 /// Fisher-Yates shuffle, so the samples of n draws are among those of any larger n with the same
 /// seed. InputError naming `option` and the valid range [1, rows] unless 1 <= n <= rows.

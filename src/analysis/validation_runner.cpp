@@ -111,7 +111,7 @@ fs::path ValidationRunner::caseFile(const ValidationCase& c) const { return out 
 std::optional<json> ValidationRunner::matchingRecord(const fs::path& file, const ValidationCase& c) const {
     std::optional<json> j = tryReadJson(file);  // a damaged record is run again
     if (!j || stringOr(*j, "key") != caseKey(c) || !j->contains("result")) return std::nullopt;
-    if (retryFailed && !readFlowRecord((*j)["result"]).ok()) return std::nullopt;
+    if (retryFailed && !readFlowRecord((*j)["result"], file.string()).ok()) return std::nullopt;
     return j;
 }
 
@@ -176,7 +176,12 @@ void ValidationRunner::runCase(const ValidationCase& c) {
                   {"reason", rc > 128 ? fmt::format("killed by signal {} without a result: {}", rc - 128, tail)
                                       : fmt::format("exit {} without a result: {}", rc, tail)}};
     }
-    if (rc != 0 && readFlowRecord(result).ok()) result["status"] = "failed";
+    // A result the record reader refuses fails its case, as one that is not JSON does.
+    try {
+        if (rc != 0 && readFlowRecord(result, stdoutFile.string()).ok()) result["status"] = "failed";
+    } catch (const InputError& e) {
+        result = {{"status", "failed"}, {"reason", e.what()}};
+    }
     json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                    {"exit", rc},         {"wall_s", wall}, {"result", result}};
     if (c.sample >= 0) record["draw"] = drawJson(c.sample);
@@ -189,7 +194,7 @@ void ValidationRunner::runCase(const ValidationCase& c) {
     ++ranHere;
     caseSeconds += wall;
     if (!quiet) {
-        const FlowRecordView r = readFlowRecord(result);
+        const FlowRecordView r = readFlowRecord(result, caseFile(c).string());
         std::string what;
         if (r.ok() && c.kind != "tube")
             what = fmt::format("{} angle {} TTF {}", r.regime.empty() ? "?" : r.regime, num(r.inclinationDeg), num(r.ttf));
@@ -244,7 +249,7 @@ std::vector<RegimePoint> ValidationRunner::thresholdPoints(double eta, long samp
     std::vector<RegimePoint> p;
     for (const ValidationCase& c : cases)
         if (c.kind == "threshold" && c.etaOut == eta && c.sample == sample) {
-            const FlowRecordView r = readFlowRecord(resultOf(c.id));
+            const FlowRecordView r = readFlowRecord(resultOf(c.id), caseFile(c).string());
             p.push_back({c.rate, r.ok() ? r.regime : ""});
         }
     return cfg.thresholdMembers > 0 ? ensembleRegimePoints(p) : p;

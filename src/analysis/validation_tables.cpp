@@ -22,6 +22,11 @@ using nlohmann::json;
 /// A number as the tables write it: "%.6g", "" for NaN (a failed or undefined observable).
 std::string num(double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : ""; }
 
+/// The flow record of a case's record (cases/<case>.json), a damaged field named with that file.
+FlowRecordView caseResult(const json& rec) {
+    return readFlowRecord(rec.at("result"), fmt::format("cases/{}.json", rec.value("case", std::string("?"))));
+}
+
 /// The predictions against the experimental scatter: records, counts by verdict and the rows of
 /// the markdown table.
 struct ComparisonTable {
@@ -60,7 +65,7 @@ const char* kTubeHeader = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,le
 /// A row of tube.csv; a finished case's velocity and length against the data.
 std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
                      ComparisonTable& table) {
-    const FlowRecordView r = readFlowRecord(rec.at("result"));
+    const FlowRecordView r = caseResult(rec);
     const std::string row = fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), c.pressureGradient,
                                         cfg.tubeRadius, num(r.velocityCmPerS), num(r.lengthUm), num(r.widthUm),
                                         r.plateauReached ? "true" : "false", r.settled, num(r.lengthChangeMainVsSettled),
@@ -76,7 +81,7 @@ std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationC
 /// A row of shear.csv; a finished angle or TTF case against the data.
 std::string shearCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
                       ComparisonTable& table) {
-    const FlowRecordView r = readFlowRecord(rec.at("result"));
+    const FlowRecordView r = caseResult(rec);
     const std::string& regime = r.regime;
     const std::string row = fmt::format("{},{},{:g},{:.6g},{:.6g},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), csvField(c.kind),
                                         c.etaOut, c.rate, shearStressPa(c.etaOut, c.rate), csvField(regime), num(r.inclinationDeg),
@@ -145,7 +150,7 @@ std::vector<std::pair<std::string, std::string>> drawObservables(const std::stri
 /// What a draw's record gives for one observable; a failure's reason up to its first line break
 /// or 100 characters, so that equal failures count together.
 DrawOutcome drawOutcome(const json& rec, const std::string& key) {
-    const FlowRecordView r = readFlowRecord(rec.at("result"));
+    const FlowRecordView r = caseResult(rec);
     if (!r.ok()) return {false, NAN, shortenedReason(r.reason, 100)};
     const double x = r.observable(key);
     return {true, x, std::isfinite(x) ? "" : "no value (" + (r.regime.empty() ? std::string("?") : r.regime) + ")"};
@@ -254,7 +259,7 @@ BandTable drawTables(const ValidationRunner& R, ValidationEvidence& evidence, co
     for (const ValidationCase& c : R.cases) {
         if (c.sample >= 0) {
             const json& rec = R.results.at(c.id);
-            const FlowRecordView r = readFlowRecord(rec.at("result"));
+            const FlowRecordView r = caseResult(rec);
             runs += fmt::format("{},{},{},{},{},{},{},{},{},{},{:.1f}\n", csvField(c.id), csvField(c.id.substr(0, c.id.rfind("_sample"))),
                                 csvField(c.kind), c.sample, csvField(r.status), csvField(r.regime), num(r.inclinationDeg), num(r.ttf),
                                 num(r.velocityCmPerS), num(r.lengthUm), rec.value("wall_s", 0.0));

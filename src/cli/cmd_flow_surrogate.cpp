@@ -4,12 +4,10 @@
 #include <fmt/format.h>
 #include <omp.h>
 
-#include <fstream>
+#include <algorithm>
 #include <iostream>
 #include <memory>
-#include <optional>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
@@ -32,134 +30,41 @@ struct FlowTrainCli {
     int folds = 0, threads = 2;
 };
 
-nlohmann::json accuracyJson(const FlowAccuracy& a) {
-    auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
-    return {{"cases", a.cases},
-            {"tank_treading_cases", a.tankTreading},
-            {"inclination_rmse_deg", num(a.inclinationRmseDeg)},
-            {"swing_rmse_deg", num(a.swingRmseDeg)},
-            {"ttf_relative_rmse", num(a.ttfRelativeRmse)},
-            {"steady_cases", a.steady},
-            {"inclination_rmse_steady_deg", num(a.inclinationRmseSteadyDeg)},
-            {"ttf_relative_rmse_steady", num(a.ttfRelativeRmseSteady)},
-            {"campaign_inclination_se_rms_deg", num(a.inclinationNoiseDeg)},
-            {"campaign_ttf_relative_se_rms", num(a.ttfRelativeNoise)},
-            {"brier", num(a.brier)},
-            {"far_cases", a.far},
-            {"far_misclassified", a.farMisclassified},
-            {"near_cases", a.near},
-            {"near_misclassified", a.nearMisclassified}};
-}
-
-std::string percent(long k, long n) { return n > 0 ? fmt::format("{:.1f} % ({}/{})", 100.0 * double(k) / double(n), k, n) : "-"; }
-
-std::string accuracyRow(const std::string& label, const FlowAccuracy& a) {
-    return fmt::format("| {} | {} | {:.3f} | {:.3f} | {:.2f} % | {:.3f} / {:.2f} % ({}) | {:.3f} / {:.2f} % | {} | {} | {:.4f} |", label,
-                       a.cases, a.inclinationRmseDeg, a.swingRmseDeg, 100.0 * a.ttfRelativeRmse, a.inclinationRmseSteadyDeg,
-                       100.0 * a.ttfRelativeRmseSteady, a.steady, a.inclinationNoiseDeg, 100.0 * a.ttfRelativeNoise,
-                       percent(a.farMisclassified, a.far), percent(a.nearMisclassified, a.near), a.brier);
-}
-
-constexpr const char* kTableHead =
-    "| set | cases | angle RMSE (deg) | swing RMSE (deg) | TTF RMSE | angle / TTF RMSE, steady cases (count) | campaign's own "
-    "uncertainty, angle / TTF (RMS of *_se) | misclassified far from the boundary | near it | Brier |\n"
-    "|---|---|---|---|---|---|---|---|---|---|";
-
-/// Campaigns trained together must differ at most in their level and size: the same box, design,
-/// seed (so that their cases pair), cytosol, start and stopping rule.
-void checkCampaignsMatch(const std::vector<std::string>& campaigns) {
-    std::optional<nlohmann::json> first;
-    for (const std::string& c : campaigns) {
-        std::filesystem::path dir = c;
-        if (std::filesystem::is_regular_file(dir)) dir = dir.parent_path();
-        const std::filesystem::path meta = dir / "campaign.json";
-        if (campaigns.size() < 2 || !std::filesystem::exists(meta)) continue;
-        nlohmann::json settings;
-        try {
-            std::ifstream in(meta);
-            settings = nlohmann::json::parse(in).at("settings");
-        } catch (const std::exception& e) {
-            throw InputError(fmt::format("--campaign {}: {} is not a campaign description ({})", c, meta.string(), e.what()));
-        }
-        settings.erase("level");
-        settings.erase("cases");
-        settings.erase("inject_failures");
-        if (!first) {
-            first = settings;
-            continue;
-        }
-        for (const auto& [key, value] : settings.items())
-            if (!first->contains(key) || (*first)[key] != value)
-                throw InputError(fmt::format("--campaign {}: its setting '{}' ({}) differs from the first campaign's ({}); campaigns trained "
-                                             "together differ only in level and size", c, key, value.dump(),
-                                             first->contains(key) ? (*first)[key].dump() : "absent"));
-    }
-}
-
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseIntegerList(o.curve, "--learning-curve", "a case count", 20);
     std::vector<ShearCampaignRow> rows;
-    nlohmann::json sources = nlohmann::json::array();
-    std::string from;
-    checkCampaignsMatch(o.campaigns);
+    FlowTrainingSummary s;
+    checkShearCampaignsMatch(std::vector<std::filesystem::path>(o.campaigns.begin(), o.campaigns.end()));
     for (const std::string& c : o.campaigns) {
         bool complete = true;
         std::vector<ShearCampaignRow> part = readShearCampaignRows(c, &complete);
         const int level = part.empty() ? 0 : part.front().meshLevel;
         std::cerr << fmt::format("flow train: {} cases from {}{}{}\n", part.size(), c, level > 0 ? fmt::format(" (level {})", level) : "",
                                  complete ? "" : " (campaign not complete: its finished cases)");
-        sources.push_back({{"campaign", c}, {"cases", part.size()}, {"level", level}, {"complete", complete}});
-        from += fmt::format("{}{} ({} cases{}{})", from.empty() ? "" : " and ", c, part.size(), level > 0 ? fmt::format(", level {}", level) : "",
-                            complete ? "" : ", not complete");
+        s.sources.push_back({c, long(part.size()), level, complete});
         rows.insert(rows.end(), std::make_move_iterator(part.begin()), std::make_move_iterator(part.end()));
     }
     o.t.command = commandLine();
-    nlohmann::json j = withBuild({{"command", o.t.command}, {"campaigns", sources}, {"restarts", o.t.restarts},
-                                  {"ensemble", o.t.ensemble}, {"boundary_factor", o.t.boundaryFactor}});
-    std::string md = fmt::format("Flow networks from {}; command: `{}`\n\n{}\n", from, o.t.command, kTableHead);
-    const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, o.t);
-    rep.model.save(o.out);
-    j["levels"] = rep.model.levels;
-    j["predicts_level"] = rep.model.level;
-    j["data_hash"] = rep.dataHash;
-    j["rows"] = rep.rows;
-    j["finished_rows"] = rep.used;
-    j["training_rows"] = {{"regime", rep.regimeRows}, {"tank_treading", rep.tankTreadingRows}};
-    j["test"] = accuracyJson(rep.test);
-    j["wall_s"] = rep.wallSeconds;
-    if (rep.model.multiLevel())
-        md = fmt::format("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-{} cases, "
-                         "with every coarser case in training.\n\n", rep.model.level) + md;
-    md += accuracyRow(fmt::format("held out ({:.0f} %)", 100.0 * o.t.testFraction), rep.test) + "\n";
-    if (o.folds >= 2) {
-        const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, o.t, o.folds);
-        j["cross_validation"] = {{"folds", cv.folds}, {"pooled", accuracyJson(cv.pooled)}};
-        md += accuracyRow(fmt::format("{}-fold CV", cv.folds), cv.pooled) + "\n";
-    }
+    s.options = o.t;
+    s.training = trainFlowSurrogate(rows, o.t);
+    s.training.model.save(o.out);
+    if (o.folds >= 2) s.crossValidation = crossValidateFlowSurrogate(rows, o.t, o.folds);
     if (!sizes.empty()) {
-        // The prefixes are of the finest level's cases; the coarser levels' cases all stay in.
-        std::vector<ShearCampaignRow> sorted, coarser;
-        for (const ShearCampaignRow& r : rows) (r.meshLevel == rep.model.level ? sorted : coarser).push_back(r);
-        std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
-        nlohmann::json curve = nlohmann::json::array();
-        md += fmt::format("\nLearning curve ({}-fold CV on the first N cases of the design)\n\n{}\n", std::max(o.folds, 5), kTableHead);
+        const int level = s.training.model.level;
+        const long available = std::count_if(rows.begin(), rows.end(), [&](const ShearCampaignRow& r) { return r.meshLevel == level; });
+        s.learningCurveFolds = std::max(o.folds, 5);
+        s.learningCurve.emplace();
         for (long n : sizes) {
-            if (n > long(sorted.size())) {
-                std::cerr << fmt::format("flow train: learning curve: {} cases asked, {} in the campaign; skipped\n", n, sorted.size());
+            if (n > available) {
+                std::cerr << fmt::format("flow train: learning curve: {} cases asked, {} in the campaign; skipped\n", n, available);
                 continue;
             }
-            std::vector<ShearCampaignRow> prefix(sorted.begin(), sorted.begin() + n);
-            prefix.insert(prefix.end(), coarser.begin(), coarser.end());
-            const FlowCrossValidation cv = crossValidateFlowSurrogate(prefix, o.t, std::max(o.folds, 5));
-            curve.push_back({{"cases", n}, {"pooled", accuracyJson(cv.pooled)}});
-            md += accuracyRow(fmt::format("N = {}", n), cv.pooled) + "\n";
+            const FlowCrossValidation cv = crossValidateFlowSurrogate(flowLearningCurveRows(rows, level, n), o.t, s.learningCurveFolds);
+            s.learningCurve->push_back({n, cv.pooled});
         }
-        j["learning_curve"] = curve;
     }
-    writeFileAtomically(std::filesystem::path(o.out) / "training.json", j.dump(2) + "\n");
-    writeFileAtomically(std::filesystem::path(o.out) / "accuracy.md", md);
-    std::cout << md;
+    std::cout << writeFlowTrainingReport(o.out, s);
 }
 
 struct FlowSobolCli {

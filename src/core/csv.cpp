@@ -158,6 +158,11 @@ std::vector<std::vector<std::string>> readCsvRecords(const std::filesystem::path
     return parseCsvRecords(text);
 }
 
+int columnOf(const std::vector<std::string>& header, const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    return it == header.end() ? -1 : static_cast<int>(it - header.begin());
+}
+
 std::string csvRow(std::initializer_list<std::string_view> fields) {
     std::string out;
     bool first = true;

@@ -43,6 +43,8 @@ std::string csvRow(const std::vector<std::string>& fields);
 std::vector<std::vector<std::string>> readCsvRecords(const std::filesystem::path& path);
 /// The records of CSV text, as readCsvRecords.
 std::vector<std::vector<std::string>> parseCsvRecords(std::string_view text);
+/// The index of the column `name` in a header record of readCsvRecords; -1 when absent.
+int columnOf(const std::vector<std::string>& header, const std::string& name);
 
 /// The provenance line that opens every CSV table trbc writes, for example
 /// "# trbc 1.4.0 (v1.4.0-12-gabc1234) | command: trbc infer --seed 3 | seed: 3 | build: GCC 12.2.0,

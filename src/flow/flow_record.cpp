@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 #include "core/csv.hpp"
+#include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/output_dir.hpp"
 #include "experiments/simulation_report.hpp"
@@ -404,48 +406,75 @@ nlohmann::json tubeRecord(const TubeCaseResult& res, const TubeCaseOptions& c, c
 
 namespace {
 
-double numberOr(const nlohmann::json& o, const char* key) {
-    const auto it = o.find(key);
-    return it != o.end() && it->is_number() ? it->get<double>() : NAN;
-}
+/// Reads the fields of one record. A field that is absent or null is missing (NaN, "", none); one of
+/// another type than the schema's is a damaged record, not a missing value: InputError naming the
+/// record and the field.
+struct RecordFields {
+    using Is = bool (nlohmann::json::*)() const noexcept;
+    const std::string& source;
 
-std::string stringOr(const nlohmann::json& o, const char* key, std::string fallback = "") {
-    const auto it = o.find(key);
-    return it != o.end() && it->is_string() ? it->get<std::string>() : fallback;
-}
-
-const nlohmann::json& objectOr(const nlohmann::json& o, const char* key) {
-    static const nlohmann::json empty = nlohmann::json::object();
-    const auto it = o.find(key);
-    return it != o.end() && it->is_object() ? *it : empty;
-}
+    const nlohmann::json* get(const nlohmann::json& o, const std::string& path, const char* key, Is is, const char* expected) const {
+        const auto it = o.find(key);
+        if (it == o.end() || it->is_null()) return nullptr;
+        if (!((*it).*is)()) {
+            std::string text = it->dump();
+            if (text.size() > 40) text = text.substr(0, 37) + "...";
+            throw InputError(fmt::format("{}: '{}{}' is {} ({}), not {} or null", source, path, key, text, it->type_name(), expected));
+        }
+        return &*it;
+    }
+    double number(const nlohmann::json& o, const std::string& path, const char* key) const {
+        const nlohmann::json* v = get(o, path, key, &nlohmann::json::is_number, "a number");
+        return v ? v->get<double>() : NAN;
+    }
+    std::string text(const nlohmann::json& o, const std::string& path, const char* key) const {
+        const nlohmann::json* v = get(o, path, key, &nlohmann::json::is_string, "a string");
+        return v ? v->get<std::string>() : std::string();
+    }
+    std::optional<bool> boolean(const nlohmann::json& o, const std::string& path, const char* key) const {
+        const nlohmann::json* v = get(o, path, key, &nlohmann::json::is_boolean, "true, false");
+        return v ? std::optional<bool>(v->get<bool>()) : std::nullopt;
+    }
+    /// The section `key` of o; an empty object when missing.
+    const nlohmann::json& object(const nlohmann::json& o, const std::string& path, const char* key) const {
+        static const nlohmann::json empty = nlohmann::json::object();
+        const nlohmann::json* v = get(o, path, key, &nlohmann::json::is_object, "an object");
+        return v ? *v : empty;
+    }
+};
 
 }  // namespace
 
-FlowRecordView readFlowRecord(const nlohmann::json& record) {
+FlowRecordView readFlowRecord(const nlohmann::json& record, const std::string& source) {
     FlowRecordView v;
-    if (!record.is_object()) return v;
-    v.status = stringOr(record, "status", "failed");
-    v.reason = stringOr(record, "reason");
-    const nlohmann::json& o = objectOr(record, "observables");
-    const nlohmann::json& d = objectOr(record, "diagnostics");
-    v.regime = stringOr(o, "regime");
-    v.inclinationDeg = numberOr(o, "inclination_deg");
-    v.swingDeg = numberOr(o, "swing_amplitude_deg");
-    v.ttf = numberOr(o, "ttf_4pi_f_over_shear_rate");
-    v.velocityCmPerS = numberOr(o, "velocity_cm_per_s");
-    v.lengthUm = numberOr(o, "length_um");
-    v.widthUm = numberOr(o, "width_um");
-    const nlohmann::json& plateau = objectOr(d, "plateau");
-    v.plateauReached = plateau.contains("reached") && plateau["reached"].is_boolean() && plateau["reached"].get<bool>();
-    const nlohmann::json& settling = objectOr(d, "settling");
-    if (!settling.empty()) {
-        v.settled = settling.contains("settled") && settling["settled"].is_boolean() && settling["settled"].get<bool>() ? "true" : "false";
-        v.lengthChangeMainVsSettled = numberOr(settling, "length_change_main_vs_settled");
+    if (!record.is_object()) {
+        v.reason = fmt::format("{}: not a JSON object but {}", source, record.type_name());
+        return v;
     }
-    v.cellFrameMotionRatio = numberOr(objectOr(d, "cell_frame_motion"), "ratio");
-    v.areaDriftMax = numberOr(d, "area_drift_max");
-    v.volumeDriftMax = numberOr(d, "volume_drift_max");
+    const RecordFields f{source};
+    // Any status other than "ok" (absent, or of another type) is a failed case.
+    if (const auto status = record.find("status"); status != record.end() && status->is_string()) v.status = status->get<std::string>();
+    if (const auto reason = record.find("reason"); reason != record.end() && reason->is_string()) v.reason = reason->get<std::string>();
+    if (const auto o = record.find("observables"); v.ok() && (o == record.end() || !o->is_object()))
+        throw InputError(fmt::format("{}: a finished case (status \"ok\") without its 'observables' object", source));
+    const nlohmann::json& o = f.object(record, "", "observables");
+    const nlohmann::json& d = f.object(record, "", "diagnostics");
+    v.regime = f.text(o, "observables.", "regime");
+    v.inclinationDeg = f.number(o, "observables.", "inclination_deg");
+    v.swingDeg = f.number(o, "observables.", "swing_amplitude_deg");
+    v.ttf = f.number(o, "observables.", "ttf_4pi_f_over_shear_rate");
+    v.velocityCmPerS = f.number(o, "observables.", "velocity_cm_per_s");
+    v.lengthUm = f.number(o, "observables.", "length_um");
+    v.widthUm = f.number(o, "observables.", "width_um");
+    v.plateauReached = f.boolean(f.object(d, "diagnostics.", "plateau"), "diagnostics.plateau.", "reached").value_or(false);
+    const nlohmann::json& settling = f.object(d, "diagnostics.", "settling");
+    if (!settling.empty()) {
+        v.settled = f.boolean(settling, "diagnostics.settling.", "settled").value_or(false) ? "true" : "false";
+        v.lengthChangeMainVsSettled = f.number(settling, "diagnostics.settling.", "length_change_main_vs_settled");
+    }
+    v.cellFrameMotionRatio = f.number(f.object(d, "diagnostics.", "cell_frame_motion"), "diagnostics.cell_frame_motion.", "ratio");
+    v.areaDriftMax = f.number(d, "diagnostics.", "area_drift_max");
+    v.volumeDriftMax = f.number(d, "diagnostics.", "volume_drift_max");
     return v;
 }
 

@@ -36,7 +36,9 @@ nlohmann::json tubeRecord(const TubeCaseResult& res, const TubeCaseOptions& c, c
                           nlohmann::json provenance);
 
 /// What the validation reads back from a record of shearRecord or tubeRecord. A field the record
-/// lacks (a failed case has no observables) or holds as null is NaN, "" or "none".
+/// lacks (a failed case has no observables) or holds as null is NaN, "" or "none"; a status other
+/// than the string "ok" is a failed case, and a record that is not a JSON object one whose reason
+/// says so.
 struct FlowRecordView {
     std::string status = "failed", reason;
     std::string regime;                   ///< shear: "tank-treading", "tumbling", "intermittent"
@@ -53,7 +55,10 @@ struct FlowRecordView {
     /// for another key.
     double observable(const std::string& key) const;
 };
-FlowRecordView readFlowRecord(const nlohmann::json& record);
+/// InputError naming `source` (the record's file) and the field for a damaged record: a field of
+/// another type than the schema's (an observable that is not a number, a section that is not an
+/// object), or status "ok" without observables.
+FlowRecordView readFlowRecord(const nlohmann::json& record, const std::string& source = "flow record");
 
 /// j["observables"] and j["analysis"] of a finished shear run (also a ramp's stage).
 void addShearObservables(nlohmann::json& j, const ShearObservables& obs);

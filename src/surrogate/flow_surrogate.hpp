@@ -19,6 +19,8 @@
 // strains, so the angle, the swing, the TTF in units of the rate and the regime are unchanged.
 #include <Eigen/Core>
 #include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -146,5 +148,54 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
 
 /// FNV-1a of the formatted rows.
 std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows);
+
+/// Campaigns trained together differ at most in level and size: every setting of their
+/// campaign.json other than level, cases and inject_failures is the same (box, design, seed so that
+/// their cases pair, cytosol, start, stopping rule). Each entry is a campaign directory or a file in
+/// it (its cases.csv); an entry without a campaign.json is not compared, nor is a single entry.
+/// InputError naming the campaign and the first setting that differs from the first campaign's.
+void checkShearCampaignsMatch(const std::vector<std::filesystem::path>& campaigns);
+
+/// The rows of a learning-curve point: the first n cases (by case id) of mesh level `level`, followed
+/// by every row of the other levels, which all stay in training. InputError when `level` has fewer
+/// than n rows.
+std::vector<ShearCampaignRow> flowLearningCurveRows(const std::vector<ShearCampaignRow>& rows, int level, long n);
+
+/// The accuracy as training.json records it; a statistic without cases is null.
+nlohmann::json flowAccuracyJson(const FlowAccuracy& a);
+/// A row of the accuracy table of accuracy.md, the set named `label`.
+std::string flowAccuracyRow(const std::string& label, const FlowAccuracy& a);
+
+/// A campaign read for a training, as training.json and accuracy.md name it.
+struct FlowTrainingSource {
+    std::string campaign;   ///< as given
+    long cases = 0;
+    int level = 0;          ///< 0: not recorded
+    bool complete = true;   ///< false: the finished cases of a campaign still running
+};
+
+/// Cross-validated accuracy on the first `cases` cases of the design (flowLearningCurveRows).
+struct FlowLearningCurvePoint {
+    long cases = 0;
+    FlowAccuracy pooled;
+};
+
+/// Everything training.json and accuracy.md report.
+struct FlowTrainingSummary {
+    std::vector<FlowTrainingSource> sources;
+    FlowSurrogateTrainingOptions options;  ///< command, restarts, ensemble, boundaryFactor, testFraction
+    FlowSurrogateTrainingReport training;
+    std::optional<FlowCrossValidation> crossValidation;
+    /// Present when a curve was asked for, empty when every size exceeded the campaign.
+    std::optional<std::vector<FlowLearningCurvePoint>> learningCurve;
+    int learningCurveFolds = 5;
+};
+
+/// training.json (with withBuild's identity of this binary).
+nlohmann::json flowTrainingJson(const FlowTrainingSummary& s);
+/// accuracy.md: the held-out (and cross-validated) accuracy, then the learning curve.
+std::string flowAccuracyMarkdown(const FlowTrainingSummary& s);
+/// Writes dir/training.json and dir/accuracy.md, each atomically; returns accuracy.md's text.
+std::string writeFlowTrainingReport(const std::filesystem::path& dir, const FlowTrainingSummary& s);
 
 }  // namespace trbc

@@ -246,5 +246,168 @@ TEST(FlowSurrogate, BandsAndSobolIndicesOfTheValidationSet) {
     EXPECT_NEAR(Y(1, 12) - Y(0, 12), std::log10(2.0), 0.15);
 }
 
+
+// Campaigns trained together share every setting but level, size and injected failures.
+TEST(FlowTrainingReport, CampaignsMustMatchButTheirLevelAndSize) {
+    test::TempDir tmp;
+    const auto campaign = [&](const std::string& name, const std::string& settings) {
+        test::writeText(tmp.path() / name / "campaign.json", R"({"settings": )" + settings + "}");
+        return tmp.path() / name;
+    };
+    const fs::path a = campaign("a", R"({"design": "sobol", "cases": 64, "seed": 7, "eta_in_mPa_s": 10.0, "level": 3, "start": "random"})");
+    const fs::path b = campaign("b", R"({"design": "sobol", "cases": 4096, "seed": 7, "eta_in_mPa_s": 10.0, "level": 2, "start": "random",
+                                        "inject_failures": "3"})");
+    const fs::path c = campaign("c", R"({"design": "sobol", "cases": 64, "seed": 7, "eta_in_mPa_s": 10.0, "level": 2, "start": "in-plane"})");
+    const fs::path d = campaign("d", R"({"design": "sobol", "cases": 64, "seed": 8, "eta_in_mPa_s": 10.0, "level": 2, "start": "random"})");
+    test::writeText(b / "cases.csv", shearCampaignCsvHeader() + "\n");
+    EXPECT_NO_THROW(checkShearCampaignsMatch({a, b}));
+    EXPECT_NO_THROW(checkShearCampaignsMatch({a, b / "cases.csv"}));  // a campaign's cases.csv stands for it
+    EXPECT_NO_THROW(checkShearCampaignsMatch({c}));                   // one campaign: nothing to compare
+    const auto refusal = [&](const std::vector<fs::path>& campaigns) {
+        try {
+            checkShearCampaignsMatch(campaigns);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("accepted");
+    };
+    const std::string start = refusal({a, b, c});
+    EXPECT_NE(start.find("--campaign " + c.string() + ": its setting 'start' (\"in-plane\") differs from the first campaign's (\"random\")"),
+              std::string::npos) << start;
+    const std::string seed = refusal({d, a});
+    EXPECT_NE(seed.find("--campaign " + a.string() + ": its setting 'seed' (7) differs from the first campaign's (8)"), std::string::npos)
+        << seed;
+    const fs::path e = campaign("e", R"({"design": "sobol", "cases": 64, "seed": 7, "eta_in_mPa_s": 10.0, "level": 1, "start": "random",
+                                        "box": "wide"})");
+    const std::string box = refusal({a, e});
+    EXPECT_NE(box.find("its setting 'box' (\"wide\") differs from the first campaign's (absent)"), std::string::npos) << box;
+    test::writeText(tmp.path() / "f" / "campaign.json", "{\"settings\": ");
+    const std::string bad = refusal({a, tmp.path() / "f"});
+    EXPECT_NE(bad.find("campaign.json is not a campaign description"), std::string::npos) << bad;
+}
+
+// A learning-curve point: the first n finest-level cases by case id, every coarser case kept.
+TEST(FlowTrainingReport, LearningCurveRowsArePrefixesOfTheFinestLevel) {
+    std::vector<ShearCampaignRow> rows;
+    for (long id : {5L, 1L, 4L, 0L, 2L}) {
+        ShearCampaignRow r;
+        r.point.caseId = id;
+        r.meshLevel = 3;
+        rows.push_back(r);
+    }
+    for (long id : {7L, 0L}) {
+        ShearCampaignRow r;
+        r.point.caseId = id;
+        r.meshLevel = 2;
+        rows.push_back(r);
+    }
+    const std::vector<ShearCampaignRow> p = flowLearningCurveRows(rows, 3, 3);
+    ASSERT_EQ(p.size(), 5u);
+    const std::vector<std::pair<int, long>> expected = {{3, 0}, {3, 1}, {3, 2}, {2, 7}, {2, 0}};
+    for (std::size_t k = 0; k < p.size(); ++k) {
+        EXPECT_EQ(p[k].meshLevel, expected[k].first) << k;
+        EXPECT_EQ(p[k].point.caseId, expected[k].second) << k;
+    }
+    EXPECT_EQ(flowLearningCurveRows(rows, 3, 5).size(), 7u);
+    EXPECT_THROW(flowLearningCurveRows(rows, 3, 6), InputError);
+}
+
+FlowAccuracy handMadeAccuracy() {
+    FlowAccuracy a;
+    a.cases = 40;
+    a.tankTreading = 25;
+    a.inclinationRmseDeg = 1.23456;
+    a.swingRmseDeg = 0.5;
+    a.ttfRelativeRmse = 0.0345;
+    a.steady = 12;
+    a.inclinationRmseSteadyDeg = 0.8;
+    a.ttfRelativeRmseSteady = 0.021;
+    a.inclinationNoiseDeg = 0.25;
+    a.ttfRelativeNoise = 0.01;
+    a.brier = 0.04567;
+    a.far = 30, a.farMisclassified = 3;
+    a.near = 10, a.nearMisclassified = 0;
+    return a;
+}
+
+TEST(FlowTrainingReport, AccuracyRowAndJsonOfAHandMadeAccuracy) {
+    const FlowAccuracy a = handMadeAccuracy();
+    EXPECT_EQ(flowAccuracyRow("held out (10 %)", a),
+              "| held out (10 %) | 40 | 1.235 | 0.500 | 3.45 % | 0.800 / 2.10 % (12) | 0.250 / 1.00 % | 10.0 % (3/30) | 0.0 % (0/10) | 0.0457 |");
+    const nlohmann::json j = flowAccuracyJson(a);
+    EXPECT_EQ(j.size(), 15u);
+    EXPECT_EQ(j.at("cases"), 40);
+    EXPECT_EQ(j.at("tank_treading_cases"), 25);
+    EXPECT_DOUBLE_EQ(j.at("inclination_rmse_deg").get<double>(), 1.23456);
+    EXPECT_DOUBLE_EQ(j.at("ttf_relative_rmse").get<double>(), 0.0345);
+    EXPECT_EQ(j.at("steady_cases"), 12);
+    EXPECT_DOUBLE_EQ(j.at("campaign_ttf_relative_se_rms").get<double>(), 0.01);
+    EXPECT_DOUBLE_EQ(j.at("brier").get<double>(), 0.04567);
+    EXPECT_EQ(j.at("far_misclassified"), 3);
+    EXPECT_EQ(j.at("near_cases"), 10);
+
+    const FlowAccuracy none;  // no cases: the statistics are NaN, null in the record, "-" for a share
+    const nlohmann::json n = flowAccuracyJson(none);
+    EXPECT_TRUE(n.at("inclination_rmse_deg").is_null());
+    EXPECT_TRUE(n.at("brier").is_null());
+    EXPECT_EQ(n.at("cases"), 0);
+    EXPECT_EQ(flowAccuracyRow("N = 20", none), "| N = 20 | 0 | nan | nan | nan % | nan / nan % (0) | nan / nan % | - | - | nan |");
+}
+
+TEST(FlowTrainingReport, TrainingJsonAndAccuracyMarkdown) {
+    FlowTrainingSummary s;
+    s.sources = {{"L3", 64, 3, true}, {"L2", 500, 2, false}};
+    s.options.command = "trbc flow train";
+    s.options.restarts = 2;
+    s.options.testFraction = 0.2;
+    s.training.model.levels = {2, 3};
+    s.training.model.level = 3;
+    s.training.dataHash = "abc";
+    s.training.rows = 570;
+    s.training.used = 560;
+    s.training.test = handMadeAccuracy();
+    s.crossValidation.emplace();
+    s.crossValidation->folds = 4;
+    s.crossValidation->pooled = handMadeAccuracy();
+    s.learningCurveFolds = 5;
+    s.learningCurve = std::vector<FlowLearningCurvePoint>{{20, handMadeAccuracy()}};
+
+    const nlohmann::json j = flowTrainingJson(s);
+    EXPECT_EQ(j.at("command"), "trbc flow train");
+    EXPECT_EQ(j.at("campaigns").size(), 2u);
+    EXPECT_EQ(j.at("campaigns")[1], nlohmann::json({{"campaign", "L2"}, {"cases", 500}, {"level", 2}, {"complete", false}}));
+    EXPECT_EQ(j.at("levels"), nlohmann::json({2, 3}));
+    EXPECT_EQ(j.at("predicts_level"), 3);
+    EXPECT_EQ(j.at("finished_rows"), 560);
+    EXPECT_EQ(j.at("restarts"), 2);
+    EXPECT_EQ(j.at("test"), flowAccuracyJson(s.training.test));
+    EXPECT_EQ(j.at("cross_validation").at("folds"), 4);
+    EXPECT_EQ(j.at("learning_curve")[0].at("cases"), 20);
+    EXPECT_TRUE(j.contains("version") && j.contains("revision") && j.contains("build"));
+
+    const std::string row = flowAccuracyRow("x", handMadeAccuracy()).substr(3);  // " | 40 | ...": the row after its label
+    const std::string md = flowAccuracyMarkdown(s);
+    EXPECT_EQ(md.rfind("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-3 cases", 0), 0u) << md;
+    EXPECT_NE(md.find("Flow networks from L3 (64 cases, level 3) and L2 (500 cases, level 2, not complete); command: `trbc flow train`"),
+              std::string::npos) << md;
+    EXPECT_NE(md.find("| held out (20 %)" + row + "\n| 4-fold CV" + row + "\n"), std::string::npos) << md;
+    EXPECT_NE(md.find("\nLearning curve (5-fold CV on the first N cases of the design)\n\n| set | cases |"), std::string::npos) << md;
+    EXPECT_NE(md.find("| N = 20" + row + "\n"), std::string::npos) << md;
+
+    s.crossValidation.reset();
+    s.learningCurve.reset();
+    s.training.model.levels.clear();
+    const nlohmann::json plain = flowTrainingJson(s);
+    EXPECT_FALSE(plain.contains("cross_validation") || plain.contains("learning_curve"));
+    const std::string plainMd = flowAccuracyMarkdown(s);
+    EXPECT_EQ(plainMd.rfind("Flow networks from", 0), 0u) << plainMd;
+    EXPECT_EQ(plainMd.find("CV"), std::string::npos) << plainMd;
+
+    test::TempDir tmp;
+    EXPECT_EQ(writeFlowTrainingReport(tmp.path(), s), plainMd);
+    EXPECT_EQ(test::slurp(tmp.path() / "accuracy.md"), plainMd);
+    EXPECT_EQ(nlohmann::json::parse(test::slurp(tmp.path() / "training.json")), plain);
+}
+
 }  // namespace
 }  // namespace trbc
