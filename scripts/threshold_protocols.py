@@ -80,10 +80,30 @@ def command(trbc, c, out):
     return cmd
 
 
+def finished(out, c):
+    """A case with a record of the current protocol. A fluctuating case made before trbc capped the
+    thermal step at eta_m/mu (its record lacks diagnostics.thermal.step_times_rate), where the cap
+    shortens the step, is not."""
+    f = os.path.join(out, "cases", c["id"], "flow.json")
+    if not os.path.exists(f):
+        return False
+    p = CELLS[c["cell"]]
+    if c["protocol"] != "fluctuating" or THERMAL_STEP <= c["rate"] * p["etam"] / p["mu"]:
+        return True
+    try:
+        with open(f) as fh:
+            j = json.load(fh)
+    except (OSError, ValueError):
+        return False
+    return "step_times_rate" in j.get("diagnostics", {}).get("thermal", {}) or j.get("thermal_step_capped", False)
+
+
 def run(trbc, c, out):
     d = os.path.join(out, "cases", c["id"])
-    if os.path.exists(os.path.join(d, "flow.json")):
+    if finished(out, c):
         return c["id"], "kept", 0.0
+    if os.path.exists(os.path.join(d, "flow.json")):  # made with the uncapped step: kept aside, run again
+        os.replace(d, d + ".uncapped")
     t0 = time.time()
     r = subprocess.run(command(trbc, c, out), capture_output=True, text=True)
     if r.returncode < 0:  # killed by a signal: not a result, the next run repeats the case
@@ -92,11 +112,13 @@ def run(trbc, c, out):
         os.makedirs(d, exist_ok=True)
         with open(os.path.join(d, "flow.json"), "w") as f:
             json.dump({"status": "failed", "reason": r.stderr.strip().splitlines()[-1:] or ["exit %d" % r.returncode],
-                       "observables": {"regime": None}}, f)
+                       "observables": {"regime": None}, "thermal_step_capped": c["protocol"] == "fluctuating"}, f)
     return c["id"], "ran", time.time() - t0
 
 
 def regime(out, c):
+    if not finished(out, c):
+        return None, None
     try:
         with open(os.path.join(out, "cases", c["id"], "flow.json")) as f:
             j = json.load(f)
@@ -187,7 +209,7 @@ def main():
     ap.add_argument("--rotations", type=float, default=10)
     ap.add_argument("--members", type=int, default=8)
     ap.add_argument("--fluctuating", type=int, default=0, help="seeds of the fluctuating protocol per condition")
-    ap.add_argument("--thermal-step", type=float, default=THERMAL_STEP, help="fixed step of the fluctuating runs, 1/rate")
+    ap.add_argument("--thermal-step", type=float, default=THERMAL_STEP, help="fixed step of the fluctuating runs, 1/rate (trbc shortens it to the membrane's viscous time eta_m/mu)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--full-length", action="store_true",
                     help="run every case its full --rotations (default: stop at the steady state, `flow shear --stop-when-steady`)")
@@ -228,11 +250,10 @@ def main():
         f.write(" ".join(sys.argv) + "\n")
     if not a.summary_only:
         t0, done = time.time(), 0
-        todo = [c for c in all_cases
-                if c["protocol"] in protocols and not os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json"))]
+        todo = [c for c in all_cases if c["protocol"] in protocols and not finished(a.out, c)]
         todo.sort(key=lambda c: PROTOCOL_ORDER[c["protocol"]])
-        finished = sum(os.path.exists(os.path.join(a.out, "cases", c["id"], "flow.json")) for c in all_cases)
-        print(f"{len(all_cases)} cases, {finished} finished earlier, {len(todo)} of protocols {a.protocols} to run", file=sys.stderr)
+        done_before = sum(finished(a.out, c) for c in all_cases)
+        print(f"{len(all_cases)} cases, {done_before} finished earlier, {len(todo)} of protocols {a.protocols} to run", file=sys.stderr)
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
             for cid, what, wall in ex.map(lambda c: run(a.trbc, c, a.out), todo):
                 done += 1

@@ -111,7 +111,11 @@ fs::path ValidationRunner::caseFile(const ValidationCase& c) const { return out 
 std::optional<json> ValidationRunner::matchingRecord(const fs::path& file, const ValidationCase& c) const {
     std::optional<json> j = tryReadJson(file);  // a damaged record is run again
     if (!j || stringOr(*j, "key") != caseKey(c) || !j->contains("result")) return std::nullopt;
-    if (retryFailed && !readFlowRecord((*j)["result"], file.string()).ok()) return std::nullopt;
+    try {
+        if (!readFlowRecord((*j)["result"], file.string()).ok() && retryFailed) return std::nullopt;
+    } catch (const InputError&) {
+        return std::nullopt;
+    }
     return j;
 }
 
@@ -177,11 +181,13 @@ void ValidationRunner::runCase(const ValidationCase& c) {
                                       : fmt::format("exit {} without a result: {}", rc, tail)}};
     }
     // A result the record reader refuses fails its case, as one that is not JSON does.
+    bool ok = false;
     try {
-        if (rc != 0 && readFlowRecord(result, stdoutFile.string()).ok()) result["status"] = "failed";
+        ok = readFlowRecord(result, caseFile(c).string()).ok();
     } catch (const InputError& e) {
         result = {{"status", "failed"}, {"reason", e.what()}};
     }
+    if (rc != 0 && ok) result["status"] = "failed";
     json record = {{"key", caseKey(c)}, {"case", c.id}, {"kind", c.kind}, {"command", command},
                    {"exit", rc},         {"wall_s", wall}, {"result", result}};
     if (c.sample >= 0) record["draw"] = drawJson(c.sample);

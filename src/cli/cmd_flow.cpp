@@ -245,8 +245,8 @@ void addShearOptions(CLI::App* cmd, ShearCli& o) {
               "of --thermal-step; docs/FLOW_THERMAL.md); 0: none",
               NumberRange::closed(0.0, 400.0, "K"))
         ->capture_default_str();
-    addNumber(cmd, "--thermal-step", o.c.thermalStep, "fixed time step of a run with --temperature, at most the membrane's viscous time "
-              "eta_m / mu (docs/FLOW_THERMAL.md)",
+    addNumber(cmd, "--thermal-step", o.c.thermalStep, "fixed time step of a run with --temperature; shortened to rate eta_m / mu (the "
+              "membrane's viscous time) when longer (docs/FLOW_THERMAL.md, The step)",
               NumberRange::leftOpen(0.0, 1.0, "1/rate"))
         ->capture_default_str();
     cmd->add_option("--start", o.start,

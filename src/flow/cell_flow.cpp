@@ -633,6 +633,11 @@ VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& 
     return {s.u, s.tension, s.gmres.iterations, s.gmres.residual};
 }
 
+double thermalStepOnFrames(const CellFlowOptions& opt) {
+    const double fi = opt.frameInterval, ts = opt.thermal.step;
+    return ts <= fi ? fi / std::ceil(fi / ts * (1.0 - 1e-12)) : fi * std::floor(ts / fi * (1.0 + 1e-12));
+}
+
 CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& initial, const CellFlowOptions& opt,
                                  const CellFlowObserver& observer, const FlowEnvironment* env) {
     checkOptions(opt);
@@ -729,8 +734,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
     if (thermal && env) throw InputError("cell flow: thermal fluctuations are for a cell in unbounded fluid, not in a tube");
     // A whole number of steps per frame interval, or of frame intervals per step (frames between the
     // steps by the dense output).
-    const double fi = opt.frameInterval, ts = opt.thermal.step;
-    const double thermalStep = ts <= fi ? fi / std::ceil(fi / ts * (1.0 - 1e-12)) : fi * std::floor(ts / fi * (1.0 + 1e-12));
+    const double thermalStep = thermalStepOnFrames(opt);
     const auto thermalProposal = [&] {
         bdf2::Step s;
         s.wanted = thermalStep;

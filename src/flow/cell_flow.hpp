@@ -305,6 +305,10 @@ public:
     virtual void restoreRecords(const std::vector<double>& /*records*/) const {}
 };
 
+/// The thermal step a run takes (ThermalOptions::step): shortened to divide the frame interval, or
+/// when longer to a whole number of frame intervals.
+double thermalStepOnFrames(const CellFlowOptions& opt);
+
 /// Integrates dX/dt = u(X) from `initial` (internal units). Never throws on a numerical failure:
 /// returns completed = false with the reason (GMRES failure at the smallest step, step below
 /// dtMin, drift beyond maxDrift, non-finite state, maxSteps, an inadmissible state of the

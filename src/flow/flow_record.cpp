@@ -139,7 +139,7 @@ nlohmann::json shearDiagnosticsJson(const ShearCaseResult& res, const ShearCaseO
     diag["rotations_run"] = r.tReached / (4.0 * kPi);
     if (res.integrator.thermal.kT > 0.0)
         diag["thermal"] = {{"kT_internal", res.integrator.thermal.kT},
-                           {"step_times_rate", res.integrator.thermal.step},
+                           {"step_times_rate", thermalStepOnFrames(res.integrator)},
                            {"lanczos_iterations_per_step", r.steps ? double(r.sqrtIterations) / r.steps : 0.0},
                            {"lanczos_iterations_max", r.maxSqrtIterations},
                            {"mobility_gmres_iterations_per_step", r.steps ? double(r.mobilityIterations) / r.steps : 0.0}};

@@ -99,7 +99,7 @@ ShearCaseResult runShearCase(const ShearCaseOptions& o);
 
 /// The step of a thermal run, 1/rate: `requested`, at most the membrane's viscous time eta_m / mu
 /// (times the rate). Longer steps let the noise of a few steps build a fold at one vertex that the
-/// operators frozen over the step do not see, and the run diverges (docs/FLOW_THERMAL.md, "Step").
+/// operators frozen over the step do not see, and the run diverges (docs/FLOW_THERMAL.md, "The step").
 double thermalStepTimesRate(const CellParameters& cell, double shearRate, double requested);
 
 /// The ramp protocol (docs/FLOW_THERMAL.md, "Ramp"): one cell, the shear rate stepped up through

@@ -52,6 +52,10 @@ void checkShearCampaignsMatch(const std::vector<fs::path>& campaigns) {
                 throw InputError(fmt::format("--campaign {}: its setting '{}' ({}) differs from the first campaign's ({}); campaigns trained "
                                              "together differ only in level and size", c.string(), key, value.dump(),
                                              first->contains(key) ? (*first)[key].dump() : "absent"));
+        for (const auto& [key, value] : first->items())
+            if (!settings.contains(key))
+                throw InputError(fmt::format("--campaign {}: it lacks the first campaign's setting '{}' ({}); campaigns trained "
+                                             "together differ only in level and size", c.string(), key, value.dump()));
     }
 }
 

@@ -25,6 +25,7 @@ fs::path fakeFlowCommand(const fs::path& dir) {
 here=$(dirname "$0")
 echo "$*" >> "$here/calls.log"
 if [ -e "$here/FAIL" ]; then echo "solver diverged" >&2; exit 3; fi
+if [ -e "$here/DAMAGED" ]; then echo '{"status": "ok", "observables": {"inclination_deg": "12.5"}}'; exit 0; fi
 echo '{"status": "ok", "observables": {"regime": "tank-treading", "inclination_deg": 12.5, "ttf_4pi_f_over_shear_rate": 0.31}}'
 )");
     fs::permissions(exe, fs::perms::owner_all);
@@ -136,6 +137,34 @@ TEST(ValidationRunner, KeepsAFailedCaseWithItsReasonUntilRetryFailed) {
         EXPECT_EQ(R.ranHere, 1);
         EXPECT_EQ(R.resultOf(kCases[0].id).at("status"), "ok");
     }
+    EXPECT_EQ(callCount(tmp.path()), 2);
+}
+
+// A run that exits 0 with a damaged result (an observable that is not a number) fails its case
+// with the reader's message; a damaged case record on disk is run again.
+TEST(ValidationRunner, ADamagedResultFailsItsCaseAndADamagedRecordIsRunAgain) {
+    const test::TempDir tmp;
+    const fs::path exe = fakeFlowCommand(tmp.path());
+    test::writeText(tmp.path() / "DAMAGED", "");
+    {
+        ValidationRunner R;
+        configure(R, tmp.path() / "out", exe);
+        R.quiet = false;  // the progress line reads the result too
+        R.runAll({kCases[0]});
+        const nlohmann::json& r = R.resultOf(kCases[0].id);
+        EXPECT_EQ(r.at("status"), "failed");
+        EXPECT_NE(r.at("reason").get<std::string>().find("'observables.inclination_deg' is \"12.5\" (string)"), std::string::npos) << r;
+    }
+    fs::remove(tmp.path() / "DAMAGED");
+    const fs::path file = tmp.path() / "out" / "cases" / (kCases[0].id + ".json");
+    nlohmann::json record = nlohmann::json::parse(test::slurp(file));
+    record["result"] = {{"status", "ok"}, {"observables", {{"inclination_deg", "12.5"}}}};
+    test::writeText(file, record.dump());
+    ValidationRunner R;
+    configure(R, tmp.path() / "out", exe);
+    R.runAll({kCases[0]});
+    EXPECT_EQ(R.ranHere, 1);
+    EXPECT_EQ(R.resultOf(kCases[0].id).at("status"), "ok");
     EXPECT_EQ(callCount(tmp.path()), 2);
 }
 

@@ -72,7 +72,6 @@ TEST(FlowRecord, TubeObservablesAndDiagnostics) {
     EXPECT_TRUE(std::isnan(r.areaDriftMax));  // null
 }
 
-
 // A damaged record is not a failed case: a field of another type than the schema's, or a finished
 // case without observables, is an InputError naming the record's file and the field. Text that is
 // not JSON, or JSON that is not an object, reads as failed with the reason.

@@ -124,7 +124,7 @@ TEST(ShearCase, TheThermalStepIsAtMostTheMembranesViscousTime) {
     CellParameters cell;
     cell.mu = 4.99;
     cell.etam = 0.42;
-    EXPECT_NEAR(thermalStepTimesRate(cell, 0.3, 0.2), 0.3 * 0.42 / 4.99, 1e-15);  // 25.3 ms of 3.33 s: capped
+    EXPECT_NEAR(thermalStepTimesRate(cell, 0.3, 0.2), 0.3 * 0.42 / 4.99, 1e-15);  // 84 ms = 0.0253 / rate: capped
     EXPECT_NEAR(thermalStepTimesRate(cell, 0.936, 0.2), 0.936 * 0.42 / 4.99, 1e-15);
     EXPECT_EQ(thermalStepTimesRate(cell, 20.0, 0.2), 0.2);  // 10 ms of 84 ms: as requested
     EXPECT_EQ(thermalStepTimesRate(cell, 0.3, 0.01), 0.01);

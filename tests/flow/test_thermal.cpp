@@ -119,7 +119,7 @@ MatrixXd shapeBasis(const Vertices& X, const Vertices& volumeGradient) {
 // (material frame, so rigid turns do not count) matches kT tr(P_l (Q^T H_L Q)^-1 P_l^T), with H_L the
 // Hessian of the energy minus the pressure times that of the volume, Q the shape space, P_l the
 // linearised mode map. Both noises (the fluid's through the Lanczos root, the membrane viscosity's on
-// the edges) enter; lambda = 1 makes the mobility c S M^-1.
+// the edges) enter; lambda = 1 makes the mobility c S M^-1, lambda = 0.1 adds the double layer.
 void checkEquipartition(double viscosityRatio) {
     const Mesh sphere = icosphere(2);
     CapsuleCase cc;

@@ -246,7 +246,6 @@ TEST(FlowSurrogate, BandsAndSobolIndicesOfTheValidationSet) {
     EXPECT_NEAR(Y(1, 12) - Y(0, 12), std::log10(2.0), 0.15);
 }
 
-
 // Campaigns trained together share every setting but level, size and injected failures.
 TEST(FlowTrainingReport, CampaignsMustMatchButTheirLevelAndSize) {
     test::TempDir tmp;
@@ -281,6 +280,9 @@ TEST(FlowTrainingReport, CampaignsMustMatchButTheirLevelAndSize) {
                                         "box": "wide"})");
     const std::string box = refusal({a, e});
     EXPECT_NE(box.find("its setting 'box' (\"wide\") differs from the first campaign's (absent)"), std::string::npos) << box;
+    const std::string lacks = refusal({e, a});
+    EXPECT_NE(lacks.find("--campaign " + a.string() + ": it lacks the first campaign's setting 'box' (\"wide\")"), std::string::npos)
+        << lacks;
     test::writeText(tmp.path() / "f" / "campaign.json", "{\"settings\": ");
     const std::string bad = refusal({a, tmp.path() / "f"});
     EXPECT_NE(bad.find("campaign.json is not a campaign description"), std::string::npos) << bad;

@@ -434,7 +434,8 @@ def flow_shear(eta_out_mPa_s: float, shear_rate_per_s: float, eta_in_mPa_s: floa
     tilt_deg: the start turned about the flow axis out of the shear plane, [0, 90] degrees;
     start: "in-plane" or "random" (random orientation with thermal l = 2, 3 undulations at
     kick_temperature_K, from seed: the ensemble start of docs/FLOW_THERMAL.md); temperature_K > 0:
-    thermal fluctuations during the run, fixed steps thermal_step (1/rate), noise from seed;
+    thermal fluctuations during the run, fixed steps thermal_step (1/rate; at most the membrane's
+    viscous time eta_m / mu), noise from seed;
     stop_when_steady: stop at the first whole turn (from the 4th) with steady observables;
     frame_interval, dt in 1/rate; step_tol in R_A. Returns {"observables": regime, inclination_deg,
     swing_amplitude_deg, ttf_4pi_f_over_shear_rate (None unless tank-treading), "time_series":
