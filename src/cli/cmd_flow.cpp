@@ -318,6 +318,7 @@ void runRamp(RampCli& o) {
                          {"turns", st.turns},
                          {"stopped_when_steady", st.stoppedWhenSteady},
                          {"wall_s", st.wallSeconds}};
+        if (o.s.c.temperatureK > 0.0) e["thermal_step_times_rate"] = st.thermalStep;
         if (!st.completed) e["reason"] = st.message;
         if (st.observables) addShearObservables(e, *st.observables);
         e.erase("analysis");
@@ -330,7 +331,8 @@ void runRamp(RampCli& o) {
     j["parameters"] = {{"eta_out_mPa_s", o.s.c.etaOut},   {"eta_in_mPa_s", o.s.c.etaIn},       {"rates_per_s", o.rates},
                        {"cell", flowCellJson(o.s.c.cell)},      {"cell_source", cellSource(o.s.cell)}, {"level", o.s.c.level},
                        {"rotations_per_stage", o.s.c.rotations}, {"tilt_deg", o.s.c.tiltDeg},     {"start", o.s.start},
-                       {"temperature_K", o.s.c.temperatureK}, {"seed", o.s.c.seed}, {"stop_when_steady", o.s.c.stopWhenSteady}};
+                       {"temperature_K", o.s.c.temperatureK}, {"seed", o.s.c.seed}, {"stop_when_steady", o.s.c.stopWhenSteady},
+                       {"thermal_step_times_rate", o.s.c.temperatureK > 0.0 ? nlohmann::json(o.s.c.thermalStep) : nlohmann::json(nullptr)}};
     j["provenance"] = provenanceJson(o.s.c.level, "the shear rate stepped up and down, each stage from the last stage's "
                                                   "shape (flow/shear_case.hpp, runShearRamp)");
     j["stages"] = stages;

@@ -197,6 +197,7 @@ ShearRampResult runShearRamp(const ShearRampOptions& o) {
         if (flow.completed) st.observables = shearObservables(flow, c);
         st.turns = flow.times.empty() ? 0.0 : flow.times.back() / (4.0 * kPi);
         st.stoppedWhenSteady = flow.stoppedEarly;
+        if (opt.thermal.kT > 0.0) st.thermalStep = thermalStepOnFrames(opt);
         st.wallSeconds = secondsSince(stageStart);
         res.stages.push_back(st);
         if (!flow.completed) break;

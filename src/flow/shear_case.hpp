@@ -121,6 +121,7 @@ struct ShearRampStage {
     std::optional<ShearObservables> observables;  ///< when completed (times in 1/rate)
     double turns = 0.0;               ///< rigid-sphere turns run
     bool stoppedWhenSteady = false;   ///< ended by the steady-state stop (base.stopWhenSteady)
+    double thermalStep = 0.0;         ///< the step taken with base.temperatureK > 0, 1/rate (thermalStepOnFrames)
     double wallSeconds = 0.0;
 };
 

@@ -18,6 +18,7 @@
 
 #include "analysis/validation.hpp"
 #include "analysis/validation_draws.hpp"
+#include "inference/rbc_problem.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "flow/shear_case.hpp"
@@ -58,6 +59,13 @@ std::string errorOf(const std::function<void()>& f) {
         return e.what();
     }
     return "";
+}
+
+// The columns read from a theta_new table are those the inference writes.
+TEST(ValidationDraws, ThetaNewColumnsAreTheInferencesParameters) {
+    const std::vector<std::string>& names = RbcPriorBox::parameterNames();
+    ASSERT_EQ(names.size(), kThetaNewColumns.size());
+    for (std::size_t k = 0; k < names.size(); ++k) EXPECT_EQ(names[k], kThetaNewColumns[k]);
 }
 
 TEST(ValidationDraws, ChoiceIsSeededReproducibleAndNested) {

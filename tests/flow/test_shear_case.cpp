@@ -135,6 +135,14 @@ TEST(ShearCase, TheThermalStepIsAtMostTheMembranesViscousTime) {
     o.rotations = 0.1;
     const ShearCaseResult r = runShearCase(o);
     EXPECT_NEAR(r.integrator.thermal.step, 0.3 * 0.42 / 4.99, 1e-15);
+    EXPECT_DOUBLE_EQ(thermalStepOnFrames(r.integrator), 0.025);  // four steps per frame interval of 0.1
+    // Each stage of a ramp caps its own step: 0.0253 and 0.0505 of 1/rate, taken as 0.025 and 0.05.
+    ShearRampOptions ramp{o, {0.3, 0.6}};
+    const ShearRampResult rr = runShearRamp(ramp);
+    ASSERT_EQ(rr.stages.size(), 3u);
+    EXPECT_DOUBLE_EQ(rr.stages[0].thermalStep, 0.025);
+    EXPECT_DOUBLE_EQ(rr.stages[1].thermalStep, 0.05);
+    EXPECT_DOUBLE_EQ(rr.stages[2].thermalStep, 0.025);
 }
 
 TEST(ShearCase, BadOptionsThrowInputErrorNamingTheOption) {
