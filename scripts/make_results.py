@@ -65,7 +65,7 @@ SETS = {
                              "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --fluctuating 3"], 18.0, None),
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
-                                     " --out {out} --jobs 2 --threads 1"], None, None),
+                                     " --threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),
     "validation/theta_new_level3_high_viscosity": ("the 55.9 and 104 mPa s angle sets, theta_new cell",
                                                    ["{trbc} validate --config configs/validation_high_viscosity.toml --out {out} "
                                                     "--jobs 2"], None, None),
@@ -79,8 +79,8 @@ SETS = {
                                      ["{trbc} validate --config configs/validation.toml --level 3 --only ttf --out {out} "
                                       "--jobs 2 --threads 1"], None, None),
     "validation/table1_level3_threshold": ("the Table 1 cell's thresholds, level 3",
-                                           ["{trbc} validate --config configs/validation.toml --level 3 --only threshold --out "
-                                            "{out} --jobs 2 --threads 1"], None, None),
+                                           ["{trbc} validate --config configs/validation.toml --level 3 --only threshold "
+                                            "--threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),
     "validation/table1_level3_tube_tol6e-5": ("the Table 1 cell in the microtube, level 3",
                                               ["{trbc} validate --config configs/validation.toml --level 3 --only tube --out {out} "
                                                "--jobs 2 --threads 1"], None, None),

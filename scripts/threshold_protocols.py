@@ -8,7 +8,7 @@ resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_t
 
     scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
         [--members 8] [--fluctuating 0] [--thermal-step 0.2] [--jobs 2] [--full-length] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
-        [--protocols in-plane,ensemble,fluctuating] [--dry-run]
+        [--protocols in-plane,ensemble,fluctuating] [--descend] [--dry-run]
 
 Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
 Pa s um; v 0.95), the paper's Table 1 means, trbc's theta_new posterior means. Stresses: six per
@@ -17,7 +17,12 @@ outer viscosity, log-spaced over the range where that viscosity's thresholds lie
 The critical stress of a protocol is where the tank-treading fraction crosses 1/2, interpolated
 in log stress between the two bracketing stresses; its standard error comes from a parametric
 bootstrap of the fractions (binomial, 2000 resamples, seed 1). The in-plane start has one member
-per stress and gives a bracket only."""
+per stress and gives a bracket only.
+
+With --descend the fluctuating cases of a cell and viscosity run one stress at a time, from the
+lowest stress at which the in-plane start tank-treads, downwards until no seed tank-treads (upwards
+if none does at the start). Fluctuations only lower the threshold in every row measured, so the
+stresses left out lie where the fraction is already 0 or 1; the table lists the stresses run."""
 import argparse
 import concurrent.futures
 import csv
@@ -114,6 +119,30 @@ def run(trbc, c, out):
             json.dump({"status": "failed", "reason": r.stderr.strip().splitlines()[-1:] or ["exit %d" % r.returncode],
                        "observables": {"regime": None}, "thermal_step_capped": c["protocol"] == "fluctuating"}, f)
     return c["id"], "ran", time.time() - t0
+
+
+def descend_row(trbc, out, row, inplane, log):
+    """Run one row's fluctuating cases stress by stress (see --descend); returns the cases run."""
+    stresses = sorted({c["stress"] for c in row})
+    tt = [c["stress"] for c in inplane if regime(out, c)[0] == "tank-treading"]
+    k = stresses.index(min(tt)) if tt else len(stresses) - 1
+    step, ran = 0, 0
+    while 0 <= k < len(stresses):
+        seeds = [c for c in row if c["stress"] == stresses[k]]
+        for c in seeds:
+            cid, what, wall = run(trbc, c, out)
+            ran += what == "ran"
+            log(cid, what, wall)
+        res = [regime(out, c) for c in seeds]
+        if any(st != "ok" for _, st in res):
+            break  # a failed or killed seed: the row's bracket is not decided here
+        n_tt = sum(r == "tank-treading" for r, _ in res)
+        if step == 0:
+            step = 1 if n_tt == 0 else -1
+        if (step < 0 and n_tt == 0) or (step > 0 and n_tt > 0):
+            break
+        k += step
+    return ran
 
 
 def regime(out, c):
@@ -217,6 +246,8 @@ def main():
     ap.add_argument("--viscosities", default="10.7,23.9,30,100")
     ap.add_argument("--protocols", default="in-plane,ensemble,fluctuating",
                     help="which protocols' cases to run now (the table always shows every finished case)")
+    ap.add_argument("--descend", action="store_true",
+                    help="fluctuating cases stress by stress from the in-plane threshold down, until none tank-treads")
     ap.add_argument("--dry-run", action="store_true")
     ap.add_argument("--summary-only", action="store_true", help="tabulate the finished cases, run nothing")
     a = ap.parse_args()
@@ -248,7 +279,22 @@ def main():
     os.makedirs(os.path.join(a.out, "cases"), exist_ok=True)
     with open(os.path.join(a.out, "command.txt"), "a") as f:  # one line per invocation of a resumed scan
         f.write(" ".join(sys.argv) + "\n")
-    if not a.summary_only:
+    if not a.summary_only and a.descend and "fluctuating" in protocols:
+        t0, done = time.time(), [0]
+
+        def log(cid, what, wall):
+            done[0] += 1
+            print(f"[{done[0]}] {cid} {what} {wall:.0f} s; elapsed {(time.time() - t0) / 60:.0f} min", file=sys.stderr, flush=True)
+
+        rows = []
+        for cell in cells:
+            for eta in viscosities:
+                sel = [c for c in all_cases if c["cell"] == cell and c["eta"] == eta]
+                rows.append(([c for c in sel if c["protocol"] == "fluctuating"], [c for c in sel if c["protocol"] == "in-plane"]))
+        with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
+            list(ex.map(lambda r: descend_row(a.trbc, a.out, r[0], r[1], log), rows))
+        protocols = [p for p in protocols if p != "fluctuating"]
+    if not a.summary_only and protocols:
         t0, done = time.time(), 0
         todo = [c for c in all_cases if c["protocol"] in protocols and not finished(a.out, c)]
         todo.sort(key=lambda c: PROTOCOL_ORDER[c["protocol"]])

@@ -144,13 +144,18 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     }
     if (const toml::table* t = section("shear")) {
         TableReader r(file, *t, "shear");
-        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_members", "stop_when_steady", "angle",
-                     "ttf", "threshold"});
+        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_protocol", "threshold_members",
+                     "temperature_K", "stop_when_steady", "angle", "ttf", "threshold"});
         r.real("eta_in", c.etaIn, 0.0, 1e6, true);
         r.real("rotations", c.rotations, 0.0, 1000.0, true);
         r.real("tilt_deg", c.tiltDeg, 0.0, 90.0);
         r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
-        r.integer("threshold_members", c.thresholdMembers, 0, 64);
+        r.string("threshold_protocol", c.thresholdProtocol, {"in-plane", "ensemble", "fluctuating"});
+        if (const toml::node* n = t->get("threshold_members"); n && n->value<std::int64_t>() == 0)
+            r.fail(*n, "'shear.threshold_members' is 0: members run only with threshold_protocol = \"ensemble\" or "
+                       "\"fluctuating\", in [1, 64]; one run per rate from the configured start is threshold_protocol = \"in-plane\"");
+        r.integer("threshold_members", c.thresholdMembers, 1, 64);
+        r.real("temperature_K", c.temperatureK, 0.0, 1000.0, true);
         r.boolean("stop_when_steady", c.stopWhenSteady);
         // Sweeps given in the file replace all the default ones (the kinds not given are not run).
         if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
@@ -235,7 +240,7 @@ std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
         for (double rate : logSpaced(s.rateMin, s.rateMax, s.count)) {
             const std::string id = uniqueShearCaseId(s.kind, s.etaOut, rate, cases);
             if (std::none_of(cases.begin(), cases.end(), [&](const ValidationCase& x) { return baseCaseId(x) == id; })) {
-                if (s.kind != "threshold" || c.thresholdMembers == 0) {
+                if (s.kind != "threshold" || thresholdMemberCount(c) == 0) {
                     cases.push_back({id, s.kind, s.etaOut, rate, 0.0});
                     continue;
                 }
@@ -249,6 +254,8 @@ std::vector<ValidationCase> initialValidationCases(const ValidationConfig& c) {
                 cases.push_back({tubeCaseId(pg), "tube", c.tubeEtaOut, 0.0, pg});
     return cases;
 }
+
+int thresholdMemberCount(const ValidationConfig& c) { return c.thresholdProtocol == "in-plane" ? 0 : c.thresholdMembers; }
 
 std::string memberCaseId(const std::string& caseId, int member) { return fmt::format("{}_m{}", caseId, member); }
 

@@ -38,11 +38,16 @@ struct ValidationConfig {
     double tiltDeg = 0.0;                   ///< shear start turned about the flow axis (`flow shear --tilt-deg`)
     std::vector<ShearSweep> sweeps;         ///< the defaults of docs/VALIDATE.md unless the file gives any [[shear.*]]
     int thresholdRefinements = 2;           ///< bisections of each tumbling/tank-treading bracket
-    /// The threshold's start protocol: 0 runs each rate once from the configured start (in-plane or
-    /// tilted); N > 0 runs N members from random starts (`flow shear --start random --seed k`, the
-    /// ensemble protocol of docs/FLOW_THERMAL.md), a rate counting as tank-treading when more than
-    /// half of its members tank-tread (ensembleRegimePoints).
-    int thresholdMembers = 0;
+    /// The threshold's protocol (docs/FLOW_THERMAL.md). "in-plane" runs each rate once from the
+    /// configured start (in-plane or tilted); "ensemble" runs thresholdMembers members from random
+    /// starts (`flow shear --start random --seed k`); "fluctuating" runs thresholdMembers thermally
+    /// fluctuating cells from the configured start (`--temperature temperatureK --seed k`). With
+    /// members, a rate tank-treads when more than half of its finished members do
+    /// (ensembleRegimePoints). The fluctuating cell is the default: it is the one whose threshold
+    /// matches the reference implementation's, whose cell fluctuates too.
+    std::string thresholdProtocol = "fluctuating";
+    int thresholdMembers = 3;
+    double temperatureK = 293.15;
     bool stopWhenSteady = false;  ///< shear cases stop when steady (`flow shear --stop-when-steady`)
     bool tubeEnabled = true;
     double tubeRadius = 3.3, tubeEtaOut = 1.003, tubeDuration = 30.0;  ///< um, mPa s, R/V (main run)
@@ -54,6 +59,9 @@ struct ValidationConfig {
     int tubeLevel = 0;                      ///< 0: the run level
     std::vector<double> pressureGradients;  ///< mmHg/mm
 };
+
+/// Members per threshold rate: 0 for the in-plane protocol (one run of the configured start).
+int thresholdMemberCount(const ValidationConfig& c);
 
 /// Reads and checks a validation config; every error names file:line:key and the valid range.
 /// `experiments` resolves the "@experiments/" alias (the shipped data/experiments by default).

@@ -70,6 +70,7 @@ void configureRunner(ValidationRunner& R, const ValidationRunOptions& o) {
     if (!o.posterior.empty()) R.cfg.cellSource = "posterior", R.cfg.posterior = fs::absolute(o.posterior).lexically_normal();
     if (o.jobs > 0) R.cfg.jobs = o.jobs;
     if (o.level > 0) R.cfg.level = o.level;
+    if (!o.thresholdProtocol.empty()) R.cfg.thresholdProtocol = o.thresholdProtocol;
     if (o.threads > 0) R.cfg.threads = o.threads;
     if (o.draws > 0 && R.cfg.cellSource != "posterior")
         throw InputError(fmt::format("--draws {}: draws are taken from a theta_new posterior; give --posterior DIR (or [cell] "

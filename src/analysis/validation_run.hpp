@@ -14,6 +14,7 @@ struct ValidationRunOptions {
     std::filesystem::path config, out, posterior, surrogate;
     std::vector<std::string> only, imports;
     std::string shard;
+    std::string thresholdProtocol;                     ///< empty: the configuration's
     int jobs = 0, threads = 0, level = 0, draws = 0;  ///< 0: the configuration's
     std::uint64_t seed = 1;                            ///< of the choice of the draws
     bool quiet = false, dryRun = false, retryFailed = false;

@@ -88,10 +88,13 @@ std::string ValidationRunner::caseArgs(const ValidationCase& c) const {
                            cfg.tubeSettleEtam > 0.0 ? fmt::format("--settle-etam {}", cfg.tubeSettleEtam)
                                                     : fmt::format("--settle-relax {}", cfg.tubeSettleRelax),
                            cfg.tubeSettleTol, cfg.tubeStepTol > 0.0 ? cfg.tubeStepTol : kTubeStepTolerance, cellArgs(c));
-    // An ensemble member starts at random (seed = member), not from the configured tilt.
-    const std::string start = c.member > 0         ? fmt::format(" --start random --seed {}", c.member)
-                              : cfg.tiltDeg > 0.0 ? fmt::format(" --tilt-deg {}", cfg.tiltDeg)
-                                                  : std::string();
+    // An ensemble member starts at random (seed = member), not from the configured tilt; a
+    // fluctuating member starts from it, its noise seeded by the member.
+    const bool ensemble = c.member > 0 && cfg.thresholdProtocol == "ensemble";
+    const std::string tilt = cfg.tiltDeg > 0.0 ? fmt::format(" --tilt-deg {}", cfg.tiltDeg) : std::string();
+    const std::string start = ensemble       ? fmt::format(" --start random --seed {}", c.member)
+                              : c.member > 0 ? fmt::format("{} --temperature {} --seed {}", tilt, cfg.temperatureK, c.member)
+                                             : tilt;
     return fmt::format("flow shear --eta-out {} --shear-rate {} --eta-in {} --level {} --rotations {} "
                        "--step-tol {}{}{} {}",
                        c.etaOut, c.rate, cfg.etaIn, cfg.level, cfg.rotations, cfg.stepTol, start,
@@ -258,7 +261,7 @@ std::vector<RegimePoint> ValidationRunner::thresholdPoints(double eta, long samp
             const FlowRecordView r = readFlowRecord(resultOf(c.id), caseFile(c).string());
             p.push_back({c.rate, r.ok() ? r.regime : ""});
         }
-    return cfg.thresholdMembers > 0 ? ensembleRegimePoints(p) : p;
+    return thresholdMemberCount(cfg) > 0 ? ensembleRegimePoints(p) : p;
 }
 
 void ValidationRunner::refineThresholds() {
@@ -270,7 +273,8 @@ void ValidationRunner::refineThresholds() {
             for (const long sample : samples)
                 if (const auto rate = refinementRate(thresholdPoints(eta, sample))) {
                     const std::string mean = uniqueShearCaseId("threshold", eta, *rate, cases);
-                    for (int k = cfg.thresholdMembers > 0 ? 1 : 0; k <= cfg.thresholdMembers; ++k) {
+                    const int members = thresholdMemberCount(cfg);
+                    for (int k = members > 0 ? 1 : 0; k <= members; ++k) {
                         const std::string member = k > 0 ? memberCaseId(mean, k) : mean;
                         const std::string id = sample < 0 ? member : drawCaseId(member, sample);
                         if (!results.count(id)) more.push_back({id, "threshold", eta, *rate, 0.0, sample, k});

@@ -118,13 +118,19 @@ std::string thresholdTable(const ValidationRunner& R, const ValidationEvidence& 
     return thr;
 }
 
-std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t, int thresholdMembers) {
-    const std::string protocol =
-        thresholdMembers > 0
-            ? fmt::format(" Threshold protocol: {} members per rate from random starts (`flow shear --start random --seed k`, "
-                          "k = 1..{}); a rate tank-treads when more than half of its members do.",
-                          thresholdMembers, thresholdMembers)
-            : std::string(" Threshold protocol: one run per rate from the configured start.");
+std::string thresholdProtocolText(const ValidationConfig& c) {
+    const int n = thresholdMemberCount(c);
+    if (n == 0) return "one run per rate from the configured start";
+    const std::string members =
+        c.thresholdProtocol == "ensemble"
+            ? fmt::format("{} members per rate from random starts (`flow shear --start random --seed k`, k = 1..{})", n, n)
+            : fmt::format("{} thermally fluctuating members per rate at {:g} K (`flow shear --temperature {:g} --seed k`, k = 1..{})", n,
+                          c.temperatureK, c.temperatureK, n);
+    return members + "; a rate tank-treads when more than half of its members do";
+}
+
+std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t, const ValidationConfig& c) {
+    const std::string protocol = " Threshold protocol: " + thresholdProtocolText(c) + ".";
     return fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
                        "scatter, {} outside, {} without data nearby, {} neither (threshold not bracketed or not monotone, "
                        "tank-treading without a TTF). A tumbling or intermittent cell where the donors tank-tread counts as "
@@ -335,7 +341,7 @@ json writeValidationTables(const ValidationRunner& R, json& bandRows) {
     writeFileAtomically(R.out / "comparison.csv", table.csv());
     json summary = {{"cases", cases}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
                     {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
-    std::string md = validationMarkdown(cases, failed, table, R.cfg.thresholdMembers);
+    std::string md = validationMarkdown(cases, failed, table, R.cfg);
     if (!R.draws.empty()) {
         const BandTable bands = drawTables(R, evidence, table);
         md += bands.markdown(R);
@@ -360,6 +366,10 @@ json validationRecord(const ValidationRunner& R, const ValidationSelection& o, c
             {"cell", cellJson(R)},
             {"level", R.cfg.level},
             {"tube_level", R.cfg.tubeLevel > 0 ? R.cfg.tubeLevel : R.cfg.level},
+            {"threshold_protocol", {{"protocol", R.cfg.thresholdProtocol},
+                                    {"members_per_rate", thresholdMemberCount(R.cfg)},
+                                    {"temperature_K", R.cfg.thresholdProtocol == "fluctuating" ? json(R.cfg.temperatureK) : json()},
+                                    {"text", thresholdProtocolText(R.cfg)}}},
             {"config", R.cfg.file.string()},
             {"config_text", readFileBytes(R.cfg.file)},
             {"data_dir", R.cfg.dataDir.string()},

@@ -9,7 +9,7 @@ namespace trbc::cli {
 namespace {
 
 struct ValidateCommandOptions {
-    std::string config, out, posterior, shard, surrogate;
+    std::string config, out, posterior, shard, surrogate, thresholdProtocol;
     std::vector<std::string> only, imports;
     int jobs = 0, threads = 0, level = 0, draws = 0;
     std::uint64_t seed = 1;
@@ -39,6 +39,11 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
                                       "the tables cover what has been run")
         ->delimiter(',')
         ->check(CLI::IsMember({"angle", "ttf", "threshold", "tube"}));
+    cmd->add_option("--threshold-protocol", o.thresholdProtocol,
+                    "protocol of the threshold cases, overriding [shear] threshold_protocol: in-plane (one run per rate from "
+                    "the configured start), ensemble (threshold_members random starts) or fluctuating (threshold_members "
+                    "cells at temperature_K, the default; docs/FLOW_THERMAL.md)")
+        ->check(CLI::IsMember({"in-plane", "ensemble", "fluctuating"}));
     cmd->add_option("--shard", o.shard,
                     "run only part K of N of the (selected) initial cases, e.g. 2/4 on the second of four machines, each with "
                     "its own OUT: dealt round-robin, one part per angle, TTF or tube case and per threshold viscosity (its "
@@ -62,7 +67,7 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
 void runValidate(const ValidateCommandOptions& o) {
     ValidationRunOptions r;
     r.config = o.config, r.out = o.out, r.posterior = o.posterior, r.surrogate = o.surrogate;
-    r.only = o.only, r.imports = o.imports, r.shard = o.shard;
+    r.only = o.only, r.imports = o.imports, r.shard = o.shard, r.thresholdProtocol = o.thresholdProtocol;
     r.jobs = o.jobs, r.threads = o.threads, r.level = o.level, r.draws = o.draws, r.seed = o.seed;
     r.quiet = o.quiet, r.dryRun = o.dryRun, r.retryFailed = o.retryFailed;
     r.exe = std::filesystem::read_symlink("/proc/self/exe");

@@ -64,7 +64,8 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
         (x.kind == "angle" ? angle : x.kind == "ttf" ? ttf : x.kind == "threshold" ? thr : tube)++;
     EXPECT_EQ(angle, 56);  // 14 rates at 10.7, 23.9, 55.9 and 104 mPa s
     EXPECT_EQ(ttf, 6);
-    EXPECT_EQ(thr, 4 * 6 + 4 * 5);  // the eight scripted sweeps
+    EXPECT_EQ(thr, 3 * (4 * 6 + 4 * 5));  // the eight scripted sweeps, three fluctuating members per rate
+    EXPECT_EQ(c.thresholdProtocol, "fluctuating");
     EXPECT_EQ(tube, 15);            // 5, 10, ..., 75 mmHg/mm
     TempDir dir;
     const fs::path dup = writeText(dir.path() / "dup.toml", "[tube]\npressure_gradients = [10, 10, 20]\n");
@@ -284,7 +285,7 @@ TEST(ValidationShard, DealsUnitsRoundRobinAndKeepsAThresholdViscosityTogether) {
 /// Two angle cases and a two-rate threshold sweep with one refinement, level 1, one rotation.
 fs::path writeTinyValidationConfig(const TempDir& dir) {
     return writeText(dir.path() / "tiny.toml",
-                     "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
+                     "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\nthreshold_protocol = \"in-plane\"\n"
                      "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 60\ncount = 2\n"
                      "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
                      "[tube]\nenabled = false\n");
@@ -311,12 +312,14 @@ TEST(ThresholdEnsemble, MajorityOfTheMembersFinishedDecidesTheRegimeOfARate) {
 TEST(ThresholdEnsemble, EveryThresholdRateRunsItsMembersFromRandomStarts) {
     TempDir dir;
     const fs::path cfg = writeText(dir.path() / "e.toml",
-                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\nthreshold_members = 2\n"
+                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\nthreshold_refinements = 1\n"
+                                   "threshold_protocol = \"ensemble\"\nthreshold_members = 2\n"
                                    "[[shear.angle]]\neta_out = 23.9\nrate_min = 20\nrate_max = 20\ncount = 1\n"
                                    "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
                                    "[tube]\nenabled = false\n");
     const ValidationConfig c = readValidationConfig(cfg, kExperiments);
     EXPECT_EQ(c.thresholdMembers, 2);
+    EXPECT_EQ(thresholdMemberCount(c), 2);
     const std::vector<ValidationCase> cases = initialValidationCases(c);
     ASSERT_EQ(cases.size(), 5u);  // one angle case, two rates x two members
     EXPECT_EQ(cases[0].member, 0);
@@ -329,21 +332,63 @@ TEST(ThresholdEnsemble, EveryThresholdRateRunsItsMembersFromRandomStarts) {
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("threshold_eta23.9_rate12_m2: trbc flow shear --eta-out 23.9 --shear-rate 12 "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("--start random --seed 2"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--temperature"), std::string::npos) << r.out;
     r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     const nlohmann::json rec = nlohmann::json::parse(test::slurp(fs::path(out) / "cases" / "threshold_eta23.9_rate12_m1.json"));
     EXPECT_EQ(rec["member"].get<int>(), 1);
     EXPECT_NE(test::slurp(fs::path(out) / "validation.md").find("2 members per rate from random starts"), std::string::npos);
     EXPECT_TRUE(fs::exists(fs::path(out) / "threshold.csv"));
-    const ValidationConfig bad = [&] {
+}
+
+// The default protocol is the fluctuating cell: three members per rate at 293.15 K from the
+// configured start, each seeded by its member; --threshold-protocol overrides the file, and the
+// in-plane protocol gives the cases (and case keys) of one run per rate.
+TEST(ThresholdEnsemble, TheDefaultProtocolIsTheFluctuatingCell) {
+    TempDir dir;
+    const std::string sweeps = "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n[tube]\nenabled = false\n";
+    const fs::path cfg = writeText(dir.path() / "f.toml", "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 1\n"
+                                                          "threshold_refinements = 0\ntilt_deg = 5\n" + sweeps);
+    const ValidationConfig c = readValidationConfig(cfg, kExperiments);
+    EXPECT_EQ(c.thresholdProtocol, "fluctuating");
+    EXPECT_EQ(thresholdMemberCount(c), 3);
+    EXPECT_DOUBLE_EQ(c.temperatureK, 293.15);
+    ASSERT_EQ(initialValidationCases(c).size(), 6u);
+    const std::string out = (dir.path() / "o").string();
+    test::CliRun r = test::runTrbc("validate --config " + cfg.string() + " --out " + out + " --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("threshold_eta23.9_rate12_m3: trbc flow shear --eta-out 23.9 --shear-rate 12 "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("--tilt-deg 5 --temperature 293.15 --seed 3"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--start random"), std::string::npos) << r.out;
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const nlohmann::json rec = nlohmann::json::parse(test::slurp(fs::path(out) / "cases" / "threshold_eta23.9_rate1_m2.json"));
+    EXPECT_EQ(rec["member"].get<int>(), 2);
+    EXPECT_GT(rec["result"]["diagnostics"]["thermal"]["kT_internal"].get<double>(), 0.0) << rec.dump(1);
+    const nlohmann::json v = nlohmann::json::parse(test::slurp(fs::path(out) / "validation.json"));
+    EXPECT_EQ(v["threshold_protocol"]["protocol"], "fluctuating");
+    EXPECT_EQ(v["threshold_protocol"]["members_per_rate"], 3);
+    EXPECT_NE(test::slurp(fs::path(out) / "validation.md").find("3 thermally fluctuating members per rate at 293.15 K"),
+              std::string::npos);
+    r = test::runTrbc("validate --config " + cfg.string() + " --out " + (dir.path() / "p").string() +
+                          " --threshold-protocol in-plane --dry-run", dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("threshold_eta23.9_rate12: trbc flow shear --eta-out 23.9 --shear-rate 12 "), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("_m1"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--temperature"), std::string::npos) << r.out;
+    // Bad input is named with its valid range.
+    for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
+             {"[shear]\nthreshold_members = 100\n", "'shear.threshold_members' = 100 is out of range: valid range [1, 64]"},
+             {"[shear]\nthreshold_members = 0\n", "threshold_protocol = \"in-plane\""},
+             {"[shear]\nthreshold_protocol = \"thermal\"\n", "is not one of: in-plane, ensemble, fluctuating"},
+             {"[shear]\ntemperature_K = -3\n", "'shear.temperature_K' = -3 is out of range: valid range (0, 1000]"}}) {
         try {
-            return readValidationConfig(writeText(dir.path() / "b.toml", "[shear]\nthreshold_members = 100\n"), kExperiments);
+            readValidationConfig(writeText(dir.path() / "b.toml", text), kExperiments);
+            ADD_FAILURE() << text << " was accepted";
         } catch (const InputError& e) {
-            EXPECT_NE(std::string(e.what()).find("threshold_members"), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
         }
-        return ValidationConfig{};
-    }();
-    EXPECT_EQ(bad.thresholdMembers, 0);
+    }
 }
 
 TEST(ValidateCli, TinySetRunsResumesAndTabulates) {

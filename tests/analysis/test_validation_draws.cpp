@@ -312,7 +312,7 @@ TEST(ValidateCli, TinySetWithTwoDrawsBandsAndResumes) {
     TempDir dir;
     const fs::path post = writeFakePosterior(dir.path() / "post", 6);
     const fs::path cfg = writeText(dir.path() / "tiny.toml",
-                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 4\nthreshold_refinements = 0\n"
+                                   "[run]\nlevel = 1\njobs = 2\n[shear]\nrotations = 4\nthreshold_refinements = 0\nthreshold_protocol = \"in-plane\"\n"
                                    "[[shear.angle]]\neta_out = 23.9\nrate_min = 40\nrate_max = 40\ncount = 1\n"
                                    "[[shear.threshold]]\neta_out = 23.9\nrate_min = 1\nrate_max = 12\ncount = 2\n"
                                    "[tube]\nenabled = false\n");
