@@ -132,6 +132,14 @@ Eigen::VectorXd phase1LogPrior(const RbcDataSet& d, const Eigen::MatrixXd& sampl
     return lp;
 }
 
+/// Removes the final statistics before phase 3 rewrites its samples: a run stopped inside phase 3
+/// must not leave statistics of the earlier samples beside the new ones (the calibrated cell reads
+/// posterior_stats.csv before samples.csv).
+void discardFinalStatistics(const Context& ctx) {
+    fs::remove(ctx.o.outputDirectory / "posterior_stats.csv");
+    fs::remove(ctx.o.outputDirectory / "posterior_table.md");
+}
+
 /// DIR/posterior_stats.csv and DIR/posterior_table.md of the final posteriors (after phase 3).
 void writeFinalStatistics(const Context& ctx, const std::vector<PosteriorStatsRow>& rows, const std::vector<RbcDataSet>& data,
                           const nlohmann::json& check) {
@@ -298,6 +306,7 @@ void runReweightingPhase3(Context& ctx, const std::vector<RbcDataSet>& data, con
                           RbcInferenceResult& res) {
     const PhaseStart begin3 = phaseStart(ctx);
     nlohmann::json check;
+    discardFinalStatistics(ctx);
     std::vector<PosteriorStatsRow> rows = runReweightingPhase3a(ctx, res, check);
     runReweightingPhase3b(ctx, data, sets, res, rows);
     writeFinalStatistics(ctx, rows, data, check);
@@ -465,6 +474,7 @@ void runJointPhase3b(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfer
 /// Phase 3 of the joint method, with the worst chain diagnostics over all its rows in run.json of theta_new.
 void runJointPhase3(Context& ctx, const std::vector<RbcDataSet>& data, RbcInferenceResult& res) {
     const PhaseStart begin3 = phaseStart(ctx);
+    discardFinalStatistics(ctx);
     const Eigen::MatrixXd psi = concatenate(res.joint.hyper);
     std::vector<PosteriorStatsRow> rows = runJointPhase3a(ctx, res, psi);
     runJointPhase3b(ctx, data, res, rows);

@@ -735,6 +735,26 @@ TEST(RbcInference, ResultsDoNotDependOnThreadsOrOnPhaseByPhaseRuns) {
         o.firstPhase = o.lastPhase = ph;
         runRbcInference(analyticModel(), data, o);
     }
+    // A run stopped inside phase 3, after its theta_new samples were written, leaves no statistics
+    // of the earlier samples; the next run writes them again (the paper's route, whose phase 3a
+    // reports when its samples are on disk).
+    {
+        RbcInferenceOptions o = smallRun(tmp.path() / "stopped", 300);
+        o.method = HierarchicalMethod::Reweighting;
+        runRbcInference(analyticModel(), data, o);
+        const std::string whole = test::slurp(tmp.path() / "stopped" / "posterior_stats.csv");
+        o.firstPhase = o.lastPhase = 3;
+        o.progress = [](const std::string& line) {
+            if (line.starts_with("infer phase3/theta_new: done")) throw std::runtime_error("stopped");
+        };
+        EXPECT_THROW(runRbcInference(analyticModel(), data, o), std::runtime_error);
+        EXPECT_TRUE(fs::exists(tmp.path() / "stopped" / "phase3" / "theta_new" / "samples.csv"));
+        EXPECT_FALSE(fs::exists(tmp.path() / "stopped" / "posterior_stats.csv"));
+        EXPECT_FALSE(fs::exists(tmp.path() / "stopped" / "posterior_table.md"));
+        o.progress = nullptr;
+        runRbcInference(analyticModel(), data, o);
+        EXPECT_EQ(test::slurp(tmp.path() / "stopped" / "posterior_stats.csv"), whole);
+    }
     // --resume on a finished directory reuses every run.
     RbcInferenceOptions again = smallRun(tmp.path() / "two", 300);
     again.resume = true;
