@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <toml++/toml.h>
@@ -60,6 +61,116 @@ std::string trim(const std::string& s) {
     return b == std::string::npos ? "" : s.substr(b, e - b + 1);
 }
 
+/// A path of the file, relative to the directory of the file that sets it (this one or a base).
+using PathResolver = std::function<fs::path(const toml::table&, const char*, const std::string&)>;
+
+/// [cell]: the source of the cell and, for "explicit", its five parameters inside the prior box.
+void readCellSection(const fs::path& file, const toml::table& tbl, const PathResolver& pathOf, ValidationConfig& c) {
+    const toml::table* t = &tbl;
+    TableReader r(file, *t, "cell");
+    r.allowOnly({"source", "posterior", "v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"});
+    r.string("source", c.cellSource, {"table1", "posterior", "explicit"});
+    std::string post;
+    r.string("posterior", post);
+    if (!post.empty()) c.posterior = pathOf(*t, "posterior", post);
+    // Prior box of docs/MEMBRANE_MODEL.md (docs/CAMPAIGN_AND_SURROGATE.md, input box); flow solvers accept no cell outside it.
+    const RbcPriorBox box;
+    for (const auto& [key, value] : {std::pair{"v", &c.v}, {"mu_uN_per_m", &c.mu}, {"kb_J", &c.kbJ}, {"b2", &c.b2},
+                                    {"etam_Pa_s_um", &c.etam}}) {
+        const auto [lo, hi] = box.bounds(key);
+        r.real(key, *value, lo, hi);
+    }
+    // Keys the chosen source does not read are refused, not ignored: table1 and posterior take all five
+    // parameters from elsewhere, explicit takes exactly the five given.
+    const char* kParameters[] = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
+    if (c.cellSource != "posterior" && t->get("posterior"))
+        r.fail(*t->get("posterior"), fmt::format("'cell.posterior' is not read with cell.source = \"{}\" (only with source = "
+                                                 "\"posterior\"): remove it or set source = \"posterior\"",
+                                                 c.cellSource));
+    if (c.cellSource != "explicit")
+        for (const char* key : kParameters)
+            if (const toml::node* n = t->get(key))
+                r.fail(*n, fmt::format("'cell.{}' is not read with cell.source = \"{}\" (the cell is {}): remove it, or set "
+                                       "source = \"explicit\" and give all of v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um",
+                                       key, c.cellSource,
+                                       c.cellSource == "table1" ? "Table 1's means" : "the posterior's means"));
+    if (c.cellSource == "explicit") {
+        std::vector<std::string> missing;
+        for (const char* key : kParameters)
+            if (!t->get(key)) missing.push_back(key);
+        if (!missing.empty())
+            r.fail(*t->get("source"), fmt::format("cell.source = \"explicit\" needs all of v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; "
+                                                  "missing: {}", fmt::join(missing, ", ")));
+    }
+    if (c.cellSource == "posterior" && c.posterior.empty())
+        r.fail(*t, "cell.source = \"posterior\" needs cell.posterior (DIR/phase3/theta_new of `trbc infer`)");
+    if (c.cellSource == "posterior" && !fs::exists(c.posterior))
+        r.fail(*t->get("posterior"), fmt::format("cell.posterior {} does not exist", c.posterior.string()));
+}
+
+/// [shear]: the fluid, the duration, the start and the threshold's protocol, and the sweeps.
+void readShearSection(const fs::path& file, const toml::table& tbl, ValidationConfig& c) {
+    const toml::table* t = &tbl;
+    TableReader r(file, *t, "shear");
+    r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_protocol", "threshold_members",
+                 "temperature_K", "stop_when_steady", "angle", "ttf", "threshold"});
+    r.real("eta_in", c.etaIn, 0.0, 1e6, true);
+    r.real("rotations", c.rotations, 0.0, 1000.0, true);
+    r.real("tilt_deg", c.tiltDeg, 0.0, 90.0);
+    r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
+    r.string("threshold_protocol", c.thresholdProtocol, {"in-plane", "ensemble", "fluctuating"});
+    if (const toml::node* n = t->get("threshold_members"); n && n->value<std::int64_t>() == 0)
+        r.fail(*n, "'shear.threshold_members' is 0: members run only with threshold_protocol = \"ensemble\" or "
+                   "\"fluctuating\", in [1, 64]; one run per rate from the configured start is threshold_protocol = \"in-plane\"");
+    r.integer("threshold_members", c.thresholdMembers, 1, 64);
+    r.real("temperature_K", c.temperatureK, 0.0, 1000.0, true);
+    r.boolean("stop_when_steady", c.stopWhenSteady);
+    // Sweeps given in the file replace all the default ones (the kinds not given are not run).
+    if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
+    for (const char* kind : {"angle", "ttf", "threshold"}) readSweeps(file, *t, kind, c.sweeps);
+}
+
+/// [tube]: the microtube, its settling stage and the pressure gradients.
+void readTubeSection(const fs::path& file, const toml::table& tbl, ValidationConfig& c) {
+    const toml::table* t = &tbl;
+    TableReader r(file, *t, "tube");
+    r.allowOnly({"enabled", "radius", "eta_out", "duration", "settle", "settle_relax", "settle_etam", "settle_tol", "step_tol", "level",
+                "pressure_gradients"});
+    r.boolean("enabled", c.tubeEnabled);
+    r.real("radius", c.tubeRadius, 1.497, 1e4);
+    r.real("eta_out", c.tubeEtaOut, 0.0, 1e6, true);
+    r.real("duration", c.tubeDuration, 0.0, 1e7, true);
+    r.real("settle", c.tubeSettle, 0.0, 1e7);
+    r.real("settle_relax", c.tubeSettleRelax, 0.0, 1e3, true);
+    r.real("settle_etam", c.tubeSettleEtam, 0.0, 1e3, true);
+    if (t->get("settle_relax") && t->get("settle_etam"))
+        r.fail(*t->get("settle_etam"), "'tube.settle_etam' and 'tube.settle_relax' both given: the settling stage's "
+                                       "membrane viscosity is set by one of them, give one");
+    r.real("settle_tol", c.tubeSettleTol, 0.0, 1.0, true);
+    r.real("step_tol", c.tubeStepTol, 0.0, 1.0, true);
+    if (c.tubeSettle > 0.0 && c.tubeSettle < 10.0)
+        throw InputError(fmt::format("{}: [tube] settle = {}: must be 0 (no settling stage) or >= 10 R/V (the span "
+                                     "of the settling criterion)",
+                                     file.string(), c.tubeSettle));
+    r.integer("level", c.tubeLevel, 0, 4);
+    if (const toml::node* n = t->get("pressure_gradients")) {
+        const toml::array* a = n->as_array();
+        std::vector<double> pg;
+        if (a)
+            for (const toml::node& x : *a) {
+                const auto v = x.value<double>();
+                if (!v || !(*v > 0.0) || !std::isfinite(*v)) {
+                    pg.clear();
+                    break;
+                }
+                pg.push_back(*v);
+            }
+        if (pg.empty() || (a && pg.size() != a->size()))
+            r.fail(*n, "'tube.pressure_gradients' must be a non-empty array of numbers > 0 (mmHg/mm)");
+        c.pressureGradients = pg;
+    }
+}
+
 }  // namespace
 
 ValidationConfig readValidationConfig(const fs::path& file, const fs::path& experiments) {
@@ -78,8 +189,7 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
         if (!n->is_table()) top.fail(*n, fmt::format("'{}' must be a table [{}]", name, name));
         return n->as_table();
     };
-    // A path is relative to the directory of the file that sets it (this one or a base).
-    auto pathOf = [&](const toml::table& t, const char* key, const std::string& value) {
+    const PathResolver pathOf = [&](const toml::table& t, const char* key, const std::string& value) {
         return resolveConfigPath(value, TableReader::sourceFile(*t.get(key), file).parent_path(), experiments);
     };
     if (const toml::table* t = section("run")) {
@@ -101,104 +211,9 @@ ValidationConfig readValidationConfig(const fs::path& file, const fs::path& expe
     if (!fs::is_directory(c.dataDir / "shear_flow") || !fs::is_directory(c.dataDir / "microtube"))
         throw InputError(fmt::format("{}: validation data directory {} lacks shear_flow/ or microtube/ (data.dir)", file.string(),
                                      c.dataDir.string()));
-    if (const toml::table* t = section("cell")) {
-        TableReader r(file, *t, "cell");
-        r.allowOnly({"source", "posterior", "v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"});
-        r.string("source", c.cellSource, {"table1", "posterior", "explicit"});
-        std::string post;
-        r.string("posterior", post);
-        if (!post.empty()) c.posterior = pathOf(*t, "posterior", post);
-        // Prior box of docs/MEMBRANE_MODEL.md (docs/CAMPAIGN_AND_SURROGATE.md, input box); flow solvers accept no cell outside it.
-        const RbcPriorBox box;
-        for (const auto& [key, value] : {std::pair{"v", &c.v}, {"mu_uN_per_m", &c.mu}, {"kb_J", &c.kbJ}, {"b2", &c.b2},
-                                        {"etam_Pa_s_um", &c.etam}}) {
-            const auto [lo, hi] = box.bounds(key);
-            r.real(key, *value, lo, hi);
-        }
-        // Keys the chosen source does not read are refused, not ignored: table1 and posterior take all five
-        // parameters from elsewhere, explicit takes exactly the five given.
-        const char* kParameters[] = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um"};
-        if (c.cellSource != "posterior" && t->get("posterior"))
-            r.fail(*t->get("posterior"), fmt::format("'cell.posterior' is not read with cell.source = \"{}\" (only with source = "
-                                                     "\"posterior\"): remove it or set source = \"posterior\"",
-                                                     c.cellSource));
-        if (c.cellSource != "explicit")
-            for (const char* key : kParameters)
-                if (const toml::node* n = t->get(key))
-                    r.fail(*n, fmt::format("'cell.{}' is not read with cell.source = \"{}\" (the cell is {}): remove it, or set "
-                                           "source = \"explicit\" and give all of v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um",
-                                           key, c.cellSource,
-                                           c.cellSource == "table1" ? "Table 1's means" : "the posterior's means"));
-        if (c.cellSource == "explicit") {
-            std::vector<std::string> missing;
-            for (const char* key : kParameters)
-                if (!t->get(key)) missing.push_back(key);
-            if (!missing.empty())
-                r.fail(*t->get("source"), fmt::format("cell.source = \"explicit\" needs all of v, mu_uN_per_m, kb_J, b2, etam_Pa_s_um; "
-                                                      "missing: {}", fmt::join(missing, ", ")));
-        }
-        if (c.cellSource == "posterior" && c.posterior.empty())
-            r.fail(*t, "cell.source = \"posterior\" needs cell.posterior (DIR/phase3/theta_new of `trbc infer`)");
-        if (c.cellSource == "posterior" && !fs::exists(c.posterior))
-            r.fail(*t->get("posterior"), fmt::format("cell.posterior {} does not exist", c.posterior.string()));
-    }
-    if (const toml::table* t = section("shear")) {
-        TableReader r(file, *t, "shear");
-        r.allowOnly({"eta_in", "rotations", "tilt_deg", "threshold_refinements", "threshold_protocol", "threshold_members",
-                     "temperature_K", "stop_when_steady", "angle", "ttf", "threshold"});
-        r.real("eta_in", c.etaIn, 0.0, 1e6, true);
-        r.real("rotations", c.rotations, 0.0, 1000.0, true);
-        r.real("tilt_deg", c.tiltDeg, 0.0, 90.0);
-        r.integer("threshold_refinements", c.thresholdRefinements, 0, 20);
-        r.string("threshold_protocol", c.thresholdProtocol, {"in-plane", "ensemble", "fluctuating"});
-        if (const toml::node* n = t->get("threshold_members"); n && n->value<std::int64_t>() == 0)
-            r.fail(*n, "'shear.threshold_members' is 0: members run only with threshold_protocol = \"ensemble\" or "
-                       "\"fluctuating\", in [1, 64]; one run per rate from the configured start is threshold_protocol = \"in-plane\"");
-        r.integer("threshold_members", c.thresholdMembers, 1, 64);
-        r.real("temperature_K", c.temperatureK, 0.0, 1000.0, true);
-        r.boolean("stop_when_steady", c.stopWhenSteady);
-        // Sweeps given in the file replace all the default ones (the kinds not given are not run).
-        if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
-        for (const char* kind : {"angle", "ttf", "threshold"}) readSweeps(file, *t, kind, c.sweeps);
-    }
-    if (const toml::table* t = section("tube")) {
-        TableReader r(file, *t, "tube");
-        r.allowOnly({"enabled", "radius", "eta_out", "duration", "settle", "settle_relax", "settle_etam", "settle_tol", "step_tol", "level",
-                    "pressure_gradients"});
-        r.boolean("enabled", c.tubeEnabled);
-        r.real("radius", c.tubeRadius, 1.497, 1e4);
-        r.real("eta_out", c.tubeEtaOut, 0.0, 1e6, true);
-        r.real("duration", c.tubeDuration, 0.0, 1e7, true);
-        r.real("settle", c.tubeSettle, 0.0, 1e7);
-        r.real("settle_relax", c.tubeSettleRelax, 0.0, 1e3, true);
-        r.real("settle_etam", c.tubeSettleEtam, 0.0, 1e3, true);
-        if (t->get("settle_relax") && t->get("settle_etam"))
-            r.fail(*t->get("settle_etam"), "'tube.settle_etam' and 'tube.settle_relax' both given: the settling stage's "
-                                           "membrane viscosity is set by one of them, give one");
-        r.real("settle_tol", c.tubeSettleTol, 0.0, 1.0, true);
-        r.real("step_tol", c.tubeStepTol, 0.0, 1.0, true);
-        if (c.tubeSettle > 0.0 && c.tubeSettle < 10.0)
-            throw InputError(fmt::format("{}: [tube] settle = {}: must be 0 (no settling stage) or >= 10 R/V (the span "
-                                         "of the settling criterion)",
-                                         file.string(), c.tubeSettle));
-        r.integer("level", c.tubeLevel, 0, 4);
-        if (const toml::node* n = t->get("pressure_gradients")) {
-            const toml::array* a = n->as_array();
-            std::vector<double> pg;
-            if (a)
-                for (const toml::node& x : *a) {
-                    const auto v = x.value<double>();
-                    if (!v || !(*v > 0.0) || !std::isfinite(*v)) {
-                        pg.clear();
-                        break;
-                    }
-                    pg.push_back(*v);
-                }
-            if (pg.empty() || (a && pg.size() != a->size()))
-                r.fail(*n, "'tube.pressure_gradients' must be a non-empty array of numbers > 0 (mmHg/mm)");
-            c.pressureGradients = pg;
-        }
-    }
+    if (const toml::table* t = section("cell")) readCellSection(file, *t, pathOf, c);
+    if (const toml::table* t = section("shear")) readShearSection(file, *t, c);
+    if (const toml::table* t = section("tube")) readTubeSection(file, *t, c);
     return c;
 }
 
