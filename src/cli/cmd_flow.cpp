@@ -309,38 +309,9 @@ void runRamp(RampCli& o) {
     r.base.shearRate = o.rates.empty() ? 1.0 : o.rates.front();
     applySteppingOptions(o.s.step);
     const ShearRampResult res = runShearRamp(r);
-    nlohmann::json stages = nlohmann::json::array();
-    for (const ShearRampStage& st : res.stages) {
-        nlohmann::json e{{"shear_rate_per_s", st.shearRate},
-                         {"shear_stress_Pa", shearStressPa(o.s.c.etaOut, st.shearRate)},
-                         {"direction", st.up ? "up" : "down"},
-                         {"status", st.completed ? "ok" : "failed"},
-                         {"turns", st.turns},
-                         {"stopped_when_steady", st.stoppedWhenSteady},
-                         {"wall_s", st.wallSeconds}};
-        if (o.s.c.temperatureK > 0.0) e["thermal_step_times_rate"] = st.thermalStep;
-        if (!st.completed) e["reason"] = st.message;
-        if (st.observables) addShearObservables(e, *st.observables);
-        e.erase("analysis");
-        stages.push_back(e);
-    }
-    const auto bracket = [&](const std::optional<std::pair<double, double>>& b) {
-        return b ? nlohmann::json{b->first, b->second} : nlohmann::json(nullptr);
-    };
-    nlohmann::json j;
-    j["parameters"] = {{"eta_out_mPa_s", o.s.c.etaOut},   {"eta_in_mPa_s", o.s.c.etaIn},       {"rates_per_s", o.rates},
-                       {"cell", flowCellJson(o.s.c.cell)},      {"cell_source", cellSource(o.s.cell)}, {"level", o.s.c.level},
-                       {"rotations_per_stage", o.s.c.rotations}, {"tilt_deg", o.s.c.tiltDeg},     {"start", o.s.start},
-                       {"temperature_K", o.s.c.temperatureK}, {"seed", o.s.c.seed}, {"stop_when_steady", o.s.c.stopWhenSteady},
-                       {"thermal_step_times_rate", o.s.c.temperatureK > 0.0 ? nlohmann::json(o.s.c.thermalStep) : nlohmann::json(nullptr)}};
-    j["provenance"] = provenanceJson(o.s.c.level, "the shear rate stepped up and down, each stage from the last stage's "
-                                                  "shape (flow/shear_case.hpp, runShearRamp)");
-    j["stages"] = stages;
-    j["summary"] = {{"completed", res.completed},
-                    {"up_onset_bracket_per_s", bracket(res.upBracket)},
-                    {"down_end_bracket_per_s", bracket(res.downBracket)},
-                    {"hysteresis", res.upBracket && res.downBracket && *res.upBracket != *res.downBracket},
-                    {"wall_s", res.wallSeconds}};
+    const nlohmann::json j = rampRecord(res, r, cellSource(o.s.cell),
+                                        provenanceJson(o.s.c.level, "the shear rate stepped up and down, each stage from the last "
+                                                                    "stage's shape (flow/shear_case.hpp, runShearRamp)"));
     if (!o.s.step.out.empty()) writeFileAtomically(o.s.step.out + "/ramp.json", j.dump(2) + "\n");
     removeCheckpoints(o.s.step);
     std::cout << j.dump(2) << std::endl;

@@ -51,18 +51,11 @@ void runFlowTrain(FlowTrainCli& o) {
     s.training.model.save(o.out);
     if (o.folds >= 2) s.crossValidation = crossValidateFlowSurrogate(rows, o.t, o.folds);
     if (!sizes.empty()) {
-        const int level = s.training.model.level;
-        const long available = std::count_if(rows.begin(), rows.end(), [&](const ShearCampaignRow& r) { return r.meshLevel == level; });
         s.learningCurveFolds = std::max(o.folds, 5);
-        s.learningCurve.emplace();
-        for (long n : sizes) {
-            if (n > available) {
-                std::cerr << fmt::format("flow train: learning curve: {} cases asked, {} in the campaign; skipped\n", n, available);
-                continue;
-            }
-            const FlowCrossValidation cv = crossValidateFlowSurrogate(flowLearningCurveRows(rows, level, n), o.t, s.learningCurveFolds);
-            s.learningCurve->push_back({n, cv.pooled});
-        }
+        const FlowLearningCurve curve = flowLearningCurve(rows, s.training.model.level, sizes, o.t, s.learningCurveFolds);
+        for (long n : curve.skipped)
+            std::cerr << fmt::format("flow train: learning curve: {} cases asked, {} in the campaign; skipped\n", n, curve.available);
+        s.learningCurve = curve.points;
     }
     std::cout << writeFlowTrainingReport(o.out, s);
 }

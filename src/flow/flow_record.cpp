@@ -378,6 +378,52 @@ nlohmann::json shearRecord(const ShearCaseResult& res, const ShearCaseOptions& c
     return j;
 }
 
+nlohmann::json rampRecord(const ShearRampResult& res, const ShearRampOptions& r, const std::string& cellSource,
+                          nlohmann::json provenance) {
+    const ShearCaseOptions& c = r.base;
+    const bool thermal = c.temperatureK > 0.0;
+    nlohmann::json stages = nlohmann::json::array();
+    for (const ShearRampStage& st : res.stages) {
+        nlohmann::json e{{"shear_rate_per_s", st.shearRate},
+                         {"shear_stress_Pa", shearStressPa(c.etaOut, st.shearRate)},
+                         {"direction", st.up ? "up" : "down"},
+                         {"status", st.completed ? "ok" : "failed"},
+                         {"turns", st.turns},
+                         {"stopped_when_steady", st.stoppedWhenSteady},
+                         {"wall_s", st.wallSeconds}};
+        if (thermal) e["thermal_step_times_rate"] = st.thermalStep;
+        if (!st.completed) e["reason"] = st.message;
+        if (st.observables) addShearObservables(e, *st.observables);
+        e.erase("analysis");
+        stages.push_back(e);
+    }
+    const auto bracket = [](const std::optional<std::pair<double, double>>& b) {
+        return b ? nlohmann::json{b->first, b->second} : nlohmann::json(nullptr);
+    };
+    nlohmann::json j;
+    j["parameters"] = {{"eta_out_mPa_s", c.etaOut},
+                       {"eta_in_mPa_s", c.etaIn},
+                       {"rates_per_s", r.rates},
+                       {"cell", flowCellJson(c.cell)},
+                       {"cell_source", cellSource},
+                       {"level", c.level},
+                       {"rotations_per_stage", c.rotations},
+                       {"tilt_deg", c.tiltDeg},
+                       {"start", c.randomStart ? "random" : "in-plane"},
+                       {"temperature_K", c.temperatureK},
+                       {"seed", c.seed},
+                       {"stop_when_steady", c.stopWhenSteady},
+                       {"thermal_step_times_rate", thermal ? nlohmann::json(c.thermalStep) : nlohmann::json(nullptr)}};
+    j["provenance"] = std::move(provenance);
+    j["stages"] = std::move(stages);
+    j["summary"] = {{"completed", res.completed},
+                    {"up_onset_bracket_per_s", bracket(res.upBracket)},
+                    {"down_end_bracket_per_s", bracket(res.downBracket)},
+                    {"hysteresis", res.upBracket && res.downBracket && *res.upBracket != *res.downBracket},
+                    {"wall_s", res.wallSeconds}};
+    return j;
+}
+
 nlohmann::json tubeRecord(const TubeCaseResult& res, const TubeCaseOptions& c, const std::string& cellSource,
                           nlohmann::json provenance) {
     nlohmann::json j;
@@ -452,9 +498,9 @@ FlowRecordView readFlowRecord(const nlohmann::json& record, const std::string& s
         return v;
     }
     const RecordFields f{source};
-    // Any status other than "ok" (absent, or of another type) is a failed case.
+    // Any status other than "ok" (absent, or of another type) is a failed case, not a damaged record.
     if (const auto status = record.find("status"); status != record.end() && status->is_string()) v.status = status->get<std::string>();
-    if (const auto reason = record.find("reason"); reason != record.end() && reason->is_string()) v.reason = reason->get<std::string>();
+    v.reason = f.text(record, "", "reason");
     if (const auto o = record.find("observables"); v.ok() && (o == record.end() || !o->is_object()))
         throw InputError(fmt::format("{}: a finished case (status \"ok\") without its 'observables' object", source));
     const nlohmann::json& o = f.object(record, "", "observables");

@@ -1,8 +1,9 @@
 #pragma once
 // The records of the flow protocols (flow/shear_case.hpp, flow/tube_case.hpp), defined once for the
 // CLI (`trbc flow`), the validation (which reads them back) and the Python package: flow.json's
-// parameters, observables, analysis and diagnostics in physical units, the plateau rule of the
-// tube, and the writers of a case's files (frames.csv, steps.csv, the shapes as VTK).
+// parameters, observables, analysis and diagnostics in physical units, a ramp's ramp.json, the
+// plateau rule of the tube, and the writers of a case's files (frames.csv, steps.csv, the shapes as
+// VTK).
 //
 // flow.json: {"status": "ok" | "failed", "reason" (when failed), "parameters", "provenance",
 // "diagnostics", "observables", "analysis"}. Shear observables: regime ("tank-treading",
@@ -31,6 +32,12 @@ bool tubePlateauReached(const TubeObservables& ob);
 /// says where the cell came from, `provenance` is stored as given.
 nlohmann::json shearRecord(const ShearCaseResult& res, const ShearCaseOptions& c, const std::string& cellSource,
                            nlohmann::json provenance);
+/// ramp.json of a shear ramp run with options `r`: {"parameters", "provenance", "stages" (per stage:
+/// rate, stress, direction, status, turns, stopped_when_steady, wall_s, the thermal step taken when
+/// r.base.temperatureK > 0, the reason when failed, the observables when completed), "summary"
+/// (completed, the up and down brackets or null, hysteresis when both exist and differ, wall_s)}.
+nlohmann::json rampRecord(const ShearRampResult& res, const ShearRampOptions& r, const std::string& cellSource,
+                          nlohmann::json provenance);
 /// The same for a tube case.
 nlohmann::json tubeRecord(const TubeCaseResult& res, const TubeCaseOptions& c, const std::string& cellSource,
                           nlohmann::json provenance);
@@ -56,8 +63,8 @@ struct FlowRecordView {
     double observable(const std::string& key) const;
 };
 /// InputError naming `source` (the record's file) and the field for a damaged record: a field of
-/// another type than the schema's (an observable that is not a number, a section that is not an
-/// object), or status "ok" without observables.
+/// another type than the schema's (an observable that is not a number, a reason that is not a
+/// string, a section that is not an object), or status "ok" without observables.
 FlowRecordView readFlowRecord(const nlohmann::json& record, const std::string& source = "flow record");
 
 /// j["observables"] and j["analysis"] of a finished shear run (also a ramp's stage).

@@ -180,6 +180,18 @@ struct FlowLearningCurvePoint {
     FlowAccuracy pooled;
 };
 
+/// A learning curve over `rows`: for each size n of `sizes`, in their order, the pooled accuracy of
+/// `folds`-fold cross-validation on flowLearningCurveRows(rows, level, n), the cases of `level`
+/// sorted once for all sizes. A size above the level's case count is not a point but is listed in
+/// `skipped`; InputError for a negative size or from the cross-validation.
+struct FlowLearningCurve {
+    std::vector<FlowLearningCurvePoint> points;
+    std::vector<long> skipped;  ///< sizes above `available`, in their order
+    long available = 0;         ///< rows of `level`
+};
+FlowLearningCurve flowLearningCurve(const std::vector<ShearCampaignRow>& rows, int level, const std::vector<long>& sizes,
+                                    const FlowSurrogateTrainingOptions& opt, int folds);
+
 /// Everything training.json and accuracy.md report.
 struct FlowTrainingSummary {
     std::vector<FlowTrainingSource> sources;

@@ -59,15 +59,44 @@ void checkShearCampaignsMatch(const std::vector<fs::path>& campaigns) {
     }
 }
 
+namespace {
+
+/// The rows of one mesh level sorted by case id, and those of the other levels in their order.
+struct LearningCurveDesign {
+    std::vector<ShearCampaignRow> level, other;
+
+    LearningCurveDesign(const std::vector<ShearCampaignRow>& rows, int meshLevel) {
+        for (const ShearCampaignRow& r : rows) (r.meshLevel == meshLevel ? level : other).push_back(r);
+        std::sort(level.begin(), level.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
+    }
+    std::vector<ShearCampaignRow> rows(long n) const {
+        if (n < 0 || n > long(level.size()))
+            throw InputError(fmt::format("learning curve: {} cases asked, {} in the campaign", n, level.size()));
+        std::vector<ShearCampaignRow> out(level.begin(), level.begin() + n);
+        out.insert(out.end(), other.begin(), other.end());
+        return out;
+    }
+};
+
+}  // namespace
+
 std::vector<ShearCampaignRow> flowLearningCurveRows(const std::vector<ShearCampaignRow>& rows, int level, long n) {
-    std::vector<ShearCampaignRow> sorted, other;
-    for (const ShearCampaignRow& r : rows) (r.meshLevel == level ? sorted : other).push_back(r);
-    if (n < 0 || n > long(sorted.size()))
-        throw InputError(fmt::format("learning curve: {} cases asked, {} in the campaign", n, sorted.size()));
-    std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
-    sorted.resize(std::size_t(n));
-    sorted.insert(sorted.end(), std::make_move_iterator(other.begin()), std::make_move_iterator(other.end()));
-    return sorted;
+    return LearningCurveDesign(rows, level).rows(n);
+}
+
+FlowLearningCurve flowLearningCurve(const std::vector<ShearCampaignRow>& rows, int level, const std::vector<long>& sizes,
+                                    const FlowSurrogateTrainingOptions& opt, int folds) {
+    const LearningCurveDesign design(rows, level);
+    FlowLearningCurve curve;
+    curve.available = long(design.level.size());
+    for (long n : sizes) {
+        if (n > curve.available) {
+            curve.skipped.push_back(n);
+            continue;
+        }
+        curve.points.push_back({n, crossValidateFlowSurrogate(design.rows(n), opt, folds).pooled});
+    }
+    return curve;
 }
 
 nlohmann::json flowAccuracyJson(const FlowAccuracy& a) {

@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <limits>
 #include <filesystem>
 #include <fstream>
@@ -52,15 +51,6 @@ fs::path writeFakePosterior(const fs::path& dir, int rows) {
     return dir;
 }
 
-std::string errorOf(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
-}
-
 // The columns read from a theta_new table are those the inference writes.
 TEST(ValidationDraws, ThetaNewColumnsAreTheInferencesParameters) {
     const std::vector<std::string>& names = RbcPriorBox::parameterNames();
@@ -91,9 +81,9 @@ TEST(ValidationDraws, ChoiceIsSeededReproducibleAndNested) {
         EXPECT_DOUBLE_EQ(d.etam, t.values(d.sample, 4));
     }
     EXPECT_EQ(selectPosteriorDraws(t, 20, 3).size(), 20u);
-    std::string e = errorOf([&] { selectPosteriorDraws(t, 21, 7); });
+    std::string e = test::inputError([&] { selectPosteriorDraws(t, 21, 7); });
     EXPECT_NE(e.find("--draws 21: out of range: valid range [1, 20]"), std::string::npos) << e;
-    e = errorOf([&] { selectPosteriorDraws(t, 0, 7); });
+    e = test::inputError([&] { selectPosteriorDraws(t, 0, 7); });
     EXPECT_NE(e.find("--draws 0: out of range"), std::string::npos) << e;
 
     const std::vector<ValidationCase> cases = casesWithDraws({{"angle_eta23.9_rate20", "angle", 23.9, 20.0, 0.0}}, {a[0], a[1]});
@@ -251,7 +241,7 @@ TEST(ShearTilt, TurnsTheStartAboutTheFlowAxisAndChecksItsRange) {
     EXPECT_NO_THROW(validateShearCaseOptions(o));
     for (double bad : {-1.0, 90.5, std::numeric_limits<double>::quiet_NaN()}) {
         o.tiltDeg = bad;
-        const std::string e = errorOf([&] { validateShearCaseOptions(o); });
+        const std::string e = test::inputError([&] { validateShearCaseOptions(o); });
         EXPECT_NE(e.find("parameter tilt_deg"), std::string::npos) << e;
         EXPECT_NE(e.find("(valid: [0, 90] deg)"), std::string::npos) << e;
     }
@@ -298,7 +288,7 @@ TEST(ValidationConfig, ReferenceCellConfigOverridesTheCellOfItsBase) {
     EXPECT_DOUBLE_EQ(c.tiltDeg, 0.0);
     TempDir dir;
     const fs::path bad = writeText(dir.path() / "v.toml", "[shear]\ntilt_deg = 100\n");
-    const std::string e = errorOf([&] { readValidationConfig(bad, kExperiments); });
+    const std::string e = test::inputError([&] { readValidationConfig(bad, kExperiments); });
     EXPECT_NE(e.find("v.toml:2: 'shear.tilt_deg' = 100 is out of range: valid range [0, 90]"), std::string::npos) << e;
     const fs::path tilted = writeText(dir.path() / "t.toml", "base = \"" + (kRepo / "configs" / "validation.toml").string() +
                                                                  "\"\n[shear]\ntilt_deg = 5\n");

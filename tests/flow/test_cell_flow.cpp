@@ -199,14 +199,7 @@ TEST(CellFlow, ModelUnitsAndDimensionlessGroups) {
 TEST(CellFlow, BadFlowConditionsThrowInputErrorNamingTheParameter) {
     // (By reference: GCC 12.2 with -march=native on this machine miscompiled the by-value copy
     // of a constant-initialised FlowConditions into a lambda argument.)
-    auto message = [](const FlowConditions& f) {
-        try {
-            validateFlowConditions(f);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string();
-    };
+    auto message = [](const FlowConditions& f) { return test::inputError([&] { validateFlowConditions(f); }); };
     EXPECT_NE(message(shear(0.0, 10.0)).find("eta_out"), std::string::npos);
     EXPECT_NE(message(shear(-1.0, 10.0)).find("eta_out"), std::string::npos);
     FlowConditions f = shear(10.0, 10.0);

@@ -13,6 +13,7 @@
 #include "flow/shear_case.hpp"
 #include "flow/tube_case.hpp"
 #include "mesh/geometry.hpp"
+#include "test_support.hpp"
 
 namespace trbc {
 namespace {
@@ -38,17 +39,6 @@ TubeCaseOptions cheapTube() {
     o.duration = 8.0;
     o.step.frameInterval = 0.5;  // 17 frames: enough for the observables
     return o;
-}
-
-/// The InputError of f(), empty when none is thrown.
-template <class F>
-std::string inputError(F&& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return {};
 }
 
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
@@ -167,18 +157,18 @@ TEST(ShearCase, BadOptionsThrowInputErrorNamingTheOption) {
     for (const Case& c : cases) {
         ShearCaseOptions o = cheapShear(28.9, 50.0);
         c.change(o);
-        const std::string what = inputError([&] { runShearCase(o); });
+        const std::string what = test::inputError([&] { runShearCase(o); });
         EXPECT_TRUE(contains(what, c.name)) << c.name << ": " << what;
     }
     // A caller's names for the options (the CLI's).
     ShearCaseOptions o = cheapShear(28.9, 0.0);
     o.step.optionName = [](const std::string& name) { return name == "shear_rate_per_s" ? "--shear-rate" : name; };
-    EXPECT_TRUE(contains(inputError([&] { validateShearCaseOptions(o); }), "parameter --shear-rate = 0 1/s"));
+    EXPECT_TRUE(contains(test::inputError([&] { validateShearCaseOptions(o); }), "parameter --shear-rate = 0 1/s"));
     // Too few frames for the analysis: the options that give more.
     o = cheapShear(28.9, 50.0);
     o.rotations = 0.1;
     o.step.frameInterval = 0.5;
-    const std::string few = inputError([&] { runShearCase(o); });
+    const std::string few = test::inputError([&] { runShearCase(o); });
     EXPECT_TRUE(contains(few, "give more rotations (now 0.1) or a smaller frame_interval (now 0.5)")) << few;
 }
 
@@ -301,13 +291,13 @@ TEST(TubeCase, BadOptionsThrowInputErrorNamingTheOption) {
     for (const Case& c : cases) {
         TubeCaseOptions o = cheapTube();
         c.change(o);
-        const std::string what = inputError([&] { runTubeCase(o); });
+        const std::string what = test::inputError([&] { runTubeCase(o); });
         EXPECT_TRUE(contains(what, c.name)) << c.name << ": " << what;
     }
     TubeCaseOptions o = cheapTube();
     o.settle = 5.0;
     o.step.optionName = [](const std::string& name) { return name == "settle_R_over_V" ? "--settle" : name; };
-    EXPECT_TRUE(contains(inputError([&] { validateTubeCaseOptions(o); }), "parameter --settle = 5 R/V"));
+    EXPECT_TRUE(contains(test::inputError([&] { validateTubeCaseOptions(o); }), "parameter --settle = 5 R/V"));
 }
 
 // The ramp protocol: the first stage is the shear case at its rate, step for step; the later
@@ -365,11 +355,11 @@ TEST(ShearRamp, StagesContinueFromTheLastShapeAndBracketTheRegimeChange) {
 
     ShearRampOptions bad = r;
     bad.rates = {2.0};
-    EXPECT_TRUE(contains(inputError([&] { runShearRamp(bad); }), "rates"));
+    EXPECT_TRUE(contains(test::inputError([&] { runShearRamp(bad); }), "rates"));
     bad.rates = {2.0, 2.0};
-    EXPECT_TRUE(contains(inputError([&] { runShearRamp(bad); }), "increase"));
+    EXPECT_TRUE(contains(test::inputError([&] { runShearRamp(bad); }), "increase"));
     bad.rates = {2.0, -1.0};
-    EXPECT_TRUE(contains(inputError([&] { runShearRamp(bad); }), "shear_rate_per_s"));
+    EXPECT_TRUE(contains(test::inputError([&] { runShearRamp(bad); }), "shear_rate_per_s"));
 }
 
 }  // namespace

@@ -331,14 +331,7 @@ TEST(RbcInference, NarrowedPriorBoxReachesEveryPhaseOnePrior) {
 
 TEST(RbcInference, PriorOutsideTheTrainingBoxIsRejectedWithTheValidRange) {
     RbcPriorBox box;
-    auto message = [&](const std::string& name, double lo, double hi) {
-        try {
-            box.set(name, lo, hi);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string();
-    };
+    auto message = [&](const std::string& name, double lo, double hi) { return test::inputError([&] { box.set(name, lo, hi); }); };
     std::string e = message("v", 0.5, 1.0);
     EXPECT_NE(e.find("prior of v: [0.5, 1] is out of range"), std::string::npos) << e;
     EXPECT_NE(e.find("[0.65, 1]"), std::string::npos) << e;

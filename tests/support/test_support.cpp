@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "core/error.hpp"
 #include "mesh/icosphere.hpp"
 #include "mesh/topology.hpp"
 
@@ -80,6 +81,15 @@ fs::path writeText(const fs::path& p, const std::string& text) {
     if (p.has_parent_path()) fs::create_directories(p.parent_path());
     std::ofstream(p) << text;
     return p;
+}
+
+std::string inputError(const std::function<void()>& f) {
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return {};
 }
 
 std::string slurp(const fs::path& p) {

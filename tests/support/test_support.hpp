@@ -2,6 +2,7 @@
 // Shared helpers for the test suite.
 #include <Eigen/Core>
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <string>
 
@@ -44,6 +45,9 @@ public:
 private:
     std::filesystem::path path_;
 };
+
+/// The message of the InputError that f() throws; "" when it throws none. Other exceptions pass.
+std::string inputError(const std::function<void()>& f);
 
 std::string slurp(const std::filesystem::path& p);
 /// Writes `text` to `p` (parent folders created) and returns `p`.

@@ -4,6 +4,7 @@
 // read back bit for bit.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -262,13 +263,8 @@ TEST(FlowTrainingReport, CampaignsMustMatchButTheirLevelAndSize) {
     EXPECT_NO_THROW(checkShearCampaignsMatch({a, b}));
     EXPECT_NO_THROW(checkShearCampaignsMatch({a, b / "cases.csv"}));  // a campaign's cases.csv stands for it
     EXPECT_NO_THROW(checkShearCampaignsMatch({c}));                   // one campaign: nothing to compare
-    const auto refusal = [&](const std::vector<fs::path>& campaigns) {
-        try {
-            checkShearCampaignsMatch(campaigns);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string("accepted");
+    const auto refusal = [](const std::vector<fs::path>& campaigns) {
+        return test::inputError([&] { checkShearCampaignsMatch(campaigns); });
     };
     const std::string start = refusal({a, b, c});
     EXPECT_NE(start.find("--campaign " + c.string() + ": its setting 'start' (\"in-plane\") differs from the first campaign's (\"random\")"),
@@ -288,7 +284,8 @@ TEST(FlowTrainingReport, CampaignsMustMatchButTheirLevelAndSize) {
     EXPECT_NE(bad.find("campaign.json is not a campaign description"), std::string::npos) << bad;
 }
 
-// A learning-curve point: the first n finest-level cases by case id, every coarser case kept.
+// A learning-curve point: the first n finest-level cases by case id, every coarser case kept; the
+// curve cross-validates those rows at each size the campaign holds and lists the sizes it does not.
 TEST(FlowTrainingReport, LearningCurveRowsArePrefixesOfTheFinestLevel) {
     std::vector<ShearCampaignRow> rows;
     for (long id : {5L, 1L, 4L, 0L, 2L}) {
@@ -312,6 +309,24 @@ TEST(FlowTrainingReport, LearningCurveRowsArePrefixesOfTheFinestLevel) {
     }
     EXPECT_EQ(flowLearningCurveRows(rows, 3, 5).size(), 7u);
     EXPECT_THROW(flowLearningCurveRows(rows, 3, 6), InputError);
+
+    std::vector<ShearCampaignRow> campaign = syntheticCampaign(60);
+    std::reverse(campaign.begin(), campaign.end());
+    FlowSurrogateTrainingOptions opt;
+    opt.restarts = 1;
+    opt.ensemble = false;
+    opt.network.hiddenLayers = {8};
+    opt.network.maxEpochs = 20;
+    const FlowLearningCurve curve = flowLearningCurve(campaign, 0, {48, 100, 60, 61}, opt, 2);
+    EXPECT_EQ(curve.available, 60);
+    EXPECT_EQ(curve.skipped, (std::vector<long>{100, 61}));
+    ASSERT_EQ(curve.points.size(), 2u);
+    EXPECT_EQ(curve.points[0].cases, 48);
+    EXPECT_EQ(curve.points[1].cases, 60);
+    for (const FlowLearningCurvePoint& q : curve.points) EXPECT_EQ(q.pooled.cases, q.cases);  // every case held out once
+    const FlowCrossValidation first = crossValidateFlowSurrogate(flowLearningCurveRows(campaign, 0, 48), opt, 2);
+    EXPECT_EQ(flowAccuracyJson(curve.points[0].pooled), flowAccuracyJson(first.pooled));
+    EXPECT_TRUE(flowLearningCurve(campaign, 0, {}, opt, 2).points.empty());
 }
 
 FlowAccuracy handMadeAccuracy() {
