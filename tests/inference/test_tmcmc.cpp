@@ -4,7 +4,8 @@
 // Monte-Carlo tolerances. TMCMC/BASIS output is a correlated, resampled population, so the naive
 // standard error sd/sqrt(N) underestimates the scatter. Each tolerance below is therefore
 // |mean error| + 4-5 x (standard deviation of the error), both measured over 16 seeds with the same
-// settings (DISABLED_TmcmcAccuracy.SeedSweep prints them, "mean +- SD" quoted next to each check).
+// settings ("mean +- SD" quoted next to each check). The sweep that measures them is
+// bench/tmcmc_seed_sweep.cpp, `build/bench_tmcmc_seed_sweep [T1|T2|T3|T4|T5|half|variants]...`.
 // "mean err" is max_i |posterior mean_i - exact_i| / exact sd_i, "cov err" is
 // max_ij |cov_ij - exact_ij| / (sd_i sd_j). Classical TMCMC (long chains) has a systematic
 // log-evidence bias (docs/BAYESIAN_INFERENCE.md, "Why BASIS"), visible below as a non-zero mean error; BASIS
@@ -12,17 +13,12 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
-#include <Eigen/Cholesky>
-#include <Eigen/LU>
 #include <atomic>
-#include <chrono>
-#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <vector>
 #include <functional>
-#include <numbers>
 #include <string>
 #include <unistd.h>
 
@@ -34,170 +30,16 @@
 #include "inference/priors.hpp"
 #include "inference/statistics.hpp"
 #include "inference/tmcmc.hpp"
+#include "tmcmc_verification.hpp"
 
 namespace trbc {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-const double kLog2Pi = std::log(2 * std::numbers::pi);
 
-// ------------------------------------------------------------------------------------------------
-// Verification problems (docs/BAYESIAN_INFERENCE.md) with their exact answers
-
-struct Verification {
-    std::string name;
-    TmcmcProblem problem;
-    Eigen::VectorXd mean;  // exact posterior mean
-    Eigen::MatrixXd cov;   // exact posterior covariance
-    double logZ;           // exact log-evidence
-};
-
-/// T1: prior U[-10, 10], l = log N(theta; 1, 0.5^2). Posterior N(1, 0.25), log Z = -log 20.
-Verification gaussian1D() {
-    Verification v{"T1", {}, Eigen::VectorXd::Constant(1, 1.0), Eigen::MatrixXd::Constant(1, 1, 0.25), -std::log(20.0)};
-    v.problem.prior = uniformBoxPrior(Eigen::VectorXd::Constant(1, -10), Eigen::VectorXd::Constant(1, 10));
-    v.problem.logLikelihood = [](const Eigen::VectorXd& t) {
-        const double z = (t[0] - 1.0) / 0.5;
-        return -0.5 * z * z - std::log(0.5) - 0.5 * kLog2Pi;
-    };
-    return v;
-}
-
-/// T2: prior U[-10, 10]^5, l = -(theta - m)^T Sigma^-1 (theta - m) / 2, Sigma_ij = 0.5^|i-j|.
-/// log Z = 5/2 log 2 pi + 1/2 log det Sigma - 5 log 20 = -10.959333.
-Verification gaussian5D() {
-    Eigen::VectorXd m(5);
-    m << -2, -1, 0, 1, 2;
-    Eigen::MatrixXd S(5, 5);
-    for (int i = 0; i < 5; ++i)
-        for (int j = 0; j < 5; ++j) S(i, j) = std::pow(0.5, std::abs(i - j));
-    const Eigen::MatrixXd P = S.inverse();
-    Verification v{"T2", {}, m, S, 2.5 * kLog2Pi + 0.5 * std::log(std::pow(0.75, 4)) - 5 * std::log(20.0)};
-    v.problem.prior = uniformBoxPrior(Eigen::VectorXd::Constant(5, -10), Eigen::VectorXd::Constant(5, 10));
-    v.problem.logLikelihood = [m, P](const Eigen::VectorXd& t) {
-        const Eigen::VectorXd d = t - m;
-        return -0.5 * d.dot(P * d);
-    };
-    return v;
-}
-
-/// T3: prior U[-10, 10]^2, l = log[0.3 N((-3,-3), 0.25 I) + 0.7 N((3,3), 0.25 I)], log Z = -log 400.
-Verification bimodal() {
-    Verification v{"T3", {}, Eigen::VectorXd::Constant(2, 0.3 * -3 + 0.7 * 3), Eigen::MatrixXd(), -std::log(400.0)};
-    v.problem.prior = uniformBoxPrior(Eigen::VectorXd::Constant(2, -10), Eigen::VectorXd::Constant(2, 10));
-    v.problem.logLikelihood = [](const Eigen::VectorXd& t) {
-        auto logN = [&](double c) { return -((t.array() - c).square().sum()) / (2 * 0.25) - std::log(2 * std::numbers::pi * 0.25); };
-        const double a = std::log(0.3) + logN(-3.0), b = std::log(0.7) + logN(3.0);
-        const double mx = std::max(a, b);
-        return mx + std::log(std::exp(a - mx) + std::exp(b - mx));
-    };
-    return v;
-}
-
-/// T4: y_k = b0 + b1 x_k + N(0, 0.2^2), prior b ~ N(0, 4 I). Closed form (9):
-/// Sigma_n = (Lambda_0 + X^T X / s^2)^-1, mu_n = Sigma_n X^T y / s^2, Z = N(y; 0, s^2 I + 4 X X^T).
-Verification regression() {
-    Eigen::VectorXd x(5), y(5);
-    x << 0, 0.25, 0.5, 0.75, 1;
-    y << 0.9, 1.6, 2.1, 2.4, 3.1;
-    const double s = 0.2;
-    Eigen::MatrixXd X(5, 2);
-    X.col(0).setOnes();
-    X.col(1) = x;
-    const Eigen::MatrixXd Sn = (Eigen::Matrix2d::Identity() / 4.0 + X.transpose() * X / (s * s)).inverse();
-    const Eigen::VectorXd mn = Sn * X.transpose() * y / (s * s);
-    const Eigen::MatrixXd C = s * s * Eigen::MatrixXd::Identity(5, 5) + 4.0 * X * X.transpose();
-    const double logZ = -0.5 * (5 * kLog2Pi + std::log(C.determinant()) + y.dot(C.ldlt().solve(y)));
-    Verification v{"T4", {}, mn, Sn, logZ};
-    v.problem.prior = std::make_shared<ProductPrior>(std::vector<ScalarPriorPtr>{normalPrior(0, 2), normalPrior(0, 2)});
-    v.problem.logLikelihood = [X, y, s](const Eigen::VectorXd& b) {
-        const Eigen::VectorXd r = y - X * b;
-        return -0.5 * r.squaredNorm() / (s * s) - 5 * (std::log(s) + 0.5 * kLog2Pi);
-    };
-    return v;
-}
-
-/// Half-normal: l = -inf for theta < 0, log N(theta; 0, 1) otherwise, prior U[-10, 10].
-Verification halfNormal() {
-    Verification v{"half-normal", {}, Eigen::VectorXd::Constant(1, std::sqrt(2 / std::numbers::pi)),
-                   Eigen::MatrixXd::Constant(1, 1, 1 - 2 / std::numbers::pi), std::log(0.5 / 20)};
-    v.problem.prior = uniformBoxPrior(Eigen::VectorXd::Constant(1, -10), Eigen::VectorXd::Constant(1, 10));
-    v.problem.logLikelihood = [](const Eigen::VectorXd& t) { return t[0] < 0 ? -kInf : -0.5 * t[0] * t[0] - 0.5 * kLog2Pi; };
-    return v;
-}
-
-/// T5: as T4 with unknown noise s ~ U[0.05, 1] sampled jointly; only log Z = -4.068997 and
-/// E[s] = 0.221746 are known (9, 1-D quadrature), so mean/cov hold E[s] and a unit "sd" only.
-Verification unknownNoise() {
-    Eigen::VectorXd x(5), y(5);
-    x << 0, 0.25, 0.5, 0.75, 1;
-    y << 0.9, 1.6, 2.1, 2.4, 3.1;
-    Eigen::VectorXd mean = Eigen::VectorXd::Zero(3);
-    mean[2] = 0.221746;
-    Verification v{"T5", {}, mean, Eigen::MatrixXd::Identity(3, 3), -4.068997};
-    v.problem.prior = std::make_shared<ProductPrior>(
-        std::vector<ScalarPriorPtr>{normalPrior(0, 2), normalPrior(0, 2), uniformPrior(0.05, 1.0)});
-    v.problem.logLikelihood = [x, y](const Eigen::VectorXd& t) {
-        const double s = t[2];
-        const Eigen::VectorXd r = y - (t[0] + t[1] * x.array()).matrix();
-        return -0.5 * r.squaredNorm() / (s * s) - 5 * (std::log(s) + 0.5 * kLog2Pi);
-    };
-    return v;
-}
-
-// ------------------------------------------------------------------------------------------------
-// Settings and helpers
-
-enum class Variant { Basis, Tmcmc };
-const char* variantName(Variant v) { return v == Variant::Basis ? "BASIS" : "TMCMC"; }
-
-/// The paper's phase-1 settings (5): CoV 0.4, beta^2 = 0.06. BASIS: chains of length 1;
-/// TMCMC: one chain of length n_k per selected sample; both with `burnIn` unrecorded steps.
-TmcmcOptions settings(Variant v, int N, std::uint64_t seed, int burnIn = 0) {
-    TmcmcOptions o;
-    o.populationSize = N;
-    o.targetCoV = 0.4;
-    o.covarianceScaling = 0.06;
-    o.seed = seed;
-    o.maxChainLength = v == Variant::Basis ? 1 : 0;
-    if (burnIn > 0) o.burnIn = {burnIn};
-    return o;
-}
-
-Eigen::VectorXd sampleMean(const Eigen::MatrixXd& s) { return s.rowwise().mean(); }
-Eigen::MatrixXd sampleCov(const Eigen::MatrixXd& s) {
-    const Eigen::MatrixXd d = s.colwise() - sampleMean(s);
-    return d * d.transpose() / static_cast<double>(s.cols());
-}
-
-struct Errors {
-    double logZ = 0;     // log Z-hat - log Z
-    double mean = 0;     // max_i |mean_i - exact_i| / exact sd_i
-    double cov = 0;      // max_ij |cov_ij - exact_ij| / sqrt(exact_ii exact_jj)
-    double seconds = 0;
-    int stages = 0;
-};
-
-Errors runAndCompare(const Verification& v, const TmcmcOptions& o, TmcmcResult* result = nullptr) {
-    const auto t0 = std::chrono::steady_clock::now();
-    TmcmcResult local;
-    TmcmcResult& r = result ? *result : local;
-    r = runTmcmc(v.problem, o);
-    Errors e;
-    e.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    e.stages = static_cast<int>(r.stages.size());
-    EXPECT_TRUE(r.completed);
-    EXPECT_EQ(r.exponent, 1.0);
-    e.logZ = r.logEvidence - v.logZ;
-    const Eigen::VectorXd m = sampleMean(r.samples);
-    const Eigen::MatrixXd C = sampleCov(r.samples);
-    const Eigen::VectorXd sd = v.cov.diagonal().cwiseSqrt();
-    e.mean = ((m - v.mean).array() / sd.array()).abs().maxCoeff();
-    e.cov = ((C - v.cov).array() / (sd * sd.transpose()).array()).abs().maxCoeff();
-    return e;
-}
-
-double fractionNegative(const TmcmcResult& r) { return (r.samples.row(0).array() < 0).cast<double>().mean(); }
+// The verification problems, settings and error measures (tmcmc_verification.hpp), shared with
+// bench/tmcmc_seed_sweep.cpp.
+using namespace tmcmc_verification;
 
 // ------------------------------------------------------------------------------------------------
 // Accuracy on the verification problems, both variants
@@ -211,6 +53,8 @@ TmcmcResult checkVerification(const Verification& v, const TmcmcOptions& o, cons
     const Errors e = runAndCompare(v, o, &r);
     const std::string variant = o.maxChainLength == 1 ? "BASIS" : o.maxChainLength == 0 ? "TMCMC" : fmt::format("L={}", o.maxChainLength);
     SCOPED_TRACE(v.name + " " + variant);
+    EXPECT_TRUE(r.completed);
+    EXPECT_EQ(r.exponent, 1.0);
     EXPECT_LT(std::abs(e.logZ), tol.logZ);
     EXPECT_LT(e.mean, tol.mean);
     EXPECT_LT(e.cov, tol.cov);
@@ -337,95 +181,6 @@ TEST(TmcmcRegression, UnknownNoiseEvidenceAndNoiseMean) {
     std::printf("  T5 BASIS: log Z err %+.4f, E[s] err %+.5f\n", r.logEvidence - v.logZ, meanS - v.mean[2]);
     EXPECT_NEAR(r.logEvidence, v.logZ, 0.6);
     EXPECT_NEAR(meanS, v.mean[2], 0.04);
-}
-
-// ------------------------------------------------------------------------------------------------
-// The seed sweep behind the tolerances (run with --gtest_also_run_disabled_tests).
-
-void sweep(const std::string& label, const Verification& v, const std::function<TmcmcOptions(std::uint64_t)>& options,
-           int seeds) {
-    std::vector<Errors> es;
-    for (int s = 0; s < seeds; ++s) es.push_back(runAndCompare(v, options(1000 + static_cast<std::uint64_t>(s))));
-    auto stat = [&](auto get, double& m, double& sd) {
-        m = 0, sd = 0;
-        for (const auto& e : es) m += get(e);
-        m /= seeds;
-        for (const auto& e : es) sd += (get(e) - m) * (get(e) - m);
-        sd = std::sqrt(sd / (seeds - 1));
-    };
-    double mz, sz, mm, sm, mc, sc, mt, st;
-    stat([](const Errors& e) { return e.logZ; }, mz, sz);
-    stat([](const Errors& e) { return e.mean; }, mm, sm);
-    stat([](const Errors& e) { return e.cov; }, mc, sc);
-    stat([](const Errors& e) { return e.seconds; }, mt, st);
-    std::printf("%s %s: logZ err %+.4f +- %.4f | max mean err/sd %.4f +- %.4f | max cov err %.4f +- %.4f | %.3f s\n",
-                v.name.c_str(), label.c_str(), mz, sz, mm, sm, mc, sc, mt);
-}
-
-void sweep(const Verification& v, Variant var, int N, int burnIn, int seeds) {
-    sweep(fmt::format("{} N={} B={}", variantName(var), N, burnIn), v,
-          [&](std::uint64_t seed) { return settings(var, N, seed, burnIn); }, seeds);
-}
-
-void sweepBimodal(Variant var, int N, int burnIn, int seeds) {
-    std::vector<double> f, z;
-    const Verification v = bimodal();
-    for (int s = 0; s < seeds; ++s) {
-        const TmcmcResult r = runTmcmc(v.problem, settings(var, N, 2000 + static_cast<std::uint64_t>(s), burnIn));
-        f.push_back(fractionNegative(r));
-        z.push_back(r.logEvidence - v.logZ);
-    }
-    const Eigen::Map<Eigen::VectorXd> F(f.data(), seeds), Z(z.data(), seeds);
-    std::printf("T3 %s N=%d B=%d: fraction %.4f +- %.4f | logZ err %+.4f +- %.4f\n", variantName(var), N, burnIn, F.mean(),
-                std::sqrt((F.array() - F.mean()).square().sum() / (seeds - 1)), Z.mean(),
-                std::sqrt((Z.array() - Z.mean()).square().sum() / (seeds - 1)));
-}
-
-// Filter with e.g. SWEEP=T2 in the environment to run one group only.
-bool sweepSelected(const char* group) {
-    const char* e = std::getenv("SWEEP");
-    return !e || std::string(e).find(group) != std::string::npos;
-}
-
-TEST(TmcmcAccuracy, DISABLED_SeedSweep) {
-    const int seeds = 16;
-    for (Variant var : {Variant::Basis, Variant::Tmcmc}) {
-        if (sweepSelected("T1")) sweep(gaussian1D(), var, 2000, 0, seeds);
-        if (sweepSelected("T2")) sweep(gaussian5D(), var, 4000, 0, seeds);
-        if (sweepSelected("T2")) sweep(gaussian5D(), var, 4000, 2, seeds);
-        if (sweepSelected("T4")) sweep(regression(), var, 3000, 0, seeds);
-        if (sweepSelected("half")) sweep(halfNormal(), var, 2000, 0, seeds);
-        if (sweepSelected("T3")) sweepBimodal(var, 5000, 2, seeds);
-        if (sweepSelected("T3")) sweepBimodal(var, 20000, 2, seeds);
-    }
-    if (sweepSelected("variants")) {
-        sweep("L=5", regression(), [](std::uint64_t s) { auto o = settings(Variant::Basis, 3000, s); o.maxChainLength = 5; return o; }, seeds);
-        sweep("BASIS 6.3 covariance", regression(), [](std::uint64_t s) {
-            auto o = settings(Variant::Basis, 3000, s);
-            o.proposalCovariance = ProposalCovariance::SelectionCounts;
-            return o;
-        }, seeds);
-        sweep("library defaults, burn-in {0,3,1}", gaussian1D(), [](std::uint64_t s) {
-            TmcmcOptions o;
-            o.populationSize = 2000;
-            o.seed = s;
-            o.burnIn = {0, 3, 1};
-            return o;
-        }, seeds);
-    }
-    if (sweepSelected("T5")) {
-        const Verification v = unknownNoise();
-        std::vector<double> z, m;
-        for (int s = 0; s < seeds; ++s) {
-            const TmcmcResult r = runTmcmc(v.problem, settings(Variant::Basis, 4000, 3000 + static_cast<std::uint64_t>(s), 2));
-            z.push_back(r.logEvidence - v.logZ);
-            m.push_back(r.samples.row(2).mean() - v.mean[2]);
-        }
-        const Eigen::Map<Eigen::VectorXd> Z(z.data(), seeds), M(m.data(), seeds);
-        std::printf("T5 BASIS N=4000 B=2: logZ err %+.4f +- %.4f | E[s] err %+.5f +- %.5f\n", Z.mean(),
-                    std::sqrt((Z.array() - Z.mean()).square().sum() / (seeds - 1)), M.mean(),
-                    std::sqrt((M.array() - M.mean()).square().sum() / (seeds - 1)));
-    }
 }
 
 // ------------------------------------------------------------------------------------------------
