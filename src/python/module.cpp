@@ -724,15 +724,11 @@ py::dict flowTube(double radius, double pg, double etaOut, double lambda, double
     return out;
 }
 
-}  // namespace
-}  // namespace trbc::python
+// ---- module ------------------------------------------------------------------------------------
 
-PYBIND11_MODULE(_core, m) {
-    using namespace trbc;
-    using namespace trbc::python;
-    m.doc() = "trbc C++ core (pybind11); use the trbc package, which wraps it";
-    (void)simd::active();  // a bad TRBC_SIMD fails the import, not a call inside a parallel region
-    m.attr("__version__") = kVersion;
+/// The library's errors as Python exceptions: InputError -> ValueError, NumericalError ->
+/// trbc._core.NumericalError (a RuntimeError), IoError -> OSError.
+void registerExceptions(py::module_& m) {
     static py::exception<NumericalError> numericalError(m, "NumericalError", PyExc_RuntimeError);
     py::register_exception_translator([](std::exception_ptr p) {
         try {
@@ -745,7 +741,10 @@ PYBIND11_MODULE(_core, m) {
             PyErr_SetString(PyExc_OSError, e.what());
         }
     });
+}
 
+/// trbc.Mesh; vertices and faces are views of the mesh's own storage, kept alive by the Python object.
+void registerMesh(py::module_& m) {
     py::class_<Mesh>(m, "Mesh", "A closed triangle mesh: vertices (n, 3) float64 and faces (m, 3) int32, counter-clockwise seen "
                                 "from outside. Lengths in the mesh's own units (trbc's cell shapes: um).")
         .def(py::init(&meshFromArrays), "vertices"_a, "faces"_a, "Copies the arrays: vertices (n, 3), faces (m, 3) 0-based indices.")
@@ -779,7 +778,10 @@ PYBIND11_MODULE(_core, m) {
         .def("__copy__", [](const Mesh& s) { return s; })
         .def("__deepcopy__", [](const Mesh& s, py::dict) { return s; })
         .def("__repr__", [](const Mesh& s) { return fmt::format("trbc.Mesh({} vertices, {} faces)", s.X.cols(), s.F.cols()); });
+}
 
+/// The forward model: membrane energy of a mesh, the cell simulation of the experiments, the stress-free shape.
+void registerForwardModel(py::module_& m) {
     m.def("membrane_energy", &membraneEnergy, "mesh"_a, "reference"_a = nullptr, py::kw_only(), "kb"_a = 0.0, "C0"_a = 0.0, "kad"_a = 0.0,
           "DA0"_a = 0.0, "ka"_a = 0.0, "a3"_a = 0.0, "a4"_a = 0.0, "mu"_a = 0.0, "b1"_a = 0.0, "b2"_a = 0.0, "kA"_a = 0.0,
           "A0"_a = py::none(), "kV"_a = 0.0, "V0"_a = py::none());
@@ -787,7 +789,10 @@ PYBIND11_MODULE(_core, m) {
           "level"_a, "experiments"_a, "force_curve"_a, "allow_outside_prior"_a, "threads"_a, "cache"_a, "cache_dir"_a, "overdamped"_a,
           "in_plane_axis"_a, "equilibrium_symmetry"_a, "equilibrium_seed"_a, "equilibrium_kicks"_a);
     m.def("sfs", &stressFree, py::kw_only(), "v"_a, "level"_a, "tol"_a, "preconditioner"_a, "cache"_a, "cache_dir"_a);
+}
 
+/// The network surrogates of the experiments and of the flow cases, with their input and output names.
+void registerSurrogates(py::module_& m) {
     py::class_<Surrogate, std::shared_ptr<Surrogate>>(m, "Surrogate")
         .def(py::init([](const std::string& dir, const std::string& precision) {
                  if (precision != "double" && precision != "single")
@@ -812,7 +817,10 @@ PYBIND11_MODULE(_core, m) {
     m.attr("flow_surrogate_input_names") = py::cast(flowSurrogateInputNames());
     m.attr("surrogate_input_names") = py::cast(surrogateInputNames());
     m.attr("surrogate_output_names") = py::cast(surrogateOutputNames());
+}
 
+/// Data sets, posteriors, the inference run, its samples and posterior predictions.
+void registerInference(py::module_& m) {
     py::class_<RbcDataSet>(m, "DataSet", "One experimental data set (docs/BAYESIAN_INFERENCE.md, data)")
         .def_readonly("name", &RbcDataSet::name)
         .def_property_readonly("experiment", [](const RbcDataSet& d) { return experimentName(d.experiment); })
@@ -847,6 +855,10 @@ PYBIND11_MODULE(_core, m) {
           "thin"_a = 4);
     m.def("read_samples", &readSamples, "file"_a);
     m.def("predict", &predict, "posterior"_a, "surrogate"_a, "data_set"_a, "grid"_a, "max_samples"_a, "seed"_a);
+}
+
+/// The flow cases: a cell in shear flow and in a tube.
+void registerFlow(py::module_& m) {
     m.def("flow_shear", &flowShear, py::kw_only(), "eta_out_mPa_s"_a, "shear_rate_per_s"_a, "eta_in_mPa_s"_a, "v"_a, "mu_uN_per_m"_a,
           "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a, "rotations"_a, "tilt_deg"_a,
           "start"_a, "kick_temperature_K"_a, "temperature_K"_a, "thermal_step"_a, "seed"_a, "stop_when_steady"_a,
@@ -856,5 +868,25 @@ PYBIND11_MODULE(_core, m) {
           "duration_R_over_V"_a, "settle_R_over_V"_a, "settle_relax_R_over_V"_a, "settle_etam_Pa_s_um"_a, "settle_tol"_a,
           "wall_points"_a, "tube_length_um"_a, "repulsion_range_um"_a, "repulsion_pressure"_a, "frame_interval"_a, "step_tol"_a,
           "dt"_a, "max_steps"_a, "threads"_a, "cache"_a, "cache_dir"_a);
+}
+
+}  // namespace
+}  // namespace trbc::python
+
+// Registration order matters: a signature names a bound type (trbc._core.Mesh) only when that type
+// is registered before the function that takes it.
+PYBIND11_MODULE(_core, m) {
+    using namespace trbc;
+    using namespace trbc::python;
+    m.doc() = "trbc C++ core (pybind11); use the trbc package, which wraps it";
+    (void)simd::active();  // a bad TRBC_SIMD fails the import, not a call inside a parallel region
+    m.attr("__version__") = kVersion;
+    registerExceptions(m);
+    registerMesh(m);
+    registerForwardModel(m);
+    registerSurrogates(m);
+    registerInference(m);
+    registerFlow(m);
+    // The stress-free shape cache that simulate, sfs and both flow cases share.
     m.def("default_cache_dir", [] { return defaultCacheDirectory().string(); });
 }
