@@ -39,6 +39,48 @@ struct CorrectionRow {
     }
 };
 
+/// The near rule followed by the far rule's points with negative weights (the corners first when
+/// the far rule has corner points): one batch per near face yields its refined integral minus the
+/// far rule's share of the far sum.
+bie::TriangleRule nearMinusFarBatch(const bie::TriangleRule& nearRule, bool corners, double cornerWeight, const Eigen::MatrixX3d& farBary,
+                                    const Eigen::VectorXd& farWeight) {
+    const Index nn = nearRule.weight.size(), nFar = (corners ? 3 : 0) + farWeight.size();
+    bie::TriangleRule batch{Eigen::MatrixX3d(nn + nFar, 3), Eigen::VectorXd(nn + nFar)};
+    batch.bary.topRows(nn) = nearRule.bary;
+    batch.weight.head(nn) = nearRule.weight;
+    Index nb = nn;
+    if (corners)
+        for (int m = 0; m < 3; ++m, ++nb) {
+            batch.bary.row(nb) = Eigen::RowVector3d::Unit(m);
+            batch.weight[nb] = -cornerWeight;
+        }
+    for (Index q = 0; q < farWeight.size(); ++q, ++nb) {
+        batch.bary.row(nb) = farBary.row(q);
+        batch.weight[nb] = -farWeight[q];
+    }
+    return batch;
+}
+
+/// The rows as compressed sparse rows of 3x3 blocks (start, column, S and D blocks column-major),
+/// the layout the operator products stream through.
+void flattenCorrections(const std::vector<CorrectionRow>& rows, std::vector<int>& start, std::vector<int>& col,
+                        std::vector<double>& S, std::vector<double>& D) {
+    const std::size_t nv = rows.size();
+    start.assign(nv + 1, 0);
+    for (std::size_t i = 0; i < nv; ++i) start[i + 1] = start[i] + static_cast<int>(rows[i].col.size());
+    const std::size_t nnz = static_cast<std::size_t>(start[nv]);
+    col.resize(nnz);
+    S.resize(9 * nnz);
+    D.resize(9 * nnz);
+    for (std::size_t i = 0; i < nv; ++i)
+        for (std::size_t k = 0; k < rows[i].col.size(); ++k) {
+            const std::size_t p = static_cast<std::size_t>(start[i]) + k;
+            col[p] = rows[i].col[k];
+            Eigen::Map<Mat3>{&S[9 * p]} = rows[i].s[k];
+            Eigen::Map<Mat3>{&D[9 * p]} = rows[i].d[k];
+        }
+}
+
 }  // namespace
 
 void BoundaryIntegralOperators::markNearFaces(const Vec3& x0, std::vector<char>& near) const {
@@ -60,23 +102,10 @@ void BoundaryIntegralOperators::buildCorrections() {
     for (Index f = 0; f < nf; ++f)
         for (int k = 0; k < 3; ++k) vertexFaces[mesh_.F(k, f)].push_back(static_cast<int>(f));
 
-    // The near rule followed by the far rule's points with negative weights: one batch per near
-    // face yields its refined integral minus the far rule's share of the far sum.
     const Index nn = nearRule.weight.size(), nFar = (cornerPoints_ > 0 ? 3 : 0) + farWeight_.size();
-    Eigen::MatrixX3d batchBary(nn + nFar, 3);
-    Eigen::VectorXd batchWeight(nn + nFar);
-    batchBary.topRows(nn) = nearRule.bary;
-    batchWeight.head(nn) = nearRule.weight;
-    Index nb = nn;
-    if (cornerPoints_ > 0)
-        for (int m = 0; m < 3; ++m, ++nb) {
-            batchBary.row(nb) = Eigen::RowVector3d::Unit(m);
-            batchWeight[nb] = -cornerWeight_;
-        }
-    for (Index q = 0; q < farWeight_.size(); ++q, ++nb) {
-        batchBary.row(nb) = farBary_.row(q);
-        batchWeight[nb] = -farWeight_[q];
-    }
+    const bie::TriangleRule batch = nearMinusFarBatch(nearRule, cornerPoints_ > 0, cornerWeight_, farBary_, farWeight_);
+    const Eigen::MatrixX3d& batchBary = batch.bary;
+    const Eigen::VectorXd& batchWeight = batch.weight;
     std::vector<CorrectionRow> rows(nv);
 #pragma omp parallel
     {
@@ -185,19 +214,7 @@ void BoundaryIntegralOperators::buildCorrections() {
         }
     }
 
-    corrStart_.assign(nv + 1, 0);
-    for (Index i = 0; i < nv; ++i) corrStart_[i + 1] = corrStart_[i] + static_cast<int>(rows[i].col.size());
-    const std::size_t nnz = static_cast<std::size_t>(corrStart_[nv]);
-    corrCol_.resize(nnz);
-    corrS_.resize(9 * nnz);
-    corrD_.resize(9 * nnz);
-    for (Index i = 0; i < nv; ++i)
-        for (std::size_t k = 0; k < rows[i].col.size(); ++k) {
-            const std::size_t p = corrStart_[i] + k;
-            corrCol_[p] = rows[i].col[k];
-            Eigen::Map<Mat3>{&corrS_[9 * p]} = rows[i].s[k];
-            Eigen::Map<Mat3>{&corrD_[9 * p]} = rows[i].d[k];
-        }
+    flattenCorrections(rows, corrStart_, corrCol_, corrS_, corrD_);
 }
 
 double BoundaryIntegralOperators::meanCorrectionsPerTarget() const {
