@@ -725,11 +725,6 @@ def threshold_data(s):
             continue
         lo = fnum(r.get("tau_lo_Pa"))
         hi = fnum(r.get("tau_hi_Pa"))
-        # fall back to the shear-rate bounds when the stresses are absent
-        if lo is None and fnum(r.get("gamma_lo_per_s")) is not None:
-            lo = eta * 1e-3 * fnum(r.get("gamma_lo_per_s"))
-        if hi is None and fnum(r.get("gamma_hi_per_s")) is not None:
-            hi = eta * 1e-3 * fnum(r.get("gamma_hi_per_s"))
         if lo is not None and lo <= 0:
             lo = None
         if hi is not None and hi <= 0:
@@ -745,8 +740,6 @@ def threshold_data(s):
             continue
         eta = fnum(r.get("eta_out_mPa_s"))
         tau = fnum(r.get("shear_stress_Pa"))
-        if tau is None and eta is not None and fnum(r.get("shear_rate_per_s")) is not None:
-            tau = eta * 1e-3 * fnum(r.get("shear_rate_per_s"))
         reg = r.get("regime", "").strip().lower() or "empty"
         if eta is None or tau is None or tau <= 0 or eta <= 0:
             continue
