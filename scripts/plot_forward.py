@@ -10,15 +10,18 @@ figures (see docs/MEMBRANE_MODEL.md and docs/FORWARD_MODEL.md):
   <prefix>stretching.png   D0 (transverse), D1 (axial) vs Fext against
                            Mills et al. 2004 and Suresh et al. 2005
   <prefix>relaxation.png   z = L/W after release with its Hochmuth fit, and the
-                           four Hochmuth et al. 1979 cells (each fitted here),
-                           as z(t) and in the linearised (log) form
+                           four Hochmuth et al. 1979 cells (each fitted with
+                           trbc.fit_hochmuth), as z(t) and in the linearised (log) form
 
 Usage:
   scripts/plot_forward.py DIR [--data EXPDIR] [--out OUTDIR] [--prefix forward_]
 
 Defaults: --data <repo>/data/experiments, --out <repo>/docs/figures
 (both resolved from this script's location, so they work from any directory).
-Only numpy and matplotlib are needed.
+Needs numpy, matplotlib and trbc's Python module, which gives the Evans-Fung shape and the
+Hochmuth fit: the package installed by `make python`, or, from a build tree,
+PYTHONPATH=src/python:build/python after `cmake --build build --target trbc_python`
+(scripts/showcase_forward.sh sets it).
 """
 
 import argparse
@@ -36,13 +39,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import plot_style  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+# trbc gives the Evans-Fung shape and the Hochmuth fit; an import that finds only the extension
+# module (PYTHONPATH=build/python alone) or an older build lacks them.
+try:
+    import trbc  # noqa: E402
+    trbc.fit_hochmuth, trbc.evans_fung_thickness  # noqa: B018
+except (ImportError, AttributeError) as exc:
+    sys.exit(f"plot_forward: error: cannot use trbc ({exc}); install it with `make python`, or build "
+             f"`cmake --build build --target trbc_python` and set PYTHONPATH=src/python:build/python")
+
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = (REPO / "data" / "experiments").resolve()
 DEFAULT_OUT = REPO / "docs" / "figures"
-
-# Evans & Fung (1972) biconcave shape, docs/MEMBRANE_MODEL.md, Evans-Fung shape
-EF_R0 = 3.91
-EF_C = (0.207161, 2.002558, -1.122762)
 
 DPI = 150
 C_SIM = "#1f3b73"      # simulation (dark blue)
@@ -166,85 +174,23 @@ def hochmuth_log(z, zinf, z0):
     return out
 
 
-def fit_hochmuth(t, z):
-    """Least-squares fit of (tc, zinf) with z0 = z[0] fixed; time measured from t[0].
-
-    Grid search for a start, then Levenberg-Marquardt on (log tc, zinf) with
-    zinf kept below z0. Returns dict(tc, zinf, z0, t0, rms) or None.
-    """
+def fit_hochmuth(t, z, what):
+    """trbc.fit_hochmuth on the finite samples of (t, z) in time order: (tc, zinf) by least squares,
+    z0 = z at the first sample, time measured from it. Returns dict(tc, zinf, z0, t0, rms), or None
+    (with a note naming `what`) when the data are unusable or the fit does not converge."""
     t = np.asarray(t, float)
     z = np.asarray(z, float)
     ok = np.isfinite(t) & np.isfinite(z)
-    t, z = t[ok], z[ok]
-    if t.size < 3:
+    o = np.argsort(t[ok])
+    try:
+        f = trbc.fit_hochmuth(t[ok][o], z[ok][o])
+    except ValueError as exc:
+        note(f"{what}: Hochmuth fit not possible: {exc}")
         return None
-    order = np.argsort(t)
-    t, z = t[order], z[order]
-    t0, z0 = t[0], z[0]
-    tau = t - t0
-    span = max(tau[-1], 1e-12)
-
-    def resid(p):
-        tc, zinf = math.exp(p[0]), p[1]
-        if not (zinf < z0 - 1e-9 * abs(z0)):
-            return None
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            r = hochmuth(tau, tc, zinf, z0) - z
-        return r if np.all(np.isfinite(r)) else None
-
-    def sse(p):
-        r = resid(p)
-        return math.inf if r is None else float(r @ r)
-
-    # coarse grid over tc (log) and zinf
-    zlo = min(z.min(), z0) - 0.5 * abs(z0 - z.min()) - 1e-3
-    zhi = z0 - 1e-3 * max(abs(z0), 1e-12)
-    best, bestp = math.inf, None
-    for ltc in np.linspace(math.log(span * 1e-3), math.log(span * 1e2), 61):
-        for zinf in np.linspace(zlo, zhi, 61):
-            s = sse((ltc, zinf))
-            if s < best:
-                best, bestp = s, np.array([ltc, zinf])
-    if bestp is None:
+    if not f["converged"]:
+        note(f"{what}: Hochmuth fit did not converge: {f['message']}")
         return None
-
-    # Levenberg-Marquardt refinement
-    p, lam = bestp.copy(), 1e-3
-    for _ in range(200):
-        r = resid(p)
-        J = np.empty((r.size, 2))
-        for k in range(2):
-            h = 1e-6 * max(1.0, abs(p[k]))
-            dp = p.copy()
-            dp[k] += h
-            rk = resid(dp)
-            if rk is None:
-                dp[k] -= 2 * h
-                rk = resid(dp)
-                h = -h
-            J[:, k] = (rk - r) / h if rk is not None else 0.0
-        g = J.T @ r
-        A = J.T @ J
-        s0 = float(r @ r)
-        improved = False
-        for _ in range(30):
-            try:
-                step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
-            except np.linalg.LinAlgError:
-                lam *= 10
-                continue
-            s1 = sse(p + step)
-            if s1 < s0:
-                p = p + step
-                lam = max(lam / 3, 1e-12)
-                improved = True
-                break
-            lam *= 10
-        if not improved or abs(s0 - sse(p)) <= 1e-14 * max(s0, 1e-30):
-            break
-    r = resid(p)
-    return {"tc": math.exp(p[0]), "zinf": float(p[1]), "z0": float(z0),
-            "t0": float(t0), "rms": float(np.sqrt(np.mean(r * r)))}
+    return {"tc": f["tc_s"], "zinf": f["zinf"], "z0": f["z0"], "t0": f["t0_s"], "rms": f["rms"]}
 
 
 # ---------------------------------------------------------------- figure 1
@@ -291,11 +237,11 @@ def plot_equilibrium(sim, d, data, out):
         note("observable(s) " + ", ".join(from_profile) +
              " not in simulate.json; taken from the profile")
 
-    # Evans-Fung analytic shape
+    # Evans-Fung analytic shape (trbc's, as the biconcave mesh of `trbc mesh icosphere --biconcave`)
+    ef_r0 = trbc.evans_fung_radius_um()
     rho = np.linspace(0.0, 1.0, 801)
-    c0, c1, c2 = EF_C
-    hef = EF_R0 * np.sqrt(np.clip(1 - rho**2, 0, None)) * (c0 + c1 * rho**2 + c2 * rho**4)
-    ref_ef = np.concatenate([-EF_R0 * rho[::-1], EF_R0 * rho])
+    hef = trbc.evans_fung_thickness(ef_r0 * rho)
+    ref_ef = np.concatenate([-ef_r0 * rho[::-1], ef_r0 * rho])
     hef_full = np.concatenate([hef[::-1], hef])
 
     # closed outline of the simulated section (right half, then mirrored)
@@ -367,7 +313,7 @@ def plot_equilibrium(sim, d, data, out):
     if from_profile:
         lines.append("* from the saved profile")
 
-    xmax = max(r.max(), EF_R0) + 0.3
+    xmax = max(r.max(), ef_r0) + 0.3
     ax.set_xlim(-xmax, xmax)
     ax.set_ylim(yD - 0.45, ymax + 0.3)
     ax.set_aspect("equal", adjustable="box")
@@ -491,14 +437,21 @@ def plot_relaxation(sim, d, data, out):
         if z0 is None:
             z0 = float(z_sim[0])
         if tc is not None and zinf is not None and tc > 0 and z0 != zinf:
-            # the law is autonomous with z(0) = z0 = first sample, so time runs from
-            # the first sample (which may be labelled 0 or one interval)
-            sfit = {"tc": tc, "zinf": zinf, "z0": z0, "t0": float(t_sim[0]), "src": "simulate.json"}
+            # the law is autonomous with z(t0) = z0, t0 = the first sample of the fit: trbc simulate
+            # fits from the first sample after release (t = 0 is the release itself), so t0 is the
+            # time of the first sample whose z is z0 (relaxation.csv keeps 10 significant digits)
+            k = np.flatnonzero(np.abs(z_sim - z0) <= 1e-8 * abs(z0))
+            if k.size == 0:
+                note("relaxation_fit z0 matches no sample of relaxation.csv; its time taken as the first sample's")
+            sfit = {"tc": tc, "zinf": zinf, "z0": z0, "t0": float(t_sim[k[0] if k.size else 0]),
+                    "src": "simulate.json"}
         else:
             note("relaxation_fit incomplete in simulate.json; fitting the simulated z(t) here")
-            f = fit_hochmuth(t_sim, z_sim)
+            # as trbc simulate does: from the first sample after release (t = 0 is the release)
+            first = 1 if t_sim[0] == 0.0 and t_sim.size > 3 else 0
+            f = fit_hochmuth(t_sim[first:], z_sim[first:], rel_path)
             if f is not None:
-                f["src"] = "refit here"
+                f["src"] = "refit with trbc.fit_hochmuth"
                 sfit = f
 
     cells = []
@@ -510,10 +463,8 @@ def plot_relaxation(sim, d, data, out):
             continue
         if not need_cols(tab, ["t", "L_W"], pth):
             continue
-        f = fit_hochmuth(tab["t"], tab["L_W"])
-        if f is None:
-            note(f"{pth}: fit failed")
-        else:
+        f = fit_hochmuth(tab["t"], tab["L_W"], pth)
+        if f is not None:
             print(f"Hochmuth 1979 cell {i}: tc = {f['tc']:.4f} s, zinf = {f['zinf']:.4f}, "
                   f"z0 = {f['z0']:.4f}, rms = {f['rms']:.3g}")
         cells.append((i, tab["t"], tab["L_W"], f))

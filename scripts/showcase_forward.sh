@@ -3,7 +3,8 @@
 #  1. a level-4 icosphere (Nv = 2562) and the Evans-Fung resting cell, scaled to A0 = 135 um^2;
 #  2. forces of the full model on the cell (cross-check command);
 #  3. relaxation of a sphere to the biconcave discocyte at reduced volume 0.64 (the dimensionless units of docs/MEMBRANE_MODEL.md);
-#  4. one forward-model sample at the reference point with a stretching curve, and its figures.
+#  4. one forward-model sample at the reference point with a stretching curve, and its figures
+#     (scripts/plot_forward.py, with trbc's Python module from this build).
 # Outputs go to out/showcase/ (VTK files open in ParaView with force, mean curvature and area fields).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -51,7 +52,14 @@ print("   " + "  ".join(f"{k}={v:.4g}" for k, v in o.items()))
 print(f"   {t['force_evaluations']} force evaluations ({t['reduction_factor']:.0f}x fewer than the reference protocol), "
       f"{t['wall_s']:.2f} s")
 PY
-if /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
+# plot_forward.py takes the Evans-Fung shape and the Hochmuth fit from trbc's Python module: the
+# package sources in src/python with the extension module of this build (build/python).
+export PYTHONPATH="$PWD/src/python:$PWD/build/python${PYTHONPATH:+:$PYTHONPATH}"
+if ! /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
+  echo "   figures skipped: matplotlib is not installed for /usr/bin/python3"
+elif ! /usr/bin/python3 -c "import trbc; trbc.fit_hochmuth" 2>/dev/null; then
+  echo "   figures skipped: trbc's Python module is not built (cmake -DTRBC_BUILD_PYTHON=ON, target trbc_python)"
+else
   /usr/bin/python3 scripts/plot_forward.py "$O/simulate_L4" --out "$O/figures" > /dev/null
   echo "   figures in $O/figures/"
 fi

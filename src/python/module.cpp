@@ -30,6 +30,7 @@
 #include "core/simd.hpp"
 #include "core/version.hpp"
 #include "experiments/experiments.hpp"
+#include "experiments/hochmuth.hpp"
 #include "experiments/parameters.hpp"
 #include "experiments/sfs.hpp"
 #include "experiments/simulation_report.hpp"
@@ -344,6 +345,40 @@ py::dict stressFree(double v, int level, double tol, const std::string& precondi
     Mesh out = s.mesh;
     out.X = scaleToArea(out.X, out.F, cell::area);
     return py::dict("mesh"_a = out, "diagnostics"_a = jsonToPython(sfsJson(s)));
+}
+
+// ---- reference shape and relaxation law --------------------------------------------------------
+
+/// A 1-D float64 array as a vector (ValueError naming the argument otherwise).
+std::vector<double> vectorOf(const RowArray& a, const char* name) {
+    if (a.ndim() != 1) throw InputError(fmt::format("{}: expected a 1-D array, got {} dimension(s)", name, a.ndim()));
+    return {a.data(), a.data() + a.shape(0)};
+}
+
+/// h(r) of the Evans-Fung shape at every element of r (any shape; the result has the same shape).
+py::array evansFungThicknessArray(const RowArray& r) {
+    py::array_t<double> h(std::vector<py::ssize_t>(r.shape(), r.shape() + r.ndim()));
+    const double* in = r.data();
+    double* out = h.mutable_data();
+    for (py::ssize_t i = 0; i < r.size(); ++i) out[i] = evansFungThickness(in[i]);
+    return h;
+}
+
+/// fitHochmuth on two 1-D arrays. A start not given is fitHochmuth's default argument; its defaults are
+/// positional (tc, then zInf), so zInf alone cannot be given without restating the tc default here.
+py::dict fitHochmuthArrays(const RowArray& t, const RowArray& z, std::optional<double> tcGuess, std::optional<double> zInfGuess) {
+    const std::vector<double> tv = vectorOf(t, "t_s"), zv = vectorOf(z, "z");
+    HochmuthFit f;
+    if (tcGuess && zInfGuess)
+        f = fitHochmuth(tv, zv, *tcGuess, *zInfGuess);
+    else if (tcGuess)
+        f = fitHochmuth(tv, zv, *tcGuess);
+    else if (zInfGuess)
+        throw InputError("zinf_guess needs tc_guess_s as well");
+    else
+        f = fitHochmuth(tv, zv);
+    return py::dict("tc_s"_a = f.tc, "zinf"_a = f.zInf, "z0"_a = f.z0, "t0_s"_a = tv.front(), "rms"_a = f.rms,
+                    "converged"_a = f.converged, "iterations"_a = f.iterations, "message"_a = f.message);
 }
 
 // ---- surrogates --------------------------------------------------------------------------------
@@ -780,7 +815,8 @@ void registerMesh(py::module_& m) {
         .def("__repr__", [](const Mesh& s) { return fmt::format("trbc.Mesh({} vertices, {} faces)", s.X.cols(), s.F.cols()); });
 }
 
-/// The forward model: membrane energy of a mesh, the cell simulation of the experiments, the stress-free shape.
+/// The forward model: membrane energy of a mesh, the cell simulation of the experiments, the stress-free shape;
+/// the Evans-Fung resting shape and the Hochmuth fit that its outputs are compared with.
 void registerForwardModel(py::module_& m) {
     m.def("membrane_energy", &membraneEnergy, "mesh"_a, "reference"_a = nullptr, py::kw_only(), "kb"_a = 0.0, "C0"_a = 0.0, "kad"_a = 0.0,
           "DA0"_a = 0.0, "ka"_a = 0.0, "a3"_a = 0.0, "a4"_a = 0.0, "mu"_a = 0.0, "b1"_a = 0.0, "b2"_a = 0.0, "kA"_a = 0.0,
@@ -789,6 +825,21 @@ void registerForwardModel(py::module_& m) {
           "level"_a, "experiments"_a, "force_curve"_a, "allow_outside_prior"_a, "threads"_a, "cache"_a, "cache_dir"_a, "overdamped"_a,
           "in_plane_axis"_a, "equilibrium_symmetry"_a, "equilibrium_seed"_a, "equilibrium_kicks"_a);
     m.def("sfs", &stressFree, py::kw_only(), "v"_a, "level"_a, "tol"_a, "preconditioner"_a, "cache"_a, "cache_dir"_a);
+    m.def("evans_fung_thickness", &evansFungThicknessArray, "r_um"_a,
+          "Thickness h (um) of the Evans & Fung (1972) biconcave resting shape at distance r_um (um) from its symmetry "
+          "axis: h = R0 sqrt(1 - rho^2) (c0 + c1 rho^2 + c2 rho^4), rho = r/R0, R0 = evans_fung_radius_um(); 0 for "
+          "|r| >= R0. Array (or scalar) in, float64 array of the same shape out.");
+    m.def("evans_fung_radius_um", [] { return EvansFung{}.R0; },
+          "Radius R0 (um) of the Evans & Fung (1972) shape: the thickness vanishes at r = R0 (diameter 2 R0).");
+    m.def("fit_hochmuth", &fitHochmuthArrays, "t_s"_a, "z"_a, py::kw_only(), "tc_guess_s"_a = py::none(), "zinf_guess"_a = py::none(),
+          "Least-squares fit of the Hochmuth et al. (1979) recovery law z(t) = zinf (Lam + e)/(Lam - e), "
+          "e = exp(-(t - t0)/tc), Lam = (z0 + zinf)/(z0 - zinf), to a deformation index z = L/W sampled at times t_s "
+          "(s, strictly increasing); z0 = z[0] and t0 = t_s[0] are fixed, tc and zinf are fitted (Levenberg-Marquardt "
+          "in log tc, as for the relaxation_fit of `trbc simulate`). tc_guess_s (s), zinf_guess: the start (None: the "
+          "library's; zinf_guess only together with tc_guess_s). Returns {tc_s (s), zinf, z0, t0_s (s), rms "
+          "(root-mean-square residual of z), converged, iterations, message}; a fit that does not converge returns "
+          "converged = False with the reason in message. ValueError on bad data (lengths differ, fewer than 3 "
+          "samples, non-finite values, t_s not strictly increasing).");
 }
 
 /// The network surrogates of the experiments and of the flow cases, with their input and output names.

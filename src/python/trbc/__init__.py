@@ -14,14 +14,23 @@ from __future__ import annotations
 import csv
 import json
 import os
+import pkgutil
 import tempfile
 from pathlib import Path
 from typing import Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from . import _core
-from ._core import Mesh, NumericalError, DataSet
+# The extension module is built into <build>/python/trbc/ and the Python sources stay in
+# src/python/trbc/: extending the package path to every trbc/ folder on sys.path lets
+# PYTHONPATH=src/python:build/python import the package from a build tree, without installing it.
+__path__ = pkgutil.extend_path(__path__, __name__)
+
+from . import _core  # noqa: E402
+from ._core import Mesh, NumericalError, DataSet  # noqa: E402
+# The reference shape and the relaxation law the forward model is compared with; their docstrings
+# (units included) are those of the bindings.
+from ._core import evans_fung_thickness, evans_fung_radius_um, fit_hochmuth  # noqa: E402
 
 __version__ = _core.__version__
 
@@ -29,6 +38,7 @@ __all__ = [
     "Mesh", "NumericalError", "DataSet", "Surrogate", "FlowSurrogate", "Posterior", "membrane_energy", "simulate", "sfs",
     "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
     "load_inference", "load_validation", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
+    "evans_fung_thickness", "evans_fung_radius_um", "fit_hochmuth",
 ]
 
 INPUT_NAMES = tuple(_core.surrogate_input_names)    #: v, mu_uN_per_m, FvK, b2, etam_Pa_s_um, Fext_pN
