@@ -262,6 +262,8 @@ def main():
     for v in viscosities:
         if v not in STRESS_RANGE:
             sys.exit(f"--viscosities: {v:g} mPa s has no stress range (valid: {', '.join(f'{x:g}' for x in STRESS_RANGE)})")
+    if a.descend and a.fluctuating < 1:
+        sys.exit("--descend runs the fluctuating cases stress by stress: give --fluctuating N >= 1 seeds")
     if a.members < 1 or a.jobs < 1 or a.fluctuating < 0 or not 1 <= a.level <= 4 or not 0 < a.thermal_step <= 1:
         sys.exit("--members and --jobs must be >= 1, --fluctuating >= 0, --level in [1, 4], --thermal-step in (0, 1]")
     protocols = a.protocols.split(",")
@@ -279,12 +281,26 @@ def main():
     os.makedirs(os.path.join(a.out, "cases"), exist_ok=True)
     with open(os.path.join(a.out, "command.txt"), "a") as f:  # one line per invocation of a resumed scan
         f.write(" ".join(sys.argv) + "\n")
-    if not a.summary_only and a.descend and "fluctuating" in protocols:
-        t0, done = time.time(), [0]
+    descend = a.descend and "fluctuating" in protocols
+    pooled = [p for p in protocols if not (descend and p == "fluctuating")]
+    if not a.summary_only and pooled:  # the in-plane cases first: a descending row starts from their threshold
+        t0, done = time.time(), 0
+        todo = [c for c in all_cases if c["protocol"] in pooled and not finished(a.out, c)]
+        todo.sort(key=lambda c: PROTOCOL_ORDER[c["protocol"]])
+        done_before = sum(finished(a.out, c) for c in all_cases)
+        print(f"{len(all_cases)} cases, {done_before} finished earlier, {len(todo)} of protocols {','.join(pooled)} to run", file=sys.stderr)
+        with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
+            for cid, what, wall in ex.map(lambda c: run(a.trbc, c, a.out), todo):
+                done += 1
+                el = time.time() - t0
+                print(f"[{done}/{len(todo)}] {cid} {what} {wall:.0f} s; elapsed {el / 60:.0f} min, "
+                      f"ETA {el / done * (len(todo) - done) / 60:.0f} min", file=sys.stderr, flush=True)
+    if not a.summary_only and descend:
+        t0, ran = time.time(), [0]
 
         def log(cid, what, wall):
-            done[0] += 1
-            print(f"[{done[0]}] {cid} {what} {wall:.0f} s; elapsed {(time.time() - t0) / 60:.0f} min", file=sys.stderr, flush=True)
+            ran[0] += 1
+            print(f"[{ran[0]}] {cid} {what} {wall:.0f} s; elapsed {(time.time() - t0) / 60:.0f} min", file=sys.stderr, flush=True)
 
         rows = []
         for cell in cells:
@@ -293,19 +309,6 @@ def main():
                 rows.append(([c for c in sel if c["protocol"] == "fluctuating"], [c for c in sel if c["protocol"] == "in-plane"]))
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
             list(ex.map(lambda r: descend_row(a.trbc, a.out, r[0], r[1], log), rows))
-        protocols = [p for p in protocols if p != "fluctuating"]
-    if not a.summary_only and protocols:
-        t0, done = time.time(), 0
-        todo = [c for c in all_cases if c["protocol"] in protocols and not finished(a.out, c)]
-        todo.sort(key=lambda c: PROTOCOL_ORDER[c["protocol"]])
-        done_before = sum(finished(a.out, c) for c in all_cases)
-        print(f"{len(all_cases)} cases, {done_before} finished earlier, {len(todo)} of protocols {a.protocols} to run", file=sys.stderr)
-        with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
-            for cid, what, wall in ex.map(lambda c: run(a.trbc, c, a.out), todo):
-                done += 1
-                el = time.time() - t0
-                print(f"[{done}/{len(todo)}] {cid} {what} {wall:.0f} s; elapsed {el / 60:.0f} min, "
-                      f"ETA {el / done * (len(todo) - done) / 60:.0f} min", file=sys.stderr, flush=True)
     print("\n".join(summarise(a.out, all_cases, a.members)))
 
 

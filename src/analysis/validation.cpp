@@ -122,8 +122,13 @@ void readShearSection(const fs::path& file, const toml::table& tbl, ValidationCo
     if (const toml::node* n = t->get("threshold_members"); n && n->value<std::int64_t>() == 0)
         r.fail(*n, "'shear.threshold_members' is 0: members run only with threshold_protocol = \"ensemble\" or "
                    "\"fluctuating\", in [1, 64]; one run per rate from the configured start is threshold_protocol = \"in-plane\"");
+    // threshold_members without a protocol meant random starts: read as fluctuating cells, the
+    // members would change their meaning silently.
+    if (const toml::node* n = t->get("threshold_members"); n && !t->get("threshold_protocol"))
+        r.fail(*n, "'shear.threshold_members' without 'shear.threshold_protocol': give the protocol of the members, "
+                   "\"fluctuating\" (thermally fluctuating cells) or \"ensemble\" (random starts)");
     r.integer("threshold_members", c.thresholdMembers, 1, 64);
-    r.real("temperature_K", c.temperatureK, 0.0, 1000.0, true);
+    r.real("temperature_K", c.temperatureK, 0.0, 400.0, true);  // the range of `flow shear --temperature`
     r.boolean("stop_when_steady", c.stopWhenSteady);
     // Sweeps given in the file replace all the default ones (the kinds not given are not run).
     if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();

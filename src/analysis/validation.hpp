@@ -43,8 +43,9 @@ struct ValidationConfig {
     /// starts (`flow shear --start random --seed k`); "fluctuating" runs thresholdMembers thermally
     /// fluctuating cells from the configured start (`--temperature temperatureK --seed k`). With
     /// members, a rate tank-treads when more than half of its finished members do
-    /// (ensembleRegimePoints). The fluctuating cell is the default: it is the one whose threshold
-    /// matches the reference implementation's, whose cell fluctuates too.
+    /// (ensembleRegimePoints). The fluctuating cell is the default: a cell at room temperature is
+    /// never exactly in the shear plane, and at 100 mPa s it brings the threshold down to the
+    /// reference implementation's, whose cell fluctuates too (docs/FLOW_THERMAL.md).
     std::string thresholdProtocol = "fluctuating";
     int thresholdMembers = 3;
     double temperatureK = 293.15;

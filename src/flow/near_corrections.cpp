@@ -102,8 +102,8 @@ void BoundaryIntegralOperators::buildCorrections() {
     for (Index f = 0; f < nf; ++f)
         for (int k = 0; k < 3; ++k) vertexFaces[mesh_.F(k, f)].push_back(static_cast<int>(f));
 
-    const Index nn = nearRule.weight.size(), nFar = (cornerPoints_ > 0 ? 3 : 0) + farWeight_.size();
     const bie::TriangleRule batch = nearMinusFarBatch(nearRule, cornerPoints_ > 0, cornerWeight_, farBary_, farWeight_);
+    const Index nn = nearRule.weight.size(), nFar = batch.weight.size() - nn;
     const Eigen::MatrixX3d& batchBary = batch.bary;
     const Eigen::VectorXd& batchWeight = batch.weight;
     std::vector<CorrectionRow> rows(nv);

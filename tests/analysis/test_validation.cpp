@@ -373,15 +373,21 @@ TEST(ThresholdEnsemble, TheDefaultProtocolIsTheFluctuatingCell) {
     r = test::runTrbc("validate --config " + cfg.string() + " --out " + (dir.path() / "p").string() +
                           " --threshold-protocol in-plane --dry-run", dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_NE(r.out.find("threshold_eta23.9_rate12: trbc flow shear --eta-out 23.9 --shear-rate 12 "), std::string::npos) << r.out;
+    // The command, and so the case key, of one run per rate as before the protocols existed.
+    EXPECT_NE(r.out.find("threshold_eta23.9_rate12: trbc flow shear --eta-out 23.9 --shear-rate 12 --eta-in 10 --level 1 "
+                         "--rotations 1 --step-tol 0.001 --tilt-deg 5 \n"),
+              std::string::npos)
+        << r.out;
     EXPECT_EQ(r.out.find("_m1"), std::string::npos) << r.out;
     EXPECT_EQ(r.out.find("--temperature"), std::string::npos) << r.out;
     // Bad input is named with its valid range.
     for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
-             {"[shear]\nthreshold_members = 100\n", "'shear.threshold_members' = 100 is out of range: valid range [1, 64]"},
+             {"[shear]\nthreshold_protocol = \"ensemble\"\nthreshold_members = 100\n",
+              "'shear.threshold_members' = 100 is out of range: valid range [1, 64]"},
              {"[shear]\nthreshold_members = 0\n", "threshold_protocol = \"in-plane\""},
+             {"[shear]\nthreshold_members = 8\n", "'shear.threshold_members' without 'shear.threshold_protocol'"},
              {"[shear]\nthreshold_protocol = \"thermal\"\n", "is not one of: in-plane, ensemble, fluctuating"},
-             {"[shear]\ntemperature_K = -3\n", "'shear.temperature_K' = -3 is out of range: valid range (0, 1000]"}}) {
+             {"[shear]\ntemperature_K = -3\n", "'shear.temperature_K' = -3 is out of range: valid range (0, 400]"}}) {
         try {
             readValidationConfig(writeText(dir.path() / "b.toml", text), kExperiments);
             ADD_FAILURE() << text << " was accepted";

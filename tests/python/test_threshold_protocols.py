@@ -3,6 +3,7 @@ known shear stress: the in-plane table, the fluctuating rows run stress by stres
 resume, and the tables."""
 import csv
 import os
+import shlex
 import stat
 import subprocess
 import sys
@@ -32,7 +33,7 @@ with open(os.environ["FAKE_LOG"], "a") as f:
 
 def run(tmp_path, *args):
     fake = tmp_path / "trbc"
-    fake.write_text(f"#!/bin/sh\nexec {sys.executable} {tmp_path / 'fake.py'} \"$@\"\n")
+    fake.write_text(f"#!/bin/sh\nexec {shlex.quote(sys.executable)} {shlex.quote(str(tmp_path / 'fake.py'))} \"$@\"\n")
     (tmp_path / "fake.py").write_text(FAKE)
     fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
     r = subprocess.run([sys.executable, str(SCRIPT), "--trbc", str(fake), "--out", str(tmp_path / "scan"), "--cells", "reference",
@@ -62,3 +63,11 @@ def test_fluctuating_rows_descend_from_the_in_plane_threshold(tmp_path):
     # A second run keeps every finished case and runs nothing.
     ran, _ = run(tmp_path, "--protocols", "fluctuating", "--descend")
     assert ran == []
+
+
+def test_a_fresh_scan_runs_the_in_plane_cases_before_it_descends(tmp_path):
+    ran, _ = run(tmp_path, "--protocols", "in-plane,fluctuating", "--descend")
+    assert sorted(ran[:6]) == sorted(f"reference_eta30_tau{s}_inplane" for s in ("0.03", "0.04584", "0.07006", "0.1071", "0.1636", "0.25"))
+    assert sorted(ran[6:]) == sorted(f"reference_eta30_tau{s}_T{k}" for s in ("0.1071", "0.07006", "0.04584") for k in (1, 2, 3))
+    r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path / "x"), "--descend"], capture_output=True, text=True)
+    assert r.returncode != 0 and "--fluctuating N >= 1" in r.stderr
