@@ -134,9 +134,12 @@ def descend_row(trbc, out, row, inplane, log):
             ran += what == "ran"
             log(cid, what, wall)
         res = [regime(out, c) for c in seeds]
-        if any(st != "ok" for _, st in res):
-            break  # a failed or killed seed: the row's bracket is not decided here
-        n_tt = sum(r == "tank-treading" for r, _ in res)
+        finished_ = [r for r, st in res if st == "ok"]
+        # A killed seed leaves the row to the next run; a failed one counts in neither the members
+        # nor the fraction (as in the tables), so the seeds that finished decide the direction.
+        if any(st is None for _, st in res) or not finished_:
+            break
+        n_tt = sum(r == "tank-treading" for r in finished_)
         if step == 0:
             step = 1 if n_tt == 0 else -1
         if (step < 0 and n_tt == 0) or (step > 0 and n_tt > 0):
