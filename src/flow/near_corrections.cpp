@@ -90,6 +90,8 @@ void BoundaryIntegralOperators::markNearFaces(const Vec3& x0, std::vector<char>&
     for (Index f = 0; f < nf; ++f) near[static_cast<std::size_t>(f)] = isNearFace(x0, f);
 }
 
+// One parallel pass over the target vertices, kept as one loop: the adjacent faces' Duffy rule and
+// the near faces' batched kernels add into the same row through the thread's slot map.
 void BoundaryIntegralOperators::buildCorrections() {
     const Index nf = mesh_.numFaces(), nv = mesh_.numVertices();
     const bie::TriangleRule nearRule =
