@@ -3,7 +3,8 @@
 
 Reads the CSV files written by ``trbc validate`` into DIR (see
 docs/VALIDATE.md) and overlays the simulated observables
-on the experimental data of data/experiments/validation:
+on the experimental sets that the verdicts compare with, as trbc's Python
+package lists them (trbc.validation_data, in trbc's units):
 
   angle_vs_shear_rate.png      mean inclination angle (error bar = swinging
                                amplitude) vs shear rate, one panel per outer
@@ -53,7 +54,9 @@ The path of every figure written is printed on stdout; notes go to stderr.
 Exit status: 0 on success (also when there is nothing to plot), 2 when DIR
 (or a series directory) does not exist, an argument is invalid or FIGDIR
 cannot be written.
-Only numpy and matplotlib are needed.
+Needs numpy, matplotlib and trbc's Python package (`trbc validate` puts its own
+build's on PYTHONPATH); without the package the figures are drawn without the
+experimental points, and a note says so.
 """
 
 import argparse
@@ -61,7 +64,6 @@ import csv
 import itertools
 import json
 import math
-import re
 import sys
 from pathlib import Path
 
@@ -74,6 +76,13 @@ import plot_style  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.transforms import offset_copy  # noqa: E402
+
+try:
+    import trbc  # noqa: E402
+    trbc.validation_data  # noqa: B018
+except (ImportError, AttributeError) as _exc:
+    trbc = None
+    _TRBC_MISSING = str(_exc)
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = REPO / "data" / "experiments" / "validation"
@@ -146,15 +155,31 @@ def ok_rows(rows):
     return [r for r in rows if r.get("status", "ok").strip().lower() in ("ok", "")]
 
 
-def read_exp_columns(path, columns):
-    """Numeric columns of an experimental file as arrays (NaN for blanks); None if absent."""
-    rows = read_rows(path)
-    if not rows:
-        note(f"experimental file missing or empty: {path}")
-        return None
-    out = {}
-    for c in columns:
-        out[c] = np.array([fnum(r.get(c)) if fnum(r.get(c)) is not None else np.nan for r in rows])
+def experimental_sets(data):
+    """The experimental sets of the validations (trbc.validation_data); [] with a note when the
+    package or the data directory is missing."""
+    if trbc is None:
+        note(f"experimental points not drawn: cannot import trbc's Python package ({_TRBC_MISSING}); "
+             "build it (`make python`) or set PYTHONPATH=src/python:build/python")
+        return []
+    if not Path(data).is_dir():
+        return []
+    try:
+        return trbc.validation_data(data)
+    except ValueError as e:
+        note(f"experimental points not drawn: {e}")
+        return []
+
+
+def sets_of(run, observable):
+    """The sets of one observable, each with its finite rows: (set, x, y) with y of shape (n, k)."""
+    out = []
+    for d in run.sets:
+        if d["observable"] != observable:
+            continue
+        x, y = np.asarray(d["x"]), np.asarray(d["y"])
+        m = np.isfinite(x)
+        out.append((d, x[m], y[m]))
     return out
 
 
@@ -270,6 +295,7 @@ class Run:
         self.series = series
         self.multi = any(s.label is not None for s in series)
         self.data = data
+        self.sets = experimental_sets(data)
         self.figdir = Path(figdir)
         self.sub = sub          # footer of the single-DIR form
         self.written = []
@@ -511,21 +537,6 @@ def eta_key(x):
     return f"{float(x):.6g}"
 
 
-def find_angle_files(data):
-    """{eta_key: path} of the Fisher2015 inclination-angle files."""
-    d = Path(data) / "shear_flow" / "inclination_angle"
-    out = {}
-    if d.is_dir():
-        for p in sorted(d.glob("Fisher2015_eta_*_mPa_s.csv")):
-            m = re.match(r"Fisher2015_eta_([0-9.]+)_mPa_s\.csv$", p.name)
-            if m:
-                try:
-                    out[eta_key(m.group(1))] = p
-                except ValueError:
-                    pass
-    return out
-
-
 def plot_angle(run):
     ctx = FigCtx(run)
     by_eta = {}  # eta_key -> (eta, {series index: rows})
@@ -542,7 +553,7 @@ def plot_angle(run):
         note("no usable angle-sweep rows in shear.csv: skipping angle_vs_shear_rate.png")
         return
     ctx.present([s for s in run.series if any(s.index in per for _, per in by_eta.values())])
-    files = find_angle_files(run.data)
+    angle_sets = sets_of(run, "inclination_deg")
     etas = sorted(by_eta.values(), key=lambda t: t[0])
     n = len(etas)
     ncol = min(n, 2)
@@ -554,22 +565,18 @@ def plot_angle(run):
     for k, ((eta, per), ax) in enumerate(zip(etas, axes.flat)):
         xs_all = []
         # experiment
-        path = files.get(eta_key(eta))
-        if path is not None:
-            cols = [f"angle{i}" for i in range(1, 8)]
-            tab = read_exp_columns(path, ["shear_rate"] + cols)
-            if tab is not None:
-                first = True
-                for c in cols:
-                    m = np.isfinite(tab["shear_rate"]) & np.isfinite(tab[c])
-                    if m.any():
-                        ax.plot(tab["shear_rate"][m], tab[c][m], ls="none", marker="o", ms=3.2,
-                                mfc="none", mec=C_EXP, mew=0.8,
-                                label=("Fischer & Korzeniewski 2015 (donors)" if first else None))
-                        first = False
-                        xs_all += list(tab["shear_rate"][m])
-        else:
-            note(f"no Fisher2015 angle file for eta = {eta:g} mPa s")
+        here = [(d, x, y) for d, x, y in angle_sets if eta_key(d["eta_out_mPa_s"]) == eta_key(eta)]
+        for d, x, y in here:
+            first = True
+            for c in range(y.shape[1]):  # one column per donor
+                m = np.isfinite(y[:, c])
+                if m.any():
+                    ax.plot(x[m], y[m, c], ls="none", marker="o", ms=3.2, mfc="none", mec=C_EXP, mew=0.8,
+                            label=(f"{d['source']} (donors)" if first else None))
+                    first = False
+                    xs_all += list(x[m])
+        if not here and run.sets:
+            note(f"no experimental angles at eta = {eta:g} mPa s")
         for s in run.series:
             rs = per.get(s.index)
             if not rs:
@@ -672,14 +679,12 @@ def plot_ttf(run):
     ctx.present([p[0] for p in per])
     fig, ax = plt.subplots(figsize=(5.0, 3.7))
     xs = []
-    tab = read_exp_columns(Path(run.data) / "shear_flow" / "ttf" / "data_donors12.csv",
-                           ["shear_rate", "TTF"])
-    if tab is not None:
-        m = np.isfinite(tab["shear_rate"]) & np.isfinite(tab["TTF"])
-        ax.plot(tab["shear_rate"][m], 4 * np.pi * tab["TTF"][m], ls="none", marker="o", ms=3,
-                mfc="none", mec=C_EXP, mew=0.7,
-                label=r"Fischer, donors 1-2 ($\eta_o$ = 28.9 mPa s)")
-        xs += list(tab["shear_rate"][m])
+    for d, x, y in sets_of(run, "ttf_4pi_f_over_rate"):  # already 4 pi f / rate
+        m = np.isfinite(y[:, 0])
+        eta = d["eta_out_mPa_s"]
+        ax.plot(x[m], y[m, 0], ls="none", marker="o", ms=3, mfc="none", mec=C_EXP, mew=0.7,
+                label=d["source"] + (rf" ($\eta_o$ = {eta:g} mPa s)" if eta is not None else ""))
+        xs += list(x[m])
     for s, pts, tumbling, etas, used in per:
         ctx.use(s, used)
         if pts:
@@ -762,15 +767,9 @@ def plot_threshold(run):
 
     ctx.present([p[0] for p in per])
     fig, ax = plt.subplots(figsize=(7.6, 4.0))
-    d = Path(run.data) / "shear_flow" / "tt_tb_critical_stress"
-    for name, lab, mk, col in (("Fischer2013.csv", "Fischer & Korzeniewski 2013", "o", C_EXP),
-                               ("Abkarian2007.csv", "Abkarian et al. 2007", "^", C_EXP2)):
-        tab = read_exp_columns(d / name, ["eta", "tau"])
-        if tab is None:
-            continue
-        m = np.isfinite(tab["eta"]) & np.isfinite(tab["tau"]) & (tab["tau"] > 0)
-        ax.plot(tab["eta"][m], tab["tau"][m], ls="none", marker=mk, ms=5.5, mfc="none",
-                mec=col, mew=1.1, label=lab, zorder=4)
+    for (d, x, y), (mk, col) in zip(sets_of(run, "critical_stress_Pa"), itertools.cycle((("o", C_EXP), ("^", C_EXP2)))):
+        m = np.isfinite(y[:, 0]) & (y[:, 0] > 0)
+        ax.plot(x[m], y[m, 0], ls="none", marker=mk, ms=5.5, mfc="none", mec=col, mew=1.1, label=d["source"], zorder=4)
 
     # sweep, lightly (--series: regime colour, series marker, shifted with the series' bracket)
     spread = 9.0
@@ -918,12 +917,9 @@ def plot_tube_v_pg(run):
         return
     ctx.present([p[0] for p in per])
     fig, ax = plt.subplots(figsize=(5.0, 3.7))
-    tab = read_exp_columns(Path(run.data) / "microtube" / "Tomaiuolo2009_pg_v_6.6um.csv",
-                           ["pg", "v"])
-    if tab is not None:
-        m = np.isfinite(tab["pg"]) & np.isfinite(tab["v"])
-        ax.plot(tab["pg"][m], tab["v"][m], ls="none", marker="o", ms=3.5, mfc="none", mec=C_EXP,
-                mew=0.9, label="Tomaiuolo et al. 2009 (6.6 µm tube)")
+    for d, x, y in sets_of(run, "velocity_cm_per_s"):
+        m = np.isfinite(y[:, 0])
+        ax.plot(x[m], y[m, 0], ls="none", marker="o", ms=3.5, mfc="none", mec=C_EXP, mew=0.9, label=d["source"])
     for s, pts in per:
         ctx.use(s, [r for r in ok_rows(s.tube) if fnum(r.get("pg_mmHg_per_mm")) is not None
                     and fnum(r.get("velocity_cm_per_s")) is not None], tube=True)
@@ -951,23 +947,16 @@ def plot_tube_l_v(run):
     ctx.present([p[0] for p in per])
     fig, ax = plt.subplots(figsize=(5.0, 3.7))
     xs = [p[0] for s, pts in per for p in pts]
-    d = Path(run.data) / "microtube"
-    tab = read_exp_columns(d / "Tomaiuolo2009_v_l_6.6um.csv", ["v", "l", "l_high", "l_low"])
-    if tab is not None:
-        m = np.isfinite(tab["v"]) & np.isfinite(tab["l"])
-        lo = np.where(np.isfinite(tab["l_low"]), tab["l"] - tab["l_low"], 0.0)[m]
-        hi = np.where(np.isfinite(tab["l_high"]), tab["l_high"] - tab["l"], 0.0)[m]
-        ax.errorbar(tab["v"][m], tab["l"][m], yerr=[np.abs(lo), np.abs(hi)], ls="none",
-                    marker="o", ms=4, mfc="none", mec=C_EXP, ecolor=C_EXP, mew=1.0, capsize=2.5,
-                    elinewidth=0.8, label="Tomaiuolo et al. 2009 (6.6 µm tube)")
-        xs += list(tab["v"][m])
-    tab = read_exp_columns(d / "Hochmut1970_v_l_6.7um.csv", ["v", "l"])
-    if tab is not None:
-        m = np.isfinite(tab["v"]) & np.isfinite(tab["l"])
-        v_cm = tab["v"][m] * 0.1  # mm/s -> cm/s (data/README.md 2.2)
-        ax.plot(v_cm, tab["l"][m], ls="none", marker="^", ms=4, mfc="none", mec=C_EXP2, mew=0.9,
-                label="Hochmuth et al. 1970 (6.7 µm tube)")
-        xs += list(v_cm)
+    for d, x, y in sets_of(run, "length_um"):  # velocities already in cm/s
+        m = np.isfinite(y[:, 0])
+        if d["y_columns"][1:] == ["l_high", "l_low"]:  # the judged band: value with its high and low ends
+            lo = np.where(np.isfinite(y[:, 2]), y[:, 0] - y[:, 2], 0.0)[m]
+            hi = np.where(np.isfinite(y[:, 1]), y[:, 1] - y[:, 0], 0.0)[m]
+            ax.errorbar(x[m], y[m, 0], yerr=[np.abs(lo), np.abs(hi)], ls="none", marker="o", ms=4, mfc="none", mec=C_EXP,
+                        ecolor=C_EXP, mew=1.0, capsize=2.5, elinewidth=0.8, label=d["source"])
+        else:
+            ax.plot(x[m], y[m, 0], ls="none", marker="^", ms=4, mfc="none", mec=C_EXP2, mew=0.9, label=d["source"])
+        xs += list(x[m])
     for s, pts in per:
         ctx.use(s, [r for r in ok_rows(s.tube) if fnum(r.get("velocity_cm_per_s")) is not None
                     and fnum(r.get("length_um")) is not None], tube=True)

@@ -217,8 +217,11 @@ def summarise(out, all_cases, members):
                         boots.append(math.log(b))
                 sd = (sum((b - sum(boots) / len(boots)) ** 2 for b in boots) / (len(boots) - 1)) ** 0.5 if len(boots) > 1 else float("nan")
                 k = next(i for i in range(len(s) - 1) if fr[i] < 0.5 <= fr[i + 1])
-                crit = (f"{tc:.3g} in [{s[k]:.3g}, {s[k + 1]:.3g}] (bootstrap log-SE {sd:.2f}, {len(boots)}/2000 resamples "
-                        f"cross; a step from 0 to 1 pins the interpolation, the bracket is the uncertainty)")
+                # Fractions that jump from 0 to 1 give every resample the same crossing: the bootstrap
+                # then says nothing, and the bracket is the uncertainty.
+                step = fr[k] == 0.0 and fr[k + 1] == 1.0
+                crit = (f"{tc:.3g} in [{s[k]:.3g}, {s[k + 1]:.3g}] (bootstrap log-SE {sd:.2f}, {len(boots)}/2000 resamples cross"
+                        + ("; a step from 0 to 1 pins the interpolation, the bracket is the uncertainty)" if step else ")"))
             elif tc is not None:
                 k = next(i for i in range(len(s) - 1) if fr[i] < 0.5 <= fr[i + 1])
                 crit = f"[{s[k]:.3g}, {s[k + 1]:.3g}]"

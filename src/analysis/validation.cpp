@@ -56,11 +56,6 @@ void readSweeps(const fs::path& file, const toml::table& shear, const char* kind
     }
 }
 
-std::string trim(const std::string& s) {
-    const auto b = s.find_first_not_of(" \t\r"), e = s.find_last_not_of(" \t\r");
-    return b == std::string::npos ? "" : s.substr(b, e - b + 1);
-}
-
 /// A path of the file, relative to the directory of the file that sets it (this one or a base).
 using PathResolver = std::function<fs::path(const toml::table&, const char*, const std::string&)>;
 
@@ -129,6 +124,15 @@ void readShearSection(const fs::path& file, const toml::table& tbl, ValidationCo
                    "\"fluctuating\" (thermally fluctuating cells) or \"ensemble\" (random starts)");
     r.integer("threshold_members", c.thresholdMembers, 1, 64);
     r.real("temperature_K", c.temperatureK, 0.0, 400.0, true);  // the range of `flow shear --temperature`
+    // A key the chosen protocol never reads would look like a setting that took effect.
+    const auto refuseUnread = [&](const char* key, const char* readBy) {
+        if (const toml::node* n = t->get(key))
+            r.fail(*n, fmt::format("'shear.{}' is not read with threshold_protocol = \"{}\": only {} use it; remove the key "
+                                   "or choose that protocol",
+                                   key, c.thresholdProtocol, readBy));
+    };
+    if (c.thresholdProtocol == "in-plane") refuseUnread("threshold_members", "\"ensemble\" and \"fluctuating\"");
+    if (c.thresholdProtocol != "fluctuating") refuseUnread("temperature_K", "\"fluctuating\" cells");
     r.boolean("stop_when_steady", c.stopWhenSteady);
     // Sweeps given in the file replace all the default ones (the kinds not given are not run).
     if (t->get("angle") || t->get("ttf") || t->get("threshold")) c.sweeps.clear();
@@ -373,58 +377,6 @@ std::optional<double> refinementRate(const std::vector<RegimePoint>& points, dou
     return std::nullopt;
 }
 
-ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::string& xColumn, const std::vector<std::string>& yColumns) {
-    std::ifstream in(file);
-    if (!in) throw InputError(fmt::format("cannot read experimental data {}", file.string()));
-    std::string line;
-    std::vector<std::string> header;
-    long lineNo = 0;
-    ExperimentalPoints d;
-    std::vector<int> yIdx;
-    int xIdx = -1;
-    while (std::getline(in, line)) {
-        ++lineNo;
-        if (trim(line).empty()) continue;
-        std::vector<std::string> fields;
-        std::stringstream ss(line);
-        std::string f;
-        while (std::getline(ss, f, ',')) fields.push_back(trim(f));
-        if (!line.empty() && line.back() == ',') fields.push_back("");
-        if (header.empty()) {
-            header = fields;
-            auto idx = [&](const std::string& name) {
-                const auto it = std::find(header.begin(), header.end(), name);
-                if (it == header.end()) throw InputError(fmt::format("{}:1: missing column '{}'", file.string(), name));
-                return static_cast<int>(it - header.begin());
-            };
-            xIdx = idx(xColumn);
-            for (const std::string& y : yColumns) yIdx.push_back(idx(y));
-            continue;
-        }
-        auto number = [&](int i, bool required) -> std::optional<double> {
-            const std::string s = i < static_cast<int>(fields.size()) ? fields[i] : "";
-            if (s.empty()) {
-                if (required) throw InputError(fmt::format("{}:{}: column '{}' is empty", file.string(), lineNo, header[i]));
-                return std::nullopt;
-            }
-            try {
-                std::size_t n = 0;
-                const double v = std::stod(s, &n);
-                if (n == s.size() && std::isfinite(v)) return v;
-            } catch (const std::exception&) {
-            }
-            throw InputError(fmt::format("{}:{}: column '{}' = '{}' is not a number", file.string(), lineNo, header[i], s));
-        };
-        d.x.push_back(*number(xIdx, true));
-        std::vector<double> ys;
-        for (int i : yIdx)
-            if (const auto v = number(i, false)) ys.push_back(*v);
-        d.y.push_back(ys);
-    }
-    if (d.x.empty()) throw InputError(fmt::format("{}: no data rows", file.string()));
-    return d;
-}
-
 ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor, double scale) {
     ScatterComparison c;
     c.window = fmt::format("data at x in [{:.3g}, {:.3g}] (factor {:g})", x / factor, x * factor, factor);
@@ -496,37 +448,39 @@ std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(c
     return {lo, hi};
 }
 
-ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : shear_(dataDir / "shear_flow"), tube_(dataDir / "microtube") {
-    critical_ = readExperimentalPoints(shear_ / "tt_tb_critical_stress" / "Fischer2013.csv", "eta", {"tau"});
-    const ExperimentalPoints ab = readExperimentalPoints(shear_ / "tt_tb_critical_stress" / "Abkarian2007.csv", "eta", {"tau"});
-    critical_.x.insert(critical_.x.end(), ab.x.begin(), ab.x.end());
-    critical_.y.insert(critical_.y.end(), ab.y.begin(), ab.y.end());
+ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : dataDir_(dataDir) {
+    for (const char* source : {"Fischer & Korzeniewski 2013", "Abkarian et al. 2007"}) {
+        const ExperimentalPoints d = readValidationData(validationDataSet(dataDir, "critical_stress_Pa", source));
+        critical_.x.insert(critical_.x.end(), d.x.begin(), d.x.end());
+        critical_.y.insert(critical_.y.end(), d.y.begin(), d.y.end());
+    }
 }
 
 std::optional<ScatterComparison> ValidationEvidence::inclination(double etaOut, double rate, double angle, const std::string& regime) {
-    const fs::path f = shear_ / "inclination_angle" / fmt::format("Fisher2015_eta_{:g}_mPa_s.csv", etaOut);
-    if (!fs::exists(f)) return std::nullopt;
-    if (!angle_.count(etaOut))
-        angle_[etaOut] = readExperimentalPoints(f, "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
+    if (!angle_.count(etaOut)) {
+        const std::optional<ValidationDataSet> set = inclinationDataSet(dataDir_, etaOut);
+        if (!set) return std::nullopt;
+        angle_[etaOut] = readValidationData(*set);
+    }
     ScatterComparison s = compareWithScatter(rate, angle, angle_[etaOut], 1.5);
     if (regime == "tank-treading" && !std::isfinite(angle) && s.points > 0) s.verdict = "no prediction";
     return s;
 }
 
 ScatterComparison ValidationEvidence::tankTreadingFrequency(double rate, double ttf, const std::string& regime) {
-    if (!ttf_) ttf_ = readExperimentalPoints(shear_ / "ttf" / "data_donors12.csv", "shear_rate", {"TTF"});
-    ScatterComparison s = compareWithScatter(rate, ttf, *ttf_, 1.25, 4.0 * M_PI);
+    if (!ttf_) ttf_ = readValidationData(validationDataSet(dataDir_, "ttf_4pi_f_over_rate"));
+    ScatterComparison s = compareWithScatter(rate, ttf, *ttf_, 1.25);
     if (regime == "tank-treading" && !std::isfinite(ttf) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
     return s;
 }
 
 ScatterComparison ValidationEvidence::tubeVelocity(double pressureGradient, double velocity) {
-    if (!velocity_) velocity_ = readExperimentalPoints(tube_ / "Tomaiuolo2009_pg_v_6.6um.csv", "pg", {"v"});
+    if (!velocity_) velocity_ = readValidationData(validationDataSet(dataDir_, "velocity_cm_per_s"));
     return compareWithScatter(pressureGradient, velocity, *velocity_, 1.25);
 }
 
 ScatterComparison ValidationEvidence::tubeLength(double velocity, double length) {
-    if (!length_) length_ = readExperimentalPoints(tube_ / "Tomaiuolo2009_v_l_6.6um.csv", "v", {"l", "l_high", "l_low"});
+    if (!length_) length_ = readValidationData(validationDataSet(dataDir_, "length_um", "Tomaiuolo et al. 2009 (6.6 µm tube)"));
     return compareWithBand(velocity, length, *length_);
 }
 

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "analysis/validation_data.hpp"
 #include "experiments/parameters.hpp"
 
 namespace trbc {
@@ -145,15 +146,6 @@ struct ScatterComparison {
     std::string window;     ///< how the scatter was selected
 };
 
-/// Experimental table of the validation data: rows of (x, y...) as read from a CSV.
-struct ExperimentalPoints {
-    std::vector<double> x;
-    std::vector<std::vector<double>> y;  ///< per row the non-blank values (donors, or l/l_high/l_low)
-};
-/// Reads columns: x = `xColumn`, y = every other listed column (blanks allowed, skipped).
-ExperimentalPoints readExperimentalPoints(const std::filesystem::path& file, const std::string& xColumn,
-                                          const std::vector<std::string>& yColumns);
-
 /// Scatter of all y values of the rows with x in [x / factor, x * factor] (times `scale`).
 ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor,
                                      double scale = 1.0);
@@ -190,7 +182,7 @@ public:
     ScatterComparison criticalStress(double etaOut, std::optional<double> tauLo, std::optional<double> tauHi) const;
 
 private:
-    std::filesystem::path shear_, tube_;
+    std::filesystem::path dataDir_;
     std::map<double, ExperimentalPoints> angle_;
     std::optional<ExperimentalPoints> velocity_, length_, ttf_;
     ExperimentalPoints critical_;

@@ -36,9 +36,12 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
     const std::vector<SurrogateBandRow> rows = surrogateShearBands(R.cfg, model, R.draws, evidence);
     const OutputDirectory outDir(R.out, "validate", "--out", {"surrogate_bands.json"}, {o.config.string()});
     ensureWritableDirectory(R.out.string());
+    const std::string protocol = flowSurrogateProtocol(model);
     const std::string md = fmt::format("# Shear validations through the flow networks\n\n{} draws of theta_new ({}, {} samples; seed {}), "
-                                       "networks {}; command: `{}`\n\n",
-                                       R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, o.surrogate.string(), o.command) +
+                                       "networks {}; command: `{}`\n\nRegimes and thresholds are those of the networks' campaign, "
+                                       "threshold protocol: {}{}.\n\n",
+                                       R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, o.surrogate.string(), o.command,
+                                       protocol, protocol == "ensemble" ? " (random starts, a draw tank-treads when more than half of them do)" : "") +
                            surrogateBandsMarkdown(rows);
     writeFileAtomically(R.out / "surrogate_bands.csv", surrogateBandsCsv(rows));
     writeFileAtomically(R.out / "surrogate_bands.md", md);
@@ -56,6 +59,7 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
                     {"draws", R.draws.size()},
                     {"seed", R.seed},
                     {"config", R.cfg.file.string()},
+                    {"threshold_protocol", protocol},
                     {"kinds", tally},
                     {"wall_s", secondsSince(t0)}};
     writeFileAtomically(R.out / "surrogate_bands.json", j.dump(2) + "\n");
@@ -125,7 +129,8 @@ void listCases(ValidationRunner& R, const std::vector<ValidationCase>& initial) 
 }
 
 void drawValidationFigures(const ValidationRunner& R, const ValidationRunOptions& o) {
-    const std::string plot = shellQuote(o.python) + " " + shellQuote(o.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
+    // The script takes the experimental sets from trbc's Python package (trbc.validation_data).
+    const std::string plot = (o.pythonPath.empty() ? std::string() : "PYTHONPATH=" + shellQuote(o.pythonPath) + " ") + shellQuote(o.python) + " " + shellQuote(o.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
                              shellQuote(R.cfg.dataDir) + " > " + shellQuote(R.out / "plot.log") + " 2>&1";
     if (std::system(plot.c_str()) != 0)
         std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());

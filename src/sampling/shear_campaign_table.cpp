@@ -170,6 +170,7 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
     std::uint64_t seed = 0;
     double etaIn = 0.0;
     int level = 0;
+    std::string start;
     try {
         std::ifstream in(provenance);
         const nlohmann::json j = nlohmann::json::parse(in).at("settings");
@@ -178,6 +179,7 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
         seed = j.at("seed").get<std::uint64_t>();
         etaIn = j.at("eta_in_mPa_s").get<double>();
         level = j.at("level").get<int>();
+        start = j.value("start", std::string());
     } catch (const std::exception& e) {
         throw InputError(fmt::format("{}: not a shear campaign ({})", provenance.string(), e.what()));
     }
@@ -188,7 +190,7 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
         if (complete) *complete = false;
         for (auto& [id, r] : finishedShearCampaignRows(path, shearCampaignDesign(design, cases, seed, etaIn))) rows.push_back(std::move(r));
     }
-    for (ShearCampaignRow& r : rows) r.meshLevel = level;
+    for (ShearCampaignRow& r : rows) r.meshLevel = level, r.start = start;
     return rows;
 }
 

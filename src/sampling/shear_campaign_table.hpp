@@ -65,6 +65,8 @@ struct ShearCampaignRow {
     double wallSeconds = 0.0;
     /// The campaign's mesh level (its campaign.json; not a column of the table), 0 when not known.
     int meshLevel = 0;
+    /// The campaign's start (its campaign.json): "random" or "in-plane"; empty when not known.
+    std::string start;
 
     bool ok() const { return status == "ok"; }
     /// A row the networks learn from: run to the end, with a regime.
@@ -88,8 +90,8 @@ std::map<long, ShearCampaignRow> finishedShearCampaignRows(const std::filesystem
                                                            const std::vector<ShearCampaignPoint>& design);
 
 /// The rows of a shear campaign: cases.csv when complete, otherwise the finished cases of the part
-/// files; a CSV file path reads that table. Rows of a directory carry the level of its
-/// campaign.json (meshLevel).
+/// files; a CSV file path reads that table. Rows of a directory carry the level and the start of its
+/// campaign.json (meshLevel, start).
 std::vector<ShearCampaignRow> readShearCampaignRows(const std::filesystem::path& dirOrFile, bool* complete = nullptr);
 
 }  // namespace trbc

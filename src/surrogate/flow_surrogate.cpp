@@ -134,6 +134,11 @@ struct LevelSplit {
 
 LevelSplit splitByLevel(const std::vector<const ShearCampaignRow*>& done) {
     LevelSplit s;
+    // The regime network is the probability of one protocol: random and in-plane starts do not mix.
+    for (const ShearCampaignRow* r : done)
+        if (r->start != done.front()->start)
+            throw InputError(fmt::format("flow surrogate: campaigns with the starts '{}' and '{}'; the regime is a protocol's, train on one",
+                                         done.front()->start, r->start));
     // The networks have no cytosol input, and a case given twice would sit in training and test.
     std::set<std::pair<int, long>> seen;
     for (const ShearCampaignRow* r : done) {
@@ -205,6 +210,10 @@ Eigen::MatrixXd FlowSurrogate::networkInputs(const Eigen::Ref<const Eigen::Matri
     return x;
 }
 
+std::string flowSurrogateProtocol(const FlowSurrogate& s) {
+    return s.start == "random" ? "ensemble" : s.start == "in-plane" ? "in-plane" : "not recorded";
+}
+
 FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     FlowSurrogate s;
     s.regime = loadNetwork((dir / "flow_regime.json").string());
@@ -216,6 +225,7 @@ FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
         const nlohmann::json meta = nlohmann::json::parse(in);
         s.etaIn = meta.at("eta_in_mPa_s").get<double>();
         if (meta.contains("levels")) s.levels = meta.at("levels").get<std::vector<int>>();
+        s.start = meta.value("start", std::string());
         if (!s.levels.empty()) s.level = *std::max_element(s.levels.begin(), s.levels.end());
     } catch (const std::exception& e) {
         throw InputError(fmt::format("{}: not the description of flow networks ({})", meta.string(), e.what()));
@@ -236,13 +246,15 @@ void FlowSurrogate::save(const fs::path& dir) const {
     if (ec) throw InputError(fmt::format("cannot create {}: {}", dir.string(), ec.message()));
     saveNetwork(regime, (dir / "flow_regime.json").string());
     saveNetwork(tankTreading, (dir / "flow_tank_treading.json").string());
-    const nlohmann::json meta = {{"eta_in_mPa_s", etaIn},
+    nlohmann::json meta = {{"eta_in_mPa_s", etaIn},
                                  {"inputs", inputNames()},
                                  {"levels", levels},
                                  {"predicts_level", level},
-                                 {"networks", {{"flow_regime", "probability of tank-treading (random start)"},
+                                 {"networks", {{"flow_regime", fmt::format("probability of tank-treading ({} protocol)",
+                                                                           flowSurrogateProtocol(*this))},
                                                {"flow_tank_treading", "inclination_deg, swing_deg, ttf_4pi_f_over_rate"}}},
                                  {"trbc_version", kVersion}};
+    if (!start.empty()) meta["start"] = start;
     writeFileAtomically(dir / "flow_surrogate.json", meta.dump(2) + "\n");
 }
 
@@ -408,6 +420,7 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
     model.regime = std::move(nets[0]);
     model.tankTreading = std::move(nets[1]);
     model.etaIn = done.front()->point.etaIn;
+    model.start = done.front()->start;
     rep.test = accuracySums(rep.model, held, opt.boundaryFactor).accuracy();
     rep.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;

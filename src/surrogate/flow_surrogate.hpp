@@ -51,6 +51,9 @@ struct FlowSurrogate {
     double etaIn = 10.0;          ///< the campaign's cytosol viscosity, mPa s (flow_surrogate.json)
     std::vector<int> levels;      ///< the mesh levels of the training campaigns (empty: one, unrecorded)
     int level = 0;                ///< the level the predictions are for: the finest of `levels`
+    /// The campaign's start, "random" or "in-plane" (flow_surrogate.json); empty when not recorded.
+    /// It is the threshold protocol the regime network answers for: random starts are the ensemble.
+    std::string start;
 
     bool multiLevel() const { return levels.size() > 1; }
     /// flowSurrogateInputNames, with kFlowLevelInput when multiLevel.
@@ -81,6 +84,10 @@ struct FlowSurrogate {
     Eigen::VectorXd criticalStressPa(const Eigen::Ref<const Eigen::MatrixXd>& x, double probability = 0.5,
                                      bool clampToRange = false) const;
 };
+
+/// The threshold protocol whose regime the networks give: "ensemble" (random starts), "in-plane",
+/// or "not recorded".
+std::string flowSurrogateProtocol(const FlowSurrogate& s);
 
 /// One column of inputs, in flowSurrogateInputNames order.
 Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutMPaS, double shearRatePerS);

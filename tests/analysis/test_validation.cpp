@@ -37,11 +37,7 @@ TEST(ValidationReasons, AShortenedReasonEndsAtAWordBoundary) {
 using test::TempDir;
 using test::writeText;
 
-/// A table without its provenance line, which names the command that wrote it.
-std::string tableBody(const std::filesystem::path& csv) {
-    const std::string text = test::slurp(csv);
-    return text.starts_with('#') ? text.substr(text.find('\n') + 1) : text;
-}
+using test::tableBody;
 
 const fs::path kRepo = test::sourceRoot();
 const fs::path kExperiments = test::experimentsDir();
@@ -235,24 +231,6 @@ TEST(ValidationComparison, EvidenceWindowsAndVerdictsOfEachObservable) {
     EXPECT_EQ(e.criticalStress(23.9, criticalStressInterval(b, 23.9).first, std::nullopt).verdict, "not bracketed");
 }
 
-TEST(ValidationData, ShippedFilesReadWithBlanksAndBadCellsAreNamed) {
-    const ExperimentalPoints a = readExperimentalPoints(kExperiments / "validation" / "shear_flow" / "inclination_angle" /
-                                                            "Fisher2015_eta_23.9_mPa_s.csv",
-                                                        "shear_rate", {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"});
-    ASSERT_GT(a.x.size(), 10u);
-    EXPECT_NEAR(a.x[0], 2.5942, 1e-12);
-    EXPECT_EQ(a.y[0].size(), 1u);  // one donor at the lowest rate, blanks skipped
-    TempDir dir;
-    const fs::path bad = writeText(dir.path() / "bad.csv", "pg,v\n1,0.1\n2,fast\n");
-    try {
-        readExperimentalPoints(bad, "pg", {"v"});
-        FAIL() << "no error";
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("bad.csv:3: column 'v' = 'fast' is not a number"), std::string::npos) << e.what();
-    }
-    EXPECT_THROW(readExperimentalPoints(bad, "pressure", {"v"}), InputError);
-}
-
 TEST(ValidationShard, DealsUnitsRoundRobinAndKeepsAThresholdViscosityTogether) {
     const std::vector<ValidationCase> all = {
         {"a1", "angle", 10.7, 1.0, 0.0},     {"a2", "angle", 10.7, 2.0, 0.0},     {"h1", "threshold", 10.0, 30.0, 0.0},
@@ -387,7 +365,11 @@ TEST(ThresholdEnsemble, TheDefaultProtocolIsTheFluctuatingCell) {
              {"[shear]\nthreshold_members = 0\n", "threshold_protocol = \"in-plane\""},
              {"[shear]\nthreshold_members = 8\n", "'shear.threshold_members' without 'shear.threshold_protocol'"},
              {"[shear]\nthreshold_protocol = \"thermal\"\n", "is not one of: in-plane, ensemble, fluctuating"},
-             {"[shear]\ntemperature_K = -3\n", "'shear.temperature_K' = -3 is out of range: valid range (0, 400]"}}) {
+             {"[shear]\ntemperature_K = -3\n", "'shear.temperature_K' = -3 is out of range: valid range (0, 400]"},
+             {"[shear]\nthreshold_protocol = \"in-plane\"\nthreshold_members = 3\n",
+              "'shear.threshold_members' is not read with threshold_protocol = \"in-plane\""},
+             {"[shear]\nthreshold_protocol = \"ensemble\"\ntemperature_K = 300\n",
+              "'shear.temperature_K' is not read with threshold_protocol = \"ensemble\": only \"fluctuating\" cells use it"}}) {
         try {
             readValidationConfig(writeText(dir.path() / "b.toml", text), kExperiments);
             ADD_FAILURE() << text << " was accepted";

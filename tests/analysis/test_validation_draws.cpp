@@ -32,11 +32,7 @@ namespace fs = std::filesystem;
 using test::TempDir;
 using test::writeText;
 
-/// A table without its provenance line, which names the command that wrote it.
-std::string tableBody(const std::filesystem::path& csv) {
-    const std::string text = test::slurp(csv);
-    return text.starts_with('#') ? text.substr(text.find('\n') + 1) : text;
-}
+using test::tableBody;
 
 const fs::path kRepo = test::sourceRoot();
 const fs::path kExperiments = test::experimentsDir();

@@ -53,6 +53,18 @@ void configure(ValidationRunner& R, const fs::path& out, const fs::path& exe) {
     fs::create_directories(out / "cases");
 }
 
+/// The record of kCases[0] after one run into tmp/out by the stand-in with the file `marker` beside
+/// it (FAIL, DAMAGED), which is removed afterwards.
+nlohmann::json runFirstCaseWith(const fs::path& tmp, const fs::path& exe, const char* marker, bool quiet = true) {
+    test::writeText(tmp / marker, "");
+    ValidationRunner R;
+    configure(R, tmp / "out", exe);
+    R.quiet = quiet;
+    R.runAll({kCases[0]});
+    fs::remove(tmp / marker);
+    return R.resultOf(kCases[0].id);
+}
+
 TEST(ValidationRunner, RunsEachCaseOnceAndResumesFromItsRecords) {
     const test::TempDir tmp;
     const fs::path exe = fakeFlowCommand(tmp.path());
@@ -112,16 +124,9 @@ TEST(ValidationRunner, ImportsFinishedCasesOfAnotherDirectoryInsteadOfRunningThe
 TEST(ValidationRunner, KeepsAFailedCaseWithItsReasonUntilRetryFailed) {
     const test::TempDir tmp;
     const fs::path exe = fakeFlowCommand(tmp.path());
-    test::writeText(tmp.path() / "FAIL", "");
-    {
-        ValidationRunner R;
-        configure(R, tmp.path() / "out", exe);
-        R.runAll({kCases[0]});
-        const nlohmann::json& r = R.resultOf(kCases[0].id);
-        EXPECT_EQ(r.at("status"), "failed");
-        EXPECT_NE(r.at("reason").get<std::string>().find("exit 3 without a result: solver diverged"), std::string::npos) << r;
-    }
-    fs::remove(tmp.path() / "FAIL");
+    const nlohmann::json r = runFirstCaseWith(tmp.path(), exe, "FAIL");
+    EXPECT_EQ(r.at("status"), "failed");
+    EXPECT_NE(r.at("reason").get<std::string>().find("exit 3 without a result: solver diverged"), std::string::npos) << r;
     {
         ValidationRunner R;  // kept: a failure counts as finished
         configure(R, tmp.path() / "out", exe);
@@ -145,17 +150,9 @@ TEST(ValidationRunner, KeepsAFailedCaseWithItsReasonUntilRetryFailed) {
 TEST(ValidationRunner, ADamagedResultFailsItsCaseAndADamagedRecordIsRunAgain) {
     const test::TempDir tmp;
     const fs::path exe = fakeFlowCommand(tmp.path());
-    test::writeText(tmp.path() / "DAMAGED", "");
-    {
-        ValidationRunner R;
-        configure(R, tmp.path() / "out", exe);
-        R.quiet = false;  // the progress line reads the result too
-        R.runAll({kCases[0]});
-        const nlohmann::json& r = R.resultOf(kCases[0].id);
-        EXPECT_EQ(r.at("status"), "failed");
-        EXPECT_NE(r.at("reason").get<std::string>().find("'observables.inclination_deg' is \"12.5\" (string)"), std::string::npos) << r;
-    }
-    fs::remove(tmp.path() / "DAMAGED");
+    const nlohmann::json r = runFirstCaseWith(tmp.path(), exe, "DAMAGED", false);  // not quiet: the progress line reads the result too
+    EXPECT_EQ(r.at("status"), "failed");
+    EXPECT_NE(r.at("reason").get<std::string>().find("'observables.inclination_deg' is \"12.5\" (string)"), std::string::npos) << r;
     const fs::path file = tmp.path() / "out" / "cases" / (kCases[0].id + ".json");
     nlohmann::json record = nlohmann::json::parse(test::slurp(file));
     record["result"] = {{"status", "ok"}, {"observables", {{"inclination_deg", "12.5"}}}};

@@ -27,11 +27,7 @@
 namespace trbc {
 namespace {
 
-/// A table without its provenance line, which names the command that wrote it.
-std::string tableBody(const std::filesystem::path& csv) {
-    const std::string text = test::slurp(csv);
-    return text.starts_with('#') ? text.substr(text.find('\n') + 1) : text;
-}
+using test::tableBody;
 
 
 constexpr double kPi = std::numbers::pi;

@@ -146,7 +146,7 @@ TEST(ShearCampaignTable, RowsOfAnotherBuildCountAndRowsOfAnotherDesignAreRefused
     }
 }
 
-// The rows of a campaign directory, or of its cases.csv, carry the level of its campaign.json.
+// The rows of a campaign directory, or of its cases.csv, carry the level and the start of its campaign.json.
 TEST(ShearCampaignTable, RowsCarryTheirCampaignsLevel) {
     TempDir tmp;
     const std::vector<ShearCampaignPoint> design = shearCampaignDesign(DesignKind::Sobol, 4, 7);
@@ -155,18 +155,20 @@ TEST(ShearCampaignTable, RowsCarryTheirCampaignsLevel) {
     r.regime = "tumbling";
     fs::create_directories(tmp.path() / "c" / "parts");
     std::ofstream(tmp.path() / "c" / "campaign.json")
-        << R"({"settings": {"design": "sobol", "cases": 4, "seed": 7, "eta_in_mPa_s": 10.0, "level": 2}})";
+        << R"({"settings": {"design": "sobol", "cases": 4, "seed": 7, "eta_in_mPa_s": 10.0, "level": 2, "start": "in-plane"}})";
     std::ofstream(tmp.path() / "c" / "parts" / "rank0.csv") << shearCampaignCsvHeader() << "\n" << formatShearCampaignRow(r) << "\n";
     bool complete = true;
     const auto parts = readShearCampaignRows(tmp.path() / "c", &complete);
     ASSERT_EQ(parts.size(), 1u);
     EXPECT_FALSE(complete);
     EXPECT_EQ(parts[0].meshLevel, 2);
+    EXPECT_EQ(parts[0].start, "in-plane");
     std::ofstream(tmp.path() / "c" / "cases.csv") << shearCampaignCsvHeader() << "\n" << formatShearCampaignRow(r) << "\n";
     EXPECT_EQ(readShearCampaignRows(tmp.path() / "c")[0].meshLevel, 2);
     EXPECT_EQ(readShearCampaignRows(tmp.path() / "c" / "cases.csv")[0].meshLevel, 2);
     fs::copy_file(tmp.path() / "c" / "cases.csv", tmp.path() / "alone.csv");
     EXPECT_EQ(readShearCampaignRows(tmp.path() / "alone.csv")[0].meshLevel, 0);  // no campaign beside it
+    EXPECT_EQ(readShearCampaignRows(tmp.path() / "alone.csv")[0].start, "");
 }
 
 // Campaigns trained together differ only in level and size.

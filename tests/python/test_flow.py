@@ -140,3 +140,18 @@ def test_load_validation_reads_the_shipped_bands():
 def test_load_validation_names_a_directory_without_results(tmp_path):
     with pytest.raises(ValueError, match="no validation.json"):
         trbc.load_validation(tmp_path)
+
+
+def test_validation_data_gives_the_verdicts_sets_in_trbcs_units():
+    sets = trbc.validation_data()
+    angles = [s for s in sets if s["observable"] == "inclination_deg"]
+    assert [s["eta_out_mPa_s"] for s in angles] == [10.7, 23.9, 55.9, 104.0]
+    for s in sets:
+        assert s["y"].shape == (len(s["x"]), len(s["y_columns"]))
+    a = angles[1]
+    assert a["y"].shape[1] == 7 and np.isnan(a["y"][0, 0]) and a["y"][0, 2] == pytest.approx(12.053)
+    ttf = next(s for s in sets if s["observable"] == "ttf_4pi_f_over_rate")
+    assert ttf["y"][0, 0] == pytest.approx(4 * np.pi * 0.062906)  # the file holds f / rate
+    hochmuth = next(s for s in sets if not s["judged"])
+    assert hochmuth["x"][0] == pytest.approx(0.0035111)  # mm/s in the file, cm/s here
+    assert trbc.validation_data(Path("/nonexistent")) == []

@@ -97,6 +97,11 @@ std::string slurp(const fs::path& p) {
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+std::string tableBody(const fs::path& csv) {
+    const std::string text = slurp(csv);
+    return text.starts_with('#') ? text.substr(text.find('\n') + 1) : text;
+}
+
 std::string shellQuote(const std::string& s) {
     std::string q = "'";
     for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);

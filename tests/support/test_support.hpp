@@ -50,6 +50,9 @@ private:
 std::string inputError(const std::function<void()>& f);
 
 std::string slurp(const std::filesystem::path& p);
+/// A table without its provenance line (a first line starting with '#', which names the command
+/// that wrote it).
+std::string tableBody(const std::filesystem::path& csv);
 /// Writes `text` to `p` (parent folders created) and returns `p`.
 std::filesystem::path writeText(const std::filesystem::path& p, const std::string& text);
 std::string shellQuote(const std::string& s);

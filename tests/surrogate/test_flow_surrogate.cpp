@@ -38,6 +38,7 @@ std::vector<ShearCampaignRow> syntheticCampaign(long n) {
             r.ttf = 0.3 + 0.1 * std::tanh(std::log(q.etaOut / 30.0));
         }
         r.turns = 4.0;
+        r.start = "random";
         rows.push_back(r);
     }
     return rows;
@@ -129,6 +130,8 @@ TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
     EXPECT_EQ(c.pTankTreading, a.pTankTreading);
     EXPECT_EQ(c.ttf, a.ttf);
     EXPECT_EQ(back.etaIn, 10.0);
+    EXPECT_EQ(back.start, "random");
+    EXPECT_EQ(flowSurrogateProtocol(back), "ensemble");
 }
 
 // Multi-level networks: many cases of a coarse level whose angle is 1.5 deg low, a few of the
@@ -203,6 +206,16 @@ TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
     EXPECT_THROW(trainFlowSurrogate(failed, opt), InputError);
     opt.folds = 3, opt.fold = 3;
     EXPECT_THROW(trainFlowSurrogate(rows, opt), InputError);
+    // Random and in-plane starts are two threshold protocols; one regime network cannot be both.
+    opt = FlowSurrogateTrainingOptions{};
+    std::vector<ShearCampaignRow> mixed = rows;
+    mixed[7].start = "in-plane";
+    try {
+        trainFlowSurrogate(mixed, opt);
+        ADD_FAILURE() << "mixed starts were accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("the starts 'random' and 'in-plane'"), std::string::npos) << e.what();
+    }
 }
 
 // validate --surrogate and flow sobol on the shipped validation config: one row per angle, TTF and

@@ -37,7 +37,7 @@ __version__ = _core.__version__
 __all__ = [
     "Mesh", "NumericalError", "DataSet", "Surrogate", "FlowSurrogate", "Posterior", "membrane_energy", "simulate", "sfs",
     "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
-    "load_inference", "load_validation", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
+    "load_inference", "load_validation", "validation_data", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
     "evans_fung_thickness", "evans_fung_radius_um", "fit_hochmuth",
 ]
 
@@ -354,6 +354,19 @@ def _read_table(path: Path) -> dict:
         except ValueError:
             table[name] = cells
     return table
+
+
+def validation_data(data: Optional[_PathLike] = None) -> list:
+    """The experimental sets the flow validations compare with (`trbc validate`'s verdicts read the
+    same list), in trbc's units. `data`: the validation data directory (shear_flow/, microtube/);
+    default data_dir("experiments", "validation").
+
+    One dict per set: "observable" (inclination_deg, ttf_4pi_f_over_rate, critical_stress_Pa,
+    velocity_cm_per_s, length_um), "x_name" (shear_rate_per_s, eta_out_mPa_s, pg_mmHg_per_mm,
+    velocity_cm_per_s), "source", "file", "eta_out_mPa_s" (of a set measured at one viscosity, else
+    None), "judged" (False: shown beside the verdicts only), "x" (n,), "y" (n, k) with NaN for a
+    blank, and "y_columns" (the k columns: donors, or l, l_high, l_low)."""
+    return _core.validation_data(str(data if data is not None else data_dir("experiments", "validation")))
 
 
 def load_validation(out: _PathLike) -> dict:

@@ -1,0 +1,51 @@
+#pragma once
+// The experimental data sets of the flow validations: which file holds which observable, in which
+// columns and units. The verdicts (ValidationEvidence, validation.hpp) and the plots (Python
+// `trbc.validation_data`) read them through this one list, so that no script names a data file.
+#include <cmath>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace trbc {
+
+/// Experimental table of the validation data: rows of (x, y...) as read from a CSV.
+struct ExperimentalPoints {
+    std::vector<double> x;
+    /// per row the y columns in their order; a blank is skipped, or NaN when read with keepBlanks
+    std::vector<std::vector<double>> y;
+};
+/// Reads columns: x = `xColumn`, y = every other listed column (blanks allowed: skipped, or NaN
+/// with `keepBlanks`). InputError naming the file, line and column for a missing column, an empty
+/// x or a field that is not a number.
+ExperimentalPoints readExperimentalPoints(const std::filesystem::path& file, const std::string& xColumn,
+                                          const std::vector<std::string>& yColumns, bool keepBlanks = false);
+
+/// One experimental data set of the flow validations.
+struct ValidationDataSet {
+    std::string observable;  ///< inclination_deg, ttf_4pi_f_over_rate, critical_stress_Pa, velocity_cm_per_s, length_um
+    std::string x;           ///< the abscissa: shear_rate_per_s, eta_out_mPa_s, pg_mmHg_per_mm or velocity_cm_per_s
+    std::string source;      ///< who measured it (and where, for the tubes)
+    std::filesystem::path file;
+    std::string xColumn;
+    std::vector<std::string> yColumns;
+    double xScale = 1.0, yScale = 1.0;  ///< from the file's units to trbc's (TTF: f/rate to 4 pi f/rate; mm/s to cm/s)
+    double etaOutMPaS = NAN;            ///< the outer viscosity of a set measured at one, NaN otherwise
+    bool judged = true;                 ///< compared with by the verdicts; false: drawn beside them only
+};
+
+/// Every set of `dataDir` (the validation data: shear_flow/, microtube/), the inclination sets in
+/// increasing viscosity (one file per viscosity, Fisher2015_eta_<eta>_mPa_s.csv), then the TTF, the
+/// critical stresses, the tube's velocity and length; files that are absent are left out.
+std::vector<ValidationDataSet> validationDataSets(const std::filesystem::path& dataDir);
+/// The inclination set measured at `etaOutMPaS` (exact match of the file's viscosity), if there is one.
+std::optional<ValidationDataSet> inclinationDataSet(const std::filesystem::path& dataDir, double etaOutMPaS);
+/// The set of `observable` from `source` (the first of that observable when `source` is empty);
+/// InputError naming the file when it is absent.
+ValidationDataSet validationDataSet(const std::filesystem::path& dataDir, const std::string& observable, const std::string& source = "");
+
+/// The set's points in trbc's units (x times xScale, y times yScale).
+ExperimentalPoints readValidationData(const ValidationDataSet& s, bool keepBlanks = false);
+
+}  // namespace trbc
