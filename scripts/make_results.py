@@ -58,6 +58,16 @@ SETS = {
                             ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 2.0, None),
     "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new"], 0.5,
                             None),
+    "flow_campaign": ("the shear-flow campaign at levels 3 and 2, its networks and learning curve (the whole design)",
+                      ["mpirun -n 2 {trbc} flow campaign --cases 4096 --level 3 --seed 20261129 --threads 1 --no-cache --out {out}/level3",
+                       "mpirun -n 2 {trbc} flow campaign --cases 4096 --level 2 --seed 20261129 --threads 1 --no-cache --out {out}/level2",
+                       "{trbc} flow train --campaign {out}/level3 --campaign {out}/level2 --folds 5 --learning-curve 40,80,160 "
+                       "--out {out}/networks",
+                       "{trbc} flow train --campaign {out}/level3 --folds 5 --learning-curve 40,80,160 --out {out}/level3_only",
+                       "python3 scripts/plot_flow_learning_curve.py {out}/level3_only/training.json {out}/networks/training.json "
+                       "--label 'level 3 only' --label 'levels 2 and 3' --out {out}/learning_curve.png"], 86.0,
+                      ["level3/campaign.json", "level3/cases.csv", "level2/campaign.json", "level2/cases.csv", "networks", "level3_only",
+                       "learning_curve.png"]),
     "flow_verification/capsule": ("the spherical-capsule verification table",
                                   ["python3 scripts/capsule_verification.py --trbc {trbc} --out {out}"], 3.0, None),
     "flow_threshold/scan": ("the threshold under three protocols, three cells, four viscosities",
@@ -125,12 +135,14 @@ def recorded(name):
             hours = j["case_wall_s_total"] / 3600 if "case_wall_s_total" in j else None
             return command, hours
     for sub in sorted(os.listdir(d)) if os.path.isdir(d) else []:  # sets of single runs: the first run's record
-        f = os.path.join(d, sub, "flow.json")
-        if os.path.exists(f):
-            try:
-                return json.load(open(f)).get("provenance", {}).get("command", ""), None
-            except (OSError, ValueError):
-                pass
+        for record, key in (("flow.json", lambda j: j.get("provenance", {}).get("command", "")),
+                            ("campaign.json", lambda j: j.get("command", ""))):
+            f = os.path.join(d, sub, record)
+            if os.path.exists(f):
+                try:
+                    return key(json.load(open(f))), None
+                except (OSError, ValueError):
+                    pass
     for text in ("command.txt", "README.md"):
         f = os.path.join(d, text)
         if os.path.exists(f):

@@ -28,10 +28,10 @@ struct DesignAxis {
 /// stresses 0.01-21 Pa); docs/FLOW_CAMPAIGN.md gives the reasons for each range.
 inline constexpr DesignAxis kShearCampaignAxes[7] = {
     {"v", 0.65, 1.0, false},
-    {"mu_uN_per_m", 1.0, 12.0, true},
+    {"mu_uN_per_m", 0.5, 16.0, true},
     {"FvK", 10.0, 2000.0, true},
-    {"b2", 0.0, 8.0, false},
-    {"etam_Pa_s_um", 0.05, 2.5, true},
+    {"b2", 0.0, 9.0, false},
+    {"etam_Pa_s_um", 0.03, 3.0, true},
     {"eta_out_mPa_s", 8.0, 130.0, true},
     {"shear_stress_Pa", 0.01, 25.0, true},
 };

@@ -110,6 +110,15 @@ struct FlowSurrogateTrainingOptions {
     std::string command;
 };
 
+/// The accuracy the flow networks are built for: the angle and the TTF within the campaign's
+/// resolution of the validation data, and the regime right almost everywhere away from the boundary.
+struct FlowAccuracyGoals {
+    double inclinationRmseDeg = 0.3;
+    double ttfRelativeRmse = 0.02;
+    double farMisclassifiedFraction = 0.03;  ///< of the cases more than boundaryFactor from the boundary
+};
+inline constexpr FlowAccuracyGoals kFlowAccuracyGoals{};
+
 /// Accuracy on held-out cases.
 struct FlowAccuracy {
     long cases = 0;            ///< finished test cases

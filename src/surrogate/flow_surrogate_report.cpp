@@ -134,6 +134,10 @@ nlohmann::json flowTrainingJson(const FlowTrainingSummary& s) {
                                   {"ensemble", s.options.ensemble}, {"boundary_factor", s.options.boundaryFactor}});
     j["levels"] = rep.model.levels;
     j["predicts_level"] = rep.model.level;
+    j["start"] = rep.model.start;
+    j["goals"] = {{"inclination_rmse_deg", kFlowAccuracyGoals.inclinationRmseDeg},
+                  {"ttf_relative_rmse", kFlowAccuracyGoals.ttfRelativeRmse},
+                  {"far_misclassified_fraction", kFlowAccuracyGoals.farMisclassifiedFraction}};
     j["data_hash"] = rep.dataHash;
     j["rows"] = rep.rows;
     j["finished_rows"] = rep.used;
@@ -158,7 +162,10 @@ std::string flowAccuracyMarkdown(const FlowTrainingSummary& s) {
     if (s.training.model.multiLevel())
         md = fmt::format("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-{} cases, "
                          "with every coarser case in training.\n\n", s.training.model.level);
-    md += fmt::format("Flow networks from {}; command: `{}`\n\n{}\n", from, s.options.command, kTableHead);
+    md += fmt::format("Flow networks from {}; command: `{}`\n\nGoals: angle RMSE ≤ {:g}°, TTF RMSE ≤ {:g} %, misclassified far from "
+                      "the boundary ≤ {:g} %.\n\n{}\n",
+                      from, s.options.command, kFlowAccuracyGoals.inclinationRmseDeg, 100.0 * kFlowAccuracyGoals.ttfRelativeRmse,
+                      100.0 * kFlowAccuracyGoals.farMisclassifiedFraction, kTableHead);
     md += flowAccuracyRow(fmt::format("held out ({:.0f} %)", 100.0 * s.options.testFraction), s.training.test) + "\n";
     if (s.crossValidation) md += flowAccuracyRow(fmt::format("{}-fold CV", s.crossValidation->folds), s.crossValidation->pooled) + "\n";
     if (s.learningCurve) {

@@ -38,8 +38,8 @@ TEST(ShearCampaignDesign, FillsTheBoxOnItsScalesAndGrowsAsAPrefix) {
         EXPECT_EQ(q.caseId, &q - pts.data());
         EXPECT_GE(q.cell.v, 0.65);
         EXPECT_LE(q.cell.v, 1.0);
-        EXPECT_GE(q.cell.etam, 0.05);
-        EXPECT_LE(q.cell.etam, 2.5);
+        EXPECT_GE(q.cell.etam, 0.03);
+        EXPECT_LE(q.cell.etam, 3.0);
         EXPECT_GE(q.etaOut, 8.0);
         EXPECT_LE(q.etaOut, 130.0);
         const double stress = q.etaOut * 1e-3 * q.shearRate;

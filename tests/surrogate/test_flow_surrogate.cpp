@@ -56,11 +56,11 @@ FlowSurrogateTrainingReport syntheticNetworks(const std::vector<ShearCampaignRow
 }
 
 TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
-    const auto rows = syntheticCampaign(1024);
+    const auto rows = syntheticCampaign(2048);
     const FlowSurrogateTrainingReport rep = syntheticNetworks(rows);
-    EXPECT_EQ(rep.used, 1024);
-    EXPECT_EQ(rep.testCases, 102);
-    EXPECT_EQ(rep.regimeRows, 1024 - 102);
+    EXPECT_EQ(rep.used, 2048);
+    EXPECT_EQ(rep.testCases, 205);  // round(0.1 x 2048)
+    EXPECT_EQ(rep.regimeRows, 2048 - 205);
     EXPECT_LT(rep.test.inclinationRmseDeg, 0.5) << "the angle spans ~25 deg";
     EXPECT_LT(rep.test.ttfRelativeRmse, 0.01);
     EXPECT_LT(rep.test.swingRmseDeg, 0.05);
@@ -79,7 +79,7 @@ TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
         if (truth < 0.02 || truth > 10.0) continue;  // crossings too close to the box's ends
         ASSERT_TRUE(std::isfinite(tc(Eigen::Index(k)))) << "case " << some[k]->point.caseId;
         // Within one bracket step of the threshold scans (a factor 1.5 in stress): a step in 7 inputs
-        // seen through ~900 cases is resolved to about the spacing of the cases near it.
+        // seen through ~1,800 cases is resolved to about the spacing of the cases near it.
         EXPECT_NEAR(std::log(tc(Eigen::Index(k)) / truth), 0.0, std::log(1.5)) << "case " << some[k]->point.caseId;
         sumAbsLog += std::abs(std::log(tc(Eigen::Index(k)) / truth));
         ++found;
@@ -414,12 +414,14 @@ TEST(FlowTrainingReport, TrainingJsonAndAccuracyMarkdown) {
     EXPECT_EQ(j.at("cross_validation").at("folds"), 4);
     EXPECT_EQ(j.at("learning_curve")[0].at("cases"), 20);
     EXPECT_TRUE(j.contains("version") && j.contains("revision") && j.contains("build"));
+    EXPECT_EQ(j.at("goals"), nlohmann::json({{"inclination_rmse_deg", 0.3}, {"ttf_relative_rmse", 0.02}, {"far_misclassified_fraction", 0.03}}));
 
     const std::string row = flowAccuracyRow("x", handMadeAccuracy()).substr(3);  // " | 40 | ...": the row after its label
     const std::string md = flowAccuracyMarkdown(s);
     EXPECT_EQ(md.rfind("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-3 cases", 0), 0u) << md;
     EXPECT_NE(md.find("Flow networks from L3 (64 cases, level 3) and L2 (500 cases, level 2, not complete); command: `trbc flow train`"),
               std::string::npos) << md;
+    EXPECT_NE(md.find("Goals: angle RMSE ≤ 0.3°, TTF RMSE ≤ 2 %, misclassified far from the boundary ≤ 3 %."), std::string::npos) << md;
     EXPECT_NE(md.find("| held out (20 %)" + row + "\n| 4-fold CV" + row + "\n"), std::string::npos) << md;
     EXPECT_NE(md.find("\nLearning curve (5-fold CV on the first N cases of the design)\n\n| set | cases |"), std::string::npos) << md;
     EXPECT_NE(md.find("| N = 20" + row + "\n"), std::string::npos) << md;
