@@ -7,7 +7,7 @@
 the wall times its own records carry, where they do) and the command that made the copy shipped
 now. A run makes each selected set in WORK/<name> and then replaces results/<name> with it, so a
 failed or interrupted set leaves the shipped one untouched; the validation sets resume (`trbc
-validate` keeps its finished cases), the others start again. Sets are listed cheapest first; the
+validate` keeps its finished cases) and so does the flow campaign (`--resume`), the others start again. Sets are listed cheapest first; the
 sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
 when it is missing)."""
 import argparse
@@ -24,6 +24,12 @@ POSTERIOR = "{work}/calibration/inference/phase3/theta_new"  # the posterior the
 SHEAR_TTF32 = "{trbc} flow shear --eta-out 28.9 --shear-rate 32.39631125836553 --eta-in 10 --step-tol 0.001 "
 TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.003 --level 3 --duration 30 --settle 60 "
              "--settle-relax 1.5 --settle-tol 0.002 --threads 2 --vtk-every 50 ")
+
+# A campaign of many hours continues where an interrupted `make results` left it (--resume once its
+# campaign.json exists); its work folder is kept (RESUMED).
+CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level {level} --seed 20261129 --threads 1 --no-cache "
+            "--out {{out}}/level{level} $(test -f {{out}}/level{level}/campaign.json && echo --resume)")
+RESUMED = ("flow_campaign",)
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
 # A kept entry "SRC" copies OUT/SRC to results/<name>/SRC, "SRC=DEST" to results/<name>/DEST; a
@@ -59,8 +65,7 @@ SETS = {
     "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new"], 0.5,
                             None),
     "flow_campaign": ("the shear-flow campaign at levels 3 and 2, its networks and learning curve (the whole design)",
-                      ["mpirun -n 2 {trbc} flow campaign --cases 4096 --level 3 --seed 20261129 --threads 1 --no-cache --out {out}/level3",
-                       "mpirun -n 2 {trbc} flow campaign --cases 4096 --level 2 --seed 20261129 --threads 1 --no-cache --out {out}/level2",
+                      [CAMPAIGN.format(level=3), CAMPAIGN.format(level=2),
                        "{trbc} flow train --campaign {out}/level3 --campaign {out}/level2 --folds 5 --learning-curve 40,80,160 "
                        "--out {out}/networks",
                        "{trbc} flow train --campaign {out}/level3 --folds 5 --learning-curve 40,80,160 --out {out}/level3_only",
@@ -176,7 +181,7 @@ def main():
             if keep:
                 print("  keeps: " + ", ".join(keep))
             print(f"  shipped copy made by: {command or '(no record)'}")
-        print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets resume, the others start again")
+        print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets and the flow campaign resume, the others start again")
         return
     # The sets drawn from the calibration's posterior need it in WORK: made first when missing.
     if any(POSTERIOR in c for n in names for c in SETS[n][1]) and "calibration" not in names and \
@@ -185,7 +190,7 @@ def main():
     for n in names:
         what, commands, _, keep = SETS[n]
         out = os.path.join(work, n)
-        if not n.startswith("validation/"):
+        if not n.startswith("validation/") and n not in RESUMED:
             shutil.rmtree(out, ignore_errors=True)
         os.makedirs(out, exist_ok=True)
         t0 = time.time()

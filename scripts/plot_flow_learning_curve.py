@@ -62,7 +62,15 @@ def main(argv=None):
         except (OSError, ValueError) as e:
             print(f"plot_flow_learning_curve: error: cannot read {f}: {e}", file=sys.stderr)
             return 2
-        pts = points(t)
+        try:
+            pts = points(t)
+            for _, acc in pts:
+                for key, noise_key, _, _, _ in PANELS:
+                    value(acc, key), noise_key and value(acc, noise_key)
+        except (KeyError, TypeError, AttributeError) as e:
+            print(f"plot_flow_learning_curve: error: {f} is not the training.json of `trbc flow train` (missing {e})",
+                  file=sys.stderr)
+            return 2
         if not pts:
             print(f"plot_flow_learning_curve: error: {f} has no learning curve or cross-validation", file=sys.stderr)
             return 2

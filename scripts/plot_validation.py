@@ -3,8 +3,9 @@
 
 Reads the CSV files written by ``trbc validate`` into DIR (see
 docs/VALIDATE.md) and overlays the simulated observables
-on the experimental sets that the verdicts compare with, as trbc's Python
-package lists them (trbc.validation_data, in trbc's units):
+on the experimental sets that the verdicts compared with, in trbc's units:
+DIR/experimental_data.json of `trbc validate` (for a DIR without it, the same
+list from trbc's Python package, trbc.validation_data, where it imports):
 
   angle_vs_shear_rate.png      mean inclination angle (error bar = swinging
                                amplitude) vs shear rate, one panel per outer
@@ -54,9 +55,8 @@ The path of every figure written is printed on stdout; notes go to stderr.
 Exit status: 0 on success (also when there is nothing to plot), 2 when DIR
 (or a series directory) does not exist, an argument is invalid or FIGDIR
 cannot be written.
-Needs numpy, matplotlib and trbc's Python package (`trbc validate` puts its own
-build's on PYTHONPATH); without the package the figures are drawn without the
-experimental points, and a note says so.
+Needs numpy and matplotlib; without experimental_data.json and without trbc's
+package the figures are drawn without the experimental points, and a note says so.
 """
 
 import argparse
@@ -80,7 +80,7 @@ from matplotlib.transforms import offset_copy  # noqa: E402
 try:
     import trbc  # noqa: E402
     trbc.validation_data  # noqa: B018
-except (ImportError, AttributeError) as _exc:
+except (ImportError, AttributeError) as _exc:  # experimental_data.json is enough
     trbc = None
     _TRBC_MISSING = str(_exc)
 
@@ -155,18 +155,23 @@ def ok_rows(rows):
     return [r for r in rows if r.get("status", "ok").strip().lower() in ("ok", "")]
 
 
-def experimental_sets(data):
-    """The experimental sets of the validations (trbc.validation_data); [] with a note when the
-    package or the data directory is missing."""
+def experimental_sets(dirs, data):
+    """The experimental sets: the first experimental_data.json of `dirs`, else trbc.validation_data
+    of the data folder; [] with a note when neither can be read."""
+    for d in dirs:
+        recorded = read_json(Path(d) / "experimental_data.json")
+        if isinstance(recorded, list):
+            for e in recorded:
+                e["x"] = np.asarray(e["x"], dtype=float)
+                e["y"] = np.asarray(e["y"], dtype=float).reshape(len(e["x"]), len(e["y_columns"]))  # null -> NaN
+            return recorded
     if trbc is None:
-        note(f"experimental points not drawn: cannot import trbc's Python package ({_TRBC_MISSING}); "
-             "build it (`make python`) or set PYTHONPATH=src/python:build/python")
-        return []
-    if not Path(data).is_dir():
+        note(f"experimental points not drawn: no experimental_data.json in {', '.join(map(str, dirs))} and trbc's "
+             f"Python package does not import ({_TRBC_MISSING})")
         return []
     try:
         return trbc.validation_data(data)
-    except ValueError as e:
+    except (ValueError, RuntimeError) as e:
         note(f"experimental points not drawn: {e}")
         return []
 
@@ -295,7 +300,7 @@ class Run:
         self.series = series
         self.multi = any(s.label is not None for s in series)
         self.data = data
-        self.sets = experimental_sets(data)
+        self.sets = experimental_sets([d for s in series for d in s.dirs], data)
         self.figdir = Path(figdir)
         self.sub = sub          # footer of the single-DIR form
         self.written = []

@@ -124,9 +124,15 @@ void readShearSection(const fs::path& file, const toml::table& tbl, ValidationCo
                    "\"fluctuating\" (thermally fluctuating cells) or \"ensemble\" (random starts)");
     r.integer("threshold_members", c.thresholdMembers, 1, 64);
     r.real("temperature_K", c.temperatureK, 0.0, 400.0, true);  // the range of `flow shear --temperature`
-    // A key the chosen protocol never reads would look like a setting that took effect.
+    // A key the chosen protocol never reads would look like a setting that took effect. Only a key
+    // of the file that chooses the protocol: a base's keys belong to the base's protocol and cannot
+    // be unset, and a --threshold-protocol override is the user's choice (validation.md says what ran).
+    const toml::node* protocol = t->get("threshold_protocol");
+    const auto sameFile = [&](const toml::node& n) {
+        return TableReader::sourceFile(n, file) == TableReader::sourceFile(*protocol, file);
+    };
     const auto refuseUnread = [&](const char* key, const char* readBy) {
-        if (const toml::node* n = t->get(key))
+        if (const toml::node* n = t->get(key); n && protocol && sameFile(*n))
             r.fail(*n, fmt::format("'shear.{}' is not read with threshold_protocol = \"{}\": only {} use it; remove the key "
                                    "or choose that protocol",
                                    key, c.thresholdProtocol, readBy));
@@ -377,14 +383,14 @@ std::optional<double> refinementRate(const std::vector<RegimePoint>& points, dou
     return std::nullopt;
 }
 
-ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor, double scale) {
+ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor) {
     ScatterComparison c;
     c.window = fmt::format("data at x in [{:.3g}, {:.3g}] (factor {:g})", x / factor, x * factor, factor);
     c.lo = std::numeric_limits<double>::infinity();
     c.hi = -c.lo;
     for (std::size_t k = 0; k < data.x.size(); ++k)
         if (data.x[k] >= x / factor && data.x[k] <= x * factor)
-            for (double y : data.y[k]) c.lo = std::min(c.lo, y * scale), c.hi = std::max(c.hi, y * scale), ++c.points;
+            for (double y : data.y[k]) c.lo = std::min(c.lo, y), c.hi = std::max(c.hi, y), ++c.points;
     if (c.points == 0) {
         c.verdict = "no data";
         c.lo = c.hi = 0.0;
@@ -448,40 +454,51 @@ std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(c
     return {lo, hi};
 }
 
-ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : dataDir_(dataDir) {
-    for (const char* source : {"Fischer & Korzeniewski 2013", "Abkarian et al. 2007"}) {
-        const ExperimentalPoints d = readValidationData(validationDataSet(dataDir, "critical_stress_Pa", source));
-        critical_.x.insert(critical_.x.end(), d.x.begin(), d.x.end());
-        critical_.y.insert(critical_.y.end(), d.y.begin(), d.y.end());
-    }
+ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : dataDir_(dataDir), sets_(validationDataSets(dataDir)) {
+    for (const ValidationDataSet& s : sets_)
+        if (s.judged && s.observable == "critical_stress_Pa") {
+            const ExperimentalPoints d = readValidationData(s);
+            critical_.x.insert(critical_.x.end(), d.x.begin(), d.x.end());
+            critical_.y.insert(critical_.y.end(), d.y.begin(), d.y.end());
+        }
+    if (critical_.x.empty()) throw InputError(fmt::format("the validation data {} have no critical stresses", dataDir.string()));
+}
+
+const ExperimentalPoints* ValidationEvidence::judged(const std::string& observable, double etaOut) {
+    const auto key = std::make_pair(observable, std::isnan(etaOut) ? -1.0 : etaOut);  // NaN cannot order a map key
+    if (const auto it = points_.find(key); it != points_.end()) return &it->second;
+    for (const ValidationDataSet& s : sets_)
+        if (s.judged && s.observable == observable && (std::isnan(etaOut) || s.etaOutMPaS == etaOut))
+            return &points_.emplace(key, readValidationData(s)).first->second;
+    return nullptr;
+}
+
+const ExperimentalPoints& ValidationEvidence::required(const std::string& observable) {
+    const ExperimentalPoints* d = judged(observable);
+    if (!d) throw InputError(fmt::format("the validation data {} have no set of {}", dataDir_.string(), observable));
+    return *d;
 }
 
 std::optional<ScatterComparison> ValidationEvidence::inclination(double etaOut, double rate, double angle, const std::string& regime) {
-    if (!angle_.count(etaOut)) {
-        const std::optional<ValidationDataSet> set = inclinationDataSet(dataDir_, etaOut);
-        if (!set) return std::nullopt;
-        angle_[etaOut] = readValidationData(*set);
-    }
-    ScatterComparison s = compareWithScatter(rate, angle, angle_[etaOut], 1.5);
+    const ExperimentalPoints* d = judged("inclination_deg", etaOut);
+    if (!d) return std::nullopt;
+    ScatterComparison s = compareWithScatter(rate, angle, *d, 1.5);
     if (regime == "tank-treading" && !std::isfinite(angle) && s.points > 0) s.verdict = "no prediction";
     return s;
 }
 
 ScatterComparison ValidationEvidence::tankTreadingFrequency(double rate, double ttf, const std::string& regime) {
-    if (!ttf_) ttf_ = readValidationData(validationDataSet(dataDir_, "ttf_4pi_f_over_rate"));
-    ScatterComparison s = compareWithScatter(rate, ttf, *ttf_, 1.25);
+    ScatterComparison s = compareWithScatter(rate, ttf, required("ttf_4pi_f_over_rate"), 1.25);
     if (regime == "tank-treading" && !std::isfinite(ttf) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
     return s;
 }
 
 ScatterComparison ValidationEvidence::tubeVelocity(double pressureGradient, double velocity) {
-    if (!velocity_) velocity_ = readValidationData(validationDataSet(dataDir_, "velocity_cm_per_s"));
-    return compareWithScatter(pressureGradient, velocity, *velocity_, 1.25);
+    return compareWithScatter(pressureGradient, velocity, required("velocity_cm_per_s"), 1.25);
 }
 
 ScatterComparison ValidationEvidence::tubeLength(double velocity, double length) {
-    if (!length_) length_ = readValidationData(validationDataSet(dataDir_, "length_um", "Tomaiuolo et al. 2009 (6.6 µm tube)"));
-    return compareWithBand(velocity, length, *length_);
+    return compareWithBand(velocity, length, required("length_um"));
 }
 
 ScatterComparison ValidationEvidence::criticalStress(double etaOut, std::optional<double> tauLo, std::optional<double> tauHi) const {

@@ -146,9 +146,8 @@ struct ScatterComparison {
     std::string window;     ///< how the scatter was selected
 };
 
-/// Scatter of all y values of the rows with x in [x / factor, x * factor] (times `scale`).
-ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor,
-                                     double scale = 1.0);
+/// Scatter of all y values of the rows with x in [x / factor, x * factor].
+ScatterComparison compareWithScatter(double x, double predicted, const ExperimentalPoints& data, double factor);
 /// Interval comparison (threshold): the predicted interval [lo, hi] overlaps the data's [min, max]
 /// of the rows with x within a relative `tolerance`; "not bracketed" when either bound is missing.
 ScatterComparison compareInterval(double x, std::optional<double> lo, std::optional<double> hi, const ExperimentalPoints& data,
@@ -161,9 +160,9 @@ ScatterComparison compareWithBand(double x, double predicted, const Experimental
 /// viscosity eta in mPa s (a bound is missing where the bracket's is).
 std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(const ThresholdBracket& b, double etaOut);
 
-/// The experimental scatter of the flow validations (DATA/shear_flow, DATA/microtube of the
-/// validation data directory; docs/VALIDATE.md) and the comparison of each predicted observable with
-/// it. A table is read when a case first needs it; the critical stresses at once.
+/// The experimental scatter of the flow validations (the judged sets of validationDataSets;
+/// docs/VALIDATE.md) and the comparison of each predicted observable with it. A table is read when a
+/// case first needs it; the critical stresses at once.
 class ValidationEvidence {
 public:
     explicit ValidationEvidence(const std::filesystem::path& dataDir);
@@ -182,9 +181,15 @@ public:
     ScatterComparison criticalStress(double etaOut, std::optional<double> tauLo, std::optional<double> tauHi) const;
 
 private:
+    /// The points of the judged set of `observable` (measured at etaOut, when given), read once;
+    /// nullptr when the data have none.
+    const ExperimentalPoints* judged(const std::string& observable, double etaOut = NAN);
+    /// judged(observable), or an InputError naming the data folder.
+    const ExperimentalPoints& required(const std::string& observable);
+
     std::filesystem::path dataDir_;
-    std::map<double, ExperimentalPoints> angle_;
-    std::optional<ExperimentalPoints> velocity_, length_, ttf_;
+    std::vector<ValidationDataSet> sets_;
+    std::map<std::pair<std::string, double>, ExperimentalPoints> points_;
     ExperimentalPoints critical_;
 };
 

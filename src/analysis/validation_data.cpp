@@ -115,6 +115,8 @@ ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::strin
 }
 
 std::vector<ValidationDataSet> validationDataSets(const fs::path& dataDir) {
+    if (!fs::is_directory(dataDir / "shear_flow") && !fs::is_directory(dataDir / "microtube"))
+        throw InputError(fmt::format("{} is not a validation data folder: it has neither shear_flow/ nor microtube/", dataDir.string()));
     std::vector<ValidationDataSet> sets;
     std::error_code ec;
     static const std::regex name(R"(Fisher2015_eta_([0-9]+(\.[0-9]+)?)_mPa_s\.csv)");
@@ -124,24 +126,8 @@ std::vector<ValidationDataSet> validationDataSets(const fs::path& dataDir) {
         if (std::regex_match(file, m, name)) sets.push_back(inclinationSet(e.path(), std::stod(m[1].str())));
     }
     std::sort(sets.begin(), sets.end(), [](const auto& a, const auto& b) { return a.etaOutMPaS < b.etaOutMPaS; });
-    for (ValidationDataSet& s : fixedSets(dataDir))
-        if (fs::exists(s.file)) sets.push_back(std::move(s));
+    for (ValidationDataSet& s : fixedSets(dataDir)) sets.push_back(std::move(s));
     return sets;
-}
-
-std::optional<ValidationDataSet> inclinationDataSet(const fs::path& dataDir, double etaOutMPaS) {
-    const fs::path f = dataDir / kAngleDir / fmt::format("Fisher2015_eta_{:g}_mPa_s.csv", etaOutMPaS);
-    if (!fs::exists(f)) return std::nullopt;
-    return inclinationSet(f, etaOutMPaS);
-}
-
-ValidationDataSet validationDataSet(const fs::path& dataDir, const std::string& observable, const std::string& source) {
-    for (const ValidationDataSet& s : fixedSets(dataDir))
-        if (s.observable == observable && (source.empty() || s.source == source)) {
-            if (!fs::exists(s.file)) throw InputError(fmt::format("cannot read experimental data {}", s.file.string()));
-            return s;
-        }
-    throw InputError(fmt::format("no validation data set of '{}'{}", observable, source.empty() ? "" : " from " + source));
 }
 
 ExperimentalPoints readValidationData(const ValidationDataSet& s, bool keepBlanks) {
@@ -150,6 +136,24 @@ ExperimentalPoints readValidationData(const ValidationDataSet& s, bool keepBlank
     for (std::vector<double>& row : d.y)
         for (double& y : row) y *= s.yScale;
     return d;
+}
+
+nlohmann::json validationDataJson(const std::vector<ValidationDataSet>& sets) {
+    nlohmann::json out = nlohmann::json::array();
+    const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+    for (const ValidationDataSet& s : sets) {
+        const ExperimentalPoints d = readValidationData(s, true);
+        nlohmann::json y = nlohmann::json::array();
+        for (const std::vector<double>& row : d.y) {
+            nlohmann::json r = nlohmann::json::array();
+            for (double v : row) r.push_back(number(v));
+            y.push_back(std::move(r));
+        }
+        out.push_back({{"observable", s.observable}, {"x_name", s.x}, {"source", s.source}, {"file", s.file.lexically_normal().string()},
+                       {"eta_out_mPa_s", number(s.etaOutMPaS)}, {"judged", s.judged}, {"y_columns", s.yColumns}, {"x", d.x},
+                       {"y", std::move(y)}});
+    }
+    return out;
 }
 
 }  // namespace trbc

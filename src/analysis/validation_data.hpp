@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 namespace trbc {
 
 /// Experimental table of the validation data: rows of (x, y...) as read from a CSV.
@@ -35,17 +37,19 @@ struct ValidationDataSet {
     bool judged = true;                 ///< compared with by the verdicts; false: drawn beside them only
 };
 
-/// Every set of `dataDir` (the validation data: shear_flow/, microtube/), the inclination sets in
-/// increasing viscosity (one file per viscosity, Fisher2015_eta_<eta>_mPa_s.csv), then the TTF, the
-/// critical stresses, the tube's velocity and length; files that are absent are left out.
+/// Every set of `dataDir` (the validation data: shear_flow/, microtube/): the inclination sets
+/// found there in increasing viscosity (one file per viscosity, Fisher2015_eta_<eta>_mPa_s.csv), then
+/// the TTF, the critical stresses, the tube's velocity and lengths. A listed file that is absent
+/// fails when it is read; a folder with neither subfolder is an InputError naming it.
 std::vector<ValidationDataSet> validationDataSets(const std::filesystem::path& dataDir);
-/// The inclination set measured at `etaOutMPaS` (exact match of the file's viscosity), if there is one.
-std::optional<ValidationDataSet> inclinationDataSet(const std::filesystem::path& dataDir, double etaOutMPaS);
-/// The set of `observable` from `source` (the first of that observable when `source` is empty);
-/// InputError naming the file when it is absent.
-ValidationDataSet validationDataSet(const std::filesystem::path& dataDir, const std::string& observable, const std::string& source = "");
 
 /// The set's points in trbc's units (x times xScale, y times yScale).
 ExperimentalPoints readValidationData(const ValidationDataSet& s, bool keepBlanks = false);
+
+/// The sets with their points, as `trbc validate` records them beside its verdicts
+/// (experimental_data.json) and trbc.validation_data returns them: per set observable, x_name,
+/// source, file, eta_out_mPa_s (null unless measured at one), judged, y_columns, x and y (rows of
+/// the y columns; a blank is null).
+nlohmann::json validationDataJson(const std::vector<ValidationDataSet>& sets);
 
 }  // namespace trbc

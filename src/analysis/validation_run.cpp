@@ -39,9 +39,12 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
     const std::string protocol = flowSurrogateProtocol(model);
     const std::string md = fmt::format("# Shear validations through the flow networks\n\n{} draws of theta_new ({}, {} samples; seed {}), "
                                        "networks {}; command: `{}`\n\nRegimes and thresholds are those of the networks' campaign, "
-                                       "threshold protocol: {}{}.\n\n",
+                                       "threshold protocol: {}{}.{}\n\n",
                                        R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, o.surrogate.string(), o.command,
-                                       protocol, protocol == "ensemble" ? " (random starts, a draw tank-treads when more than half of them do)" : "") +
+                                       protocol, protocol == "ensemble" ? " (random starts, a draw tank-treads when more than half of them do)" : "",
+                                       protocol == R.cfg.thresholdProtocol
+                                           ? ""
+                                           : fmt::format(" The configuration's threshold protocol, {}, is not the networks'.", R.cfg.thresholdProtocol)) +
                            surrogateBandsMarkdown(rows);
     writeFileAtomically(R.out / "surrogate_bands.csv", surrogateBandsCsv(rows));
     writeFileAtomically(R.out / "surrogate_bands.md", md);
@@ -129,8 +132,7 @@ void listCases(ValidationRunner& R, const std::vector<ValidationCase>& initial) 
 }
 
 void drawValidationFigures(const ValidationRunner& R, const ValidationRunOptions& o) {
-    // The script takes the experimental sets from trbc's Python package (trbc.validation_data).
-    const std::string plot = (o.pythonPath.empty() ? std::string() : "PYTHONPATH=" + shellQuote(o.pythonPath) + " ") + shellQuote(o.python) + " " + shellQuote(o.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
+    const std::string plot = shellQuote(o.python) + " " + shellQuote(o.scripts / "plot_validation.py") + " " + shellQuote(R.out) + " --data " +
                              shellQuote(R.cfg.dataDir) + " > " + shellQuote(R.out / "plot.log") + " 2>&1";
     if (std::system(plot.c_str()) != 0)
         std::cerr << fmt::format("validate: warning: the figures failed (see {})\n", (R.out / "plot.log").string());

@@ -22,7 +22,6 @@ struct ValidationRunOptions {
     std::filesystem::path exe;            ///< the trbc executable that runs the cases
     std::filesystem::path scripts;        ///< folder of plot_validation.py
     std::filesystem::path python;         ///< interpreter of the figure script
-    std::string pythonPath;               ///< PYTHONPATH of the figure script (trbc's package); empty: the caller's
     std::filesystem::path experimentDir;  ///< default experimental data (the config's data_dir overrides it)
     std::string command;                  ///< the command line, for the provenance
 };

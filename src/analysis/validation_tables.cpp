@@ -339,6 +339,8 @@ json writeValidationTables(const ValidationRunner& R, json& bandRows) {
     writeFileAtomically(R.out / "tube.csv", tube);
     writeFileAtomically(R.out / "threshold.csv", thr);
     writeFileAtomically(R.out / "comparison.csv", table.csv());
+    // The points the verdicts compared with, in trbc's units, for the figures and for the record.
+    writeFileAtomically(R.out / "experimental_data.json", validationDataJson(validationDataSets(R.cfg.dataDir)).dump(1) + "\n");
     json summary = {{"cases", cases}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
                     {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
     std::string md = validationMarkdown(cases, failed, table, R.cfg);

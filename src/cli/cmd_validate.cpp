@@ -73,7 +73,6 @@ void runValidate(const ValidateCommandOptions& o) {
     r.exe = std::filesystem::read_symlink("/proc/self/exe");
     r.scripts = scriptDirectory();
     r.python = pythonInterpreter();
-    r.pythonPath = figurePythonPath();
     r.experimentDir = defaultExperimentDirectory();
     r.command = commandLine();
     runValidation(r);

@@ -179,10 +179,6 @@ std::filesystem::path scriptDirectory();
 /// The Python of the figure scripts: $TRBC_PYTHON, else Debian's /usr/bin/python3 (with
 /// python3-matplotlib, scripts/bootstrap), else python3 on PATH.
 std::filesystem::path pythonInterpreter();
-/// PYTHONPATH for the figure scripts, so that they import this build's trbc package: the package's
-/// sources (resourceRoot()/src/python) and the extension module beside the executable
-/// (<exe dir>/python), those that exist, then $PYTHONPATH.
-std::string figurePythonPath();
 void registerCalibrate(CLI::App& app);
 void registerValidate(CLI::App& app);
 void registerExport(CLI::App& app);

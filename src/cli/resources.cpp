@@ -1,11 +1,9 @@
 // Where trbc finds what it reads at run time: data/, configs/, scripts/ and results/mesh_convergence/,
 // laid out as in the source tree (docs/DESIGN.md, installation).
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 
 #include <cstdlib>
 #include <system_error>
-#include <vector>
 
 #include "cli/common.hpp"
 #include "core/error.hpp"
@@ -52,15 +50,5 @@ fs::path defaultExperimentDirectory() {
 }
 
 fs::path scriptDirectory() { return resourceRoot() / "scripts"; }
-
-std::string figurePythonPath() {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    std::vector<std::string> parts;
-    for (const fs::path& d : {resourceRoot() / "src" / "python", ec ? fs::path() : exe.parent_path() / "python"})
-        if (!d.empty() && fs::is_directory(d / "trbc")) parts.push_back(d.string());
-    if (const char* p = nonEmptyEnv("PYTHONPATH")) parts.push_back(p);
-    return fmt::format("{}", fmt::join(parts, ":"));
-}
 
 }  // namespace trbc::cli

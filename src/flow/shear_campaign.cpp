@@ -33,9 +33,6 @@ fs::path casesPath(const ShearCampaignOptions& o) { return o.outDir / "cases.csv
 
 /// Everything that decides the rows; a resume must match it exactly.
 nlohmann::json settingsJson(const ShearCampaignOptions& o) {
-    nlohmann::json box = nlohmann::json::array();
-    for (const DesignAxis& a : kShearCampaignAxes)
-        box.push_back({{"name", a.name}, {"lo", a.lo}, {"hi", a.hi}, {"scale", a.logScale ? "log" : "linear"}});
     const SteadyStopRule rule;
     return {{"design", designName(o.design)},
             {"cases", o.cases},
@@ -45,7 +42,7 @@ nlohmann::json settingsJson(const ShearCampaignOptions& o) {
             {"start", o.randomStart ? "random" : "in-plane"},
             {"kick_temperature_K", ShearCaseOptions{}.kickTemperatureK},
             {"eta_in_mPa_s", o.etaIn},
-            {"box", box},
+            {"box", shearCampaignBoxJson()},
             {"steady_rule", {{"min_rotations", rule.minRotations}, {"angle_tolerance_deg", rule.angleToleranceDeg},
                              {"ttf_tolerance", rule.ttfTolerance}}},
             {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};

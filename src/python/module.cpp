@@ -909,28 +909,10 @@ void registerInference(py::module_& m) {
     m.def("predict", &predict, "posterior"_a, "surrogate"_a, "data_set"_a, "grid"_a, "max_samples"_a, "seed"_a);
 }
 
-/// The experimental sets of the flow validations, as the verdicts read them.
-py::list validationData(const std::string& dataDir) {
-    py::list out;
-    for (const ValidationDataSet& s : validationDataSets(dataDir)) {
-        const ExperimentalPoints d = readValidationData(s, true);
-        Eigen::MatrixXd y(Eigen::Index(s.yColumns.size()), Eigen::Index(d.x.size()));  // k x n, handed over as (n, k)
-        for (std::size_t r = 0; r < d.y.size(); ++r)
-            for (std::size_t c = 0; c < s.yColumns.size(); ++c) y(Eigen::Index(c), Eigen::Index(r)) = d.y[r][c];
-        py::dict e;
-        e["observable"] = s.observable, e["x_name"] = s.x, e["source"] = s.source, e["file"] = s.file.string();
-        e["y_columns"] = s.yColumns, e["judged"] = s.judged;
-        e["eta_out_mPa_s"] = std::isfinite(s.etaOutMPaS) ? py::object(py::float_(s.etaOutMPaS)) : py::object(py::none());
-        e["x"] = vectorArray(d.x);
-        e["y"] = ownedRows(std::move(y));
-        out.append(e);
-    }
-    return out;
-}
-
 /// The flow cases: a cell in shear flow and in a tube.
 void registerFlow(py::module_& m) {
-    m.def("validation_data", &validationData, "data_dir"_a);
+    m.def("validation_data", [](const std::string& dir) { return jsonToPython(validationDataJson(validationDataSets(dir))); }, "data_dir"_a,
+          "The experimental sets of the flow validations with their points, as validationDataJson gives them (JSON types)");
     m.def("flow_shear", &flowShear, py::kw_only(), "eta_out_mPa_s"_a, "shear_rate_per_s"_a, "eta_in_mPa_s"_a, "v"_a, "mu_uN_per_m"_a,
           "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a, "rotations"_a, "tilt_deg"_a,
           "start"_a, "kick_temperature_K"_a, "temperature_K"_a, "thermal_step"_a, "seed"_a, "stop_when_steady"_a,

@@ -155,6 +155,13 @@ std::map<long, ShearCampaignRow> finishedShearCampaignRows(const fs::path& dir, 
     return rows;
 }
 
+nlohmann::json shearCampaignBoxJson() {
+    nlohmann::json box = nlohmann::json::array();
+    for (const DesignAxis& a : kShearCampaignAxes)
+        box.push_back({{"name", a.name}, {"lo", a.lo}, {"hi", a.hi}, {"scale", a.logScale ? "log" : "linear"}});
+    return box;
+}
+
 std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* complete) {
     if (complete) *complete = true;
     if (fs::is_regular_file(path)) {
@@ -171,6 +178,7 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
     double etaIn = 0.0;
     int level = 0;
     std::string start;
+    nlohmann::json box;
     try {
         std::ifstream in(provenance);
         const nlohmann::json j = nlohmann::json::parse(in).at("settings");
@@ -180,6 +188,7 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
         etaIn = j.at("eta_in_mPa_s").get<double>();
         level = j.at("level").get<int>();
         start = j.value("start", std::string());
+        box = j.value("box", nlohmann::json());
     } catch (const std::exception& e) {
         throw InputError(fmt::format("{}: not a shear campaign ({})", provenance.string(), e.what()));
     }
@@ -188,6 +197,11 @@ std::vector<ShearCampaignRow> readShearCampaignRows(const fs::path& path, bool* 
         rows = readShearCampaignCsv(path / "cases.csv");
     } else {
         if (complete) *complete = false;
+        // The finished rows are matched to the design this build makes, which another box moves.
+        if (!box.is_null() && box != shearCampaignBoxJson())
+            throw InputError(fmt::format("{}: the campaign was made on another design box ({}) than this build's ({}); its finished rows "
+                                         "cannot be matched to this build's design",
+                                         provenance.string(), box.dump(), shearCampaignBoxJson().dump()));
         for (auto& [id, r] : finishedShearCampaignRows(path, shearCampaignDesign(design, cases, seed, etaIn))) rows.push_back(std::move(r));
     }
     for (ShearCampaignRow& r : rows) r.meshLevel = level, r.start = start;

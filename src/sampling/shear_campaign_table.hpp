@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "experiments/parameters.hpp"
 #include "sampling/design.hpp"
 
@@ -35,6 +37,9 @@ inline constexpr DesignAxis kShearCampaignAxes[7] = {
     {"eta_out_mPa_s", 8.0, 130.0, true},
     {"shear_stress_Pa", 0.01, 25.0, true},
 };
+
+/// kShearCampaignAxes as campaign.json records it ("box": name, lo, hi, scale per input).
+nlohmann::json shearCampaignBoxJson();
 
 struct ShearCampaignPoint {
     long caseId = 0;

@@ -135,10 +135,11 @@ struct LevelSplit {
 LevelSplit splitByLevel(const std::vector<const ShearCampaignRow*>& done) {
     LevelSplit s;
     // The regime network is the probability of one protocol: random and in-plane starts do not mix.
+    const auto named = [](const std::string& start) { return start.empty() ? std::string("not recorded (a table without campaign.json)") : start; };
     for (const ShearCampaignRow* r : done)
         if (r->start != done.front()->start)
             throw InputError(fmt::format("flow surrogate: campaigns with the starts '{}' and '{}'; the regime is a protocol's, train on one",
-                                         done.front()->start, r->start));
+                                         named(done.front()->start), named(r->start)));
     // The networks have no cytosol input, and a case given twice would sit in training and test.
     std::set<std::pair<int, long>> seen;
     for (const ShearCampaignRow* r : done) {
@@ -250,7 +251,7 @@ void FlowSurrogate::save(const fs::path& dir) const {
                                  {"inputs", inputNames()},
                                  {"levels", levels},
                                  {"predicts_level", level},
-                                 {"networks", {{"flow_regime", fmt::format("probability of tank-treading ({} protocol)",
+                                 {"networks", {{"flow_regime", fmt::format("probability of tank-treading; threshold protocol: {}",
                                                                            flowSurrogateProtocol(*this))},
                                                {"flow_tank_treading", "inclination_deg, swing_deg, ttf_4pi_f_over_rate"}}},
                                  {"trbc_version", kVersion}};

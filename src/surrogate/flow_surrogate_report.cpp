@@ -134,7 +134,7 @@ nlohmann::json flowTrainingJson(const FlowTrainingSummary& s) {
                                   {"ensemble", s.options.ensemble}, {"boundary_factor", s.options.boundaryFactor}});
     j["levels"] = rep.model.levels;
     j["predicts_level"] = rep.model.level;
-    j["start"] = rep.model.start;
+    if (!rep.model.start.empty()) j["start"] = rep.model.start;
     j["goals"] = {{"inclination_rmse_deg", kFlowAccuracyGoals.inclinationRmseDeg},
                   {"ttf_relative_rmse", kFlowAccuracyGoals.ttfRelativeRmse},
                   {"far_misclassified_fraction", kFlowAccuracyGoals.farMisclassifiedFraction}};

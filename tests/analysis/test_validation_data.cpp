@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 
 #include "analysis/validation_data.hpp"
@@ -40,13 +41,19 @@ TEST(ValidationData, ShippedFilesReadWithBlanksAndBadCellsAreNamed) {
     EXPECT_THROW(readExperimentalPoints(bad, "pressure", {"v"}), InputError);
 }
 
+/// The one set of `observable` (from `source`, when given) of the list.
+const ValidationDataSet& setOf(const std::vector<ValidationDataSet>& sets, const std::string& observable, const std::string& source = "") {
+    for (const ValidationDataSet& s : sets)
+        if (s.observable == observable && (source.empty() || s.source == source)) return s;
+    throw std::runtime_error("no set of " + observable);
+}
+
 // Every shipped set is listed once, the angle sets in increasing viscosity, with trbc's units.
-TEST(ValidationData, TheCatalogueListsTheShippedSetsInTrbcsUnits) {
+TEST(ValidationData, TheListHasTheShippedSetsInTrbcsUnits) {
     const std::vector<ValidationDataSet> sets = validationDataSets(kValidationData);
     std::vector<double> angleViscosities;
     int critical = 0, judged = 0;
     for (const ValidationDataSet& s : sets) {
-        EXPECT_TRUE(fs::exists(s.file)) << s.file;
         if (s.observable == "inclination_deg") angleViscosities.push_back(s.etaOutMPaS);
         critical += s.observable == "critical_stress_Pa";
         judged += s.judged;
@@ -55,33 +62,47 @@ TEST(ValidationData, TheCatalogueListsTheShippedSetsInTrbcsUnits) {
     EXPECT_EQ(critical, 2);
     EXPECT_EQ(sets.size(), 4u + 6u);
     EXPECT_EQ(judged, int(sets.size()) - 1);  // the 6.7 µm tube is drawn, not judged
+    EXPECT_EQ(setOf(sets, "inclination_deg").file.filename(), "Fisher2015_eta_10.7_mPa_s.csv");
 
     // The donors' TTF is f / rate; trbc's is 4 pi f / rate (first row 8.068529, 0.062906).
-    const ValidationDataSet ttf = validationDataSet(kValidationData, "ttf_4pi_f_over_rate");
+    const ValidationDataSet& ttf = setOf(sets, "ttf_4pi_f_over_rate");
     EXPECT_EQ(ttf.etaOutMPaS, 28.9);
     const ExperimentalPoints t = readValidationData(ttf);
     EXPECT_NEAR(t.x[0], 8.068529, 1e-12);
     EXPECT_NEAR(t.y[0][0], 4.0 * M_PI * 0.062906, 1e-12);
     // Hochmuth's velocities are in mm/s (first row 0.035111 mm/s), trbc's in cm/s.
-    const ValidationDataSet h = validationDataSet(kValidationData, "length_um", "Hochmuth et al. 1970 (6.7 µm tube)");
+    const ValidationDataSet& h = setOf(sets, "length_um", "Hochmuth et al. 1970 (6.7 µm tube)");
     EXPECT_FALSE(h.judged);
     EXPECT_NEAR(readValidationData(h).x[0], 0.0035111, 1e-15);
-    EXPECT_EQ(validationDataSet(kValidationData, "length_um").yColumns, (std::vector<std::string>{"l", "l_high", "l_low"}));
+    EXPECT_EQ(setOf(sets, "length_um").yColumns, (std::vector<std::string>{"l", "l_high", "l_low"}));
 
-    ASSERT_TRUE(inclinationDataSet(kValidationData, 55.9));
-    EXPECT_EQ(inclinationDataSet(kValidationData, 55.9)->file.filename(), "Fisher2015_eta_55.9_mPa_s.csv");
-    EXPECT_FALSE(inclinationDataSet(kValidationData, 30.0));
+    // The record of validate: blanks are null, units as above.
+    const nlohmann::json j = validationDataJson(sets);
+    ASSERT_EQ(j.size(), sets.size());
+    EXPECT_EQ(j[1].at("eta_out_mPa_s"), 23.9);
+    EXPECT_TRUE(j[1].at("y")[0][0].is_null());
+    EXPECT_NEAR(j[1].at("y")[0][2].get<double>(), 12.053, 1e-12);
+    EXPECT_TRUE(j[5].at("eta_out_mPa_s").is_null());  // the first critical-stress set spans viscosities
+    EXPECT_EQ(j[5].at("observable"), "critical_stress_Pa");
 
-    // A directory without the data: no sets, and a named set is an error naming its file.
+    // A folder that is not validation data is named; a listed file that is absent fails when read.
     TempDir empty;
-    EXPECT_TRUE(validationDataSets(empty.path()).empty());
     try {
-        validationDataSet(empty.path(), "velocity_cm_per_s");
+        validationDataSets(empty.path());
         FAIL() << "no error";
     } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("Tomaiuolo2009_pg_v_6.6um.csv"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("is not a validation data folder: it has neither shear_flow/ nor microtube/"),
+                  std::string::npos) << e.what();
     }
-    EXPECT_THROW(validationDataSet(kValidationData, "swing_deg"), InputError);
+    fs::create_directories(empty.path() / "microtube");
+    const std::vector<ValidationDataSet> bare = validationDataSets(empty.path());
+    EXPECT_EQ(bare.size(), 6u);  // no angle sets found, the fixed ones listed
+    try {
+        validationDataJson(bare);
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("cannot read experimental data"), std::string::npos) << e.what();
+    }
 }
 
 }  // namespace

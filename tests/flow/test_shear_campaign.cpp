@@ -169,6 +169,22 @@ TEST(ShearCampaignTable, RowsCarryTheirCampaignsLevel) {
     fs::copy_file(tmp.path() / "c" / "cases.csv", tmp.path() / "alone.csv");
     EXPECT_EQ(readShearCampaignRows(tmp.path() / "alone.csv")[0].meshLevel, 0);  // no campaign beside it
     EXPECT_EQ(readShearCampaignRows(tmp.path() / "alone.csv")[0].start, "");
+    // Finished rows of a campaign on another box cannot be matched to this build's design.
+    nlohmann::json other = {{"settings", {{"design", "sobol"}, {"cases", 4}, {"seed", 7}, {"eta_in_mPa_s", 10.0}, {"level", 2},
+                                          {"box", shearCampaignBoxJson()}}}};
+    other["settings"]["box"][1]["lo"] = 1.0;
+    fs::create_directories(tmp.path() / "d" / "parts");
+    std::ofstream(tmp.path() / "d" / "campaign.json") << other.dump();
+    std::ofstream(tmp.path() / "d" / "parts" / "rank0.csv") << shearCampaignCsvHeader() << "\n" << formatShearCampaignRow(r) << "\n";
+    try {
+        readShearCampaignRows(tmp.path() / "d");
+        FAIL() << "a campaign on another box was read";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("the campaign was made on another design box"), std::string::npos) << e.what();
+    }
+    other["settings"]["box"] = shearCampaignBoxJson();
+    std::ofstream(tmp.path() / "d" / "campaign.json") << other.dump();
+    EXPECT_EQ(readShearCampaignRows(tmp.path() / "d").size(), 1u);
 }
 
 // Campaigns trained together differ only in level and size.

@@ -154,4 +154,5 @@ def test_validation_data_gives_the_verdicts_sets_in_trbcs_units():
     assert ttf["y"][0, 0] == pytest.approx(4 * np.pi * 0.062906)  # the file holds f / rate
     hochmuth = next(s for s in sets if not s["judged"])
     assert hochmuth["x"][0] == pytest.approx(0.0035111)  # mm/s in the file, cm/s here
-    assert trbc.validation_data(Path("/nonexistent")) == []
+    with pytest.raises(ValueError, match="is not a validation data folder"):
+        trbc.validation_data(Path("/nonexistent"))

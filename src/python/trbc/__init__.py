@@ -365,8 +365,14 @@ def validation_data(data: Optional[_PathLike] = None) -> list:
     velocity_cm_per_s, length_um), "x_name" (shear_rate_per_s, eta_out_mPa_s, pg_mmHg_per_mm,
     velocity_cm_per_s), "source", "file", "eta_out_mPa_s" (of a set measured at one viscosity, else
     None), "judged" (False: shown beside the verdicts only), "x" (n,), "y" (n, k) with NaN for a
-    blank, and "y_columns" (the k columns: donors, or l, l_high, l_low)."""
-    return _core.validation_data(str(data if data is not None else data_dir("experiments", "validation")))
+    blank, and "y_columns" (the k columns: donors, or l, l_high, l_low). `trbc validate` records
+    the same list in OUT/experimental_data.json. ValueError for a folder that is not validation data
+    or a listed file that cannot be read."""
+    sets = _core.validation_data(str(data if data is not None else data_dir("experiments", "validation")))
+    for s in sets:
+        s["x"] = np.asarray(s["x"], dtype=float)
+        s["y"] = np.asarray(s["y"], dtype=float).reshape(len(s["x"]), len(s["y_columns"]))  # null -> NaN
+    return sets
 
 
 def load_validation(out: _PathLike) -> dict:
