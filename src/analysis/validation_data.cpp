@@ -60,7 +60,8 @@ std::vector<ValidationDataSet> fixedSets(const fs::path& dataDir) {
 
 }  // namespace
 
-ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::string& xColumn, const std::vector<std::string>& yColumns, bool keepBlanks) {
+ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::string& xColumn, const std::vector<std::string>& yColumns,
+                                          bool keepBlanks) {
     std::ifstream in(file);
     if (!in) throw InputError(fmt::format("cannot read experimental data {}", file.string()));
     std::string line;

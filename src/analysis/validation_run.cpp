@@ -44,7 +44,8 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
                                        protocol, protocol == "ensemble" ? " (random starts, a draw tank-treads when more than half of them do)" : "",
                                        protocol == R.cfg.thresholdProtocol
                                            ? ""
-                                           : fmt::format(" The configuration's threshold protocol, {}, is not the networks'.", R.cfg.thresholdProtocol)) +
+                                           : fmt::format(" The configuration's threshold protocol, {}, is not the networks'.",
+                                                         R.cfg.thresholdProtocol)) +
                            surrogateBandsMarkdown(rows);
     writeFileAtomically(R.out / "surrogate_bands.csv", surrogateBandsCsv(rows));
     writeFileAtomically(R.out / "surrogate_bands.md", md);
