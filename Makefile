@@ -47,4 +47,4 @@ clean:
 # the sets, their commands and costs and runs nothing. RESULTS=name,name selects sets.
 results: bootstrap
 	$(MAKE) build
-	+python3 scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)
+	+/usr/bin/python3 scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)

@@ -13,6 +13,7 @@ when it is missing)."""
 import argparse
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -126,6 +127,12 @@ SETS = {
 }
 
 
+def command_line(c, trbc, out, work):
+    """The command with its placeholders filled; the scripts run under this interpreter, which has numpy."""
+    line = c.format(trbc=trbc, out=out, work=work)
+    return shlex.quote(sys.executable) + line[len("python3"):] if line.startswith("python3 ") else line
+
+
 def recorded(name):
     """(command, CPU hours) of the shipped copy, from its own records where it has them."""
     d = os.path.join(ROOT, "results", name)
@@ -177,7 +184,7 @@ def main():
             total += cost[n]
             print(f"{n}: {what}\n  cost: about {cost[n]:.2g} CPU h on the 2-core machine")
             for c in commands:
-                print("  $ " + c.format(trbc=a.trbc, out=os.path.join(work, n), work=work))
+                print("  $ " + command_line(c, a.trbc, os.path.join(work, n), work))
             if keep:
                 print("  keeps: " + ", ".join(keep))
             print(f"  shipped copy made by: {command or '(no record)'}")
@@ -195,7 +202,7 @@ def main():
         os.makedirs(out, exist_ok=True)
         t0 = time.time()
         for c in commands:
-            line = c.format(trbc=a.trbc, out=out, work=work)
+            line = command_line(c, a.trbc, out, work)
             print(f"make_results: {n}: {line}", file=sys.stderr, flush=True)
             if subprocess.run(line, shell=True, cwd=ROOT).returncode != 0:
                 sys.exit(f"make_results: {n} failed: {line}; results/{n} is unchanged")

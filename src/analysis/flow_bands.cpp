@@ -38,7 +38,7 @@ std::string g(double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : s
 }  // namespace
 
 std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, const FlowSurrogate& model,
-                                                  const std::vector<PosteriorDraw>& draws, ValidationEvidence& evidence) {
+                                                  const std::vector<PosteriorDraw>& draws, const ValidationEvidence& evidence) {
     std::vector<SurrogateBandRow> rows;
     const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(Eigen::Index(draws.size()), cfg.etaIn);
     for (const ValidationCase& c : initialValidationCases(cfg)) {

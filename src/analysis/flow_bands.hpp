@@ -32,7 +32,7 @@ struct SurrogateBandRow {
 
 /// The bands of every angle, TTF and threshold case of `cfg` (tube cases are not predicted).
 std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, const FlowSurrogate& model,
-                                                  const std::vector<PosteriorDraw>& draws, ValidationEvidence& evidence);
+                                                  const std::vector<PosteriorDraw>& draws, const ValidationEvidence& evidence);
 
 /// The rows as CSV (one per case and observable) and as a Markdown table with the verdict counts.
 std::string surrogateBandsCsv(const std::vector<SurrogateBandRow>& rows);

@@ -454,32 +454,32 @@ std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(c
     return {lo, hi};
 }
 
-ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : dataDir_(dataDir), sets_(validationDataSets(dataDir)) {
-    for (const ValidationDataSet& s : sets_)
+ValidationEvidence::ValidationEvidence(const fs::path& dataDir) : dataDir_(dataDir), data_(readValidationDataSets(dataDir)) {
+    for (const auto& [s, points] : data_) {
+        judged_.push_back(s.judged ? withoutBlanks(points) : ExperimentalPoints{});
         if (s.judged && s.observable == "critical_stress_Pa") {
-            const ExperimentalPoints d = readValidationData(s);
-            critical_.x.insert(critical_.x.end(), d.x.begin(), d.x.end());
-            critical_.y.insert(critical_.y.end(), d.y.begin(), d.y.end());
+            critical_.x.insert(critical_.x.end(), judged_.back().x.begin(), judged_.back().x.end());
+            critical_.y.insert(critical_.y.end(), judged_.back().y.begin(), judged_.back().y.end());
         }
+    }
     if (critical_.x.empty()) throw InputError(fmt::format("the validation data {} have no critical stresses", dataDir.string()));
 }
 
-const ExperimentalPoints* ValidationEvidence::judged(const std::string& observable, double etaOut) {
-    const auto key = std::make_pair(observable, std::isnan(etaOut) ? -1.0 : etaOut);  // NaN cannot order a map key
-    if (const auto it = points_.find(key); it != points_.end()) return &it->second;
-    for (const ValidationDataSet& s : sets_)
-        if (s.judged && s.observable == observable && (std::isnan(etaOut) || s.etaOutMPaS == etaOut))
-            return &points_.emplace(key, readValidationData(s)).first->second;
+const ExperimentalPoints* ValidationEvidence::judged(const std::string& observable, std::optional<double> etaOut) const {
+    for (std::size_t i = 0; i < data_.size(); ++i) {
+        const ValidationDataSet& s = data_[i].set;
+        if (s.judged && s.observable == observable && (!etaOut || s.etaOutMPaS == *etaOut)) return &judged_[i];
+    }
     return nullptr;
 }
 
-const ExperimentalPoints& ValidationEvidence::required(const std::string& observable) {
+const ExperimentalPoints& ValidationEvidence::required(const std::string& observable) const {
     const ExperimentalPoints* d = judged(observable);
     if (!d) throw InputError(fmt::format("the validation data {} have no set of {}", dataDir_.string(), observable));
     return *d;
 }
 
-std::optional<ScatterComparison> ValidationEvidence::inclination(double etaOut, double rate, double angle, const std::string& regime) {
+std::optional<ScatterComparison> ValidationEvidence::inclination(double etaOut, double rate, double angle, const std::string& regime) const {
     const ExperimentalPoints* d = judged("inclination_deg", etaOut);
     if (!d) return std::nullopt;
     ScatterComparison s = compareWithScatter(rate, angle, *d, 1.5);
@@ -487,17 +487,17 @@ std::optional<ScatterComparison> ValidationEvidence::inclination(double etaOut, 
     return s;
 }
 
-ScatterComparison ValidationEvidence::tankTreadingFrequency(double rate, double ttf, const std::string& regime) {
+ScatterComparison ValidationEvidence::tankTreadingFrequency(double rate, double ttf, const std::string& regime) const {
     ScatterComparison s = compareWithScatter(rate, ttf, required("ttf_4pi_f_over_rate"), 1.25);
     if (regime == "tank-treading" && !std::isfinite(ttf) && s.points > 0) s.verdict = "no prediction";  // TTF undefined
     return s;
 }
 
-ScatterComparison ValidationEvidence::tubeVelocity(double pressureGradient, double velocity) {
+ScatterComparison ValidationEvidence::tubeVelocity(double pressureGradient, double velocity) const {
     return compareWithScatter(pressureGradient, velocity, required("velocity_cm_per_s"), 1.25);
 }
 
-ScatterComparison ValidationEvidence::tubeLength(double velocity, double length) {
+ScatterComparison ValidationEvidence::tubeLength(double velocity, double length) const {
     return compareWithBand(velocity, length, required("length_um"));
 }
 

@@ -161,35 +161,37 @@ ScatterComparison compareWithBand(double x, double predicted, const Experimental
 std::pair<std::optional<double>, std::optional<double>> criticalStressInterval(const ThresholdBracket& b, double etaOut);
 
 /// The experimental scatter of the flow validations (the judged sets of validationDataSets;
-/// docs/VALIDATE.md) and the comparison of each predicted observable with it. A table is read when a
-/// case first needs it; the critical stresses at once.
+/// docs/VALIDATE.md) and the comparison of each predicted observable with it. Every file is read
+/// once, when it is made.
 class ValidationEvidence {
 public:
     explicit ValidationEvidence(const std::filesystem::path& dataDir);
     /// Inclination [deg] against Fischer 2015 at the same outer viscosity, rates within a factor
     /// 1.5; none where there are no data for that viscosity. A tank-treading cell without an
     /// angle is "no prediction".
-    std::optional<ScatterComparison> inclination(double etaOut, double rate, double angleDeg, const std::string& regime);
+    std::optional<ScatterComparison> inclination(double etaOut, double rate, double angleDeg, const std::string& regime) const;
     /// 4 pi f / rate against the donors' TTF, rates within a factor 1.25; a tank-treading cell
     /// without a TTF is "no prediction".
-    ScatterComparison tankTreadingFrequency(double rate, double ttf, const std::string& regime);
+    ScatterComparison tankTreadingFrequency(double rate, double ttf, const std::string& regime) const;
     /// Velocity [cm/s] against Tomaiuolo 2009, pressure gradients within a factor 1.25.
-    ScatterComparison tubeVelocity(double pressureGradient, double velocity);
+    ScatterComparison tubeVelocity(double pressureGradient, double velocity) const;
     /// Length [um] against the Tomaiuolo band at the predicted velocity.
-    ScatterComparison tubeLength(double velocity, double length);
+    ScatterComparison tubeLength(double velocity, double length) const;
     /// Critical stress interval [Pa] against Fischer 2013 and Abkarian 2007, outer viscosities within 10 %.
     ScatterComparison criticalStress(double etaOut, std::optional<double> tauLo, std::optional<double> tauHi) const;
+    /// Every set with its points, as experimental_data.json records them (validationDataJson).
+    const std::vector<ValidationData>& data() const { return data_; }
 
 private:
-    /// The points of the judged set of `observable` (measured at etaOut, when given), read once;
-    /// nullptr when the data have none.
-    const ExperimentalPoints* judged(const std::string& observable, double etaOut = NAN);
+    /// The points of the judged set of `observable` (measured at etaOut, when given), blanks
+    /// dropped; nullptr when the data have none.
+    const ExperimentalPoints* judged(const std::string& observable, std::optional<double> etaOut = std::nullopt) const;
     /// judged(observable), or an InputError naming the data folder.
-    const ExperimentalPoints& required(const std::string& observable);
+    const ExperimentalPoints& required(const std::string& observable) const;
 
     std::filesystem::path dataDir_;
-    std::vector<ValidationDataSet> sets_;
-    std::map<std::pair<std::string, double>, ExperimentalPoints> points_;
+    std::vector<ValidationData> data_;
+    std::vector<ExperimentalPoints> judged_;  ///< per set of data_, blanks dropped (empty when not judged)
     ExperimentalPoints critical_;
 };
 

@@ -3,21 +3,16 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <fstream>
+#include <iterator>
 #include <regex>
-#include <sstream>
 
+#include "core/csv.hpp"
 #include "core/error.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string trim(const std::string& s) {
-    const auto b = s.find_first_not_of(" \t\r"), e = s.find_last_not_of(" \t\r");
-    return b == std::string::npos ? "" : s.substr(b, e - b + 1);
-}
 
 constexpr const char* kAngleDir = "shear_flow/inclination_angle";
 const std::vector<std::string> kDonorColumns = {"angle1", "angle2", "angle3", "angle4", "angle5", "angle6", "angle7"};
@@ -62,57 +57,32 @@ std::vector<ValidationDataSet> fixedSets(const fs::path& dataDir) {
 
 ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::string& xColumn, const std::vector<std::string>& yColumns,
                                           bool keepBlanks) {
-    std::ifstream in(file);
-    if (!in) throw InputError(fmt::format("cannot read experimental data {}", file.string()));
-    std::string line;
-    std::vector<std::string> header;
-    long lineNo = 0;
+    std::vector<std::string> columns = {xColumn};
+    columns.insert(columns.end(), yColumns.begin(), yColumns.end());
+    const NumericTable t = readNumericTable(file, columns, yColumns);
+    for (const std::string& c : columns)
+        if (t.find(c) < 0) throw InputError(fmt::format("{}:1: missing column '{}'", file.string(), c));
+    if (t.values.rows() == 0) throw InputError(fmt::format("{}: no data rows", file.string()));
     ExperimentalPoints d;
-    std::vector<int> yIdx;
-    int xIdx = -1;
-    while (std::getline(in, line)) {
-        ++lineNo;
-        if (trim(line).empty()) continue;
-        std::vector<std::string> fields;
-        std::stringstream ss(line);
-        std::string f;
-        while (std::getline(ss, f, ',')) fields.push_back(trim(f));
-        if (!line.empty() && line.back() == ',') fields.push_back("");
-        if (header.empty()) {
-            header = fields;
-            auto idx = [&](const std::string& name) {
-                const auto it = std::find(header.begin(), header.end(), name);
-                if (it == header.end()) throw InputError(fmt::format("{}:1: missing column '{}'", file.string(), name));
-                return static_cast<int>(it - header.begin());
-            };
-            xIdx = idx(xColumn);
-            for (const std::string& y : yColumns) yIdx.push_back(idx(y));
-            continue;
-        }
-        auto number = [&](int i, bool required) -> std::optional<double> {
-            const std::string s = i < static_cast<int>(fields.size()) ? fields[i] : "";
-            if (s.empty()) {
-                if (required) throw InputError(fmt::format("{}:{}: column '{}' is empty", file.string(), lineNo, header[i]));
-                return std::nullopt;
-            }
-            try {
-                std::size_t n = 0;
-                const double v = std::stod(s, &n);
-                if (n == s.size() && std::isfinite(v)) return v;
-            } catch (const std::exception&) {
-            }
-            throw InputError(fmt::format("{}:{}: column '{}' = '{}' is not a number", file.string(), lineNo, header[i], s));
-        };
-        d.x.push_back(*number(xIdx, true));
+    const Eigen::VectorXd x = t.column(xColumn);
+    d.x.assign(x.data(), x.data() + x.size());
+    for (Eigen::Index r = 0; r < t.values.rows(); ++r) {
         std::vector<double> ys;
-        for (int i : yIdx) {
-            const std::optional<double> v = number(i, false);
-            if (v || keepBlanks) ys.push_back(v ? *v : NAN);
-        }
-        d.y.push_back(ys);
+        for (const std::string& c : yColumns)
+            if (const double v = t.values(r, t.find(c)); keepBlanks || !std::isnan(v)) ys.push_back(v);
+        d.y.push_back(std::move(ys));
     }
-    if (d.x.empty()) throw InputError(fmt::format("{}: no data rows", file.string()));
     return d;
+}
+
+ExperimentalPoints withoutBlanks(const ExperimentalPoints& d) {
+    ExperimentalPoints out{d.x, {}};
+    for (const std::vector<double>& row : d.y) {
+        std::vector<double> ys;
+        std::copy_if(row.begin(), row.end(), std::back_inserter(ys), [](double v) { return !std::isnan(v); });
+        out.y.push_back(std::move(ys));
+    }
+    return out;
 }
 
 std::vector<ValidationDataSet> validationDataSets(const fs::path& dataDir) {
@@ -139,11 +109,19 @@ ExperimentalPoints readValidationData(const ValidationDataSet& s, bool keepBlank
     return d;
 }
 
-nlohmann::json validationDataJson(const std::vector<ValidationDataSet>& sets) {
+std::vector<ValidationData> readValidationDataSets(const fs::path& dataDir) {
+    std::vector<ValidationData> out;
+    for (ValidationDataSet& s : validationDataSets(dataDir)) {
+        ExperimentalPoints points = readValidationData(s, true);
+        out.push_back({std::move(s), std::move(points)});
+    }
+    return out;
+}
+
+nlohmann::json validationDataJson(const std::vector<ValidationData>& data) {
     nlohmann::json out = nlohmann::json::array();
     const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
-    for (const ValidationDataSet& s : sets) {
-        const ExperimentalPoints d = readValidationData(s, true);
+    for (const auto& [s, d] : data) {
         nlohmann::json y = nlohmann::json::array();
         for (const std::vector<double>& row : d.y) {
             nlohmann::json r = nlohmann::json::array();

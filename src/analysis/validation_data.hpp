@@ -20,9 +20,11 @@ struct ExperimentalPoints {
 };
 /// Reads columns: x = `xColumn`, y = every other listed column (blanks allowed: skipped, or NaN
 /// with `keepBlanks`). InputError naming the file, line and column for a missing column, an empty
-/// x or a field that is not a number.
+/// x or a field that is not a number (core/csv.hpp's readNumericTable).
 ExperimentalPoints readExperimentalPoints(const std::filesystem::path& file, const std::string& xColumn,
                                           const std::vector<std::string>& yColumns, bool keepBlanks = false);
+/// The points with the blanks (NaN) of every row dropped.
+ExperimentalPoints withoutBlanks(const ExperimentalPoints& d);
 
 /// One experimental data set of the flow validations.
 struct ValidationDataSet {
@@ -46,10 +48,18 @@ std::vector<ValidationDataSet> validationDataSets(const std::filesystem::path& d
 /// The set's points in trbc's units (x times xScale, y times yScale).
 ExperimentalPoints readValidationData(const ValidationDataSet& s, bool keepBlanks = false);
 
+/// A set with its points in trbc's units, a blank read as NaN.
+struct ValidationData {
+    ValidationDataSet set;
+    ExperimentalPoints points;
+};
+/// Every set of validationDataSets(dataDir) with its points, each file read once.
+std::vector<ValidationData> readValidationDataSets(const std::filesystem::path& dataDir);
+
 /// The sets with their points, as `trbc validate` records them beside its verdicts
 /// (experimental_data.json) and trbc.validation_data returns them: per set observable, x_name,
 /// source, file, eta_out_mPa_s (null unless measured at one), judged, y_columns, x and y (rows of
 /// the y columns; a blank is null).
-nlohmann::json validationDataJson(const std::vector<ValidationDataSet>& sets);
+nlohmann::json validationDataJson(const std::vector<ValidationData>& data);
 
 }  // namespace trbc

@@ -63,7 +63,7 @@ const char* kTubeHeader = "case_id,pg_mmHg_per_mm,radius_um,velocity_cm_per_s,le
                           "level\n";
 
 /// A row of tube.csv; a finished case's velocity and length against the data.
-std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
+std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, const ValidationEvidence& evidence,
                      ComparisonTable& table) {
     const FlowRecordView r = caseResult(rec);
     const std::string row = fmt::format("{},{:g},{:g},{},{},{},{},{},{},{},{},{},{},{:.1f},{}\n", csvField(c.id), c.pressureGradient,
@@ -79,7 +79,7 @@ std::string tubeCase(const ValidationCase& c, const json& rec, const ValidationC
 }
 
 /// A row of shear.csv; a finished angle or TTF case against the data.
-std::string shearCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, ValidationEvidence& evidence,
+std::string shearCase(const ValidationCase& c, const json& rec, const ValidationConfig& cfg, const ValidationEvidence& evidence,
                       ComparisonTable& table) {
     const FlowRecordView r = caseResult(rec);
     const std::string& regime = r.regime;
@@ -251,7 +251,7 @@ struct BandTable {
 
 /// The scatter of an observable's window, taken at the band's median (the length's at the median velocity).
 std::optional<ScatterComparison> drawScatter(const ValidationCase& c, const std::string& observable, double median, double velocity,
-                                             ValidationEvidence& evidence) {
+                                             const ValidationEvidence& evidence) {
     if (c.kind == "angle") return evidence.inclination(c.etaOut, c.rate, median, "");
     if (c.kind == "ttf") return evidence.tankTreadingFrequency(c.rate, median, "");
     if (observable == "velocity [cm/s]") return evidence.tubeVelocity(c.pressureGradient, median);
@@ -259,7 +259,7 @@ std::optional<ScatterComparison> drawScatter(const ValidationCase& c, const std:
 }
 
 /// draws.csv (one row per draw run) and bands.csv; returns the bands.
-BandTable drawTables(const ValidationRunner& R, ValidationEvidence& evidence, const ComparisonTable& mean) {
+BandTable drawTables(const ValidationRunner& R, const ValidationEvidence& evidence, const ComparisonTable& mean) {
     BandTable bands;
     std::string runs = csvProvenance() + "case_id,case,kind,sample,status,regime,inclination_deg,ttf_4pi_f_over_shear_rate,velocity_cm_per_s,length_um,wall_s\n";
     for (const ValidationCase& c : R.cases) {
@@ -340,7 +340,7 @@ json writeValidationTables(const ValidationRunner& R, json& bandRows) {
     writeFileAtomically(R.out / "threshold.csv", thr);
     writeFileAtomically(R.out / "comparison.csv", table.csv());
     // The points the verdicts compared with, in trbc's units, for the figures and for the record.
-    writeFileAtomically(R.out / "experimental_data.json", validationDataJson(validationDataSets(R.cfg.dataDir)).dump(1) + "\n");
+    writeFileAtomically(R.out / "experimental_data.json", validationDataJson(evidence.data()).dump(1) + "\n");
     json summary = {{"cases", cases}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
                     {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
     std::string md = validationMarkdown(cases, failed, table, R.cfg);

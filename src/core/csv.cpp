@@ -88,7 +88,8 @@ Eigen::VectorXd NumericTable::column(const std::string& name, const std::string&
     return values.col(c);
 }
 
-NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns) {
+NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns,
+                              const std::vector<std::string>& blankColumns) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(fmt::format("cannot open {}", path.string()));
     const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -123,6 +124,7 @@ NumericTable readNumericTable(const std::filesystem::path& path, const std::vect
         std::vector<double> row(t.columns.size(), NAN);
         for (int c : wanted) {
             const std::string& s = fields[c];
+            if (s.empty() && std::count(blankColumns.begin(), blankColumns.end(), t.columns[c])) continue;
             double x = 0.0;
             const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), x);
             if (s.empty() || ec != std::errc() || ptr != s.data() + s.size() || !std::isfinite(x))

@@ -24,9 +24,11 @@ struct NumericTable {
 };
 
 /// Reads a CSV whose header names the columns. Only the columns in `numericColumns` (all columns if
-/// empty) must be numbers; the others are ignored. Empty lines are skipped; '#' starts a comment line;
-/// fields may be quoted as csvField writes them.
-NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns = {});
+/// empty) must be numbers; the others are ignored (NaN). A blank field of a column in
+/// `blankColumns` reads as NaN (a missing measurement); elsewhere it is an error. Empty lines are
+/// skipped; '#' starts a comment line; fields may be quoted as csvField writes them.
+NumericTable readNumericTable(const std::filesystem::path& path, const std::vector<std::string>& numericColumns = {},
+                              const std::vector<std::string>& blankColumns = {});
 
 /// One CSV field as RFC 4180 writes it: as is, or in double quotes with '"' doubled when it holds a
 /// comma, a quote, a line break, leading/trailing space or a leading '#', so that no text can add a

@@ -911,7 +911,7 @@ void registerInference(py::module_& m) {
 
 /// The flow cases: a cell in shear flow and in a tube.
 void registerFlow(py::module_& m) {
-    m.def("validation_data", [](const std::string& dir) { return jsonToPython(validationDataJson(validationDataSets(dir))); }, "data_dir"_a,
+    m.def("validation_data", [](const std::string& dir) { return jsonToPython(validationDataJson(readValidationDataSets(dir))); }, "data_dir"_a,
           "The experimental sets of the flow validations with their points, as validationDataJson gives them (JSON types)");
     m.def("flow_shear", &flowShear, py::kw_only(), "eta_out_mPa_s"_a, "shear_rate_per_s"_a, "eta_in_mPa_s"_a, "v"_a, "mu_uN_per_m"_a,
           "FvK"_a, "kb_J"_a, "b2"_a, "etam_Pa_s_um"_a, "allow_outside_prior"_a, "level"_a, "rotations"_a, "tilt_deg"_a,

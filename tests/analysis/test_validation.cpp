@@ -201,6 +201,7 @@ TEST(ValidationComparison, EvidenceWindowsAndVerdictsOfEachObservable) {
     writeText(shear / "ttf" / "data_donors12.csv", "shear_rate,TTF\n10,0.02\n11,0.03\n");
     writeText(tube / "Tomaiuolo2009_pg_v_6.6um.csv", "pg,v\n10,0.1\n12,0.2\n");
     writeText(tube / "Tomaiuolo2009_v_l_6.6um.csv", "v,l,l_high,l_low\n0.1,8,9,7\n1,10,11,9\n");
+    writeText(tube / "Hochmut1970_v_l_6.7um.csv", "v,l\n0.5,9\n");  // drawn, never judged
     ValidationEvidence e(dir.path());
     EXPECT_FALSE(e.inclination(50.0, 10.0, 22.0, "tank-treading"));  // no data at that viscosity
     std::optional<ScatterComparison> a = e.inclination(23.9, 11.0, 22.0, "tank-treading");
@@ -394,7 +395,7 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
         EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
     // The experimental sets the verdicts compared with, as the figures read them.
     const nlohmann::json data = nlohmann::json::parse(test::slurp(fs::path(out) / "experimental_data.json"));
-    EXPECT_TRUE(data == validationDataJson(validationDataSets(readValidationConfig(cfg, kExperiments).dataDir)));  // too long to print
+    EXPECT_TRUE(data == validationDataJson(readValidationDataSets(readValidationConfig(cfg, kExperiments).dataDir)));  // too long to print
     const nlohmann::json j = nlohmann::json::parse(test::slurp(fs::path(out) / "validation.json"));
     const int cases = j["summary"]["cases"].get<int>();
     EXPECT_GE(cases, 4);  // plus the threshold refinement

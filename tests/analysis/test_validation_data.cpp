@@ -30,13 +30,16 @@ TEST(ValidationData, ShippedFilesReadWithBlanksAndBadCellsAreNamed) {
     ASSERT_EQ(kept.y[0].size(), 7u);  // "2.5942,,,12.053,,,,": the third donor, the others NaN
     EXPECT_NEAR(kept.y[0][2], 12.053, 1e-12);
     EXPECT_TRUE(std::isnan(kept.y[0][0]) && std::isnan(kept.y[0][6]));
+    const ExperimentalPoints dropped = withoutBlanks(kept);
+    EXPECT_EQ(dropped.x, a.x);
+    EXPECT_EQ(dropped.y, a.y);
     TempDir dir;
     const fs::path bad = writeText(dir.path() / "bad.csv", "pg,v\n1,0.1\n2,fast\n");
     try {
         readExperimentalPoints(bad, "pg", {"v"});
         FAIL() << "no error";
     } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("bad.csv:3: column 'v' = 'fast' is not a number"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("bad.csv:3: column 'v': 'fast' is not a finite number"), std::string::npos) << e.what();
     }
     EXPECT_THROW(readExperimentalPoints(bad, "pressure", {"v"}), InputError);
 }
@@ -77,7 +80,7 @@ TEST(ValidationData, TheListHasTheShippedSetsInTrbcsUnits) {
     EXPECT_EQ(setOf(sets, "length_um").yColumns, (std::vector<std::string>{"l", "l_high", "l_low"}));
 
     // The record of validate: blanks are null, units as above.
-    const nlohmann::json j = validationDataJson(sets);
+    const nlohmann::json j = validationDataJson(readValidationDataSets(kValidationData));
     ASSERT_EQ(j.size(), sets.size());
     EXPECT_EQ(j[1].at("eta_out_mPa_s"), 23.9);
     EXPECT_TRUE(j[1].at("y")[0][0].is_null());
@@ -98,10 +101,11 @@ TEST(ValidationData, TheListHasTheShippedSetsInTrbcsUnits) {
     const std::vector<ValidationDataSet> bare = validationDataSets(empty.path());
     EXPECT_EQ(bare.size(), 6u);  // no angle sets found, the fixed ones listed
     try {
-        validationDataJson(bare);
+        readValidationDataSets(empty.path());
         FAIL() << "no error";
     } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("cannot read experimental data"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("cannot open " + (empty.path() / "shear_flow" / "ttf" / "data_donors12.csv").string()),
+                  std::string::npos) << e.what();
     }
 }
 

@@ -2,10 +2,13 @@
 // posterior_stats.csv with.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
 #include "core/csv.hpp"
+#include "core/error.hpp"
+#include "test_support.hpp"
 
 namespace trbc {
 namespace {
@@ -18,6 +21,26 @@ TEST(CsvRecords, ColumnOfAHeader) {
     EXPECT_EQ(columnOf(rows[0], "sd"), -1);
     EXPECT_EQ(columnOf({}, "mean"), -1);
     EXPECT_EQ(columnOf({"a", "b", "a"}, "a"), 0);  // the first of repeated names
+}
+
+// A blank field is a missing measurement (NaN) only in the columns that allow it; elsewhere the error
+// names the file, the line and the column.
+TEST(NumericTable, BlankFieldsOnlyWhereAllowed) {
+    test::TempDir dir;
+    const auto file = test::writeText(dir.path() / "donors.csv", "# provenance\nrate,a1,a2,note\n1.5,,12.0,x\n\n2.5,11.0,,y\n");
+    const NumericTable t = readNumericTable(file, {"rate", "a1", "a2"}, {"a1", "a2"});
+    ASSERT_EQ(t.values.rows(), 2);
+    EXPECT_EQ(t.lines, (std::vector<long>{3, 5}));
+    EXPECT_TRUE(std::isnan(t.values(0, 1)));
+    EXPECT_EQ(t.values(0, 2), 12.0);
+    EXPECT_EQ(t.values(1, 1), 11.0);
+    EXPECT_TRUE(std::isnan(t.values(1, 3)));  // not a numeric column: ignored
+    try {
+        readNumericTable(file, {"rate", "a1", "a2"}, {"a1"});
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("donors.csv:5: column 'a2': '' is not a finite number"), std::string::npos) << e.what();
+    }
 }
 
 }  // namespace
