@@ -2,6 +2,7 @@
 // Parses, then runs the library's three phases on the ranks of cli/campaign_ranks.hpp.
 #include <fmt/format.h>
 
+#include <cmath>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -14,15 +15,37 @@
 #include "core/error.hpp"
 #include "core/output_dir.hpp"
 #include "flow/shear_campaign.hpp"
+#include "flow/steady_rule_study.hpp"
 
 namespace trbc::cli {
 namespace {
 
 struct FlowCampaignCli {
     ShearCampaignOptions c;
-    std::string design = "sobol", start = "random", out, inject;
+    std::string design = "sobol", start = "random", out, inject, steadyRule;
     CacheOptions cache;
 };
+
+/// "FIRST_TURN,ANGLE_DEG,TTF" (for example 4,0.1,0.005) as a SteadyStopRule; ranges are checked by its users.
+SteadyStopRule parseSteadyRule(const std::string& text, const std::string& option) {
+    std::vector<double> v;
+    std::stringstream ss(text);
+    for (std::string f; std::getline(ss, f, ',');) {
+        std::size_t used = 0;
+        double x = NAN;
+        try {
+            x = std::stod(f, &used);
+        } catch (const std::exception&) {
+        }
+        if (used == 0 || f.find_first_not_of(" \t", used) != std::string::npos || !std::isfinite(x))
+            throw InputError(fmt::format("{}: '{}' is not a number in '{}' (FIRST_TURN,ANGLE_DEG,TTF, for example 4,0.1,0.005)", option, f, text));
+        v.push_back(x);
+    }
+    if (v.size() != 3)
+        throw InputError(fmt::format("{}: '{}' has {} numbers, 3 expected: FIRST_TURN,ANGLE_DEG,TTF (for example 4,0.1,0.005)", option, text,
+                                     v.size()));
+    return {v[0], v[1], v[2]};
+}
 
 void runFlowCampaign(FlowCampaignCli& o) {
     ShearCampaignOptions c = o.c;
@@ -30,6 +53,7 @@ void runFlowCampaign(FlowCampaignCli& o) {
     if (o.start != "random" && o.start != "in-plane")
         throw InputError(fmt::format("--start: '{}' is not a start (valid: random, in-plane)", o.start));
     c.randomStart = o.start == "random";
+    if (!o.steadyRule.empty()) c.steadyRule = parseSteadyRule(o.steadyRule, "--steady-rule");
     c.outDir = o.out;
     c.command = commandLine();
     c.cacheDir = cacheDirectory(o.cache);
@@ -86,6 +110,14 @@ void registerFlowCampaign(CLI::App* flow) {
                     "random: the ensemble protocol's start (random orientation and thermal l = 2, 3 undulations at 293.15 K, "
                     "seeded per case); in-plane: the disc in the shear plane")
         ->capture_default_str();
+    cmd->add_option("--steady-rule", o->steadyRule,
+                    fmt::format("FIRST_TURN,ANGLE_DEG,TTF: a case is steady at the first whole turn >= FIRST_TURN whose observables agree "
+                                "with those one turn earlier, angle and swing within ANGLE_DEG and the TTF within the fraction TTF "
+                                "(default {:g},{:g},{:g}; docs/FLOW_CAMPAIGN.md, the stop rule)",
+                                SteadyStopRule{}.minRotations, SteadyStopRule{}.angleToleranceDeg, SteadyStopRule{}.ttfTolerance));
+    cmd->add_flag("--full-length", o->c.fullLength,
+                  "run every case all --rotations and record its observables at every whole turn in OUT/by_turn/ (for "
+                  "`trbc flow steady-rules`)");
     addNumber(cmd, "--eta-in", o->c.etaIn, "cytosol viscosity", NumberRange::leftOpen(0, 1e6, "mPa s"))->capture_default_str();
     addThreadsOption(cmd, o->c.threads, "cases run concurrently (one thread each)");
     addOutOption(cmd, o->out);
@@ -93,6 +125,24 @@ void registerFlowCampaign(CLI::App* flow) {
     cmd->add_option("--inject-failures", o->inject, "comma-separated case ids that fail on purpose (to test failure records)");
     addCacheOptions(cmd, o->cache);
     cmd->callback([o]() { runFlowCampaign(*o); });
+
+    auto rules = std::make_shared<std::pair<std::string, std::vector<std::string>>>();
+    CLI::App* study = flow->add_subcommand(
+        "steady-rules",
+        "What steady-state stop rules cost and change (docs/FLOW_CAMPAIGN.md, the stop rule): each --rule applied to the turn-by-turn "
+        "observables of a `trbc flow campaign --full-length` run; prints per rule the turns run, the share of the full runs' cost, "
+        "the regimes changed and the angle, swing and TTF at the stop against the full runs (Markdown)");
+    study->add_option("--campaign", rules->first, "a `trbc flow campaign --full-length` directory")->required();
+    study->add_option("--rule", rules->second, "FIRST_TURN,ANGLE_DEG,TTF (repeatable; default: the campaign's default rule)");
+    study->callback([rules]() {
+        std::vector<SteadyStopRule> list;
+        for (const std::string& r : rules->second) list.push_back(parseSteadyRule(r, "--rule"));
+        if (list.empty()) list.push_back(SteadyStopRule{});
+        const std::vector<FullLengthCase> cases = readFullLengthCases(rules->first);
+        std::vector<SteadyRuleEffect> effects;
+        for (const SteadyStopRule& r : list) effects.push_back(steadyRuleEffect(cases, r));
+        std::cout << fmt::format("{} full-length cases of {}\n\n", cases.size(), rules->first) << steadyRuleTable(effects);
+    });
 }
 
 }  // namespace trbc::cli

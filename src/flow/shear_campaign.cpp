@@ -17,6 +17,7 @@
 #include "core/file_io.hpp"
 #include "core/version.hpp"
 #include "flow/shear_case.hpp"
+#include "flow/steady_rule_study.hpp"
 #include "sampling/part_file.hpp"
 
 namespace trbc {
@@ -33,8 +34,8 @@ fs::path casesPath(const ShearCampaignOptions& o) { return o.outDir / "cases.csv
 
 /// Everything that decides the rows; a resume must match it exactly.
 nlohmann::json settingsJson(const ShearCampaignOptions& o) {
-    const SteadyStopRule rule;
-    return {{"design", designName(o.design)},
+    const SteadyStopRule& rule = o.steadyRule;
+    nlohmann::json j = {{"design", designName(o.design)},
             {"cases", o.cases},
             {"seed", o.seed},
             {"level", o.level},
@@ -46,6 +47,8 @@ nlohmann::json settingsJson(const ShearCampaignOptions& o) {
             {"steady_rule", {{"min_rotations", rule.minRotations}, {"angle_tolerance_deg", rule.angleToleranceDeg},
                              {"ttf_tolerance", rule.ttfTolerance}}},
             {"inject_failures", std::vector<long>(o.injectFailures.begin(), o.injectFailures.end())}};
+    if (o.fullLength) j["full_length"] = true;
+    return j;
 }
 
 void validateOptions(const ShearCampaignOptions& o) {
@@ -57,6 +60,12 @@ void validateOptions(const ShearCampaignOptions& o) {
                                      o.maxRotations));
     if (!(o.etaIn > 0.0 && o.etaIn <= 1e6)) throw InputError(fmt::format("--eta-in {} is outside (0, 1e6] mPa s", o.etaIn));
     if (o.outDir.empty()) throw InputError("--out: an output directory is required");
+    const SteadyStopRule& r = o.steadyRule;
+    if (!(r.minRotations >= 2.0 && r.minRotations <= o.maxRotations && r.angleToleranceDeg > 0.0 && r.angleToleranceDeg <= 10.0 &&
+          r.ttfTolerance > 0.0 && r.ttfTolerance <= 0.5))
+        throw InputError(fmt::format("--steady-rule {:g},{:g},{:g}: the first turn must be in [2, --rotations {:g}], the angle tolerance "
+                                     "in (0, 10] deg and the TTF tolerance in (0, 0.5]",
+                                     r.minRotations, r.angleToleranceDeg, r.ttfTolerance, o.maxRotations));
 }
 
 std::string settingsDiff(const nlohmann::json& have, const nlohmann::json& want) {
@@ -105,10 +114,14 @@ ShearCampaignRow runShearCampaignCase(const ShearCampaignPoint& point, const She
         c.rotations = o.maxRotations;
         c.randomStart = o.randomStart;
         c.seed = point.startSeed;
-        c.stopWhenSteady = true;
+        c.stopWhenSteady = !o.fullLength;
+        c.steadyRule = o.steadyRule;
         c.cacheDir = o.cacheDir;
         const ShearCaseResult res = runShearCase(c);
         if (!res.completed || !res.observables) throw NumericalError(res.message.empty() ? "the run did not complete" : res.message);
+        if (o.fullLength)  // before the row, so that a case in a part file always has its record
+            writeFileAtomically(o.outDir / "by_turn" / fmt::format("case{}.json", point.caseId),
+                                turnRecordsJson(point.caseId, turnRecords(res.flow)).dump(1) + "\n");
         const ShearObservables& obs = *res.observables;
         const double tEnd = res.flow.times.empty() ? 0.0 : res.flow.times.back();
         row.turns = tEnd / (4.0 * kPi);
@@ -139,6 +152,7 @@ void prepareShearCampaign(const ShearCampaignOptions& o) {
     validateOptions(o);
     std::error_code ec;
     fs::create_directories(partsDir(o), ec);
+    if (!ec && o.fullLength) fs::create_directories(o.outDir / "by_turn", ec);
     if (ec) throw InputError(fmt::format("--out: cannot create {}: {}", partsDir(o).string(), ec.message()));
     const nlohmann::json settings = settingsJson(o);
     if (fs::exists(provenancePath(o))) {

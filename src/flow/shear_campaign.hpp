@@ -9,6 +9,7 @@
 //   campaign.json      provenance: command, version, settings (a resume must match them), final counts
 //   parts/rank<r>.csv  the checkpoint of rank r (sampling/part_file.hpp), one row per finished case
 //   cases.csv          every case sorted by case id, written once all cases are done
+//   by_turn/case<id>.json  with fullLength only: the observables up to every whole turn
 // A run killed at any moment and restarted with resume loses no finished case and repeats none: a
 // case counts as done when its whole row, with the design's inputs, is in a part file.
 #include <cstdint>
@@ -19,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "flow/shear_observables.hpp"
 #include "sampling/campaign.hpp"
 #include "sampling/shear_campaign_table.hpp"
 
@@ -30,6 +32,10 @@ struct ShearCampaignOptions {
     std::uint64_t seed = 1;
     int level = 3;
     double maxRotations = 10.0;  ///< the longest a case runs; it stops earlier once steady
+    SteadyStopRule steadyRule;   ///< when a case is steady (flow/shear_observables.hpp)
+    /// Every case runs maxRotations turns and records its observables turn by turn in
+    /// by_turn/case<id>.json (flow/steady_rule_study.hpp), to measure stop rules against full runs
+    bool fullLength = false;
     bool randomStart = true;     ///< the ensemble protocol's start; false: the disc in the shear plane
     double etaIn = 10.0;         ///< mPa s
     int threads = 1;             ///< cases run concurrently, one thread each

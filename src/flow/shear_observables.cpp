@@ -317,6 +317,47 @@ ShearObservables analyzeShearFrames(const std::vector<double>& t, const std::vec
     return o;
 }
 
+namespace {
+
+/// Frames up to the first one at or after time `end` (1/rate).
+std::size_t framesUpTo(const std::vector<double>& t, double end) {
+    std::size_t m = 0;
+    while (m < t.size() && t[m] < end * (1.0 - 1e-12)) ++m;
+    return std::min(t.size(), m + 1);
+}
+
+ShearObservables analyseFirst(const std::vector<double>& t, const std::vector<Vertices>& frames, std::size_t m) {
+    return analyzeShearFrames(std::vector<double>(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(m)),
+                              std::vector<Vertices>(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(m)), 1.0);
+}
+
+}  // namespace
+
+bool steadyBetween(const ShearObservables& now, const ShearObservables& before, const SteadyStopRule& rule) {
+    if (now.regime == ShearRegime::Tumbling && before.regime == ShearRegime::Tumbling) return true;
+    if (now.regime != ShearRegime::TankTreading || before.regime != ShearRegime::TankTreading) return false;
+    if (!now.ttf.defined || !before.ttf.defined) return false;
+    return std::abs(now.inclinationDeg - before.inclinationDeg) <= rule.angleToleranceDeg &&
+           std::abs(now.swingAmplitudeDeg - before.swingAmplitudeDeg) <= rule.angleToleranceDeg &&
+           std::abs(now.ttf4piFOverRate - before.ttf4piFOverRate) <= rule.ttfTolerance * std::abs(now.ttf4piFOverRate);
+}
+
+std::vector<TurnObservables> observablesByTurn(const std::vector<double>& t, const std::vector<Vertices>& frames, double tEnd) {
+    if (frames.size() != t.size()) throw InputError(fmt::format("{} frames but {} times", frames.size(), t.size()));
+    std::vector<TurnObservables> out;
+    const double turn = 4.0 * kPi;
+    if (std::isnan(tEnd)) tEnd = t.empty() ? 0.0 : t.back();
+    const int last = int(std::floor(tEnd / turn * (1.0 + 1e-12)));
+    for (int k = 1; k <= last; ++k) {
+        const std::size_t m = framesUpTo(t, k * turn);
+        try {
+            out.push_back({k, m, analyseFirst(t, frames, m)});
+        } catch (const InputError&) {  // too few frames up to turn k
+        }
+    }
+    return out;
+}
+
 bool shearSteadyStateReached(const std::vector<double>& t, const std::vector<Vertices>& frames, const SteadyStopRule& rule,
                              double since) {
     const std::size_t n = t.size();
@@ -324,26 +365,10 @@ bool shearSteadyStateReached(const std::vector<double>& t, const std::vector<Ver
     const double turn = 4.0 * kPi;
     const double k = std::floor(t[n - 1] / turn * (1.0 + 1e-12));
     if (k < rule.minRotations) return false;
-    // Frames up to the first one at or after time `end`.
-    const auto upTo = [&](double end) {
-        std::size_t m = 0;
-        while (m < n && t[m] < end * (1.0 - 1e-12)) ++m;
-        return std::min(n, m + 1);
-    };
-    const std::size_t atTurn = upTo(k * turn);
+    const std::size_t atTurn = framesUpTo(t, k * turn);
     if (!(t[atTurn - 1] > since)) return false;  // turn k was looked at after an earlier step
-    const auto analyse = [&](std::size_t m) {
-        return analyzeShearFrames(std::vector<double>(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(m)),
-                                  std::vector<Vertices>(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(m)), 1.0);
-    };
     try {
-        const ShearObservables now = analyse(atTurn), before = analyse(upTo((k - 1.0) * turn));
-        if (now.regime == ShearRegime::Tumbling && before.regime == ShearRegime::Tumbling) return true;
-        if (now.regime != ShearRegime::TankTreading || before.regime != ShearRegime::TankTreading) return false;
-        if (!now.ttf.defined || !before.ttf.defined) return false;
-        return std::abs(now.inclinationDeg - before.inclinationDeg) <= rule.angleToleranceDeg &&
-               std::abs(now.swingAmplitudeDeg - before.swingAmplitudeDeg) <= rule.angleToleranceDeg &&
-               std::abs(now.ttf4piFOverRate - before.ttf4piFOverRate) <= rule.ttfTolerance * std::abs(now.ttf4piFOverRate);
+        return steadyBetween(analyseFirst(t, frames, atTurn), analyseFirst(t, frames, framesUpTo(t, (k - 1.0) * turn)), rule);
     } catch (const InputError&) {  // too few frames so far
         return false;
     }

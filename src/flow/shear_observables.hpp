@@ -107,6 +107,22 @@ struct SteadyStopRule {
     double ttfTolerance = 0.005;
 };
 
+/// Whether the observables at turn k (`now`) and at turn k - 1 (`before`) agree by the rule: both
+/// tumbling, or both tank-treading with a TTF and within the tolerances.
+bool steadyBetween(const ShearObservables& now, const ShearObservables& before, const SteadyStopRule& rule);
+
+/// The observables of the frames up to each whole rigid-sphere turn k = 1, 2, ... that the run
+/// reached (times in units of 1/rate from 0; tEnd the run's end, the last frame's time when NaN),
+/// analysed as shearSteadyStateReached does; a turn with too few frames for the analysis is left
+/// out. Frames fall on multiples of the frame interval, so the run's last turn may end after its
+/// last frame: that turn's record then holds every frame, the analysis of the whole run.
+struct TurnObservables {
+    int turn = 0;
+    std::size_t frames = 0;  ///< frames up to that turn
+    ShearObservables observables;
+};
+std::vector<TurnObservables> observablesByTurn(const std::vector<double>& t, const std::vector<Vertices>& frames, double tEnd = NAN);
+
 /// Whether the frames (times in units of 1/rate from 0) are steady by the rule at the last whole turn
 /// k they reach; evaluated only when the first frame at or after turn k is later than `since` (the
 /// start of the step that recorded the newest frames), so that it can be asked after every step and

@@ -253,6 +253,47 @@ TEST(ShearCampaignRunner, RecordsFailuresAndRefusesAnotherDesignOnResume) {
     for (std::size_t i = 0; i < firstTable.size(); ++i) EXPECT_EQ(grownTable[i], firstTable[i]);
 }
 
+// --full-length runs every case all its turns and records it turn by turn; `flow steady-rules` then
+// judges stop rules on those records. The rule is a setting (a resume with another is refused) and
+// its range is checked.
+TEST(ShearCampaignRunner, FullLengthRunsRecordEveryTurnForTheStopRuleStudy) {
+    TempDir tmp;
+    const fs::path out = tmp.path() / "c";
+    const std::string run = "flow campaign --cases 2 --level 2 --rotations 5 --seed 3 --no-cache --full-length --out " + shellQuote(out.string());
+    const CliRun r = runTrbc(run + " --steady-rule 3,0.2,0.01", tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    for (const ShearCampaignRow& row : readShearCampaignRows(out)) {
+        ASSERT_TRUE(row.ok()) << row.reason;
+        EXPECT_NEAR(row.turns, 5.0, 0.1 / (4.0 * M_PI));  // the last frame, at most one frame interval before the end
+        EXPECT_FALSE(row.steady);
+    }
+    const auto j = nlohmann::json::parse(std::ifstream(out / "campaign.json"));
+    EXPECT_EQ(j.at("settings").at("full_length"), true);
+    EXPECT_EQ(j.at("settings").at("steady_rule").at("min_rotations"), 3.0);
+    EXPECT_EQ(j.at("settings").at("steady_rule").at("ttf_tolerance"), 0.01);
+    for (int id : {0, 1}) {
+        const auto rec = nlohmann::json::parse(std::ifstream(out / "by_turn" / fmt::format("case{}.json", id)));
+        EXPECT_EQ(rec.at("case"), id);
+        EXPECT_EQ(rec.at("turns").back().at("turn"), 5);  // the whole run, although its last frame is before turn 5
+        EXPECT_GT(rec.at("turns").back().at("gmres_iterations").get<long>(), rec.at("turns").front().at("gmres_iterations").get<long>());
+    }
+    const CliRun study = runTrbc("flow steady-rules --campaign " + shellQuote(out.string()) + " --rule 4,0.1,0.005 --rule 3,1,0.05", tmp.path());
+    ASSERT_EQ(study.status, 0) << study.err;
+    EXPECT_NE(study.out.find("2 full-length cases"), std::string::npos) << study.out;
+    EXPECT_NE(study.out.find("| 4, 0.1, 0.5 % | 2 |"), std::string::npos) << study.out;
+    EXPECT_NE(study.out.find("| 3, 1, 5 % | 2 |"), std::string::npos) << study.out;
+
+    const CliRun other = runTrbc(run + " --resume --steady-rule 4,0.2,0.01", tmp.path());
+    EXPECT_EQ(other.status, 2);
+    EXPECT_NE(other.err.find("steady_rule"), std::string::npos) << other.err;
+    const CliRun bad = runTrbc("flow campaign --cases 1 --steady-rule 1,0.1,0.005 --out " + shellQuote((tmp.path() / "b").string()), tmp.path());
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("--steady-rule 1,0.1,0.005: the first turn must be in [2, --rotations 10]"), std::string::npos) << bad.err;
+    const CliRun two = runTrbc("flow steady-rules --campaign " + shellQuote(out.string()) + " --rule 4,0.1", tmp.path());
+    EXPECT_EQ(two.status, 2);
+    EXPECT_NE(two.err.find("--rule: '4,0.1' has 2 numbers, 3 expected"), std::string::npos) << two.err;
+}
+
 #ifdef TRBC_MPIEXEC
 std::string mpiFlowCampaign(const std::string& args) {
     return fmt::format("export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1; "
