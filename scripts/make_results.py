@@ -30,7 +30,8 @@ TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.0
 # campaign.json exists); its work folder is kept (RESUMED).
 CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level {level} --seed 20261129 --threads 1 --no-cache "
             "--out {{out}}/level{level} $(test -f {{out}}/level{level}/campaign.json && echo --resume)")
-RESUMED = ("flow_campaign",)
+RESUMED = ("flow_campaign", "flow_stop_rule")
+STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
 # A kept entry "SRC" copies OUT/SRC to results/<name>/SRC, "SRC=DEST" to results/<name>/DEST; a
@@ -74,6 +75,11 @@ SETS = {
                        "--label 'level 3 only' --label 'levels 2 and 3' --out {out}/learning_curve.png"], 86.0,
                       ["level3/campaign.json", "level3/cases.csv", "level2/campaign.json", "level2/cases.csv", "networks", "level3_only",
                        "learning_curve.png"]),
+    "flow_stop_rule": ("stop rules against full-length runs on the first 72 level-3 cases of the flow campaign's design",
+                       ["mpirun -n 2 {trbc} flow campaign --cases 72 --level 3 --seed 20261129 --threads 1 --no-cache --full-length "
+                        "--out {out}/full_length $(test -f {out}/full_length/campaign.json && echo --resume)",
+                        "{trbc} flow steady-rules --campaign {out}/full_length " + STOP_RULES + " > {out}/steady_rules.md"], 1.4,
+                       ["full_length/campaign.json", "full_length/cases.csv", "full_length/by_turn", "steady_rules.md"]),
     "flow_verification/capsule": ("the spherical-capsule verification table",
                                   ["python3 scripts/capsule_verification.py --trbc {trbc} --out {out}"], 3.0, None),
     "flow_threshold/scan": ("the threshold under three protocols, three cells, four viscosities",

@@ -60,19 +60,18 @@ ExperimentalPoints readExperimentalPoints(const fs::path& file, const std::strin
     std::vector<std::string> columns = {xColumn};
     columns.insert(columns.end(), yColumns.begin(), yColumns.end());
     const NumericTable t = readNumericTable(file, columns, yColumns);
-    for (const std::string& c : columns)
-        if (t.find(c) < 0) throw InputError(fmt::format("{}:1: missing column '{}'", file.string(), c));
     if (t.values.rows() == 0) throw InputError(fmt::format("{}: no data rows", file.string()));
     ExperimentalPoints d;
     const Eigen::VectorXd x = t.column(xColumn);
     d.x.assign(x.data(), x.data() + x.size());
-    for (Eigen::Index r = 0; r < t.values.rows(); ++r) {
-        std::vector<double> ys;
-        for (const std::string& c : yColumns)
-            if (const double v = t.values(r, t.find(c)); keepBlanks || !std::isnan(v)) ys.push_back(v);
-        d.y.push_back(std::move(ys));
+    std::vector<Eigen::VectorXd> ys;
+    for (const std::string& c : yColumns) ys.push_back(t.column(c));
+    for (Eigen::Index r = 0; r < x.size(); ++r) {
+        std::vector<double> row;
+        for (const Eigen::VectorXd& y : ys) row.push_back(y[r]);
+        d.y.push_back(std::move(row));
     }
-    return d;
+    return keepBlanks ? d : withoutBlanks(d);
 }
 
 ExperimentalPoints withoutBlanks(const ExperimentalPoints& d) {

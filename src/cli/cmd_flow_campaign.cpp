@@ -2,6 +2,7 @@
 // Parses, then runs the library's three phases on the ranks of cli/campaign_ranks.hpp.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -26,7 +27,7 @@ struct FlowCampaignCli {
     CacheOptions cache;
 };
 
-/// "FIRST_TURN,ANGLE_DEG,TTF" (for example 4,0.1,0.005) as a SteadyStopRule; ranges are checked by its users.
+/// "FIRST_TURN,ANGLE_DEG,TTF" (for example 4,0.1,0.005) as a SteadyStopRule (validateSteadyRule checks the ranges).
 SteadyStopRule parseSteadyRule(const std::string& text, const std::string& option) {
     std::vector<double> v;
     std::stringstream ss(text);
@@ -53,7 +54,10 @@ void runFlowCampaign(FlowCampaignCli& o) {
     if (o.start != "random" && o.start != "in-plane")
         throw InputError(fmt::format("--start: '{}' is not a start (valid: random, in-plane)", o.start));
     c.randomStart = o.start == "random";
-    if (!o.steadyRule.empty()) c.steadyRule = parseSteadyRule(o.steadyRule, "--steady-rule");
+    if (!o.steadyRule.empty()) {
+        if (c.fullLength) throw InputError("--steady-rule: a --full-length campaign stops no case; give one or the other");
+        c.steadyRule = parseSteadyRule(o.steadyRule, "--steady-rule");
+    }
     c.outDir = o.out;
     c.command = commandLine();
     c.cacheDir = cacheDirectory(o.cache);
@@ -103,7 +107,7 @@ void registerFlowCampaign(CLI::App* flow) {
         ->capture_default_str();
     addNumber(cmd, "--level", o->c.level, "icosphere level of the cell mesh", NumberRange::closed(1, 5))->capture_default_str();
     addNumber(cmd, "--rotations", o->c.maxRotations,
-              "longest run, rigid-sphere turns 4 pi / rate; a case stops earlier once steady (docs/FLOW.md, steady-state stop)",
+              "longest run, rigid-sphere turns 4 pi / rate; a case stops earlier once steady (--steady-rule), except with --full-length",
               NumberRange::closed(5, 1000))
         ->capture_default_str();
     cmd->add_option("--start", o->start,
@@ -113,11 +117,11 @@ void registerFlowCampaign(CLI::App* flow) {
     cmd->add_option("--steady-rule", o->steadyRule,
                     fmt::format("FIRST_TURN,ANGLE_DEG,TTF: a case is steady at the first whole turn >= FIRST_TURN whose observables agree "
                                 "with those one turn earlier, angle and swing within ANGLE_DEG and the TTF within the fraction TTF "
-                                "(default {:g},{:g},{:g}; docs/FLOW_CAMPAIGN.md, the stop rule)",
+                                "(default {:g},{:g},{:g}; docs/FLOW_CAMPAIGN.md, stop rule)",
                                 SteadyStopRule{}.minRotations, SteadyStopRule{}.angleToleranceDeg, SteadyStopRule{}.ttfTolerance));
     cmd->add_flag("--full-length", o->c.fullLength,
-                  "run every case all --rotations and record its observables at every whole turn in OUT/by_turn/ (for "
-                  "`trbc flow steady-rules`)");
+                  "run every case all --rotations (whole turns) and record, per turn, what a run stopped there would "
+                  "report, in OUT/by_turn/ (for `trbc flow steady-rules`)");
     addNumber(cmd, "--eta-in", o->c.etaIn, "cytosol viscosity", NumberRange::leftOpen(0, 1e6, "mPa s"))->capture_default_str();
     addThreadsOption(cmd, o->c.threads, "cases run concurrently (one thread each)");
     addOutOption(cmd, o->out);
@@ -129,16 +133,19 @@ void registerFlowCampaign(CLI::App* flow) {
     auto rules = std::make_shared<std::pair<std::string, std::vector<std::string>>>();
     CLI::App* study = flow->add_subcommand(
         "steady-rules",
-        "What steady-state stop rules cost and change (docs/FLOW_CAMPAIGN.md, the stop rule): each --rule applied to the turn-by-turn "
+        "What steady-state stop rules cost and change (docs/FLOW_CAMPAIGN.md, stop rule): each --rule applied to the turn-by-turn "
         "observables of a `trbc flow campaign --full-length` run; prints per rule the turns run, the share of the full runs' cost, "
         "the regimes changed and the angle, swing and TTF at the stop against the full runs (Markdown)");
     study->add_option("--campaign", rules->first, "a `trbc flow campaign --full-length` directory")->required();
     study->add_option("--rule", rules->second, "FIRST_TURN,ANGLE_DEG,TTF (repeatable; default: the campaign's default rule)");
     study->callback([rules]() {
         std::vector<SteadyStopRule> list;
+        const std::vector<FullLengthCase> cases = readFullLengthCases(rules->first);
+        int lastTurn = 0;
+        for (const FullLengthCase& c : cases) lastTurn = std::max(lastTurn, c.turns.back().turn);
         for (const std::string& r : rules->second) list.push_back(parseSteadyRule(r, "--rule"));
         if (list.empty()) list.push_back(SteadyStopRule{});
-        const std::vector<FullLengthCase> cases = readFullLengthCases(rules->first);
+        for (const SteadyStopRule& r : list) validateSteadyRule(r, lastTurn, "--rule");
         std::vector<SteadyRuleEffect> effects;
         for (const SteadyStopRule& r : list) effects.push_back(steadyRuleEffect(cases, r));
         std::cout << fmt::format("{} full-length cases of {}\n\n", cases.size(), rules->first) << steadyRuleTable(effects);

@@ -31,10 +31,11 @@ struct ShearCampaignOptions {
     long cases = 100;
     std::uint64_t seed = 1;
     int level = 3;
-    double maxRotations = 10.0;  ///< the longest a case runs; it stops earlier once steady
-    SteadyStopRule steadyRule;   ///< when a case is steady (flow/shear_observables.hpp)
-    /// Every case runs maxRotations turns and records its observables turn by turn in
-    /// by_turn/case<id>.json (flow/steady_rule_study.hpp), to measure stop rules against full runs
+    double maxRotations = 10.0;  ///< the longest a case runs; it stops earlier once steady (unless fullLength)
+    SteadyStopRule steadyRule;   ///< when a case is steady (flow/shear_observables.hpp); unused with fullLength
+    /// Every case runs maxRotations (whole) turns and records turn by turn what a run stopped there
+    /// would see and report, in by_turn/case<id>.json (flow/steady_rule_study.hpp), to measure stop
+    /// rules against full runs
     bool fullLength = false;
     bool randomStart = true;     ///< the ensemble protocol's start; false: the disc in the shear plane
     double etaIn = 10.0;         ///< mPa s

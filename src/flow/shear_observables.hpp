@@ -111,16 +111,18 @@ struct SteadyStopRule {
 /// tumbling, or both tank-treading with a TTF and within the tolerances.
 bool steadyBetween(const ShearObservables& now, const ShearObservables& before, const SteadyStopRule& rule);
 
+/// The observables of the frames up to one whole rigid-sphere turn (observablesByTurn).
+struct TurnObservables {
+    int turn = 0;
+    std::size_t frames = 0;  ///< frames up to that turn: through the first at or after it
+    ShearObservables observables;
+};
 /// The observables of the frames up to each whole rigid-sphere turn k = 1, 2, ... that the run
 /// reached (times in units of 1/rate from 0; tEnd the run's end, the last frame's time when NaN),
 /// analysed as shearSteadyStateReached does; a turn with too few frames for the analysis is left
-/// out. Frames fall on multiples of the frame interval, so the run's last turn may end after its
-/// last frame: that turn's record then holds every frame, the analysis of the whole run.
-struct TurnObservables {
-    int turn = 0;
-    std::size_t frames = 0;  ///< frames up to that turn
-    ShearObservables observables;
-};
+/// out. Frames fall on multiples of the frame interval, so the run's last whole turn may end after
+/// its last frame: that turn's record then holds every frame. Each turn copies its frames: meant
+/// for runs of tens of turns.
 std::vector<TurnObservables> observablesByTurn(const std::vector<double>& t, const std::vector<Vertices>& frames, double tEnd = NAN);
 
 /// Whether the frames (times in units of 1/rate from 0) are steady by the rule at the last whole turn

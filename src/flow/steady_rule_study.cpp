@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <numbers>
 #include <regex>
 
 #include "core/error.hpp"
@@ -21,31 +20,52 @@ ShearRegime regimeFromName(const std::string& name, const fs::path& file) {
     throw InputError(fmt::format("{}: unknown regime '{}'", file.string(), name));
 }
 
-TurnRecord turnFromJson(const nlohmann::json& j, const fs::path& file) {
-    TurnRecord r;
-    r.turn = j.at("turn").get<int>();
-    r.steps = j.at("steps").get<long>();
-    r.gmresIterations = j.at("gmres_iterations").get<long>();
-    ShearObservables& o = r.observables;
+double numberOrNan(const nlohmann::json& j) { return j.is_null() ? NAN : j.get<double>(); }
+nlohmann::json nullIfNan(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+ShearObservables observablesFromJson(const nlohmann::json& j, const fs::path& file) {
+    ShearObservables o;
     o.regime = regimeFromName(j.at("regime").get<std::string>(), file);
-    o.inclinationDeg = j.at("inclination_deg").get<double>();
-    o.swingAmplitudeDeg = j.at("swing_deg").get<double>();
-    o.ttf.defined = !j.at("ttf_4pi_f_over_rate").is_null();
-    o.ttf4piFOverRate = o.ttf.defined ? j.at("ttf_4pi_f_over_rate").get<double>() : NAN;
-    return r;
+    o.inclinationDeg = numberOrNan(j.at("inclination_deg"));
+    o.swingAmplitudeDeg = numberOrNan(j.at("swing_deg"));
+    o.ttf4piFOverRate = numberOrNan(j.at("ttf_4pi_f_over_rate"));
+    o.ttf.defined = std::isfinite(o.ttf4piFOverRate);
+    return o;
+}
+
+nlohmann::json observablesJson(const ShearObservables& o) {
+    return {{"regime", regimeName(o.regime)},
+            {"inclination_deg", nullIfNan(o.inclinationDeg)},
+            {"swing_deg", nullIfNan(o.swingAmplitudeDeg)},
+            {"ttf_4pi_f_over_rate", o.ttf.defined ? nullIfNan(o.ttf4piFOverRate) : nlohmann::json()}};
 }
 
 }  // namespace
 
 std::vector<TurnRecord> turnRecords(const CellFlowResult& flow) {
     std::vector<TurnRecord> out;
-    const double turn = 4.0 * std::numbers::pi;
-    for (TurnObservables& t : observablesByTurn(flow.times, flow.frames, flow.tReached)) {
+    const std::vector<double>& t = flow.times;
+    for (TurnObservables& k : observablesByTurn(t, flow.frames, flow.tReached)) {
         TurnRecord r;
-        r.turn = t.turn;
+        r.turn = k.turn;
+        // The stopping step records frame k.frames - 1 (the first at or after the turn); when the
+        // run ends before such a frame, the record is the whole run.
+        double stepEnd = flow.tReached;
+        if (k.frames < t.size())
+            for (const CellFlowStepRecord& s : flow.stepLog)
+                if (s.t >= t[k.frames - 1] * (1.0 - 1e-12)) {
+                    stepEnd = s.t;
+                    break;
+                }
         for (const CellFlowStepRecord& s : flow.stepLog)
-            if (s.t <= t.turn * turn * (1.0 + 1e-12)) ++r.steps, r.gmresIterations += s.gmresIterations;
-        r.observables = std::move(t.observables);
+            if (s.t <= stepEnd) ++r.steps, r.gmresIterations += s.gmresIterations;
+        std::size_t recorded = k.frames;
+        while (recorded < t.size() && t[recorded] <= stepEnd * (1.0 + 1e-12)) ++recorded;
+        r.stop = recorded == k.frames ? k.observables
+                                      : analyzeShearFrames(std::vector<double>(t.begin(), t.begin() + std::ptrdiff_t(recorded)),
+                                                           std::vector<Vertices>(flow.frames.begin(), flow.frames.begin() + std::ptrdiff_t(recorded)),
+                                                           1.0);
+        r.rule = std::move(k.observables);
         out.push_back(std::move(r));
     }
     return out;
@@ -53,16 +73,12 @@ std::vector<TurnRecord> turnRecords(const CellFlowResult& flow) {
 
 nlohmann::json turnRecordsJson(long caseId, const std::vector<TurnRecord>& turns) {
     nlohmann::json list = nlohmann::json::array();
-    for (const TurnRecord& r : turns) {
-        const ShearObservables& o = r.observables;
+    for (const TurnRecord& r : turns)
         list.push_back({{"turn", r.turn},
                         {"steps", r.steps},
                         {"gmres_iterations", r.gmresIterations},
-                        {"regime", regimeName(o.regime)},
-                        {"inclination_deg", o.inclinationDeg},
-                        {"swing_deg", o.swingAmplitudeDeg},
-                        {"ttf_4pi_f_over_rate", o.ttf.defined ? nlohmann::json(o.ttf4piFOverRate) : nlohmann::json()}});
-    }
+                        {"rule", observablesJson(r.rule)},
+                        {"stop", observablesJson(r.stop)}});
     return {{"case", caseId}, {"turns", std::move(list)}};
 }
 
@@ -75,16 +91,31 @@ std::vector<FullLengthCase> readFullLengthCases(const fs::path& campaignDir) {
         std::smatch m;
         const std::string file = e.path().filename().string();
         if (!std::regex_match(file, m, name)) continue;
+        FullLengthCase c;
         try {
             std::ifstream in(e.path());
             const nlohmann::json j = nlohmann::json::parse(in);
-            FullLengthCase c;
             c.caseId = j.at("case").get<long>();
-            for (const nlohmann::json& t : j.at("turns")) c.turns.push_back(turnFromJson(t, e.path()));
-            out.push_back(std::move(c));
+            for (const nlohmann::json& t : j.at("turns")) {
+                TurnRecord r;
+                r.turn = t.at("turn").get<int>();
+                r.steps = t.at("steps").get<long>();
+                r.gmresIterations = t.at("gmres_iterations").get<long>();
+                r.rule = observablesFromJson(t.at("rule"), e.path());
+                r.stop = observablesFromJson(t.at("stop"), e.path());
+                c.turns.push_back(std::move(r));
+            }
         } catch (const nlohmann::json::exception& x) {
             throw InputError(fmt::format("{}: not a by-turn record: {}", e.path().string(), x.what()));
         }
+        if (fmt::format("case{}.json", c.caseId) != file)
+            throw InputError(fmt::format("{}: holds case {}, not the case of its name", e.path().string(), c.caseId));
+        if (c.turns.empty()) throw InputError(fmt::format("{}: no turns", e.path().string()));
+        for (std::size_t k = 1; k < c.turns.size(); ++k)
+            if (c.turns[k].turn <= c.turns[k - 1].turn)
+                throw InputError(fmt::format("{}: turn {} after turn {}: turns must increase", e.path().string(), c.turns[k].turn,
+                                             c.turns[k - 1].turn));
+        out.push_back(std::move(c));
     }
     if (out.empty())
         throw InputError(fmt::format("{} holds no by_turn/case<id>.json (made by `trbc flow campaign --full-length`)", campaignDir.string()));
@@ -103,14 +134,14 @@ SteadyRuleEffect steadyRuleEffect(const std::vector<FullLengthCase>& cases, cons
         const TurnRecord* stop = &full;
         for (std::size_t k = 1; k + 1 < c.turns.size(); ++k)
             if (c.turns[k].turn >= rule.minRotations && c.turns[k - 1].turn == c.turns[k].turn - 1 &&
-                steadyBetween(c.turns[k].observables, c.turns[k - 1].observables, rule)) {
+                steadyBetween(c.turns[k].rule, c.turns[k - 1].rule, rule)) {
                 stop = &c.turns[k];
                 break;
             }
         e.stopped += stop != &full;
         turns += stop->turn;
         costStop += double(stop->gmresIterations), costFull += double(full.gmresIterations);
-        const ShearObservables &a = stop->observables, &b = full.observables;
+        const ShearObservables &a = stop->stop, &b = full.stop;
         e.regimeChanged += a.regime != b.regime;
         if (a.regime != ShearRegime::TankTreading || b.regime != ShearRegime::TankTreading) continue;
         ++e.tankTreading;
@@ -133,16 +164,31 @@ SteadyRuleEffect steadyRuleEffect(const std::vector<FullLengthCase>& cases, cons
     return e;
 }
 
+void validateSteadyRule(const SteadyStopRule& r, double lastTurn, const std::string& option) {
+    if (!(r.minRotations >= 2.0 && r.minRotations <= lastTurn && r.angleToleranceDeg > 0.0 && r.angleToleranceDeg <= 10.0 &&
+          r.ttfTolerance > 0.0 && r.ttfTolerance <= 0.5))
+        throw InputError(fmt::format("{} {:g},{:g},{:g}: the first turn must be in [2, {:g}], the angle tolerance in (0, 10] deg and "
+                                     "the TTF tolerance in (0, 0.5]",
+                                     option, r.minRotations, r.angleToleranceDeg, r.ttfTolerance, lastTurn));
+}
+
 std::string steadyRuleTable(const std::vector<SteadyRuleEffect>& effects) {
     std::string md =
         "| rule: from turn, angle and swing (deg), TTF | cases | stopped early | mean turns | cost of the full runs | regime changed | "
         "tank-treading | angle RMS / max (deg) | swing RMS / max (deg) | TTF RMS / max |\n"
         "|---|---|---|---|---|---|---|---|---|---|\n";
-    for (const SteadyRuleEffect& e : effects)
-        md += fmt::format("| {:g}, {:g}, {:g} % | {} | {} | {:.2f} | {:.0f} % | {} | {} | {:.3f} / {:.3f} | {:.3f} / {:.3f} | {:.2f} % / {:.2f} % |\n",
-                          e.rule.minRotations, e.rule.angleToleranceDeg, 100.0 * e.rule.ttfTolerance, e.cases, e.stopped, e.meanTurns,
-                          100.0 * e.costFraction, e.regimeChanged, e.tankTreading, e.angleRmsDeg, e.angleMaxDeg, e.swingRmsDeg,
-                          e.swingMaxDeg, 100.0 * e.ttfRelRms, 100.0 * e.ttfRelMax);
+    for (const SteadyRuleEffect& e : effects) {
+        const bool counted = e.cases > 0, tt = e.tankTreading > 0;
+        const auto pair = [](bool have, double a, double b, const char* spec) {
+            return have ? fmt::format(fmt::runtime(spec), a, b) : std::string("–");
+        };
+        md += fmt::format("| {:g}, {:g}, {:g} % | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", e.rule.minRotations,
+                          e.rule.angleToleranceDeg, 100.0 * e.rule.ttfTolerance, e.cases, e.stopped,
+                          counted ? fmt::format("{:.2f}", e.meanTurns) : "–", counted ? fmt::format("{:.0f} %", 100.0 * e.costFraction) : "–",
+                          e.regimeChanged, e.tankTreading, pair(tt, e.angleRmsDeg, e.angleMaxDeg, "{:.3f} / {:.3f}"),
+                          pair(tt, e.swingRmsDeg, e.swingMaxDeg, "{:.3f} / {:.3f}"),
+                          pair(tt, 100.0 * e.ttfRelRms, 100.0 * e.ttfRelMax, "{:.2f} % / {:.2f} %"));
+    }
     return md;
 }
 

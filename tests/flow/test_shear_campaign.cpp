@@ -254,13 +254,13 @@ TEST(ShearCampaignRunner, RecordsFailuresAndRefusesAnotherDesignOnResume) {
 }
 
 // --full-length runs every case all its turns and records it turn by turn; `flow steady-rules` then
-// judges stop rules on those records. The rule is a setting (a resume with another is refused) and
-// its range is checked.
+// judges stop rules on those records. A resume that drops --full-length is refused naming it; rules
+// are range-checked.
 TEST(ShearCampaignRunner, FullLengthRunsRecordEveryTurnForTheStopRuleStudy) {
     TempDir tmp;
     const fs::path out = tmp.path() / "c";
     const std::string run = "flow campaign --cases 2 --level 2 --rotations 5 --seed 3 --no-cache --full-length --out " + shellQuote(out.string());
-    const CliRun r = runTrbc(run + " --steady-rule 3,0.2,0.01", tmp.path());
+    const CliRun r = runTrbc(run, tmp.path());
     ASSERT_EQ(r.status, 0) << r.err;
     for (const ShearCampaignRow& row : readShearCampaignRows(out)) {
         ASSERT_TRUE(row.ok()) << row.reason;
@@ -269,8 +269,7 @@ TEST(ShearCampaignRunner, FullLengthRunsRecordEveryTurnForTheStopRuleStudy) {
     }
     const auto j = nlohmann::json::parse(std::ifstream(out / "campaign.json"));
     EXPECT_EQ(j.at("settings").at("full_length"), true);
-    EXPECT_EQ(j.at("settings").at("steady_rule").at("min_rotations"), 3.0);
-    EXPECT_EQ(j.at("settings").at("steady_rule").at("ttf_tolerance"), 0.01);
+    EXPECT_FALSE(j.at("settings").contains("steady_rule"));
     for (int id : {0, 1}) {
         const auto rec = nlohmann::json::parse(std::ifstream(out / "by_turn" / fmt::format("case{}.json", id)));
         EXPECT_EQ(rec.at("case"), id);
@@ -283,12 +282,34 @@ TEST(ShearCampaignRunner, FullLengthRunsRecordEveryTurnForTheStopRuleStudy) {
     EXPECT_NE(study.out.find("| 4, 0.1, 0.5 % | 2 |"), std::string::npos) << study.out;
     EXPECT_NE(study.out.find("| 3, 1, 5 % | 2 |"), std::string::npos) << study.out;
 
-    const CliRun other = runTrbc(run + " --resume --steady-rule 4,0.2,0.01", tmp.path());
-    EXPECT_EQ(other.status, 2);
-    EXPECT_NE(other.err.find("steady_rule"), std::string::npos) << other.err;
+    const CliRun stopped = runTrbc("flow campaign --cases 2 --level 2 --rotations 5 --seed 3 --no-cache --resume --out " +
+                                       shellQuote(out.string()),
+                                   tmp.path());
+    EXPECT_EQ(stopped.status, 2);
+    EXPECT_NE(stopped.err.find("full_length (was true, now absent)"), std::string::npos) << stopped.err;
+    const CliRun both = runTrbc(run + " --resume --steady-rule 4,0.2,0.01", tmp.path());
+    EXPECT_EQ(both.status, 2);
+    EXPECT_NE(both.err.find("a --full-length campaign stops no case"), std::string::npos) << both.err;
+    const CliRun half = runTrbc("flow campaign --cases 1 --rotations 7.5 --full-length --out " + shellQuote((tmp.path() / "h").string()),
+                                tmp.path());
+    EXPECT_EQ(half.status, 2);
+    EXPECT_NE(half.err.find("--rotations 7.5: a --full-length campaign runs whole turns"), std::string::npos) << half.err;
+    const CliRun loose = runTrbc("flow steady-rules --campaign " + shellQuote(out.string()) + " --rule 4,0,0.005", tmp.path());
+    EXPECT_EQ(loose.status, 2);
+    EXPECT_NE(loose.err.find("--rule 4,0,0.005: the first turn must be in [2, 5]"), std::string::npos) << loose.err;
     const CliRun bad = runTrbc("flow campaign --cases 1 --steady-rule 1,0.1,0.005 --out " + shellQuote((tmp.path() / "b").string()), tmp.path());
     EXPECT_EQ(bad.status, 2);
-    EXPECT_NE(bad.err.find("--steady-rule 1,0.1,0.005: the first turn must be in [2, --rotations 10]"), std::string::npos) << bad.err;
+    EXPECT_NE(bad.err.find("--steady-rule 1,0.1,0.005: the first turn must be in [2, 10]"), std::string::npos) << bad.err;
+    // The rule of a campaign that stops its cases is one of its settings (its one case fails on purpose).
+    const fs::path ruled = tmp.path() / "r";
+    const CliRun withRule = runTrbc("flow campaign --cases 1 --inject-failures 0 --steady-rule 3,0.2,0.01 --out " + shellQuote(ruled.string()),
+                                    tmp.path());
+    ASSERT_EQ(withRule.status, 0) << withRule.err;
+    const auto rj = nlohmann::json::parse(std::ifstream(ruled / "campaign.json"));
+    EXPECT_EQ(rj.at("settings").at("steady_rule").at("min_rotations"), 3.0);
+    EXPECT_EQ(rj.at("settings").at("steady_rule").at("angle_tolerance_deg"), 0.2);
+    EXPECT_EQ(rj.at("settings").at("steady_rule").at("ttf_tolerance"), 0.01);
+    EXPECT_FALSE(rj.at("settings").contains("full_length"));
     const CliRun two = runTrbc("flow steady-rules --campaign " + shellQuote(out.string()) + " --rule 4,0.1", tmp.path());
     EXPECT_EQ(two.status, 2);
     EXPECT_NE(two.err.find("--rule: '4,0.1' has 2 numbers, 3 expected"), std::string::npos) << two.err;

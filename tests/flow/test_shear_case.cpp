@@ -397,19 +397,20 @@ TEST(ShearSteadyStop, StopsAtAWholeTurnWithTheFullRunsObservables) {
     const std::vector<Vertices> fm(f.begin(), f.begin() + mid);
     EXPECT_TRUE(shearSteadyStateReached(tm, fm, {}, tm[mid - 7]));
     EXPECT_FALSE(shearSteadyStateReached(tm, fm, {}, tm[mid - 3]));
-    // The full run's turn-by-turn record, judged by the same rule, stops where the run stopped,
-    // with the stopped run's observables (the same trajectory up to there).
+    // The full run's turn-by-turn record, judged by the same rule, stops where the run stopped, with
+    // the stopped run's cost and observables (the same trajectory up to there).
     const std::vector<FullLengthCase> record = {{0, turnRecords(full.flow)}};
     ASSERT_EQ(record[0].turns.back().turn, 10);  // the run ends at turn 10, its last frame before it
-    EXPECT_EQ(record[0].turns.back().observables.inclinationDeg, full.observables->inclinationDeg);
+    EXPECT_EQ(record[0].turns.back().stop.inclinationDeg, full.observables->inclinationDeg);
     EXPECT_EQ(record[0].turns.back().steps, full.flow.steps);
     const SteadyRuleEffect e = steadyRuleEffect(record, {});
     EXPECT_EQ(e.stopped, 1);
     EXPECT_EQ(e.meanTurns, std::floor(turns));
     EXPECT_EQ(e.regimeChanged, 0);
     const TurnRecord& atStop = record[0].turns[std::size_t(std::floor(turns)) - std::size_t(record[0].turns.front().turn)];
-    EXPECT_NEAR(atStop.observables.inclinationDeg, early.observables->inclinationDeg, 1e-9);
-    EXPECT_NEAR(atStop.observables.ttf4piFOverRate, early.observables->ttf4piFOverRate, 1e-9);
+    EXPECT_EQ(atStop.steps, early.flow.steps);
+    EXPECT_NEAR(atStop.stop.inclinationDeg, early.observables->inclinationDeg, 1e-9);
+    EXPECT_NEAR(atStop.stop.ttf4piFOverRate, early.observables->ttf4piFOverRate, 1e-9);
     EXPECT_NEAR(e.angleMaxDeg, std::abs(early.observables->inclinationDeg - full.observables->inclinationDeg), 1e-9);
     EXPECT_GT(e.costFraction, 0.2);
     EXPECT_LT(e.costFraction, 1.0);

@@ -21,11 +21,13 @@ TurnRecord turn(int k, ShearRegime regime, double angle, double swing, double tt
     r.turn = k;
     r.steps = 10L * k;
     r.gmresIterations = 100L * k;
-    r.observables.regime = regime;
-    r.observables.inclinationDeg = angle;
-    r.observables.swingAmplitudeDeg = swing;
-    r.observables.ttf.defined = std::isfinite(ttf);
-    r.observables.ttf4piFOverRate = ttf;
+    r.rule.regime = regime;
+    r.rule.inclinationDeg = angle;
+    r.rule.swingAmplitudeDeg = swing;
+    r.rule.ttf.defined = std::isfinite(ttf);
+    r.rule.ttf4piFOverRate = ttf;
+    r.stop = r.rule;
+    r.stop.inclinationDeg += 0.001;  // the stopped run sees a frame more than the rule
     return r;
 }
 
@@ -56,7 +58,7 @@ TEST(SteadyRuleStudy, EachRuleStopsWhereItsTolerancesAreFirstMet) {
     EXPECT_DOUBLE_EQ(d.costFraction, (8.0 + 4.0 + 10.0) / 30.0);  // iterations proportional to the turn
     EXPECT_EQ(d.regimeChanged, 0);
     EXPECT_EQ(d.tankTreading, 1);
-    EXPECT_NEAR(d.angleRmsDeg, 0.045, 1e-12);  // 16.07 against 16.025
+    EXPECT_NEAR(d.angleRmsDeg, 0.045, 1e-12);  // 16.071 against 16.026: what the runs report
     EXPECT_NEAR(d.angleMaxDeg, 0.045, 1e-12);
     EXPECT_EQ(d.swingMaxDeg, 0.0);
     EXPECT_EQ(d.ttfRelMax, 0.0);
@@ -66,15 +68,35 @@ TEST(SteadyRuleStudy, EachRuleStopsWhereItsTolerancesAreFirstMet) {
     EXPECT_NEAR(loose.angleMaxDeg, 0.475, 1e-12);
     // A TTF that moves by 1 % per turn holds case 0 under the default rule to the end.
     std::vector<FullLengthCase> drifting = c;
-    for (TurnRecord& t : drifting[0].turns) t.observables.ttf4piFOverRate = 0.4 * std::pow(1.01, t.turn);
+    for (TurnRecord& t : drifting[0].turns) t.rule.ttf4piFOverRate = 0.4 * std::pow(1.01, t.turn);
     EXPECT_EQ(steadyRuleEffect(drifting, {}).stopped, 1);
     EXPECT_NEAR(steadyRuleEffect(drifting, {}).ttfRelMax, 0.0, 1e-15);
     // A rule that starts after the last turn of every case stops none and counts none.
     EXPECT_EQ(steadyRuleEffect(c, {11.0, 0.1, 0.005}).cases, 0);
     // A regime that changes after the stop is counted.
     std::vector<FullLengthCase> flips = c;
-    flips[1].turns.back().observables.regime = ShearRegime::Intermittent;
+    flips[1].turns.back().stop.regime = ShearRegime::Intermittent;
     EXPECT_EQ(steadyRuleEffect(flips, {}).regimeChanged, 1);
+    // Only successive turns are compared: without turn 8, case 0 has no pair within 0.1 deg before its
+    // last record and runs to turn 10.
+    std::vector<FullLengthCase> gap = c;
+    gap[0].turns.erase(gap[0].turns.begin() + 6);  // turns 2..10: index 6 is turn 8
+    const SteadyRuleEffect g = steadyRuleEffect(gap, {});
+    EXPECT_EQ(g.stopped, 1);
+    EXPECT_DOUBLE_EQ(g.meanTurns, (10.0 + 4.0 + 10.0) / 3.0);
+    // Agreement only between the last two records is the full run, not a stop.
+    std::vector<FullLengthCase> late = c;
+    for (std::size_t k = 1; k + 1 < late[0].turns.size(); ++k) late[0].turns[k].rule.inclinationDeg = 20.0 + double(k);
+    late[0].turns[8].rule.inclinationDeg = late[0].turns[7].rule.inclinationDeg;  // turn 10 equals turn 9
+    EXPECT_EQ(steadyRuleEffect(late, {}).stopped, 1);
+    SteadyRuleEffect none = steadyRuleEffect(c, {11.0, 0.1, 0.005});
+    EXPECT_NE(steadyRuleTable({none}).find("| 11, 0.1, 0.5 % | 0 | 0 | – | – | 0 | 0 | – | – | – |"), std::string::npos)
+        << steadyRuleTable({none});
+    EXPECT_NE(test::inputError([] { validateSteadyRule({1.0, 0.1, 0.005}, 10, "--rule"); })
+                  .find("--rule 1,0.1,0.005: the first turn must be in [2, 10]"),
+              std::string::npos);
+    EXPECT_NE(test::inputError([] { validateSteadyRule({4.0, -1.0, 0.005}, 10, "--rule"); }).find("angle tolerance in (0, 10] deg"),
+              std::string::npos);
     const std::string table = steadyRuleTable({d, loose});
     EXPECT_NE(table.find("| 4, 0.1, 0.5 % | 3 | 2 | 7.33 | 73 % | 0 | 1 | 0.045 / 0.045 |"), std::string::npos) << table;
 }
@@ -87,13 +109,29 @@ TEST(SteadyRuleStudy, RecordsRoundTripAndBadFilesAreNamed) {
     const std::vector<FullLengthCase> back = readFullLengthCases(dir.path());
     ASSERT_EQ(back.size(), 3u);
     EXPECT_EQ(back[1].caseId, 1);
-    EXPECT_FALSE(back[1].turns[0].observables.ttf.defined);  // null TTF
+    EXPECT_FALSE(back[1].turns[0].rule.ttf.defined);  // null TTF
+    EXPECT_EQ(back[0].turns[3].stop.inclinationDeg, c[0].turns[3].stop.inclinationDeg);
     const SteadyRuleEffect a = steadyRuleEffect(c, {}), b = steadyRuleEffect(back, {});
     EXPECT_EQ(a.meanTurns, b.meanTurns);
     EXPECT_EQ(a.angleMaxDeg, b.angleMaxDeg);
 
-    test::writeText(dir.path() / "by_turn" / "case7.json", R"({"case": 7, "turns": [{"turn": 1}]})");
+    // A NaN (a failed fit) is written as null and read back as NaN.
+    std::vector<TurnRecord> nan = c[0].turns;
+    nan[2].stop.inclinationDeg = NAN;
+    test::writeText(dir.path() / "by_turn" / "case0.json", turnRecordsJson(0, nan).dump());
+    EXPECT_TRUE(std::isnan(readFullLengthCases(dir.path())[0].turns[2].stop.inclinationDeg));
+
+    const fs::path bad = dir.path() / "by_turn" / "case7.json";
+    test::writeText(bad, R"({"case": 7, "turns": [{"turn": 1}]})");
     EXPECT_NE(test::inputError([&] { readFullLengthCases(dir.path()); }).find("case7.json: not a by-turn record"), std::string::npos);
+    test::writeText(bad, turnRecordsJson(8, c[0].turns).dump());
+    EXPECT_NE(test::inputError([&] { readFullLengthCases(dir.path()); }).find("case7.json: holds case 8"), std::string::npos);
+    test::writeText(bad, turnRecordsJson(7, {}).dump());
+    EXPECT_NE(test::inputError([&] { readFullLengthCases(dir.path()); }).find("case7.json: no turns"), std::string::npos);
+    std::vector<TurnRecord> backwards = c[0].turns;
+    std::swap(backwards[1], backwards[2]);
+    test::writeText(bad, turnRecordsJson(7, backwards).dump());
+    EXPECT_NE(test::inputError([&] { readFullLengthCases(dir.path()); }).find("turns must increase"), std::string::npos);
     test::TempDir empty;
     EXPECT_NE(test::inputError([&] { readFullLengthCases(empty.path()); }).find("--full-length"), std::string::npos);
 }
