@@ -216,7 +216,7 @@ def main():
         dest = os.path.join(ROOT, "results", n)
         staged = dest + ".new"
         shutil.rmtree(staged, ignore_errors=True)
-        ignore = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "plot.log", "*.log", "checkpoint.key", "shapes.pvd")
+        ignore = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd")
         if keep:
             os.makedirs(staged)
             for entry in keep:
