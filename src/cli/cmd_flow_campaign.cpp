@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cmath>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -27,21 +26,10 @@ struct FlowCampaignCli {
     CacheOptions cache;
 };
 
-/// "FIRST_TURN,ANGLE_DEG,TTF" (for example 4,0.1,0.005) as a SteadyStopRule (validateSteadyRule checks the ranges).
+/// "FIRST_TURN,ANGLE_DEG,TTF" (for example 4,0.1,0.005) as a SteadyStopRule; validateSteadyRule checks
+/// the ranges (a NaN or an infinity among them too).
 SteadyStopRule parseSteadyRule(const std::string& text, const std::string& option) {
-    std::vector<double> v;
-    std::stringstream ss(text);
-    for (std::string f; std::getline(ss, f, ',');) {
-        std::size_t used = 0;
-        double x = NAN;
-        try {
-            x = std::stod(f, &used);
-        } catch (const std::exception&) {
-        }
-        if (used == 0 || f.find_first_not_of(" \t", used) != std::string::npos || !std::isfinite(x))
-            throw InputError(fmt::format("{}: '{}' is not a number in '{}' (FIRST_TURN,ANGLE_DEG,TTF, for example 4,0.1,0.005)", option, f, text));
-        v.push_back(x);
-    }
+    const std::vector<double> v = parseNumberList(text, option, "FIRST_TURN,ANGLE_DEG,TTF, for example 4,0.1,0.005");
     if (v.size() != 3)
         throw InputError(fmt::format("{}: '{}' has {} numbers, 3 expected: FIRST_TURN,ANGLE_DEG,TTF (for example 4,0.1,0.005)", option, text,
                                      v.size()));

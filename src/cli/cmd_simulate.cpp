@@ -24,22 +24,7 @@ namespace trbc::cli {
 namespace {
 
 std::vector<double> parseForceList(const std::string& text) {
-    std::vector<double> out;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        std::size_t used = 0;
-        double f = 0.0;
-        try {
-            f = std::stod(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || used != item.size())
-            throw InputError(fmt::format("--force-curve: '{}' is not a number (expected a comma-separated list of pN)", item));
-        out.push_back(f);
-    }
-    return out;
+    return parseNumberList(text, "--force-curve", "expected a comma-separated list of pN");
 }
 
 ExperimentSet parseExperiments(const std::string& text) {

@@ -279,4 +279,21 @@ std::vector<long> parseIntegerList(const std::string& text, const std::string& o
     return out;
 }
 
+std::vector<double> parseNumberList(const std::string& text, const std::string& option, const std::string& hint) {
+    std::vector<double> out;
+    std::stringstream ss(text);
+    for (std::string item; std::getline(ss, item, ',');) {
+        std::size_t used = 0;
+        double x = 0.0;
+        try {
+            x = std::stod(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || used != item.size()) throw InputError(fmt::format("{}: '{}' is not a number ({})", option, item, hint));
+        out.push_back(x);
+    }
+    return out;
+}
+
 }  // namespace trbc::cli

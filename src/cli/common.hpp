@@ -129,6 +129,9 @@ MembraneParameters checkedParameters(const ModulusOptions& m);
 /// A comma-separated list of integers >= minValue, in the order given; InputError naming `option`,
 /// the bad item and what it should be (`what`, e.g. "a case id").
 std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue);
+/// The numbers of a comma-separated list; InputError "OPTION: 'ITEM' is not a number (HINT)" for an
+/// item that is not one whole number. Ranges are the caller's.
+std::vector<double> parseNumberList(const std::string& text, const std::string& option, const std::string& hint);
 
 std::string commandLine();
 void setCommandLine(int argc, char** argv);
