@@ -29,7 +29,7 @@ TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.0
 # A campaign of many hours continues where an interrupted `make results` left it (--resume once its
 # campaign.json exists); its work folder is kept (RESUMED).
 CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level {level} --seed 20261129 --threads 1 --no-cache "
-            "--out {{out}}/level{level} $(test -f {{out}}/level{level}/campaign.json && echo --resume)")
+            "--steady-rule 3,0.1,0.005 --out {{out}}/level{level} $(test -f {{out}}/level{level}/campaign.json && echo --resume)")
 RESUMED = ("flow_campaign", "flow_stop_rule")
 STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 

@@ -69,14 +69,32 @@ Vertices checkedReference(const Faces& faces, const Vertices& ref, double length
     return ref / length;
 }
 
-/// The sparse LDL^T factor of the velocity preconditioner's matrix M B_s^-1 / (s c) + Gamma
-/// (s = CellFlowOptions::preconditionerScale), kept over the steps of a run. Its pattern (the
-/// vertex-edge graph of the mesh in 3x3 blocks) is the same at every step, so the fill-reducing
-/// ordering and the symbolic analysis are done once and each step refactorises the values only.
-/// The ordering is METIS's nested dissection: on a closed surface mesh it leaves less fill than
-/// AMD (level 4: 647k against 733k entries in L, 0.70x the factorisation time and 0.82x a solve;
-/// docs/PERFORMANCE.md). A different pattern (another mesh) is analysed afresh.
-class PreconditionerFactor {
+/// The cotangent Laplacian as a stiffness (symmetric positive semidefinite): w^T L w =
+/// sum over edges of (cot a + cot b) / 2 (w_i - w_j)^2, a and b the angles opposite the edge.
+Eigen::SparseMatrix<double> cotanLaplacian(const Vertices& X, const Faces& F) {
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(static_cast<std::size_t>(12 * F.cols()));
+    for (Index f = 0; f < F.cols(); ++f)
+        for (int c = 0; c < 3; ++c) {
+            const int o = F(c, f), i = F((c + 1) % 3, f), j = F((c + 2) % 3, f);
+            const Eigen::Vector3d a = X.col(i) - X.col(o), b = X.col(j) - X.col(o);
+            const double w = 0.5 * a.dot(b) / std::max(a.cross(b).norm(), 1e-300);
+            trip.emplace_back(i, i, w);
+            trip.emplace_back(j, j, w);
+            trip.emplace_back(i, j, -w);
+            trip.emplace_back(j, i, -w);
+        }
+    Eigen::SparseMatrix<double> L(X.cols(), X.cols());
+    L.setFromTriplets(trip.begin(), trip.end());
+    return L;
+}
+
+/// A sparse LDL^T factor kept over the steps of a run. Its pattern is the same at every step, so
+/// the fill-reducing ordering and the symbolic analysis are done once and each step refactorises
+/// the values only. The ordering is METIS's nested dissection: on a closed surface mesh it leaves
+/// less fill than AMD (level 4: 647k against 733k entries in L, 0.70x the factorisation time and
+/// 0.82x a solve; docs/PERFORMANCE.md). A different pattern (another mesh) is analysed afresh.
+class SparseFactor {
 public:
     void factorize(const Eigen::SparseMatrix<double>& K) {
         if (!samePattern(K)) {
@@ -97,6 +115,14 @@ private:
     }
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>> ldlt_;
     std::vector<int> outer_, inner_;
+};
+
+/// The preconditioner's factors: the velocity block's matrix M B_s^-1 / (s c) + Gamma + alpha K
+/// (s = CellFlowOptions::preconditionerScale, K the in-plane elastic springs) on the vertex-edge
+/// graph in 3x3 blocks, and, at steps stiff in bending, the normal components' scalar matrix
+/// N^T (that matrix) N + alpha kb L M^-1 L on the two-ring graph.
+struct PreconditionerFactor {
+    SparseFactor velocity, normal;
 };
 
 /// The coupled linear system of one (linearly implicit) step, frozen at the state Xs. Unknowns:
@@ -267,7 +293,20 @@ private:
         const Index nv = Xs_.cols();
         VectorXd t(3 * nv);
         for (Index i = 0; i < nv; ++i) t.segment<3>(3 * i) = precBlocks_[i] * r.segment<3>(3 * i);
-        return precFactor_.solve(t);
+        if (!bending_) return precFactor_.velocity.solve(t);
+        // Normal and tangential parts apart: the bending stiffness acts on the normal one.
+        VectorXd tn(nv);
+        for (Index i = 0; i < nv; ++i) {
+            tn[i] = unitNormals_.col(i).dot(t.segment<3>(3 * i));
+            t.segment<3>(3 * i) -= tn[i] * unitNormals_.col(i);
+        }
+        VectorXd y = precFactor_.velocity.solve(t);
+        const VectorXd yn = precFactor_.normal.solve(tn);
+        for (Index i = 0; i < nv; ++i) {
+            const Eigen::Vector3d ni = unitNormals_.col(i);
+            y.segment<3>(3 * i) += (yn[i] - ni.dot(y.segment<3>(3 * i))) * ni;
+        }
+        return y;
     }
     /// The two scalar rows of the system applied to a velocity: (g . u / |g|, dV/dx . u / |dV/dx|).
     Eigen::Vector2d constraintRows(Eigen::Ref<const VectorXd> u) const {
@@ -329,7 +368,25 @@ private:
                 for (int bb = 0; bb < 3; ++bb) trip.emplace_back(3 * i + a, 3 * i + bb, K(a, bb));
             precBlocks_.push_back(K);
         }
-        const double gamma = model_.edgeFriction();
+        // The implicit elastic force alpha H u enters like the viscous one: in-plane, as springs of
+        // stiffness 4 mu / sqrt 3 along the edges (a triangular spring network of shear modulus mu);
+        // normal to the surface, as the bending stiffness kb L M^-1 L of a flat patch (L the cotan
+        // Laplacian, M the vertex areas) on the normal components, through a scalar factor of its
+        // own (two-ring pattern). It is taken only where it is stiff at the grid scale against the
+        // single layer's self-blocks (bendingPreconditionerRatio; docs/FLOW.md, "Preconditioner").
+        const MembraneParameters& mp = model_.membrane().parameters();
+        const double elastic = opt_.preconditionerStiffness * std::max(alpha_, 0.0);
+        const double inPlane = mp.law == InPlaneLaw::Lim ? mp.lim.mu : mp.capsule.Gs;
+        const double gamma = model_.edgeFriction() + elastic * 4.0 / std::sqrt(3.0) * inPlane;
+        if (elastic > 0.0 && mp.bending.kb > 0.0) {
+            const Eigen::SparseMatrix<double> L = cotanLaplacian(Xs_, model_.faces());
+            const double kb = elastic * mp.bending.kb;
+            double ratio = 0.0;
+            for (Index i = 0; i < nv; ++i)
+                ratio = std::max(ratio, kb * L.coeff(i, i) * L.coeff(i, i) * invArea_[i] / (precBlocks_[i].trace() / 3.0));
+            bending_ = ratio >= opt_.bendingPreconditionerRatio;
+            if (bending_) bendingL_ = kb * (L * invArea_.asDiagonal() * L);
+        }
         for (Index e = 0; e < T.numEdges(); ++e) {
             const int a = T.edges(0, e), bq = T.edges(1, e);
             const Eigen::Vector3d d = (Xs_.col(a) - Xs_.col(bq)).normalized();
@@ -344,7 +401,8 @@ private:
         }
         Eigen::SparseMatrix<double> Kp(n, n);
         Kp.setFromTriplets(trip.begin(), trip.end());
-        precFactor_.factorize(Kp);
+        precFactor_.velocity.factorize(Kp);
+        if (bending_) factorizeNormal(Kp);
         if (!opt_.eliminateMultipliers) return;
         // The multipliers' columns B = (w / |w|, -n), P^-1 B and the Schur complement C P^-1 B
         // (C the two constraint rows); a near-singular complement keeps the block-diagonal form.
@@ -359,6 +417,23 @@ private:
         schur.col(1) = constraintRows(precB_.col(1));
         schurLu_.compute(schur);
         eliminateMultipliers_ = schur.allFinite() && std::abs(schur.determinant()) > 1e-12 * schur.squaredNorm();
+    }
+
+    /// N^T Kp N + the bending stiffness, N the unit vertex normals.
+    void factorizeNormal(const Eigen::SparseMatrix<double>& Kp) {
+        const Index nv = Xs_.cols();
+        unitNormals_ = ops_.vertexNormals().colwise().normalized();
+        std::vector<Eigen::Triplet<double>> trip;
+        trip.reserve(static_cast<std::size_t>(Kp.nonZeros() + bendingL_.nonZeros()));
+        for (Index j = 0; j < Kp.outerSize(); ++j)
+            for (Eigen::SparseMatrix<double>::InnerIterator it(Kp, j); it; ++it)
+                trip.emplace_back(it.row() / 3, j / 3,
+                                  unitNormals_(it.row() % 3, it.row() / 3) * it.value() * unitNormals_(j % 3, j / 3));
+        for (Index j = 0; j < bendingL_.outerSize(); ++j)
+            for (Eigen::SparseMatrix<double>::InnerIterator it(bendingL_, j); it; ++it) trip.emplace_back(it.row(), j, it.value());
+        Eigen::SparseMatrix<double> Kn(nv, nv);
+        Kn.setFromTriplets(trip.begin(), trip.end());
+        precFactor_.normal.factorize(Kn);
     }
 
     const CellFlowModel& model_;
@@ -378,6 +453,9 @@ private:
     Vertices areaGradient_, volumeGradient_, w_, normals_;
     std::vector<Eigen::Matrix3d> precBlocks_;
     bool eliminateMultipliers_ = false;
+    bool bending_ = false;               ///< the bending stiffness in the preconditioner at this step
+    Eigen::SparseMatrix<double> bendingL_;  ///< alpha kb L M^-1 L
+    Vertices unitNormals_;
     bool areaConstrained_ = true;
     Eigen::MatrixX2d precB_;  ///< P^-1 B
     Eigen::PartialPivLU<Eigen::Matrix2d> schurLu_;
@@ -502,7 +580,7 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
     std::string d = fmt::format("{}|{}|{}|", o.checkpoint.key, kVersion, env ? "environment" : "unbounded");
     for (double v : {c.v, c.mu, c.FvK, c.b2, c.etam, f.etaOut, f.etaIn, f.shearRate, f.timeScale, f.A0, f.V0, o.tEnd,
                      o.frameInterval, o.errorTolerance, o.dtInitial, o.dtMin, o.dtMax, o.gmresTolerance, o.maxDrift,
-                     o.preconditionerScale, q.nearFactor})
+                     o.preconditionerScale, o.preconditionerStiffness, o.bendingPreconditionerRatio, q.nearFactor})
         d += fmt::format("{:a},", v);
     for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
                    long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),
