@@ -117,10 +117,10 @@ private:
     std::vector<int> outer_, inner_;
 };
 
-/// The preconditioner's factors: the velocity block's matrix M B_s^-1 / (s c) + Gamma + alpha K
-/// (s = CellFlowOptions::preconditionerScale, K the in-plane elastic springs) on the vertex-edge
-/// graph in 3x3 blocks, and, at steps stiff in bending, the normal components' scalar matrix
-/// N^T (that matrix) N + alpha kb L M^-1 L on the two-ring graph.
+/// The preconditioner's factors: the velocity block's matrix K1 = M B_s^-1 / (s c) + Gamma
+/// (s = CellFlowOptions::preconditionerScale) on the vertex-edge graph in 3x3 blocks, and, at
+/// steps stiff in bending, the normal components' scalar matrix N^T K1 N + Q on the two-ring graph
+/// (Q = alpha kb L M^-1 L, the bending stiffness).
 struct PreconditionerFactor {
     SparseFactor velocity, normal;
 };
@@ -137,7 +137,9 @@ struct PreconditionerFactor {
 /// (a local approximation of the single layer):
 ///   P^-1 = (M B_s^-1 / c + Gamma)^-1 M B_s^-1 / c, a sparse SPD solve (Cholesky), then
 ///   y_m = (C P^-1 B)^-1 (C P^-1 r_u - r_m),  y_u = P^-1 r_u - P^-1 B y_m
-/// (P^-1 B and the 2 x 2 Schur complement once per step). Eliminating the multipliers removes
+/// (P^-1 B and the 2 x 2 Schur complement once per step). At steps stiff in bending (low
+/// capillary number, small FvK) P also takes the implicit bending stiffness, through a correction
+/// of the normal components (velocityPreconditioner). Eliminating the multipliers removes
 /// the eigenvalues near zero and off the real axis that the block-diagonal form diag(P^-1, I)
 /// leaves: 37 % fewer iterations at level 3 (docs/FLOW.md, "Preconditioner").
 class CoupledSystem {
@@ -293,19 +295,15 @@ private:
         const Index nv = Xs_.cols();
         VectorXd t(3 * nv);
         for (Index i = 0; i < nv; ++i) t.segment<3>(3 * i) = precBlocks_[i] * r.segment<3>(3 * i);
-        if (!bending_) return precFactor_.velocity.solve(t);
-        // Normal and tangential parts apart: the bending stiffness acts on the normal one.
-        VectorXd tn(nv);
-        for (Index i = 0; i < nv; ++i) {
-            tn[i] = unitNormals_.col(i).dot(t.segment<3>(3 * i));
-            t.segment<3>(3 * i) -= tn[i] * unitNormals_.col(i);
-        }
         VectorXd y = precFactor_.velocity.solve(t);
-        const VectorXd yn = precFactor_.normal.solve(tn);
-        for (Index i = 0; i < nv; ++i) {
-            const Eigen::Vector3d ni = unitNormals_.col(i);
-            y.segment<3>(3 * i) += (yn[i] - ni.dot(y.segment<3>(3 * i))) * ni;
-        }
+        if (!bending_) return y;
+        // K = K1 + N Q N^T (K1 the one-ring matrix, Q the bending stiffness): after y = K1^-1 t
+        // the residual is -N Q N^T y; its normal part is corrected with the normal block
+        // N^T K1 N + Q of K.
+        VectorXd yn(nv);
+        for (Index i = 0; i < nv; ++i) yn[i] = unitNormals_.col(i).dot(y.segment<3>(3 * i));
+        const VectorXd z = precFactor_.normal.solve(-(bendingL_ * yn));
+        for (Index i = 0; i < nv; ++i) y.segment<3>(3 * i) += z[i] * unitNormals_.col(i);
         return y;
     }
     /// The two scalar rows of the system applied to a velocity: (g . u / |g|, dV/dx . u / |dV/dx|).
@@ -368,19 +366,16 @@ private:
                 for (int bb = 0; bb < 3; ++bb) trip.emplace_back(3 * i + a, 3 * i + bb, K(a, bb));
             precBlocks_.push_back(K);
         }
-        // The implicit elastic force alpha H u enters like the viscous one: in-plane, as springs of
-        // stiffness 4 mu / sqrt 3 along the edges (a triangular spring network of shear modulus mu);
-        // normal to the surface, as the bending stiffness kb L M^-1 L of a flat patch (L the cotan
-        // Laplacian, M the vertex areas) on the normal components, through a scalar factor of its
-        // own (two-ring pattern). It is taken only where it is stiff at the grid scale against the
-        // single layer's self-blocks (bendingPreconditionerRatio; docs/FLOW.md, "Preconditioner").
+        // The implicit bending force alpha H u, normal to the surface: the bending stiffness
+        // kb L M^-1 L of a flat patch (L the cotan Laplacian, M the vertex areas) on the normal
+        // components, through a scalar factor of its own (two-ring pattern; velocityPreconditioner).
+        // It is taken at steps where it is stiff at the grid scale against the single layer's
+        // self-blocks (bendingPreconditionerRatio; docs/FLOW.md, "Preconditioner").
         const MembraneParameters& mp = model_.membrane().parameters();
-        const double elastic = opt_.preconditionerStiffness * std::max(alpha_, 0.0);
-        const double inPlane = mp.law == InPlaneLaw::Lim ? mp.lim.mu : mp.capsule.Gs;
-        const double gamma = model_.edgeFriction() + elastic * 4.0 / std::sqrt(3.0) * inPlane;
-        if (elastic > 0.0 && mp.bending.kb > 0.0) {
+        const double gamma = model_.edgeFriction();
+        if (alpha_ > 0.0 && mp.bending.kb > 0.0) {
             const Eigen::SparseMatrix<double> L = cotanLaplacian(Xs_, model_.faces());
-            const double kb = elastic * mp.bending.kb;
+            const double kb = alpha_ * mp.bending.kb;
             double ratio = 0.0;
             for (Index i = 0; i < nv; ++i)
                 ratio = std::max(ratio, kb * L.coeff(i, i) * L.coeff(i, i) * invArea_[i] / (precBlocks_[i].trace() / 3.0));
@@ -580,7 +575,7 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
     std::string d = fmt::format("{}|{}|{}|", o.checkpoint.key, kVersion, env ? "environment" : "unbounded");
     for (double v : {c.v, c.mu, c.FvK, c.b2, c.etam, f.etaOut, f.etaIn, f.shearRate, f.timeScale, f.A0, f.V0, o.tEnd,
                      o.frameInterval, o.errorTolerance, o.dtInitial, o.dtMin, o.dtMax, o.gmresTolerance, o.maxDrift,
-                     o.preconditionerScale, o.preconditionerStiffness, o.bendingPreconditionerRatio, q.nearFactor})
+                     o.preconditionerScale, o.bendingPreconditionerRatio, q.nearFactor})
         d += fmt::format("{:a},", v);
     for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
                    long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),

@@ -227,13 +227,10 @@ struct CellFlowOptions {
     /// Schur complement (false: left unpreconditioned; 1.6x the GMRES iterations at level 3).
     bool eliminateMultipliers = true;
     double preconditionerScale = 1.0;  ///< B = this x the self-blocks of the single layer
-    /// Weight of the membrane's implicit elastic stiffness (alpha H, approximated: in-plane springs
-    /// and the bending of a flat patch) in the preconditioner; 0 leaves it out.
-    double preconditionerStiffness = 1.0;
-    /// The bending part is taken at a step where, at some vertex, alpha kb L_ii^2 / A_i reaches this
-    /// multiple of the single layer's self-block stiffness. It then acts on the normal components
-    /// through a second, scalar factor, and drops the viscous coupling of normal and tangential
-    /// motion, which costs iterations where bending is weak (docs/FLOW.md, "Preconditioner").
+    /// The implicit bending stiffness in the preconditioner (a correction of the normal components
+    /// after the solve with P) at a step where, at some vertex, alpha kb L_ii^2 / A_i reaches this
+    /// multiple of the single layer's self-block stiffness (L the cotan Laplacian, A_i the vertex
+    /// area). Below it the correction costs more than it saves (docs/FLOW.md, "Preconditioner").
     /// 0: at every step; infinity: never.
     double bendingPreconditionerRatio = 10.0;
     /// Checked after every step that recorded a frame (with the frames so far): true ends the run
