@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
 """Regenerates the shipped result sets of results/ from configs/ and the current build (`make results`).
 
-    scripts/make_results.py [--trbc build/trbc] [--only NAME,...] [--dry-run] [--work out/results]
+    scripts/make_results.py [--trbc build/trbc] [--only NAME,...] [--dry-run] [--save-progress] [--work out/results]
 
 --dry-run lists every set with its commands, its cost on the 2-core development machine (from
 the wall times its own records carry, where they do) and the command that made the copy shipped
 now. A run makes each selected set in WORK/<name> and then replaces results/<name> with it, so a
 failed or interrupted set leaves the shipped one untouched; the validation sets resume (`trbc
-validate` keeps its finished cases) and so does the flow campaign (`--resume`), the others start again. Sets are listed cheapest first; the
+validate` keeps its finished cases) and so does the flow campaign (`--resume`), the others start again.
+--save-progress ships the flow campaign's finished cases under results/flow_campaign/progress/,
+and a run on another machine continues from them. Sets are listed cheapest first; the
 sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
 when it is missing)."""
 import argparse
@@ -31,6 +33,9 @@ TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.0
 CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level {level} --seed 20261129 --threads 1 --no-cache "
             "--steady-rule 3,0.1,0.005 --out {{out}}/level{level} $(test -f {{out}}/level{level}/campaign.json && echo --resume)")
 RESUMED = ("flow_campaign", "flow_stop_rule")
+# What a resumed set has finished so far, shipped under results/<name>/progress/ by --save-progress
+# so that another machine continues it: a run whose work folder lacks these files starts from them.
+PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level2/campaign.json", "level2/parts"]}
 STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
@@ -168,12 +173,41 @@ def recorded(name):
     return "", None
 
 
+def save_progress(name, out):
+    """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/, replacing what was there."""
+    dest = os.path.join(ROOT, "results", name, "progress")
+    found = [f for f in PROGRESS[name] if os.path.exists(os.path.join(out, f))]
+    if not found:
+        print(f"make_results: {name}: nothing in {out} to save", file=sys.stderr)
+        return
+    shutil.rmtree(dest, ignore_errors=True)
+    for f in found:
+        src, to = os.path.join(out, f), os.path.join(dest, f)
+        os.makedirs(os.path.dirname(to), exist_ok=True)
+        (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
+    print(f"make_results: {name}: {', '.join(found)} -> results/{name}/progress", file=sys.stderr)
+
+
+def restore_progress(name, out):
+    """results/<name>/progress/ into a work folder that has not started: a run continues it."""
+    src_root = os.path.join(ROOT, "results", name, "progress")
+    for f in PROGRESS[name]:
+        src, to = os.path.join(src_root, f), os.path.join(out, f)
+        if os.path.exists(src) and not os.path.exists(to):
+            os.makedirs(os.path.dirname(to), exist_ok=True)
+            (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
+            print(f"make_results: {name}: continues from results/{name}/progress/{f}", file=sys.stderr)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trbc", default="build/trbc")
     ap.add_argument("--only", default="", help="comma-separated set names (default: all)")
     ap.add_argument("--work", default="out/results", help="where the sets are made before they replace results/<name>")
     ap.add_argument("--dry-run", action="store_true", help="list the sets, their commands and costs; run nothing")
+    ap.add_argument("--save-progress", action="store_true",
+                    help="copy the finished part of the resumed sets in WORK (" + ", ".join(PROGRESS) +
+                         ") to results/<name>/progress/, to be continued on another machine; run nothing")
     a = ap.parse_args()
     names = [n for n in a.only.split(",") if n] or list(SETS)
     for n in names:
@@ -182,6 +216,11 @@ def main():
     cost = {n: SETS[n][2] if SETS[n][2] is not None else (recorded(n)[1] or 0.0) for n in names}
     names.sort(key=lambda n: cost[n])
     work = os.path.abspath(a.work)
+    if a.save_progress:
+        for n in names:
+            if n in PROGRESS:
+                save_progress(n, os.path.join(work, n))
+        return
     if a.dry_run:
         total = 0.0
         for n in names:
@@ -206,6 +245,8 @@ def main():
         if not n.startswith("validation/") and n not in RESUMED:
             shutil.rmtree(out, ignore_errors=True)
         os.makedirs(out, exist_ok=True)
+        if n in PROGRESS:
+            restore_progress(n, out)
         t0 = time.time()
         for c in commands:
             line = command_line(c, a.trbc, out, work)

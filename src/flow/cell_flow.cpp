@@ -141,7 +141,7 @@ struct PreconditionerFactor {
 /// capillary number, small FvK) P also takes the implicit bending stiffness, through a correction
 /// of the normal components (velocityPreconditioner). Eliminating the multipliers removes
 /// the eigenvalues near zero and off the real axis that the block-diagonal form diag(P^-1, I)
-/// leaves: 37 % fewer iterations at level 3 (docs/FLOW.md, "Preconditioner").
+/// leaves: 37 % fewer iterations at level 3 (docs/FLOW_SOLVER.md, "Preconditioner").
 class CoupledSystem {
 public:
     CoupledSystem(const CellFlowModel& model, const Vertices& Xs, double alpha, const CellFlowOptions& opt,
@@ -370,16 +370,22 @@ private:
         // kb L M^-1 L of a flat patch (L the cotan Laplacian, M the vertex areas) on the normal
         // components, through a scalar factor of its own (two-ring pattern; velocityPreconditioner).
         // It is taken at steps where it is stiff at the grid scale against the single layer's
-        // self-blocks (bendingPreconditionerRatio; docs/FLOW.md, "Preconditioner").
+        // self-blocks and against the in-plane stiffness (bendingPreconditionerRatio,
+        // bendingOverShearRatio; docs/FLOW_SOLVER.md, "Preconditioner").
         const MembraneParameters& mp = model_.membrane().parameters();
         const double gamma = model_.edgeFriction();
         if (alpha_ > 0.0 && mp.bending.kb > 0.0) {
             const Eigen::SparseMatrix<double> L = cotanLaplacian(Xs_, model_.faces());
             const double kb = alpha_ * mp.bending.kb;
-            double ratio = 0.0;
-            for (Index i = 0; i < nv; ++i)
-                ratio = std::max(ratio, kb * L.coeff(i, i) * L.coeff(i, i) * invArea_[i] / (precBlocks_[i].trace() / 3.0));
-            bending_ = ratio >= opt_.bendingPreconditionerRatio;
+            double overSelf = 0.0, overShear = 0.0;
+            for (Index i = 0; i < nv; ++i) {
+                const double Lii = L.coeff(i, i);
+                overSelf = std::max(overSelf, kb * Lii * Lii * invArea_[i] / (precBlocks_[i].trace() / 3.0));
+                overShear += mp.bending.kb * Lii * invArea_[i] / static_cast<double>(nv);  // kb L_ii / A_i, averaged
+            }
+            const double shear = mp.law == InPlaneLaw::Lim ? mp.lim.mu : mp.capsule.Gs;
+            overShear = shear > 0.0 ? overShear / shear : std::numeric_limits<double>::infinity();
+            bending_ = overSelf >= opt_.bendingPreconditionerRatio && overShear >= opt_.bendingOverShearRatio;
             if (bending_) bendingL_ = kb * (L * invArea_.asDiagonal() * L);
         }
         for (Index e = 0; e < T.numEdges(); ++e) {
@@ -575,7 +581,7 @@ std::uint64_t cellFlowFingerprint(const CellFlowModel& model, const Vertices& in
     std::string d = fmt::format("{}|{}|{}|", o.checkpoint.key, kVersion, env ? "environment" : "unbounded");
     for (double v : {c.v, c.mu, c.FvK, c.b2, c.etam, f.etaOut, f.etaIn, f.shearRate, f.timeScale, f.A0, f.V0, o.tEnd,
                      o.frameInterval, o.errorTolerance, o.dtInitial, o.dtMin, o.dtMax, o.gmresTolerance, o.maxDrift,
-                     o.preconditionerScale, o.bendingPreconditionerRatio, q.nearFactor})
+                     o.preconditionerScale, o.bendingPreconditionerRatio, o.bendingOverShearRatio, q.nearFactor})
         d += fmt::format("{:a},", v);
     for (long v : {long(o.keepFrames), long(o.adaptive), long(o.maxSteps), long(o.gmresRestart),
                    long(o.gmresMaxIterations), long(o.operators), long(o.denseLimit), long(o.preconditioner),
@@ -624,7 +630,7 @@ bool snapshotFits(const CellFlowSnapshot& s, Index nv, const FlowEnvironment* en
 /// A tenth of the step tolerance: the linear solve then adds far less to a step's error
 /// than the step control allows: at the shear's 1e-3 R_A (tolerance 1e-4 instead of 1e-6) the
 /// observables of 4 level-3 rotations move by 4e-5 deg and 3.6e-5 of the TTF, hundreds of times
-/// less than the level 3 -> 4 change, with 37 % fewer iterations (docs/FLOW.md, "GMRES tolerance").
+/// less than the level 3 -> 4 change, with 37 % fewer iterations (docs/FLOW_SOLVER.md, "GMRES tolerance").
 double effectiveGmresTolerance(const CellFlowOptions& o) {
     if (o.gmresTolerance > 0.0) return o.gmresTolerance;
     return o.adaptive ? std::min(1e-4, 0.1 * o.errorTolerance) : 1e-6;
@@ -859,7 +865,7 @@ CellFlowResult integrateCellFlow(const CellFlowModel& model, const Vertices& ini
             // GMRES starts from zero: the BDF2-predicted velocity (Xpred - Y) / alpha and the last
             // step's velocity leave residuals in the grid-scale modes that cost more iterations
             // than they save (level 3: 14.4 iterations per step from zero, 15.5 from the predicted
-            // velocity, plus its operator application; docs/FLOW.md, "Preconditioner").
+            // velocity, plus its operator application; docs/FLOW_SOLVER.md, "Preconditioner").
             const CoupledSystem::Solution s = sys.solve(Fexp, areaRate, volumeRate, noise ? &noise->velocity : nullptr);
             iterations = s.gmres.iterations;
             if (s.gmres.converged && s.u.allFinite() && std::isfinite(s.tension)) {

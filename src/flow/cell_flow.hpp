@@ -228,11 +228,14 @@ struct CellFlowOptions {
     bool eliminateMultipliers = true;
     double preconditionerScale = 1.0;  ///< B = this x the self-blocks of the single layer
     /// The implicit bending stiffness in the preconditioner (a correction of the normal components
-    /// after the solve with P) at a step where, at some vertex, alpha kb L_ii^2 / A_i reaches this
-    /// multiple of the single layer's self-block stiffness (L the cotan Laplacian, A_i the vertex
-    /// area). Below it the correction costs more than it saves (docs/FLOW.md, "Preconditioner").
-    /// 0: at every step; infinity: never.
+    /// after the solve with P) at a step where both hold: at some vertex alpha kb L_ii^2 / A_i
+    /// reaches bendingPreconditionerRatio times the single layer's self-block stiffness, and the
+    /// mean of kb L_ii / A_i reaches bendingOverShearRatio times the shear modulus (bending the
+    /// stiffer at the grid scale; L the cotan Laplacian, A_i the vertex area). Elsewhere the
+    /// correction costs more than it saves (docs/FLOW_SOLVER.md, "Preconditioner"). Both 0: at
+    /// every step; either infinite: never.
     double bendingPreconditionerRatio = 10.0;
+    double bendingOverShearRatio = 2.0;
     /// Checked after every step that recorded a frame (with the frames so far): true ends the run
     /// there as completed, with stoppedEarly set. Empty: run to tEnd.
     std::function<bool(const CellFlowResult& sofar)> stopWhen;

@@ -433,7 +433,7 @@ TEST(CellFlow, BendingStiffnessInThePreconditionerCutsTheIterationsOfAStiffCellN
     const CellFlowModel m(cell, shear(90.0, 0.1), c.faces, c.reference);
     CellFlowOptions always, automatic, never;
     always.tEnd = automatic.tEnd = never.tEnd = 0.25 * kPi;
-    always.bendingPreconditionerRatio = 0.0;
+    always.bendingPreconditionerRatio = always.bendingOverShearRatio = 0.0;
     never.bendingPreconditionerRatio = std::numeric_limits<double>::infinity();
     const Vertices X0 = m.toInternal(c.initial);
     const CellFlowResult a = integrateCellFlow(m, X0, always), b = integrateCellFlow(m, X0, automatic),
