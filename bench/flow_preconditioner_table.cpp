@@ -6,7 +6,10 @@
 // CASES_CSV is a `trbc flow campaign` cases.csv (results/flow_stop_rule/full_length/cases.csv).
 #include <unistd.h>
 
+#include <omp.h>
+
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
@@ -14,6 +17,8 @@
 #include <filesystem>
 #include <limits>
 #include <string>
+#include <string_view>
+#include <system_error>
 #include <vector>
 
 #include "experiments/parameters.hpp"
@@ -68,7 +73,22 @@ int main(int argc, char** argv) {
     try {
         const std::vector<ShearCampaignRow> rows = readShearCampaignCsv(argv[1]);
         std::vector<long> ids;
-        for (int k = 2; k < argc; ++k) ids.push_back(std::stol(argv[k]));
+        for (int k = 2; k < argc; ++k) {
+            const std::string_view a(argv[k]);
+            long id = -1;
+            const auto [end, ec] = std::from_chars(a.data(), a.data() + a.size(), id);
+            if (ec != std::errc{} || end != a.data() + a.size() || id < 0) {
+                std::fprintf(stderr, "CASE_ID '%s': must be a case id (an integer >= 0)\n", argv[k]);
+                return 2;
+            }
+            ids.push_back(id);
+        }
+        omp_set_num_threads(1);
+        for (long id : ids)
+            if (std::none_of(rows.begin(), rows.end(), [&](const ShearCampaignRow& r) { return r.point.caseId == id; })) {
+                std::fprintf(stderr, "CASE_ID %ld: not in %s\n", id, argv[1]);
+                return 2;
+            }
         std::printf("| case | FvK | capillary number | iterations per step, without / with | steps | CPU s, without / with |\n");
         std::printf("|---|---|---|---|---|---|\n");
         double cpuWithout = 0.0, cpuWith = 0.0;
@@ -95,6 +115,7 @@ int main(int argc, char** argv) {
                         a.completed && b.completed ? "" : " (incomplete)");
             std::fflush(stdout);
         }
+        std::filesystem::remove_all(cacheDir());
         std::printf("\nCPU in all: %.1f s without, %.1f s with (%.2fx)\n", cpuWithout, cpuWith, cpuWith / cpuWithout);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "%s\n", e.what());

@@ -157,7 +157,10 @@ def recorded(name):
             command = j.get("provenance", {}).get("command") or j.get("command", "")
             hours = j["case_wall_s_total"] / 3600 if "case_wall_s_total" in j else None
             return command, hours
-    for sub in sorted(os.listdir(d)) if os.path.isdir(d) else []:  # sets of single runs: the first run's record
+    subs = sorted(os.listdir(d)) if os.path.isdir(d) else []
+    if "progress" in subs:  # a campaign in progress: its own record
+        subs = [os.path.join("progress", s) for s in sorted(os.listdir(os.path.join(d, "progress")))]
+    for sub in subs:  # sets of single runs: the first run's record
         for record, key in (("flow.json", lambda j: j.get("provenance", {}).get("command", "")),
                             ("campaign.json", lambda j: j.get("command", ""))):
             f = os.path.join(d, sub, record)
@@ -174,13 +177,19 @@ def recorded(name):
 
 
 def save_progress(name, out):
-    """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/, replacing what was there."""
+    """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/, replacing what was there
+    (the folder's README.md stays)."""
     dest = os.path.join(ROOT, "results", name, "progress")
     found = [f for f in PROGRESS[name] if os.path.exists(os.path.join(out, f))]
     if not found:
         print(f"make_results: {name}: nothing in {out} to save", file=sys.stderr)
         return
-    shutil.rmtree(dest, ignore_errors=True)
+    for f in PROGRESS[name]:  # what was shipped before goes; the folder's README stays
+        old = os.path.join(dest, f)
+        if os.path.isdir(old):
+            shutil.rmtree(old)
+        elif os.path.exists(old):
+            os.remove(old)
     for f in found:
         src, to = os.path.join(out, f), os.path.join(dest, f)
         os.makedirs(os.path.dirname(to), exist_ok=True)
@@ -189,14 +198,19 @@ def save_progress(name, out):
 
 
 def restore_progress(name, out):
-    """results/<name>/progress/ into a work folder that has not started: a run continues it."""
+    """results/<name>/progress/ into a work folder: each campaign (folder of PROGRESS) that has not
+    started there is copied whole, so a run continues it; one that has started keeps its own files."""
     src_root = os.path.join(ROOT, "results", name, "progress")
-    for f in PROGRESS[name]:
-        src, to = os.path.join(src_root, f), os.path.join(out, f)
-        if os.path.exists(src) and not os.path.exists(to):
-            os.makedirs(os.path.dirname(to), exist_ok=True)
-            (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
-            print(f"make_results: {name}: continues from results/{name}/progress/{f}", file=sys.stderr)
+    for folder in sorted({os.path.dirname(f) for f in PROGRESS[name]}):
+        files = [f for f in PROGRESS[name] if os.path.dirname(f) == folder]
+        if any(os.path.exists(os.path.join(out, f)) for f in files):
+            continue
+        for f in files:
+            src, to = os.path.join(src_root, f), os.path.join(out, f)
+            if os.path.exists(src):
+                os.makedirs(os.path.dirname(to), exist_ok=True)
+                (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
+                print(f"make_results: {name}: continues from results/{name}/progress/{f}", file=sys.stderr)
 
 
 def main():

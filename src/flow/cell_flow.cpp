@@ -14,6 +14,7 @@
 #include <memory>
 #include <numbers>
 #include <optional>
+#include <utility>
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
@@ -69,8 +70,9 @@ Vertices checkedReference(const Faces& faces, const Vertices& ref, double length
     return ref / length;
 }
 
-/// The cotangent Laplacian as a stiffness (symmetric positive semidefinite): w^T L w =
-/// sum over edges of (cot a + cot b) / 2 (w_i - w_j)^2, a and b the angles opposite the edge.
+/// The cotangent Laplacian as a stiffness, w^T L w = sum over edges of (cot a + cot b) / 2
+/// (w_i - w_j)^2, a and b the angles opposite the edge (symmetric; semidefinite unless a pair of
+/// obtuse angles makes a weight negative; L M^-1 L is semidefinite either way).
 Eigen::SparseMatrix<double> cotanLaplacian(const Vertices& X, const Faces& F) {
     std::vector<Eigen::Triplet<double>> trip;
     trip.reserve(static_cast<std::size_t>(12 * F.cols()));
@@ -385,7 +387,8 @@ private:
             }
             const double shear = mp.law == InPlaneLaw::Lim ? mp.lim.mu : mp.capsule.Gs;
             overShear = shear > 0.0 ? overShear / shear : std::numeric_limits<double>::infinity();
-            bending_ = overSelf >= opt_.bendingPreconditionerRatio && overShear >= opt_.bendingOverShearRatio;
+            const auto reaches = [](double value, double ratio) { return std::isfinite(ratio) && value >= ratio; };
+            bending_ = reaches(overSelf, opt_.bendingPreconditionerRatio) && reaches(overShear, opt_.bendingOverShearRatio);
             if (bending_) bendingL_ = kb * (L * invArea_.asDiagonal() * L);
         }
         for (Index e = 0; e < T.numEdges(); ++e) {
@@ -523,6 +526,10 @@ void checkOptions(const CellFlowOptions& o) {
     if (o.gmresRestart < 1 || o.gmresMaxIterations < 1 || o.maxSteps < 1)
         throw InputError("cell flow: gmresRestart, gmresMaxIterations and maxSteps must be >= 1");
     requirePositive("maxDrift", o.maxDrift, "");
+    for (const auto& [name, value] : {std::pair{"bendingPreconditionerRatio", o.bendingPreconditionerRatio},
+                                      std::pair{"bendingOverShearRatio", o.bendingOverShearRatio}})
+        if (!(value >= 0.0))
+            throw InputError(fmt::format("cell flow: {} = {}: must be in [0, inf] (inf: no bending correction)", name, value));
     const ThermalOptions& th = o.thermal;
     if (!(th.kT >= 0.0) || !std::isfinite(th.kT))
         throw InputError(fmt::format("thermal energy kT = {} (internal units): must be finite and >= 0", th.kT));

@@ -233,7 +233,8 @@ struct CellFlowOptions {
     /// mean of kb L_ii / A_i reaches bendingOverShearRatio times the shear modulus (bending the
     /// stiffer at the grid scale; L the cotan Laplacian, A_i the vertex area). Elsewhere the
     /// correction costs more than it saves (docs/FLOW_SOLVER.md, "Preconditioner"). Both 0: at
-    /// every step; either infinite: never.
+    /// every step; either infinite: never. kb L_ii / A_i grows as 1 / edge^2, so the second test
+    /// passes up to FvK of about 22 at level 2, 90 at level 3 and 350 at level 4.
     double bendingPreconditionerRatio = 10.0;
     double bendingOverShearRatio = 2.0;
     /// Checked after every step that recorded a frame (with the frames so far): true ends the run

@@ -378,7 +378,7 @@ TEST(CellFlow, AutomaticGmresToleranceIsATenthOfTheStepToleranceAndChangesTheRun
     o.gmresTolerance = 3e-5;
     EXPECT_DOUBLE_EQ(effectiveGmresTolerance(o), 3e-5);
 
-    // Half a rigid-sphere turn at level 2: the automatic tolerance against 1e-6, same steps.
+    // A quarter of a rigid-sphere turn (4 pi / rate) at level 2: the automatic tolerance against 1e-6, same steps.
     const ShearCell& c = cellL2();
     const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
     CellFlowOptions tight, automatic;
@@ -395,7 +395,7 @@ TEST(CellFlow, AutomaticGmresToleranceIsATenthOfTheStepToleranceAndChangesTheRun
 }
 
 TEST(CellFlow, EliminatingTheMultipliersInThePreconditionerCutsTheIterationsNotTheSolution) {
-    // Half a rigid-sphere turn at level 2 with the tension and flux multipliers eliminated in the
+    // A quarter of a rigid-sphere turn at level 2 with the tension and flux multipliers eliminated in the
     // preconditioner (the default) and left unpreconditioned: the same run to the GMRES
     // tolerance (1e-4), in far fewer iterations.
     const ShearCell& c = cellL2();
@@ -422,8 +422,8 @@ TEST(CellFlow, EliminatingTheMultipliersInThePreconditionerCutsTheIterationsNotT
 
 TEST(CellFlow, BendingStiffnessInThePreconditionerCutsTheIterationsOfAStiffCellNotTheSolution) {
     // A cell stiff in bending at a low capillary number (FvK 10, mu 0.8 uN/m, 90 mPa s at 0.1 1/s:
-    // the implicit bending stiffness dwarfs the single layer's self-blocks at the grid scale), an
-    // eighth of a rigid-sphere turn at level 3: the preconditioner with the bending correction at
+    // the implicit bending stiffness dwarfs the single layer's self-blocks at the grid scale), a
+    // sixteenth of a rigid-sphere turn (4 pi / rate) at level 3: the preconditioner with the bending correction at
     // every step, at the default steps only, and never. The same run to the GMRES tolerance;
     // with the correction, far fewer iterations.
     static const ShearCell c = prepareShearCell(paperTable1Cell(), 3, flowCache());
@@ -446,6 +446,36 @@ TEST(CellFlow, BendingStiffnessInThePreconditionerCutsTheIterationsOfAStiffCellN
         EXPECT_EQ(r->steps, n.steps);
         EXPECT_LT(r->gmresIterations, 0.6 * double(n.gmresIterations)) << r->gmresIterations << " vs " << n.gmresIterations;
         EXPECT_LT((r->final - n.final).cwiseAbs().maxCoeff(), 1e-4) << (r->final - n.final).cwiseAbs().maxCoeff();  // R_A
+    }
+}
+
+TEST(CellFlow, BendingCorrectionStaysOffForACellSoftInBendingAndBadRatiosAreRefused) {
+    // The Table 1 cell at 28.9 mPa s and 100 1/s (FvK 250, Ca about 1), level 2 (dense operators):
+    // no step is stiff in bending, so the default run is the run without the correction, bit for
+    // bit. Forced at every step, the correction gives the same run to the GMRES tolerance.
+    const ShearCell& c = cellL2();
+    const CellFlowModel m(paperTable1Cell(), shear(28.9, 100.0), c.faces, c.reference);
+    CellFlowOptions automatic, never, always;
+    automatic.tEnd = never.tEnd = always.tEnd = 0.5 * kPi;
+    never.bendingPreconditionerRatio = std::numeric_limits<double>::infinity();
+    always.bendingPreconditionerRatio = always.bendingOverShearRatio = 0.0;
+    const Vertices X0 = m.toInternal(c.initial);
+    const CellFlowResult a = integrateCellFlow(m, X0, automatic), n = integrateCellFlow(m, X0, never),
+                         f = integrateCellFlow(m, X0, always);
+    ASSERT_TRUE(a.completed && n.completed && f.completed);
+    EXPECT_EQ(a.gmresIterations, n.gmresIterations);
+    EXPECT_EQ(a.final, n.final);
+    EXPECT_GT((f.final - n.final).cwiseAbs().maxCoeff(), 0.0);  // the forced correction did act
+    EXPECT_EQ(f.steps, n.steps);
+    EXPECT_LT((f.final - n.final).cwiseAbs().maxCoeff(), 1e-4);  // R_A
+
+    for (double bad : {-1.0, std::numeric_limits<double>::quiet_NaN()}) {
+        CellFlowOptions o = automatic;
+        o.bendingOverShearRatio = bad;
+        EXPECT_THROW(integrateCellFlow(m, X0, o), InputError) << bad;
+        o = automatic;
+        o.bendingPreconditionerRatio = bad;
+        EXPECT_THROW(integrateCellFlow(m, X0, o), InputError) << bad;
     }
 }
 

@@ -21,7 +21,11 @@ def test_progress_is_shipped_and_continued(tmp_path):
     (work / "level3" / "campaign.json").write_text('{"seed": 20261129}')
     (work / "level3" / "parts" / "rank0.csv").write_text("case_id\n0\n")
     (work / "level3" / "checkpoint").mkdir()  # not part of the progress
+    readme = tmp_path / "repo" / "results" / "flow_campaign" / "progress" / "README.md"
+    readme.parent.mkdir(parents=True)
+    readme.write_text("how far it got\n")
     m.save_progress("flow_campaign", str(work))
+    assert readme.read_text() == "how far it got\n"
     shipped = tmp_path / "repo" / "results" / "flow_campaign" / "progress" / "level3"
     assert (shipped / "campaign.json").read_text() == '{"seed": 20261129}'
     assert (shipped / "parts" / "rank0.csv").read_text() == "case_id\n0\n"
@@ -38,3 +42,21 @@ def test_progress_is_shipped_and_continued(tmp_path):
     (work / "level3" / "parts" / "rank0.csv").write_text("case_id\n0\n1\n")
     m.restore_progress("flow_campaign", str(work))
     assert (work / "level3" / "parts" / "rank0.csv").read_text() == "case_id\n0\n1\n"
+
+    # A campaign that has started (its campaign.json) gets none of the shipped parts.
+    started = tmp_path / "started" / "flow_campaign"
+    (started / "level3").mkdir(parents=True)
+    (started / "level3" / "campaign.json").write_text('{"seed": 1}')
+    m.restore_progress("flow_campaign", str(started))
+    assert not (started / "level3" / "parts").exists()
+    assert (started / "level3" / "campaign.json").read_text() == '{"seed": 1}'
+
+
+def test_dry_run_names_the_command_of_a_campaign_in_progress(tmp_path):
+    m = load(tmp_path / "repo")
+    level3 = tmp_path / "repo" / "results" / "flow_campaign" / "progress" / "level3"
+    level3.mkdir(parents=True)
+    (level3 / "campaign.json").write_text('{"command": "trbc flow campaign --cases 4096"}')
+    (level3.parent / "README.md").write_text("# in progress\n")
+    assert m.recorded("flow_campaign")[0] == "trbc flow campaign --cases 4096"
+
