@@ -4,7 +4,6 @@
 // one thread. GMRES iterations per step, accepted steps and the CPU seconds of each run.
 //   build/bench_flow_preconditioner_table CASES_CSV [CASE_ID ...]   (default: every case)
 // CASES_CSV is a `trbc flow campaign` cases.csv (results/flow_stop_rule/full_length/cases.csv).
-#include <unistd.h>
 
 #include <omp.h>
 
@@ -21,6 +20,7 @@
 #include <system_error>
 #include <vector>
 
+#include "core/scratch_dir.hpp"
 #include "experiments/parameters.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/shear_case.hpp"
@@ -31,11 +31,7 @@ using namespace trbc;
 namespace {
 
 const std::filesystem::path& cacheDir() {
-    static const std::filesystem::path d = [] {
-        const auto p = std::filesystem::temp_directory_path() / ("trbc_preconditioner_table_" + std::to_string(::getpid()));
-        std::filesystem::create_directories(p);
-        return p;
-    }();
+    static const std::filesystem::path d = processTemporaryDirectory("trbc_preconditioner_table_");
     return d;
 }
 

@@ -3,7 +3,6 @@
 // (flow/stokes_verification.hpp), the free sphere at large beta, and a red cell's velocity at a
 // fixed shape against the wall resolution. Minutes on 2 cores.
 //   build/bench_tube_convergence_table [table|large|cell]   (default: table)
-#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -11,6 +10,7 @@
 #include <filesystem>
 #include <string>
 
+#include "core/scratch_dir.hpp"
 #include "experiments/parameters.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/stokes_verification.hpp"
@@ -23,11 +23,7 @@ using namespace trbc::stokes_verification;
 namespace {
 
 const std::filesystem::path& cacheDir() {
-    static const std::filesystem::path d = [] {
-        const auto p = std::filesystem::temp_directory_path() / ("trbc_tube_table_cache_" + std::to_string(::getpid()));
-        std::filesystem::create_directories(p);
-        return p;
-    }();
+    static const std::filesystem::path d = processTemporaryDirectory("trbc_tube_table_cache_");
     return d;
 }
 

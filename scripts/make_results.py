@@ -132,6 +132,11 @@ SETS = {
                                   [f"tube_pg40_tol_{t}/{f}" for t in ("1e-3", "2.5e-4", "6.25e-5")
                                    for f in ("flow.json", "frames.csv", "settling/frames.csv")] +
                                   ["shear_ttf32_tol_2.5e-4/flow.json", "shear_ttf32_tol_2.5e-4/frames.csv"]),
+    # The direct runs the flow networks' bands are checked against (docs/FLOW_CAMPAIGN.md); an estimate
+    # until the set is first made: 16 draws of 4 angle cases, a TTF case and an ensemble threshold.
+    "validation/theta_new_level3_cross_check": ("direct level-3 runs of 16 theta_new draws at the cross-check cases of the flow networks",
+                                                ["{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
+                                                 " --draws 16 --seed 1 --out {out} --jobs 2 --threads 1 --quiet"], 8.0, None),
     "validation/theta_new_level3_tube_bands": ("the theta_new bands of the microtube, 32 draws, level 3",
                                                ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
                                                 " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),
@@ -145,8 +150,16 @@ def command_line(c, trbc, out, work):
 
 
 def recorded(name):
-    """(command, CPU hours) of the shipped copy, from its own records where it has them."""
+    """(command, CPU hours) of the shipped copy, from its own records where it has them; the command
+    ends with "(revision R)" when the record names the build's revision."""
     d = os.path.join(ROOT, "results", name)
+
+    def made_by(j):
+        p = j.get("provenance", {})
+        command = p.get("command") or j.get("command", "")
+        revision = p.get("revision") or j.get("revision")
+        return f"{command} (revision {revision})" if command and revision else command
+
     for record in ("validation.json", "calibrate.json", "infer.json", "sobol.json"):
         f = os.path.join(d, record)
         if os.path.exists(f):
@@ -154,21 +167,28 @@ def recorded(name):
                 j = json.load(open(f))
             except (OSError, ValueError):
                 continue
-            command = j.get("provenance", {}).get("command") or j.get("command", "")
             hours = j["case_wall_s_total"] / 3600 if "case_wall_s_total" in j else None
-            return command, hours
+            return made_by(j), hours
     subs = sorted(os.listdir(d)) if os.path.isdir(d) else []
     if "progress" in subs:  # a campaign in progress: its own record
         subs = [os.path.join("progress", s) for s in sorted(os.listdir(os.path.join(d, "progress")))]
-    for sub in subs:  # sets of single runs: the first run's record
-        for record, key in (("flow.json", lambda j: j.get("provenance", {}).get("command", "")),
-                            ("campaign.json", lambda j: j.get("command", ""))):
-            f = os.path.join(d, sub, record)
-            if os.path.exists(f):
-                try:
-                    return key(json.load(open(f))), None
-                except (OSError, ValueError):
-                    pass
+    # Sets of single runs: the first run's record (a run's folder, or a run's JSON beside the others).
+    records = [os.path.join(d, sub, r) for sub in subs for r in ("flow.json", "campaign.json")]
+    records += [os.path.join(d, f) for f in subs if f.endswith(".json")]
+    for f in records:
+        if os.path.isfile(f):
+            try:
+                command = made_by(json.load(open(f)))
+            except (OSError, ValueError, AttributeError):
+                continue
+            if command:
+                return command, None
+    # Tables that name their command in a line "Command...: `...`".
+    for f in [os.path.join(d, t) for t in subs if t.endswith(".md")]:
+        with open(f, errors="replace") as text:
+            for line in text:
+                if line.startswith("Command") and line.count("`") >= 2:
+                    return line.split("`")[1][:160], None
     for text in ("command.txt", "README.md"):
         f = os.path.join(d, text)
         if os.path.exists(f):

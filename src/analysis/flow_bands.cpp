@@ -37,21 +37,36 @@ std::string g(double x) { return std::isfinite(x) ? fmt::format("{:.6g}", x) : s
 
 }  // namespace
 
+std::vector<DrawOutcome> networkDrawOutcomes(const FlowSurrogate& model, const std::vector<PosteriorDraw>& draws, const ValidationCase& c,
+                                             double etaIn, FlowPrediction* prediction) {
+    const Eigen::VectorXd etaInCol = Eigen::VectorXd::Constant(Eigen::Index(draws.size()), etaIn);
+    std::vector<DrawOutcome> outcomes;
+    if (c.kind == "threshold") {
+        const Eigen::VectorXd tc = model.criticalStressPa(drawInputs(draws, c.etaOut, 1.0), etaInCol);
+        for (Eigen::Index k = 0; k < tc.size(); ++k)
+            outcomes.push_back(std::isfinite(tc(k)) ? DrawOutcome{true, tc(k), ""}
+                                                    : DrawOutcome{true, NAN, "no value (no crossing in the campaign's stress range)"});
+        return outcomes;
+    }
+    FlowPrediction p = model.predict(drawInputs(draws, c.etaOut, c.rate), etaInCol);
+    for (Eigen::Index k = 0; k < p.pTankTreading.size(); ++k) {
+        if (p.pTankTreading(k) <= 0.5)
+            outcomes.push_back({true, NAN, "no value (tumbling: probability of tank-treading <= 1/2)"});
+        else
+            outcomes.push_back({true, c.kind == "angle" ? p.inclinationDeg(k) : p.ttf(k), ""});
+    }
+    if (prediction) *prediction = std::move(p);
+    return outcomes;
+}
+
 std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, const FlowSurrogate& model,
                                                   const std::vector<PosteriorDraw>& draws, const ValidationEvidence& evidence) {
     std::vector<SurrogateBandRow> rows;
     const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(Eigen::Index(draws.size()), cfg.etaIn);
     for (const ValidationCase& c : initialValidationCases(cfg)) {
         if (c.kind != "angle" && c.kind != "ttf") continue;
-        const FlowPrediction p = model.predict(drawInputs(draws, c.etaOut, c.rate), etaIn);
-        std::vector<DrawOutcome> outcomes;
-        for (Eigen::Index k = 0; k < p.pTankTreading.size(); ++k) {
-            if (p.pTankTreading(k) <= 0.5) {
-                outcomes.push_back({true, NAN, "no value (tumbling: probability of tank-treading <= 1/2)"});
-                continue;
-            }
-            outcomes.push_back({true, c.kind == "angle" ? p.inclinationDeg(k) : p.ttf(k), ""});
-        }
+        FlowPrediction p;
+        const std::vector<DrawOutcome> outcomes = networkDrawOutcomes(model, draws, c, cfg.etaIn, &p);
         const DrawBand b = drawBand(outcomes);
         const auto scatter = c.kind == "angle" ? evidence.inclination(c.etaOut, c.rate, b.median, "")
                                                : std::optional(evidence.tankTreadingFrequency(c.rate, b.median, ""));
@@ -62,19 +77,14 @@ std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, c
         rows.push_back(std::move(r));
     }
     for (double eta : thresholdViscosities(cfg)) {
-        const Eigen::MatrixXd x = drawInputs(draws, eta, 1.0);
-        const Eigen::VectorXd tc = model.criticalStressPa(x, Eigen::VectorXd::Constant(x.cols(), cfg.etaIn));
-        std::vector<DrawOutcome> outcomes;
-        for (Eigen::Index k = 0; k < tc.size(); ++k)
-            outcomes.push_back(std::isfinite(tc(k)) ? DrawOutcome{true, tc(k), ""}
-                                                    : DrawOutcome{true, NAN, "no value (no crossing in the campaign's stress range)"});
+        const ValidationCase c = thresholdBandCase(eta);
+        const std::vector<DrawOutcome> outcomes = networkDrawOutcomes(model, draws, c, cfg.etaIn);
         const DrawBand b = drawBand(outcomes);
         const std::optional<double> tau = std::isfinite(b.median) ? std::optional(b.median) : std::nullopt;
-        ValidationCase c{fmt::format("threshold_eta{:g}", eta), "threshold", eta, 0.0, 0.0};
         SurrogateBandRow r = bandRow(c, "critical stress [Pa]", outcomes, evidence.criticalStress(eta, tau, tau), false);
         // The cell and eta_out decide whether a draw lies in the box; the stress axis is searched whole.
         const DesignAxis& stress = kShearCampaignAxes[6];
-        Eigen::MatrixXd inside = x;
+        Eigen::MatrixXd inside = drawInputs(draws, eta, 1.0);
         inside.row(6).setConstant(shearRateFromStress(eta, std::sqrt(stress.lo * stress.hi)));
         const FlowPrediction p = model.predict(inside, etaIn);
         r.outsideBox = long(std::count(p.outsideBox.begin(), p.outsideBox.end(), true));

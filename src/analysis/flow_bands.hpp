@@ -30,6 +30,14 @@ struct SurrogateBandRow {
     double meanPTankTreading = NAN;  ///< over the draws (angle and TTF cases)
 };
 
+/// What the networks give each draw for case c, the cytosol at etaIn (mPa s): for an angle or TTF
+/// case the regressor's value where the probability of tank-treading exceeds 1/2, else no value;
+/// for a threshold case (thresholdBandCase) the critical stress at c.etaOut, no value where the
+/// probability does not cross 1/2 in the campaign's stress range. `prediction`, when given, receives
+/// the networks' outputs of an angle or TTF case.
+std::vector<DrawOutcome> networkDrawOutcomes(const FlowSurrogate& model, const std::vector<PosteriorDraw>& draws, const ValidationCase& c,
+                                             double etaIn, FlowPrediction* prediction = nullptr);
+
 /// The bands of every angle, TTF and threshold case of `cfg` (tube cases are not predicted).
 std::vector<SurrogateBandRow> surrogateShearBands(const ValidationConfig& cfg, const FlowSurrogate& model,
                                                   const std::vector<PosteriorDraw>& draws, const ValidationEvidence& evidence);

@@ -24,6 +24,8 @@ std::vector<PosteriorDraw> selectPosteriorDraws(const NumericTable& samples, int
     return draws;
 }
 
+ValidationCase thresholdBandCase(double etaOut) { return {fmt::format("threshold_eta{:g}", etaOut), "threshold", etaOut, 0.0, 0.0}; }
+
 std::string drawCaseId(const std::string& caseId, long sample) { return fmt::format("{}_sample{}", caseId, sample); }
 
 std::vector<ValidationCase> casesWithDraws(const std::vector<ValidationCase>& cases, const std::vector<PosteriorDraw>& draws) {

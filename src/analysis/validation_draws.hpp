@@ -37,6 +37,10 @@ NumericTable readThetaNewSamples(const std::filesystem::path& posterior, const c
 std::vector<PosteriorDraw> selectPosteriorDraws(const NumericTable& samples, int n, std::uint64_t seed,
                                                 const std::string& option = "--draws");
 
+/// The row of a threshold viscosity in the band tables: the id threshold_eta<eta>, kind
+/// "threshold", no rate.
+ValidationCase thresholdBandCase(double etaOut);
+
 /// The id of a case run for one draw: "<case>_sample<row>".
 std::string drawCaseId(const std::string& caseId, long sample);
 

@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "analysis/flow_bands.hpp"
+#include "analysis/flow_cross_check.hpp"
 #include "analysis/validation_runner.hpp"
 #include "analysis/validation_tables.hpp"
 #include "core/child_process.hpp"
@@ -26,6 +27,72 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+/// The finished `validate --draws` run in `dir` read back into D (loadOnly): the angle, TTF and
+/// threshold cases of R's config for the draws its validation.json names, which must be those of
+/// its count and seed in R's posterior.
+void readDirectRun(ValidationRunner& D, const ValidationRunner& R, const fs::path& dir) {
+    const fs::path record = dir / "validation.json";
+    const std::optional<json> j = tryReadJson(record);
+    if (!j || !j->contains("draws") || !(*j)["draws"].is_object())
+        throw InputError(fmt::format("--direct {}: no validation.json with posterior draws (the output of `trbc validate --draws N`)", dir.string()));
+    D.cfg = R.cfg;
+    D.out = fs::absolute(dir).lexically_normal();
+    D.quiet = true;
+    D.loadOnly = true;
+    const NumericTable samples = readThetaNewSamples(R.cfg.posterior);
+    std::vector<long> recorded;
+    try {
+        const json& d = (*j)["draws"];
+        D.seed = d.at("seed").get<std::uint64_t>();
+        D.draws = selectPosteriorDraws(samples, d.at("count").get<int>(), D.seed, fmt::format("--direct {}: its draws' count", dir.string()));
+        recorded = d.at("samples").get<std::vector<long>>();
+    } catch (const json::exception& e) {
+        throw InputError(fmt::format("{}: 'draws' needs count, seed and samples ({})", record.string(), e.what()));
+    }
+    std::vector<long> chosen;
+    for (const PosteriorDraw& d : D.draws) chosen.push_back(d.sample);
+    if (chosen != recorded)
+        throw InputError(fmt::format("--direct {}: its draws are not the samples that seed {} chooses from the {} of {} (a posterior of "
+                                     "another size?)",
+                                     dir.string(), D.seed, samples.values.rows(), R.cfg.posterior.string()));
+    D.posteriorSamples = static_cast<long>(samples.values.rows());
+    std::vector<ValidationCase> shear = initialValidationCases(R.cfg);
+    std::erase_if(shear, [](const ValidationCase& c) { return c.kind == "tube"; });
+    D.runAll(casesWithDraws(shear, D.draws));
+    D.refineThresholds();
+}
+
+/// `validate --surrogate --direct`: the networks against the direct run (analysis/flow_cross_check.hpp).
+json writeCrossCheck(const ValidationRunner& R, const ValidationRunOptions& o, const FlowSurrogate& model, std::string& md) {
+    ValidationRunner D{};
+    readDirectRun(D, R, o.direct);
+    const std::vector<FlowCrossCheckRow> rows = flowCrossCheck(D, model, R.draws);
+    if (rows.empty())
+        throw InputError(fmt::format("--direct {}: none of the config's angle, TTF or threshold cases has a finished draw there (a run of another config or posterior?)", o.direct.string()));
+    // What the comparison holds beside the networks' error: another mesh level, another threshold protocol.
+    std::string differs;
+    if (model.level > 0 && model.level != D.cfg.level)
+        differs += fmt::format(" The networks answer at level {}, the direct runs are of level {}.", model.level, D.cfg.level);
+    if (flowSurrogateProtocol(model) != D.cfg.thresholdProtocol)
+        differs += fmt::format(" The direct thresholds are of the {} protocol, the networks' of the {}.", D.cfg.thresholdProtocol,
+                               flowSurrogateProtocol(model));
+    md = fmt::format("# The flow networks against direct runs\n\n{} direct draws (seed {}) of {}, level {}, from {}; the networks' "
+                     "{} draws (seed {}); command: `{}`{}\n\n",
+                     D.draws.size(), D.seed, R.cfg.posterior.string(), D.cfg.level, D.out.string(), R.draws.size(), R.seed, o.command,
+                     differs) +
+         flowCrossCheckMarkdown(rows);
+    if (!D.missing.empty())
+        md += fmt::format("\n{} cases of the configuration (of the configured cell, of the draws, or refinements of their thresholds) "
+                          "have no finished record in the direct run; a threshold draw with one of them is left out.\n",
+                          D.missing.size());
+    writeFileAtomically(R.out / "surrogate_cross_check.csv", flowCrossCheckCsv(rows));
+    writeFileAtomically(R.out / "surrogate_cross_check.md", md);
+    int agree = 0;
+    for (const FlowCrossCheckRow& r : rows) agree += r.agrees;
+    return {{"direct", D.out.string()}, {"direct_draws", D.draws.size()}, {"direct_seed", D.seed}, {"compared", rows.size()},
+            {"agree", agree}, {"direct_runs_missing", D.missing.size()}};
+}
+
 /// `validate --surrogate`: the bands of the shear cases through the flow networks (analysis/flow_bands.hpp).
 void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o) {
     if (R.draws.empty())
@@ -36,6 +103,11 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
     const std::vector<SurrogateBandRow> rows = surrogateShearBands(R.cfg, model, R.draws, evidence);
     const OutputDirectory outDir(R.out, "validate", "--out", {"surrogate_bands.json"}, {o.config.string()});
     ensureWritableDirectory(R.out.string());
+    // The direct run first: a --direct that cannot be read leaves no band file behind, and no
+    // cross-check of an earlier run stays beside new bands.
+    for (const char* f : {"surrogate_cross_check.csv", "surrogate_cross_check.md"}) fs::remove(R.out / f);
+    std::string crossMd;
+    const json cross = o.direct.empty() ? json() : writeCrossCheck(R, o, model, crossMd);
     const std::string protocol = flowSurrogateProtocol(model);
     const std::string md = fmt::format("# Shear validations through the flow networks\n\n{} draws of theta_new ({}, {} samples; seed {}), "
                                        "networks {}; command: `{}`\n\nRegimes and thresholds are those of the networks' campaign, "
@@ -57,18 +129,19 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
         t["band_overlap"] = t["band_overlap"].get<int>() + (r.verdict == "overlap");
         t["within_mcse"] = t["within_mcse"].get<int>() + r.withinMcse;
     }
-    const json j = {{"provenance", withBuild({{"command", o.command}})},
-                    {"surrogate", fs::absolute(o.surrogate).lexically_normal().string()},
-                    {"posterior", R.cfg.posterior.string()},
-                    {"draws", R.draws.size()},
-                    {"seed", R.seed},
-                    {"config", R.cfg.file.string()},
-                    {"threshold_protocol", protocol},
-                    {"kinds", tally},
-                    {"wall_s", secondsSince(t0)}};
+    json j = {{"provenance", withBuild({{"command", o.command}})},
+              {"surrogate", fs::absolute(o.surrogate).lexically_normal().string()},
+              {"posterior", R.cfg.posterior.string()},
+              {"draws", R.draws.size()},
+              {"seed", R.seed},
+              {"config", R.cfg.file.string()},
+              {"threshold_protocol", protocol},
+              {"kinds", tally}};
+    if (!cross.is_null()) j["cross_check"] = cross;
+    j["wall_s"] = secondsSince(t0);
     writeFileAtomically(R.out / "surrogate_bands.json", j.dump(2) + "\n");
     if (!R.quiet) std::cerr << fmt::format("validate --surrogate: {} rows in {:.2f} s\n", rows.size(), secondsSince(t0));
-    std::cout << md;
+    std::cout << md << (crossMd.empty() ? "" : "\n" + crossMd);
 }
 
 /// The configuration with the command line's overrides, the output and import directories, the tools.
@@ -164,6 +237,8 @@ void printValidationSummary(const ValidationRunner& R, const json& summary, std:
 }  // namespace
 
 void runValidation(const ValidationRunOptions& o) {
+    if (!o.direct.empty() && o.surrogate.empty())
+        throw InputError(fmt::format("--direct {}: compares the flow networks with a direct run; give --surrogate MODEL", o.direct.string()));
     ValidationRunner R{};
     configureRunner(R, o);
     const std::vector<ValidationCase> all = initialValidationCases(R.cfg);

@@ -12,6 +12,7 @@ namespace trbc {
 
 struct ValidationRunOptions {
     std::filesystem::path config, out, posterior, surrogate;
+    std::filesystem::path direct;  ///< with surrogate: a finished direct run of draws to compare the networks with
     std::vector<std::string> only, imports;
     std::string shard;
     std::string thresholdProtocol;                     ///< empty: the configuration's

@@ -221,13 +221,19 @@ void ValidationRunner::runCase(const ValidationCase& c) {
 void ValidationRunner::runAll(const std::vector<ValidationCase>& batch) {
     std::vector<ValidationCase> todo;
     for (const ValidationCase& c : batch) {
+        const bool finished = loadFinished(c);
+        if (!finished && loadOnly) {  // not a case of this run
+            missing.insert(c.id);  // a refinement round asks for the same case again
+            continue;
+        }
         cases.push_back(c);
         ++total;
-        if (loadFinished(c))
+        if (finished)
             ++done;
         else
             todo.push_back(c);
     }
+    if (loadOnly) return;
     if (!quiet && !batch.empty())
         std::cerr << fmt::format("validate: {} case(s), {} finished earlier{}, {} to run ({} at a time, {} thread(s) each)\n",
                                  batch.size(), batch.size() - todo.size(),

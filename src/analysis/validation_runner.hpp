@@ -10,6 +10,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,10 @@ struct ValidationRunner {
     std::filesystem::path out;     ///< the output directory (absolute)
     std::filesystem::path exe;     ///< the trbc executable the cases run
     bool quiet = false, retryFailed = false, dryRun = false;
+    /// Only finished records count: runAll runs nothing and lists the other cases in `missing`
+    /// (reading a finished run, as `validate --surrogate --direct` does).
+    bool loadOnly = false;
+    std::set<std::string> missing;
     std::vector<std::filesystem::path> imports;  ///< other OUT directories whose finished cases count as finished here
     int imported = 0;                            ///< cases taken from them
     std::mutex mutex;

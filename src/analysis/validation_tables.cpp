@@ -145,7 +145,8 @@ std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTa
 
 // ---- the posterior draws ------------------------------------------------------------------------
 
-/// The observables of a kind of case: (name in the tables, key of the flow JSON's observables).
+}  // namespace
+
 std::vector<std::pair<std::string, std::string>> drawObservables(const std::string& kind) {
     if (kind == "angle") return {{"inclination [deg]", "inclination_deg"}};
     if (kind == "ttf") return {{"4 pi f / rate", "ttf_4pi_f_over_shear_rate"}};
@@ -153,14 +154,14 @@ std::vector<std::pair<std::string, std::string>> drawObservables(const std::stri
     return {};
 }
 
-/// What a draw's record gives for one observable; a failure's reason up to its first line break
-/// or 100 characters, so that equal failures count together.
 DrawOutcome drawOutcome(const json& rec, const std::string& key) {
     const FlowRecordView r = caseResult(rec);
     if (!r.ok()) return {false, NAN, shortenedReason(r.reason, 100)};
     const double x = r.observable(key);
     return {true, x, std::isfinite(x) ? "" : "no value (" + (r.regime.empty() ? std::string("?") : r.regime) + ")"};
 }
+
+namespace {
 
 /// The bands over the draws against the scatter, beside the configured cell's verdict: rows of
 /// bands.csv, validation.md and validation.json, and the agreeing count per kind under each verdict.
@@ -288,7 +289,7 @@ BandTable drawTables(const ValidationRunner& R, const ValidationEvidence& eviden
         for (const PosteriorDraw& d : R.draws) outcomes.push_back(criticalStressOutcome(R.thresholdPoints(eta, d.sample), eta));
         const DrawBand b = drawBand(outcomes);
         const std::optional<double> tau = std::isfinite(b.median) ? std::optional(b.median) : std::nullopt;
-        bands.record({fmt::format("threshold_eta{:g}", eta), "threshold", eta, 0.0, 0.0}, "critical stress [Pa]", b,
+        bands.record(thresholdBandCase(eta), "critical stress [Pa]", b,
                      evidence.criticalStress(eta, tau, tau), mean, criticalStressOutcome(R.thresholdPoints(eta), eta).value);
     }
     writeFileAtomically(R.out / "draws.csv", runs);

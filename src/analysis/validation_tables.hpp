@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "analysis/validation_runner.hpp"
@@ -19,6 +20,16 @@ struct ValidationSelection {
     std::string shard;
     std::string command;  ///< the command line, for the provenance
 };
+
+/// The observables of a kind of case (angle, ttf, tube): (name in the tables, key of the flow
+/// record's observables); none for a threshold, whose observable is its bracket.
+std::vector<std::pair<std::string, std::string>> drawObservables(const std::string& kind);
+
+/// What a draw run's record (cases/<id>.json: its "result" is the flow record) gives for one
+/// observable (a key of the flow record's observables): not finished for a failed run, with its
+/// reason up to its first line break or 100 characters so that equal failures count together; no
+/// value, with the regime, for a tumbling cell's angle.
+DrawOutcome drawOutcome(const nlohmann::json& record, const std::string& key);
 
 /// Writes the tables and validation.md into R.out; returns the summary (cases, failed, inside,
 /// outside, no_data, other, comparisons; with draws "draws") and the band rows in `bandRows`.

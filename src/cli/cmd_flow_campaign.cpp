@@ -136,7 +136,7 @@ void registerFlowCampaign(CLI::App* flow) {
         for (const SteadyStopRule& r : list) validateSteadyRule(r, lastTurn, "--rule");
         std::vector<SteadyRuleEffect> effects;
         for (const SteadyStopRule& r : list) effects.push_back(steadyRuleEffect(cases, r));
-        std::cout << fmt::format("{} full-length cases of {}\n\n", cases.size(), rules->first) << steadyRuleTable(effects);
+        std::cout << steadyRuleStudyTitle(rules->first, cases.size()) << "\n\n" << steadyRuleTable(effects);
     });
 }
 

@@ -9,7 +9,7 @@ namespace trbc::cli {
 namespace {
 
 struct ValidateCommandOptions {
-    std::string config, out, posterior, shard, surrogate, thresholdProtocol;
+    std::string config, out, posterior, shard, surrogate, direct, thresholdProtocol;
     std::vector<std::string> only, imports;
     int jobs = 0, threads = 0, level = 0, draws = 0;
     std::uint64_t seed = 1;
@@ -62,11 +62,16 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
                     "flow networks (a `trbc flow train` directory): predict every angle, TTF and threshold case of the config "
                     "for the --draws through them in seconds instead of running any case (surrogate_bands.csv, .md, .json)")
         ->check(CLI::ExistingDirectory);
+    cmd->add_option("--direct", o.direct,
+                    "with --surrogate: a finished `trbc validate --draws N` output directory of the same config and posterior; its "
+                    "angle, TTF and threshold cases are compared with the networks at the same draws and over the --draws "
+                    "(surrogate_cross_check.csv, .md; docs/FLOW_CAMPAIGN.md)")
+        ->check(CLI::ExistingDirectory);
 }
 
 void runValidate(const ValidateCommandOptions& o) {
     ValidationRunOptions r;
-    r.config = o.config, r.out = o.out, r.posterior = o.posterior, r.surrogate = o.surrogate;
+    r.config = o.config, r.out = o.out, r.posterior = o.posterior, r.surrogate = o.surrogate, r.direct = o.direct;
     r.only = o.only, r.imports = o.imports, r.shard = o.shard, r.thresholdProtocol = o.thresholdProtocol;
     r.jobs = o.jobs, r.threads = o.threads, r.level = o.level, r.draws = o.draws, r.seed = o.seed;
     r.quiet = o.quiet, r.dryRun = o.dryRun, r.retryFailed = o.retryFailed;

@@ -261,39 +261,40 @@ std::filesystem::path pythonInterpreter() {
     return std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
 }
 
-std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue) {
-    std::vector<long> out;
+namespace {
+
+/// The items of a comma-separated list, each converted whole by `convert` (std::stol, std::stod);
+/// `bad(item)` is the error for an item that does not convert whole or that `accept` refuses.
+template <class Value, class Convert, class Accept, class Bad>
+std::vector<Value> parseList(const std::string& text, Convert convert, Accept accept, Bad bad) {
+    std::vector<Value> out;
     std::stringstream ss(text);
     for (std::string item; std::getline(ss, item, ',');) {
         std::size_t used = 0;
-        long n = 0;
+        Value x{};
         try {
-            n = std::stol(item, &used);
+            x = convert(item, &used);
         } catch (const std::exception&) {
             used = 0;
         }
-        if (used == 0 || used != item.size() || n < minValue)
-            throw InputError(fmt::format("{}: '{}' is not {} (integer >= {})", option, item, what, minValue));
-        out.push_back(n);
+        if (used == 0 || used != item.size() || !accept(x)) throw bad(item);
+        out.push_back(x);
     }
     return out;
 }
 
+}  // namespace
+
+std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue) {
+    return parseList<long>(
+        text, [](const std::string& s, std::size_t* used) { return std::stol(s, used); }, [&](long n) { return n >= minValue; },
+        [&](const std::string& item) { return InputError(fmt::format("{}: '{}' is not {} (integer >= {})", option, item, what, minValue)); });
+}
+
 std::vector<double> parseNumberList(const std::string& text, const std::string& option, const std::string& hint) {
-    std::vector<double> out;
-    std::stringstream ss(text);
-    for (std::string item; std::getline(ss, item, ',');) {
-        std::size_t used = 0;
-        double x = 0.0;
-        try {
-            x = std::stod(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || used != item.size()) throw InputError(fmt::format("{}: '{}' is not a number ({})", option, item, hint));
-        out.push_back(x);
-    }
-    return out;
+    return parseList<double>(
+        text, [](const std::string& s, std::size_t* used) { return std::stod(s, used); }, [](double) { return true; },
+        [&](const std::string& item) { return InputError(fmt::format("{}: '{}' is not a number ({})", option, item, hint)); });
 }
 
 }  // namespace trbc::cli

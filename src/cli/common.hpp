@@ -125,7 +125,6 @@ void addInPlaneLawOptions(CLI::App* app, ModulusOptions& m);
 /// only the moduli of the chosen --law) and returns the parameters. Throws InputError naming the option.
 MembraneParameters checkedParameters(const ModulusOptions& m);
 
-/// The command line as one string, for provenance.
 /// A comma-separated list of integers >= minValue, in the order given; InputError naming `option`,
 /// the bad item and what it should be (`what`, e.g. "a case id").
 std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue);
@@ -133,6 +132,7 @@ std::vector<long> parseIntegerList(const std::string& text, const std::string& o
 /// item that is not one whole number. Ranges are the caller's.
 std::vector<double> parseNumberList(const std::string& text, const std::string& option, const std::string& hint);
 
+/// The command line as one string, for provenance.
 std::string commandLine();
 void setCommandLine(int argc, char** argv);
 

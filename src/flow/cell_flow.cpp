@@ -374,9 +374,12 @@ private:
         // It is taken at steps where it is stiff at the grid scale against the single layer's
         // self-blocks and against the in-plane stiffness (bendingPreconditionerRatio,
         // bendingOverShearRatio; docs/FLOW_SOLVER.md, "Preconditioner").
+        // An infinite ratio is never reached: the Laplacian and the ratios are then not formed.
         const MembraneParameters& mp = model_.membrane().parameters();
         const double gamma = model_.edgeFriction();
-        if (alpha_ > 0.0 && mp.bending.kb > 0.0) {
+        bending_ = false;
+        if (alpha_ > 0.0 && mp.bending.kb > 0.0 && std::isfinite(opt_.bendingPreconditionerRatio) &&
+            std::isfinite(opt_.bendingOverShearRatio)) {
             const Eigen::SparseMatrix<double> L = cotanLaplacian(Xs_, model_.faces());
             const double kb = alpha_ * mp.bending.kb;
             double overSelf = 0.0, overShear = 0.0;
@@ -387,8 +390,7 @@ private:
             }
             const double shear = mp.law == InPlaneLaw::Lim ? mp.lim.mu : mp.capsule.Gs;
             overShear = shear > 0.0 ? overShear / shear : std::numeric_limits<double>::infinity();
-            const auto reaches = [](double value, double ratio) { return std::isfinite(ratio) && value >= ratio; };
-            bending_ = reaches(overSelf, opt_.bendingPreconditionerRatio) && reaches(overShear, opt_.bendingOverShearRatio);
+            bending_ = overSelf >= opt_.bendingPreconditionerRatio && overShear >= opt_.bendingOverShearRatio;
             if (bending_) bendingL_ = kb * (L * invArea_.asDiagonal() * L);
         }
         for (Index e = 0; e < T.numEdges(); ++e) {

@@ -326,12 +326,13 @@ std::size_t framesUpTo(const std::vector<double>& t, double end) {
     return std::min(t.size(), m + 1);
 }
 
-ShearObservables analyseFirst(const std::vector<double>& t, const std::vector<Vertices>& frames, std::size_t m) {
+}  // namespace
+
+ShearObservables analyzeFirstShearFrames(const std::vector<double>& t, const std::vector<Vertices>& frames, std::size_t m) {
+    m = std::min({m, t.size(), frames.size()});
     return analyzeShearFrames(std::vector<double>(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(m)),
                               std::vector<Vertices>(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(m)), 1.0);
 }
-
-}  // namespace
 
 bool steadyBetween(const ShearObservables& now, const ShearObservables& before, const SteadyStopRule& rule) {
     if (now.regime == ShearRegime::Tumbling && before.regime == ShearRegime::Tumbling) return true;
@@ -351,7 +352,7 @@ std::vector<TurnObservables> observablesByTurn(const std::vector<double>& t, con
     for (int k = 1; k <= last; ++k) {
         const std::size_t m = framesUpTo(t, k * turn);
         try {
-            out.push_back({k, m, analyseFirst(t, frames, m)});
+            out.push_back({k, m, analyzeFirstShearFrames(t, frames, m)});
         } catch (const InputError&) {  // too few frames up to turn k
         }
     }
@@ -368,7 +369,7 @@ bool shearSteadyStateReached(const std::vector<double>& t, const std::vector<Ver
     const std::size_t atTurn = framesUpTo(t, k * turn);
     if (!(t[atTurn - 1] > since)) return false;  // turn k was looked at after an earlier step
     try {
-        return steadyBetween(analyseFirst(t, frames, atTurn), analyseFirst(t, frames, framesUpTo(t, (k - 1.0) * turn)), rule);
+        return steadyBetween(analyzeFirstShearFrames(t, frames, atTurn), analyzeFirstShearFrames(t, frames, framesUpTo(t, (k - 1.0) * turn)), rule);
     } catch (const InputError&) {  // too few frames so far
         return false;
     }

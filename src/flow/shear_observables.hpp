@@ -94,6 +94,8 @@ struct ShearObservables {
 /// dropped). Throws InputError when fewer than 8 frames remain or the sizes disagree.
 ShearObservables analyzeShearFrames(const std::vector<double>& t, const std::vector<Vertices>& frames,
                                     double shearRate, double discardFraction = 0.25);
+/// analyzeShearFrames of the first m frames, times in units of 1/rate.
+ShearObservables analyzeFirstShearFrames(const std::vector<double>& t, const std::vector<Vertices>& frames, std::size_t m);
 
 /// When a shear run may stop before its full duration (ShearCaseOptions::stopWhenSteady): at each
 /// whole rigid-sphere turn k >= minRotations (t = 4 pi k / rate), the observables of the frames up

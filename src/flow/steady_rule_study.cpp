@@ -8,6 +8,7 @@
 #include <regex>
 
 #include "core/error.hpp"
+#include "core/file_io.hpp"
 
 namespace trbc {
 namespace fs = std::filesystem;
@@ -61,10 +62,7 @@ std::vector<TurnRecord> turnRecords(const CellFlowResult& flow) {
             if (s.t <= stepEnd) ++r.steps, r.gmresIterations += s.gmresIterations;
         std::size_t recorded = k.frames;
         while (recorded < t.size() && t[recorded] <= stepEnd * (1.0 + 1e-12)) ++recorded;
-        r.stop = recorded == k.frames ? k.observables
-                                      : analyzeShearFrames(std::vector<double>(t.begin(), t.begin() + std::ptrdiff_t(recorded)),
-                                                           std::vector<Vertices>(flow.frames.begin(), flow.frames.begin() + std::ptrdiff_t(recorded)),
-                                                           1.0);
+        r.stop = recorded == k.frames ? k.observables : analyzeFirstShearFrames(t, flow.frames, recorded);
         r.rule = std::move(k.observables);
         out.push_back(std::move(r));
     }
@@ -190,6 +188,20 @@ std::string steadyRuleTable(const std::vector<SteadyRuleEffect>& effects) {
                           pair(tt, 100.0 * e.ttfRelRms, 100.0 * e.ttfRelMax, "{:.2f} % / {:.2f} %"));
     }
     return md;
+}
+
+std::string steadyRuleStudyTitle(const fs::path& campaignDir, std::size_t cases) {
+    if (const auto j = tryReadJson(campaignDir / "campaign.json")) {
+        try {
+            const nlohmann::json& st = j->at("settings");
+            return fmt::format("{} full-length cases (level {}, design {}, seed {}, {:g} turns)", cases, st.at("level").get<int>(),
+                               st.at("design").get<std::string>(), st.at("seed").get<std::uint64_t>(), st.at("max_rotations").get<double>());
+        } catch (const nlohmann::json::exception&) {  // another layout: named by its folder
+        }
+    }
+    fs::path folder = campaignDir.lexically_normal();
+    if (folder.filename().empty()) folder = folder.parent_path();  // "DIR/"
+    return fmt::format("{} full-length cases of {}", cases, folder.filename().string());
 }
 
 }  // namespace trbc

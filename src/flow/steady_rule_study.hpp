@@ -67,4 +67,9 @@ void validateSteadyRule(const SteadyStopRule& rule, double lastTurn, const std::
 /// Markdown table of the effects, one row per rule ("–" where no case enters a column).
 std::string steadyRuleTable(const std::vector<SteadyRuleEffect>& effects);
 
+/// The line above the table: "N full-length cases (level L, design D, seed S, T turns)" from the
+/// campaign's campaign.json, or "N full-length cases of FOLDER" when it has none (not the
+/// campaign's path, which is a machine's).
+std::string steadyRuleStudyTitle(const std::filesystem::path& campaignDir, std::size_t cases);
+
 }  // namespace trbc

@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "core/scratch_dir.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/shear_observables.hpp"
 #include "mesh/geometry.hpp"
@@ -146,11 +147,7 @@ TEST(CellFlowObservables, BadInputThrows) {
 
 
 const std::filesystem::path& flowCache() {
-    static const std::filesystem::path d = [] {
-        const auto p = std::filesystem::temp_directory_path() / ("trbc_test_flow_cache_" + std::to_string(::getpid()));
-        std::filesystem::create_directories(p);
-        return p;
-    }();
+    static const std::filesystem::path d = processTemporaryDirectory("trbc_test_flow_cache_");
     return d;
 }
 

@@ -1,6 +1,6 @@
 // The stop-rule study (flow/steady_rule_study.hpp) on hand-made turn records with known answers:
 // where each rule stops, what that costs, and how the observables at the stop differ from the
-// full run's; the records' file round trip and its errors.
+// full run's; the records' file round trip and its errors; the study's title.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -134,6 +134,18 @@ TEST(SteadyRuleStudy, RecordsRoundTripAndBadFilesAreNamed) {
     EXPECT_NE(test::inputError([&] { readFullLengthCases(dir.path()); }).find("turns must increase"), std::string::npos);
     test::TempDir empty;
     EXPECT_NE(test::inputError([&] { readFullLengthCases(empty.path()); }).find("--full-length"), std::string::npos);
+}
+
+TEST(SteadyRuleStudy, TitleNamesTheCampaignsSettingsNotItsPath) {
+    test::TempDir dir;
+    const fs::path campaign = dir.path() / "full_length";
+    fs::create_directories(campaign);
+    EXPECT_EQ(steadyRuleStudyTitle(campaign / "", 3), "3 full-length cases of full_length");
+    test::writeText(campaign / "campaign.json",
+                    R"({"settings": {"level": 3, "design": "sobol", "seed": 20261129, "max_rotations": 10.0}})");
+    EXPECT_EQ(steadyRuleStudyTitle(campaign, 72), "72 full-length cases (level 3, design sobol, seed 20261129, 10 turns)");
+    test::writeText(campaign / "campaign.json", R"({"settings": {"level": "three"}})");
+    EXPECT_EQ(steadyRuleStudyTitle(campaign, 72), "72 full-length cases of full_length");
 }
 
 }  // namespace

@@ -11,7 +11,6 @@
 // The tables of docs/flow_verification.md come from bench/tube_convergence_table.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -20,6 +19,7 @@
 #include <numbers>
 
 #include "core/error.hpp"
+#include "core/scratch_dir.hpp"
 #include "flow/boundary_integral.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/stokes_verification.hpp"
@@ -154,11 +154,7 @@ TEST(TubeWall, Truncation) {
 
 
 const std::filesystem::path& tubeCache() {
-    static const std::filesystem::path d = [] {
-        const auto p = std::filesystem::temp_directory_path() / ("trbc_test_tube_cache_" + std::to_string(::getpid()));
-        std::filesystem::create_directories(p);
-        return p;
-    }();
+    static const std::filesystem::path d = processTemporaryDirectory("trbc_test_tube_cache_");
     return d;
 }
 

@@ -60,3 +60,20 @@ def test_dry_run_names_the_command_of_a_campaign_in_progress(tmp_path):
     (level3.parent / "README.md").write_text("# in progress\n")
     assert m.recorded("flow_campaign")[0] == "trbc flow campaign --cases 4096"
 
+
+
+def test_dry_run_finds_the_command_and_revision_of_single_runs_and_tables(tmp_path):
+    m = load(tmp_path / "repo")
+    runs = tmp_path / "repo" / "results" / "mesh_convergence"
+    runs.mkdir(parents=True)
+    (runs / "table.md").write_text("| point |\n")
+    (runs / "a_L3.json").write_text('{"provenance": {"command": "trbc simulate --level 3", "revision": "abc1234"}}')
+    assert m.recorded("mesh_convergence")[0] == "trbc simulate --level 3 (revision abc1234)"
+    table = tmp_path / "repo" / "results" / "surrogate_vs_direct"
+    table.mkdir(parents=True)
+    (table / "summary.md").write_text("# Surrogate vs direct\n\nCommand: `scripts/surrogate_vs_direct.py --n 20`\n")
+    assert m.recorded("surrogate_vs_direct")[0] == "scripts/surrogate_vs_direct.py --n 20"
+    nothing = tmp_path / "repo" / "results" / "sobol"
+    nothing.mkdir(parents=True)
+    (nothing / "notes.md").write_text("no command here\n")
+    assert m.recorded("sobol") == ("", None)
