@@ -30,12 +30,14 @@ TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.0
 
 # A campaign of many hours continues where an interrupted `make results` left it (--resume once its
 # campaign.json exists); its work folder is kept (RESUMED).
-CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level {level} --seed 20261129 --threads 1 --no-cache "
-            "--steady-rule 3,0.1,0.005 --out {{out}}/level{level} $(test -f {{out}}/level{level}/campaign.json && echo --resume)")
+# The same design from random starts (the regime network's, the ensemble protocol) and from the
+# in-plane start (the tank-treading network's, the start of validate's angle and TTF runs).
+CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level 3 --seed 20261129 --threads 1 --no-cache "
+            "--steady-rule 3,0.1,0.005 --start {start} --out {{out}}/{name} $(test -f {{out}}/{name}/campaign.json && echo --resume)")
 RESUMED = ("flow_campaign", "flow_stop_rule")
 # What a resumed set has finished so far, shipped under results/<name>/progress/ by --save-progress
 # so that another machine continues it: a run whose work folder lacks these files starts from them.
-PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level2/campaign.json", "level2/parts"]}
+PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"]}
 STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).

@@ -73,6 +73,10 @@ json writeCrossCheck(const ValidationRunner& R, const ValidationRunOptions& o, c
     std::string differs;
     if (model.level > 0 && model.level != D.cfg.level)
         differs += fmt::format(" The networks answer at level {}, the direct runs are of level {}.", model.level, D.cfg.level);
+    const std::string directStart = D.cfg.tiltDeg > 0.0 ? fmt::format("tilted by {:g} deg", D.cfg.tiltDeg) : "in-plane";
+    if (flowSurrogateTankTreadingStart(model) != directStart)
+        differs += fmt::format(" The direct angles and TTF start {}, the networks' from {} starts.", directStart,
+                               flowSurrogateTankTreadingStart(model));
     if (flowSurrogateProtocol(model) != D.cfg.thresholdProtocol)
         differs += fmt::format(" The direct thresholds are of the {} protocol, the networks' of the {}.", D.cfg.thresholdProtocol,
                                flowSurrogateProtocol(model));
@@ -111,13 +115,14 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
     const std::string protocol = flowSurrogateProtocol(model);
     const std::string md = fmt::format("# Shear validations through the flow networks\n\n{} draws of theta_new ({}, {} samples; seed {}), "
                                        "networks {}; command: `{}`\n\nRegimes and thresholds are those of the networks' campaign, "
-                                       "threshold protocol: {}{}.{}\n\n",
+                                       "threshold protocol: {}{}.{} The angles and TTF are the tank-treading state's from {} starts.\n\n",
                                        R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, o.surrogate.string(), o.command,
                                        protocol, protocol == "ensemble" ? " (random starts, a draw tank-treads when more than half of them do)" : "",
                                        protocol == R.cfg.thresholdProtocol
                                            ? ""
                                            : fmt::format(" The configuration's threshold protocol, {}, is not the networks'.",
-                                                         R.cfg.thresholdProtocol)) +
+                                                         R.cfg.thresholdProtocol),
+                                       flowSurrogateTankTreadingStart(model)) +
                            surrogateBandsMarkdown(rows);
     writeFileAtomically(R.out / "surrogate_bands.csv", surrogateBandsCsv(rows));
     writeFileAtomically(R.out / "surrogate_bands.md", md);

@@ -25,7 +25,7 @@ namespace {
 
 struct FlowTrainCli {
     std::vector<std::string> campaigns;
-    std::string out, curve;
+    std::string out, curve, hidden;
     FlowSurrogateTrainingOptions t;
     int folds = 0, threads = 2;
 };
@@ -33,6 +33,13 @@ struct FlowTrainCli {
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseIntegerList(o.curve, "--learning-curve", "a case count", 20);
+    if (!o.hidden.empty()) {
+        o.t.network.hiddenLayers.clear();
+        for (long w : parseIntegerList(o.hidden, "--hidden", "a layer width", 1)) {
+            if (w > 4096) throw InputError(fmt::format("--hidden: layer width {} is outside [1, 4096]", w));
+            o.t.network.hiddenLayers.push_back(int(w));
+        }
+    }
     std::vector<ShearCampaignRow> rows;
     FlowTrainingSummary s;
     checkShearCampaignsMatch(std::vector<std::filesystem::path>(o.campaigns.begin(), o.campaigns.end()));
@@ -138,10 +145,13 @@ void registerFlowTrain(CLI::App* flow) {
     cmd->add_option("--campaign", o->campaigns,
                     "a `trbc flow campaign` directory (its finished cases) or its cases.csv; repeatable: campaigns of "
                     "several mesh levels (same box) train multi-level networks that answer at the finest level, "
-                    "whose cases are the test set")
+                    "whose cases are the test set; campaigns of the same design from random and in-plane starts "
+                    "train the regime on the random ones and the angle, swing and TTF on the in-plane ones")
         ->required()
         ->check(CLI::ExistingPath);
     addOutOption(cmd, o->out, "model directory");
+    cmd->add_option("--hidden", o->hidden, "comma-separated widths of the hidden layers of both networks (tanh)")
+        ->default_str("32,32,32");
     addNumber(cmd, "--restarts", o->t.restarts, "trainings per network from consecutive seeds", NumberRange::closed(1, 64))
         ->capture_default_str();
     cmd->add_flag("!--no-ensemble", o->t.ensemble, "keep only the best restart (default: the restarts' mean)");

@@ -860,6 +860,8 @@ void registerSurrogates(py::module_& m) {
     py::class_<FlowSurrogate, std::shared_ptr<FlowSurrogate>>(m, "FlowSurrogate")
         .def(py::init([](const std::string& dir) { return std::make_shared<FlowSurrogate>(FlowSurrogate::load(dir)); }), "model_dir"_a)
         .def_readonly("eta_in_mPa_s", &FlowSurrogate::etaIn)
+        .def_readonly("start", &FlowSurrogate::start, "the regime network's campaign start ('random': the ensemble protocol)")
+        .def_readonly("tank_treading_start", &FlowSurrogate::tankTreadingStart, "the campaign start of the angle, swing and TTF")
         .def("_predict", &flowSurrogatePredict, "x"_a, "eta_in"_a, "threads"_a = 0)
         .def("_critical_stress", [](const FlowSurrogate& s, const RowArray& x, const RowArray& etaIn) {
             const auto X = columnsOf(x, 7, "x");

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <set>
+#include <tuple>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -68,38 +69,47 @@ bool hasTankTreadingValues(const ShearCampaignRow& r) {
     return r.tankTreading() && std::isfinite(r.inclinationDeg) && std::isfinite(r.swingDeg) && std::isfinite(r.ttf) && r.ttf > 0.0;
 }
 
-AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor) {
+/// Regime statistics over `regimeRows`, the angle, swing and TTF over `ttRows` (their tank-treading ones).
+AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& regimeRows,
+                          const std::vector<const ShearCampaignRow*>& ttRows, double boundaryFactor) {
     AccuracySums s;
-    if (rows.empty()) return s;
-    const Eigen::MatrixXd x = flowInputs(rows);
-    const FlowPrediction p = model.predict(x);
-    const Eigen::VectorXd tc = model.criticalStressPa(x);
-    for (std::size_t k = 0; k < rows.size(); ++k) {
-        const ShearCampaignRow& r = *rows[k];
+    if (!regimeRows.empty()) {
+        const Eigen::MatrixXd x = flowInputs(regimeRows);
+        const Eigen::VectorXd p = model.predict(x).pTankTreading;
+        const Eigen::VectorXd tc = model.criticalStressPa(x);
+        for (std::size_t k = 0; k < regimeRows.size(); ++k) {
+            const ShearCampaignRow& r = *regimeRows[k];
+            const Eigen::Index j = Eigen::Index(k);
+            ++s.cases;
+            s.sqBrier += std::pow(p(j) - (r.tankTreading() ? 1.0 : 0.0), 2);
+            const bool wrong = (p(j) > 0.5) != r.tankTreading();
+            const double stress = shearStressPa(r.point.etaOut, r.point.shearRate);
+            const bool near = std::isfinite(tc(j)) && std::abs(std::log(stress / tc(j))) <= std::log(boundaryFactor);
+            (near ? s.near : s.far)++;
+            if (wrong) (near ? s.nearWrong : s.farWrong)++;
+        }
+    }
+    std::vector<const ShearCampaignRow*> tt;
+    for (const ShearCampaignRow* r : ttRows)
+        if (hasTankTreadingValues(*r)) tt.push_back(r);
+    if (tt.empty()) return s;
+    const FlowPrediction p = model.predict(flowInputs(tt));
+    for (std::size_t k = 0; k < tt.size(); ++k) {
+        const ShearCampaignRow& r = *tt[k];
         const Eigen::Index j = Eigen::Index(k);
-        const double label = r.tankTreading() ? 1.0 : 0.0;
-        ++s.cases;
-        s.sqBrier += std::pow(p.pTankTreading(j) - label, 2);
-        const bool wrong = (p.pTankTreading(j) > 0.5) != r.tankTreading();
-        const double stress = shearStressPa(r.point.etaOut, r.point.shearRate);
-        const bool near = std::isfinite(tc(j)) && std::abs(std::log(stress / tc(j))) <= std::log(boundaryFactor);
-        (near ? s.near : s.far)++;
-        if (wrong) (near ? s.nearWrong : s.farWrong)++;
-        if (hasTankTreadingValues(r)) {
-            ++s.tt;
-            s.sqAngle += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
-            s.sqSwing += std::pow(p.swingDeg(j) - r.swingDeg, 2);
-            s.sqTtf += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
-            if (r.steady) {
-                ++s.steady;
-                s.sqAngleSteady += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
-                s.sqTtfSteady += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
-            }
-            if (std::isfinite(r.inclinationSeDeg) && std::isfinite(r.ttfSe)) {
-                ++s.withSe;
-                s.sqAngleSe += r.inclinationSeDeg * r.inclinationSeDeg;
-                s.sqTtfSe += std::pow(r.ttfSe / r.ttf, 2);
-            }
+        ++s.tt;
+        s.sqAngle += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
+        s.sqSwing += std::pow(p.swingDeg(j) - r.swingDeg, 2);
+        s.sqTtf += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
+        if (r.steady) {
+            ++s.steady;
+            s.sqAngleSteady += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
+            s.sqTtfSteady += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
+        }
+        if (std::isfinite(r.inclinationSeDeg) && std::isfinite(r.ttfSe)) {
+            ++s.withSe;
+            s.sqAngleSe += r.inclinationSeDeg * r.inclinationSeDeg;
+            s.sqTtfSe += std::pow(r.ttfSe / r.ttf, 2);
         }
     }
     return s;
@@ -125,54 +135,101 @@ TrainedNetwork trainWithRestarts(const Eigen::MatrixXd& X, const Eigen::MatrixXd
     return std::move(best.network);
 }
 
-/// Finished rows split into those of the finest mesh level (the test and accuracy set) and the
-/// coarser ones (always trained on); `levels` ascending, empty when every row is of one level.
-struct LevelSplit {
-    std::vector<int> levels;
+/// One network's finished rows: those of the finest mesh level (the test and accuracy set) and the
+/// coarser ones (always trained on).
+struct NetworkRows {
+    std::string start;
     std::vector<const ShearCampaignRow*> finest, coarser;
 };
 
-LevelSplit splitByLevel(const std::vector<const ShearCampaignRow*>& done) {
-    LevelSplit s;
-    // The regime network is the probability of one protocol: random and in-plane starts do not mix.
+/// Finished rows split by network and mesh level. With one start both networks share its rows;
+/// with random and in-plane starts the regime takes the random rows (the ensemble protocol) and the
+/// tank-treading network the in-plane ones. `levels` ascending, empty when every row is of one
+/// level; `ids` the finest level's case ids over both starts, ascending: the test mask's positions.
+struct RowSplit {
+    std::vector<int> levels;
+    NetworkRows regime, tankTreading;
+    std::vector<long> ids;
+};
+
+std::vector<int> levelsOf(const std::vector<const ShearCampaignRow*>& rows) {
+    std::set<int> levels;
+    for (const ShearCampaignRow* r : rows) levels.insert(r->meshLevel);
+    return {levels.begin(), levels.end()};
+}
+
+RowSplit splitRows(const std::vector<const ShearCampaignRow*>& done) {
+    RowSplit s;
+    if (done.empty()) return s;
     const auto named = [](const std::string& start) { return start.empty() ? std::string("not recorded (a table without campaign.json)") : start; };
-    for (const ShearCampaignRow* r : done)
-        if (r->start != done.front()->start)
-            throw InputError(fmt::format("flow surrogate: campaigns with the starts '{}' and '{}'; the regime is a protocol's, train on one",
-                                         named(done.front()->start), named(r->start)));
+    std::set<std::string> starts;
+    for (const ShearCampaignRow* r : done) starts.insert(r->start);
+    // A regime network is one protocol's probability, and the in-plane rows are its regressors' only
+    // other use: any other mix of starts is refused.
+    const bool both = starts == std::set<std::string>{"random", "in-plane"};
+    if (starts.size() > 1 && !both)
+        throw InputError(fmt::format("flow surrogate: campaigns with the starts '{}' and '{}'; train on one, or on random and in-plane "
+                                     "starts of the same design",
+                                     named(*starts.begin()), named(*std::next(starts.begin()))));
     // The networks have no cytosol input, and a case given twice would sit in training and test.
-    std::set<std::pair<int, long>> seen;
+    std::set<std::tuple<int, long, std::string>> seen;
     for (const ShearCampaignRow* r : done) {
         if (!sameDesignValue(r->point.etaIn, done.front()->point.etaIn))
             throw InputError(fmt::format("flow surrogate: campaigns with cytosol viscosities {} and {} mPa s; train on one", done.front()->point.etaIn,
                                          r->point.etaIn));
-        if (!seen.insert({r->meshLevel, r->point.caseId}).second)
+        if (!seen.insert({r->meshLevel, r->point.caseId, r->start}).second)
             throw InputError(fmt::format("flow surrogate: case {} of level {} given twice (the same campaign named twice?)", r->point.caseId,
                                          r->meshLevel));
     }
-    for (const ShearCampaignRow* r : done)
-        if (std::find(s.levels.begin(), s.levels.end(), r->meshLevel) == s.levels.end()) s.levels.push_back(r->meshLevel);
-    std::sort(s.levels.begin(), s.levels.end());
+    s.regime.start = both ? "random" : *starts.begin();
+    s.tankTreading.start = both ? "in-plane" : s.regime.start;
+    std::vector<const ShearCampaignRow*> regimeRows, ttRows;
+    for (const ShearCampaignRow* r : done) {
+        if (r->start == s.regime.start) regimeRows.push_back(r);
+        if (r->start == s.tankTreading.start) ttRows.push_back(r);
+    }
+    s.levels = levelsOf(done);
+    if (both && levelsOf(regimeRows) != levelsOf(ttRows))
+        throw InputError(fmt::format("flow surrogate: the random starts' campaigns are of the levels [{}], the in-plane ones' of [{}]; "
+                                     "each network needs every level of the model",
+                                     fmt::join(levelsOf(regimeRows), ", "), fmt::join(levelsOf(ttRows), ", ")));
     if (s.levels.size() > 1 && s.levels.front() == 0)
         throw InputError("flow surrogate: rows of several campaigns, some without a recorded mesh level (campaign.json)");
-    if (s.levels.size() <= 1) {
-        if (!s.levels.empty() && s.levels.front() == 0) s.levels.clear();
-        s.finest = done;
-        return s;
-    }
-    for (const ShearCampaignRow* r : done) (r->meshLevel == s.levels.back() ? s.finest : s.coarser).push_back(r);
+    const bool multi = s.levels.size() > 1;
+    if (!multi && s.levels.front() == 0) s.levels.clear();
+    std::set<long> ids;
+    for (auto [rows, net] : {std::pair{&regimeRows, &s.regime}, std::pair{&ttRows, &s.tankTreading}})
+        for (const ShearCampaignRow* r : *rows) {
+            const bool finest = !multi || r->meshLevel == s.levels.back();
+            (finest ? net->finest : net->coarser).push_back(r);
+            if (finest) ids.insert(r->point.caseId);
+        }
+    s.ids.assign(ids.begin(), ids.end());
     return s;
 }
 
-/// The test positions of a seeded permutation of n cases: every p with p % folds == fold, or the
-/// first testFraction n without folds.
-std::vector<bool> testMask(std::size_t n, const FlowSurrogateTrainingOptions& opt) {
+/// The test case ids of a seeded permutation of the n ids: every position p with p % folds == fold,
+/// or the first testFraction n without folds.
+std::set<long> testIds(const std::vector<long>& ids, const FlowSurrogateTrainingOptions& opt) {
+    const std::size_t n = ids.size();
     const auto perm = seededPermutation(Eigen::Index(n), opt.testSeed);
-    std::vector<bool> test(n, false);
+    std::set<long> test;
     const std::size_t nTest = opt.folds >= 2 ? 0 : std::size_t(std::llround(opt.testFraction * double(n)));
     for (std::size_t p = 0; p < n; ++p)
-        test[std::size_t(perm[p])] = opt.folds >= 2 ? int(p % std::size_t(opt.folds)) == opt.fold : p < nTest;
+        if (opt.folds >= 2 ? int(p % std::size_t(opt.folds)) == opt.fold : p < nTest) test.insert(ids[std::size_t(perm[p])]);
     return test;
+}
+
+/// A network's finest-level rows split into training (with the coarser rows) and held-out ones.
+struct HeldOut {
+    std::vector<const ShearCampaignRow*> train, held;
+};
+
+HeldOut holdOut(const NetworkRows& rows, const std::set<long>& test) {
+    HeldOut h;
+    h.train = rows.coarser;
+    for (const ShearCampaignRow* r : rows.finest) (test.count(r->point.caseId) ? h.held : h.train).push_back(r);
+    return h;
 }
 
 }  // namespace
@@ -215,6 +272,10 @@ std::string flowSurrogateProtocol(const FlowSurrogate& s) {
     return s.start == "random" ? "ensemble" : s.start == "in-plane" ? "in-plane" : "not recorded";
 }
 
+std::string flowSurrogateTankTreadingStart(const FlowSurrogate& s) {
+    return s.tankTreadingStart.empty() ? "not recorded" : s.tankTreadingStart;
+}
+
 FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     FlowSurrogate s;
     s.regime = loadNetwork((dir / "flow_regime.json").string());
@@ -227,6 +288,7 @@ FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
         s.etaIn = meta.at("eta_in_mPa_s").get<double>();
         if (meta.contains("levels")) s.levels = meta.at("levels").get<std::vector<int>>();
         s.start = meta.value("start", std::string());
+        s.tankTreadingStart = meta.value("tank_treading_start", s.start);
         if (!s.levels.empty()) s.level = *std::max_element(s.levels.begin(), s.levels.end());
     } catch (const std::exception& e) {
         throw InputError(fmt::format("{}: not the description of flow networks ({})", meta.string(), e.what()));
@@ -253,9 +315,11 @@ void FlowSurrogate::save(const fs::path& dir) const {
                                  {"predicts_level", level},
                                  {"networks", {{"flow_regime", fmt::format("probability of tank-treading; threshold protocol: {}",
                                                                            flowSurrogateProtocol(*this))},
-                                               {"flow_tank_treading", "inclination_deg, swing_deg, ttf_4pi_f_over_rate"}}},
+                                               {"flow_tank_treading", fmt::format("inclination_deg, swing_deg, ttf_4pi_f_over_rate; start: {}",
+                                                                                  flowSurrogateTankTreadingStart(*this))}}},
                                  {"trbc_version", kVersion}};
     if (!start.empty()) meta["start"] = start;
+    if (!tankTreadingStart.empty()) meta["tank_treading_start"] = tankTreadingStart;
     writeFileAtomically(dir / "flow_surrogate.json", meta.dump(2) + "\n");
 }
 
@@ -336,10 +400,14 @@ Eigen::VectorXd FlowSurrogate::criticalStressPa(const Eigen::Ref<const Eigen::Ma
 }
 
 FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor) {
-    std::vector<const ShearCampaignRow*> done;
-    for (const ShearCampaignRow* r : rows)
-        if (r->finished()) done.push_back(r);
-    return accuracySums(model, done, boundaryFactor).accuracy();
+    std::vector<const ShearCampaignRow*> regimeRows, ttRows;
+    for (const ShearCampaignRow* r : rows) {
+        if (!r->finished()) continue;
+        if (model.start.empty() || r->start == model.start) regimeRows.push_back(r);
+        const std::string& tt = model.tankTreadingStart.empty() ? model.start : model.tankTreadingStart;
+        if (tt.empty() || r->start == tt) ttRows.push_back(r);
+    }
+    return accuracySums(model, regimeRows, ttRows, boundaryFactor).accuracy();
 }
 
 std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows) {
@@ -364,25 +432,30 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
     rep.dataHash = flowCampaignDataHash(rows);
     const auto done = finishedRows(rows);
     rep.used = long(done.size());
-    const LevelSplit split = splitByLevel(done);
-    if (split.finest.size() < 20)
-        throw InputError(fmt::format("flow surrogate: {} finished cases{}, at least 20 needed", split.finest.size(),
-                                     split.levels.size() > 1 ? fmt::format(" at the finest level {}", split.levels.back()) : ""));
-    const std::vector<bool> test = testMask(split.finest.size(), opt);
-    std::vector<const ShearCampaignRow*> train = split.coarser, held, tt;
-    for (std::size_t k = 0; k < split.finest.size(); ++k) (test[k] ? held : train).push_back(split.finest[k]);
-    for (const ShearCampaignRow* r : train)
+    const RowSplit split = splitRows(done);
+    for (const NetworkRows* net : {&split.regime, &split.tankTreading})
+        if (net->finest.size() < 20)
+            throw InputError(fmt::format("flow surrogate: {} finished cases{}{}, at least 20 needed", net->finest.size(),
+                                         split.regime.start != split.tankTreading.start ? fmt::format(" from {} starts", net->start) : "",
+                                         split.levels.size() > 1 ? fmt::format(" at the finest level {}", split.levels.back()) : ""));
+    const std::set<long> test = testIds(split.ids, opt);
+    const HeldOut regimeRows = holdOut(split.regime, test), ttRows = holdOut(split.tankTreading, test);
+    const std::vector<const ShearCampaignRow*>& train = regimeRows.train;
+    std::vector<const ShearCampaignRow*> tt;
+    for (const ShearCampaignRow* r : ttRows.train)
         if (hasTankTreadingValues(*r)) tt.push_back(r);
     FlowSurrogate& model = rep.model;
     model.levels = split.levels;
     model.level = split.levels.empty() ? 0 : split.levels.back();
-    rep.testCases = long(held.size());
+    rep.testCases = long(test.size());
     rep.regimeRows = long(train.size());
     rep.tankTreadingRows = long(tt.size());
     const long ttCount = long(tt.size());
-    if (ttCount < 10 || long(train.size()) - ttCount < 1)
-        throw InputError(fmt::format("flow surrogate: {} tank-treading and {} other training cases; at least 10 and 1 needed", ttCount,
-                                     long(train.size()) - ttCount));
+    const long regimeTt = std::count_if(train.begin(), train.end(), [](const ShearCampaignRow* r) { return r->tankTreading(); });
+    if (ttCount < 10 || regimeTt < 1 || long(train.size()) - regimeTt < 1)
+        throw InputError(fmt::format("flow surrogate: {} tank-treading cases with values, and {} tank-treading and {} other cases for the "
+                                     "regime, in training; at least 10, 1 and 1 needed",
+                                     ttCount, regimeTt, long(train.size()) - regimeTt));
 
     // Each row at its own level (networkInputs puts the model's level).
     auto inputsAtOwnLevel = [&](const std::vector<const ShearCampaignRow*>& rs) {
@@ -421,8 +494,9 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
     model.regime = std::move(nets[0]);
     model.tankTreading = std::move(nets[1]);
     model.etaIn = done.front()->point.etaIn;
-    model.start = done.front()->start;
-    rep.test = accuracySums(rep.model, held, opt.boundaryFactor).accuracy();
+    model.start = split.regime.start;
+    model.tankTreadingStart = split.tankTreading.start;
+    rep.test = accuracySums(rep.model, regimeRows.held, ttRows.held, opt.boundaryFactor).accuracy();
     rep.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
 }
@@ -434,15 +508,13 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
     cv.rows = long(rows.size());
     opt.folds = folds;
     AccuracySums pooled;
-    const LevelSplit split = splitByLevel(finishedRows(rows));
+    const RowSplit split = splitRows(finishedRows(rows));
     for (int f = 0; f < folds; ++f) {
         opt.fold = f;
         const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, opt);
-        const std::vector<bool> test = testMask(split.finest.size(), opt);
-        std::vector<const ShearCampaignRow*> held;
-        for (std::size_t k = 0; k < split.finest.size(); ++k)
-            if (test[k]) held.push_back(split.finest[k]);
-        const AccuracySums s = accuracySums(rep.model, held, opt.boundaryFactor);
+        const std::set<long> test = testIds(split.ids, opt);
+        const AccuracySums s =
+            accuracySums(rep.model, holdOut(split.regime, test).held, holdOut(split.tankTreading, test).held, opt.boundaryFactor);
         pooled.add(s);
         cv.perFold.push_back(s.accuracy());
     }

@@ -51,9 +51,14 @@ struct FlowSurrogate {
     double etaIn = 10.0;          ///< the campaign's cytosol viscosity, mPa s (flow_surrogate.json)
     std::vector<int> levels;      ///< the mesh levels of the training campaigns (empty: one, unrecorded)
     int level = 0;                ///< the level the predictions are for: the finest of `levels`
-    /// The campaign's start, "random" or "in-plane" (flow_surrogate.json); empty when not recorded.
-    /// It is the threshold protocol the regime network answers for: random starts are the ensemble.
+    /// The regime network's campaign start, "random" or "in-plane" (flow_surrogate.json); empty when
+    /// not recorded. It is the threshold protocol the regime network answers for: random starts are
+    /// the ensemble.
     std::string start;
+    /// The tank-treading network's campaign start. Campaigns of both starts train the regime on the
+    /// random ones and the angle, swing and TTF on the in-plane ones, the start of `validate`'s
+    /// angle and TTF runs; with one start both networks share it. Empty when not recorded.
+    std::string tankTreadingStart;
 
     bool multiLevel() const { return levels.size() > 1; }
     /// flowSurrogateInputNames, with kFlowLevelInput when multiLevel.
@@ -88,6 +93,9 @@ struct FlowSurrogate {
 /// The threshold protocol whose regime the networks give: "ensemble" (random starts), "in-plane",
 /// or "not recorded".
 std::string flowSurrogateProtocol(const FlowSurrogate& s);
+/// The start the tank-treading network's angle, swing and TTF belong to: "random", "in-plane" or
+/// "not recorded".
+std::string flowSurrogateTankTreadingStart(const FlowSurrogate& s);
 
 /// One column of inputs, in flowSurrogateInputNames order.
 Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutMPaS, double shearRatePerS);
@@ -150,8 +158,11 @@ struct FlowSurrogateTrainingReport {
 
 /// Trains both networks on the finished rows outside the test set. Rows of several mesh levels
 /// (ShearCampaignRow::meshLevel) train multi-level networks; the test set and the accuracy are
-/// then those of the finest level's cases, and every coarser case trains. InputError when too few
-/// rows remain (fewer than 20 finished, or no tank-treading and no other case).
+/// then those of the finest level's cases, and every coarser case trains. Rows of both starts (the
+/// same design run from random and from in-plane starts) train the regime on the random rows and
+/// the tank-treading network on the in-plane ones; the test set is a set of case ids, so a held-out
+/// case is out of both. InputError when too few rows remain (fewer than 20 finished, or no
+/// tank-treading and no other case), or when the two starts' rows span different mesh levels.
 FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt);
 
 struct FlowCrossValidation {
@@ -165,9 +176,9 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
 /// FNV-1a of the formatted rows.
 std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows);
 
-/// Campaigns trained together differ at most in level and size: every setting of their
-/// campaign.json other than level, cases and inject_failures is the same (box, design, seed so that
-/// their cases pair, cytosol, start, stopping rule). Each entry is a campaign directory or a file in
+/// Campaigns trained together differ at most in level, size and start: every setting of their
+/// campaign.json other than level, cases, start and inject_failures is the same (box, design, seed
+/// so that their cases pair, cytosol, stopping rule). Each entry is a campaign directory or a file in
 /// it (its cases.csv); an entry without a campaign.json is not compared, nor is a single entry.
 /// InputError naming the campaign and the first setting that differs from the first campaign's.
 void checkShearCampaignsMatch(const std::vector<std::filesystem::path>& campaigns);
@@ -203,7 +214,7 @@ struct FlowLearningCurvePoint {
 struct FlowLearningCurve {
     std::vector<FlowLearningCurvePoint> points;
     std::vector<long> skipped;  ///< sizes above `available`, in their order
-    long available = 0;         ///< rows of `level`
+    long available = 0;         ///< distinct cases of `level`
 };
 FlowLearningCurve flowLearningCurve(const std::vector<ShearCampaignRow>& rows, int level, const std::vector<long>& sizes,
                                     const FlowSurrogateTrainingOptions& opt, int folds);

@@ -43,6 +43,7 @@ void checkShearCampaignsMatch(const std::vector<fs::path>& campaigns) {
         settings.erase("level");
         settings.erase("cases");
         settings.erase("inject_failures");
+        settings.erase("start");  // the mix of starts is the training's to judge (random with in-plane)
         if (!first) {
             first = settings;
             continue;
@@ -50,29 +51,36 @@ void checkShearCampaignsMatch(const std::vector<fs::path>& campaigns) {
         for (const auto& [key, value] : settings.items())
             if (!first->contains(key) || (*first)[key] != value)
                 throw InputError(fmt::format("--campaign {}: its setting '{}' ({}) differs from the first campaign's ({}); campaigns trained "
-                                             "together differ only in level and size", c.string(), key, value.dump(),
+                                             "together differ only in level, size and start", c.string(), key, value.dump(),
                                              first->contains(key) ? (*first)[key].dump() : "absent"));
         for (const auto& [key, value] : first->items())
             if (!settings.contains(key))
                 throw InputError(fmt::format("--campaign {}: it lacks the first campaign's setting '{}' ({}); campaigns trained "
-                                             "together differ only in level and size", c.string(), key, value.dump()));
+                                             "together differ only in level, size and start", c.string(), key, value.dump()));
     }
 }
 
 namespace {
 
-/// The rows of one mesh level sorted by case id, and those of the other levels in their order.
+/// The rows of one mesh level sorted by case id, their distinct case ids (one per case when the
+/// campaigns of two starts are given), and the rows of the other levels in their order.
 struct LearningCurveDesign {
     std::vector<ShearCampaignRow> level, other;
+    std::vector<long> ids;
 
     LearningCurveDesign(const std::vector<ShearCampaignRow>& rows, int meshLevel) {
         for (const ShearCampaignRow& r : rows) (r.meshLevel == meshLevel ? level : other).push_back(r);
-        std::sort(level.begin(), level.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
+        std::stable_sort(level.begin(), level.end(), [](const auto& a, const auto& b) { return a.point.caseId < b.point.caseId; });
+        for (const ShearCampaignRow& r : level)
+            if (ids.empty() || ids.back() != r.point.caseId) ids.push_back(r.point.caseId);
     }
+    /// The rows of the first n case ids, then the other levels'.
     std::vector<ShearCampaignRow> rows(long n) const {
-        if (n < 0 || n > long(level.size()))
-            throw InputError(fmt::format("learning curve: {} cases asked, {} in the campaign", n, level.size()));
-        std::vector<ShearCampaignRow> out(level.begin(), level.begin() + n);
+        if (n < 0 || n > long(ids.size()))
+            throw InputError(fmt::format("learning curve: {} cases asked, {} in the campaign", n, ids.size()));
+        std::vector<ShearCampaignRow> out;
+        for (const ShearCampaignRow& r : level)
+            if (n > 0 && r.point.caseId <= ids[std::size_t(n - 1)]) out.push_back(r);
         out.insert(out.end(), other.begin(), other.end());
         return out;
     }
@@ -88,7 +96,7 @@ FlowLearningCurve flowLearningCurve(const std::vector<ShearCampaignRow>& rows, i
                                     const FlowSurrogateTrainingOptions& opt, int folds) {
     const LearningCurveDesign design(rows, level);
     FlowLearningCurve curve;
-    curve.available = long(design.level.size());
+    curve.available = long(design.ids.size());
     for (long n : sizes) {
         if (n > curve.available) {
             curve.skipped.push_back(n);
@@ -135,6 +143,8 @@ nlohmann::json flowTrainingJson(const FlowTrainingSummary& s) {
     j["levels"] = rep.model.levels;
     j["predicts_level"] = rep.model.level;
     if (!rep.model.start.empty()) j["start"] = rep.model.start;
+    if (!rep.model.tankTreadingStart.empty()) j["tank_treading_start"] = rep.model.tankTreadingStart;
+    j["hidden_layers"] = s.options.network.hiddenLayers;
     j["goals"] = {{"inclination_rmse_deg", kFlowAccuracyGoals.inclinationRmseDeg},
                   {"ttf_relative_rmse", kFlowAccuracyGoals.ttfRelativeRmse},
                   {"far_misclassified_fraction", kFlowAccuracyGoals.farMisclassifiedFraction}};
@@ -162,6 +172,10 @@ std::string flowAccuracyMarkdown(const FlowTrainingSummary& s) {
     if (s.training.model.multiLevel())
         md = fmt::format("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-{} cases, "
                          "with every coarser case in training.\n\n", s.training.model.level);
+    const FlowSurrogate& m = s.training.model;
+    if (!m.tankTreadingStart.empty() && m.tankTreadingStart != m.start)
+        md += fmt::format("The regime network learns from the {} starts, the tank-treading network from the {} starts of the same "
+                          "design; a held-out case is out of both.\n\n", m.start, m.tankTreadingStart);
     md += fmt::format("Flow networks from {}; command: `{}`\n\nGoals: angle RMSE ≤ {:g}°, TTF RMSE ≤ {:g} %, misclassified far from "
                       "the boundary ≤ {:g} %.\n\n{}\n",
                       from, s.options.command, kFlowAccuracyGoals.inclinationRmseDeg, 100.0 * kFlowAccuracyGoals.ttfRelativeRmse,

@@ -48,6 +48,7 @@ def test_predict_broadcasts_and_agrees_across_inputs(model):
     # in Ca, and the training path follows the rounding of the instruction set.
     assert p[2, 0] > 0.9 and p[0, 1] < 0.3, p
     assert not r["outside_box"].any()
+    assert (model.start, model.tank_treading_start) == ("", "")  # a bare cases.csv records no start
     fvk = 4.0 * 10.742958658 / (2.3e-19 * 1e18)
     same = model.predict(eta_out_mPa_s=23.9, shear_rate_per_s=50.0, v=0.93, mu_uN_per_m=4.0, FvK=fvk, b2=2.0, etam_Pa_s_um=0.7)
     assert same["inclination_deg"] == pytest.approx(r["inclination_deg"][1, 0], rel=1e-12)
