@@ -73,15 +73,16 @@ SETS = {
                             ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 2.0, None),
     "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new"], 0.5,
                             None),
-    "flow_campaign": ("the shear-flow campaign at levels 3 and 2, its networks and learning curve (the whole design)",
-                      [CAMPAIGN.format(level=3), CAMPAIGN.format(level=2),
-                       "{trbc} flow train --campaign {out}/level3 --campaign {out}/level2 --folds 5 --learning-curve 40,80,160 "
-                       "--out {out}/networks",
-                       "{trbc} flow train --campaign {out}/level3 --folds 5 --learning-curve 40,80,160 --out {out}/level3_only",
-                       "python3 scripts/plot_flow_learning_curve.py {out}/level3_only/training.json {out}/networks/training.json "
-                       "--label 'level 3 only' --label 'levels 2 and 3' --out {out}/learning_curve.png"], 86.0,
-                      ["level3/campaign.json", "level3/cases.csv", "level2/campaign.json", "level2/cases.csv", "networks", "level3_only",
-                       "learning_curve.png"]),
+    "flow_campaign": ("the shear-flow campaign at level 3 from random and in-plane starts, its networks and learning curves",
+                      [CAMPAIGN.format(start="random", name="level3"), CAMPAIGN.format(start="in-plane", name="level3_inplane"),
+                       "{trbc} flow train --campaign {out}/level3 --campaign {out}/level3_inplane --hidden 16 --folds 5 "
+                       "--learning-curve 40,80,160,320 --out {out}/networks",
+                       "{trbc} flow train --campaign {out}/level3 --hidden 16 --folds 5 --learning-curve 40,80,160,320 "
+                       "--out {out}/random_only",
+                       "python3 scripts/plot_flow_learning_curve.py {out}/random_only/training.json {out}/networks/training.json "
+                       "--label 'random starts only' --label 'angle and TTF from in-plane starts' --out {out}/learning_curve.png"], 52.0,
+                      ["level3/campaign.json", "level3/cases.csv", "level3_inplane/campaign.json", "level3_inplane/cases.csv", "networks",
+                       "random_only", "learning_curve.png"]),
     "flow_stop_rule": ("stop rules against full-length runs on the first 72 level-3 cases of the flow campaign's design",
                        ["mpirun -n 2 {trbc} flow campaign --cases 72 --level 3 --seed 20261129 --threads 1 --no-cache --full-length "
                         "--out {out}/full_length $(test -f {out}/full_length/campaign.json && echo --resume)",
