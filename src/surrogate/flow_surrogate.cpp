@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <set>
 #include <tuple>
 #include <nlohmann/json.hpp>
@@ -113,6 +114,32 @@ AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const Sh
         }
     }
     return s;
+}
+
+/// The fold's predictions of its held-out rows (FlowHeldOutPrediction).
+void appendHeldOutPredictions(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& regimeRows,
+                              const std::vector<const ShearCampaignRow*>& ttRows, int fold, std::vector<FlowHeldOutPrediction>& out) {
+    std::map<const ShearCampaignRow*, std::size_t> at;
+    const auto entry = [&](const ShearCampaignRow* r) -> FlowHeldOutPrediction& {
+        const auto [it, added] = at.emplace(r, out.size());
+        if (added) out.push_back({r, fold});
+        return out[it->second];
+    };
+    if (!regimeRows.empty()) {
+        const Eigen::MatrixXd x = flowInputs(regimeRows);
+        const Eigen::VectorXd p = model.predict(x).pTankTreading, tc = model.criticalStressPa(x);
+        for (std::size_t k = 0; k < regimeRows.size(); ++k) {
+            FlowHeldOutPrediction& e = entry(regimeRows[k]);
+            e.pTankTreading = p(Eigen::Index(k)), e.criticalStressPa = tc(Eigen::Index(k));
+        }
+    }
+    if (ttRows.empty()) return;
+    const FlowPrediction p = model.predict(flowInputs(ttRows));
+    for (std::size_t k = 0; k < ttRows.size(); ++k) {
+        FlowHeldOutPrediction& e = entry(ttRows[k]);
+        const Eigen::Index j = Eigen::Index(k);
+        e.inclinationDeg = p.inclinationDeg(j), e.swingDeg = p.swingDeg(j), e.ttf = p.ttf(j);
+    }
 }
 
 /// Restarts from seeds seed, seed + 1, ...; the lowest validation loss is the network, the others
@@ -513,8 +540,9 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
         opt.fold = f;
         const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, opt);
         const std::set<long> test = testIds(split.ids, opt);
-        const AccuracySums s =
-            accuracySums(rep.model, holdOut(split.regime, test).held, holdOut(split.tankTreading, test).held, opt.boundaryFactor);
+        const auto regimeHeld = holdOut(split.regime, test).held, ttHeld = holdOut(split.tankTreading, test).held;
+        const AccuracySums s = accuracySums(rep.model, regimeHeld, ttHeld, opt.boundaryFactor);
+        appendHeldOutPredictions(rep.model, regimeHeld, ttHeld, f, cv.predictions);
         pooled.add(s);
         cv.perFold.push_back(s.accuracy());
     }

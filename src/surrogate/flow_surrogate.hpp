@@ -165,11 +165,22 @@ struct FlowSurrogateTrainingReport {
 /// tank-treading and no other case), or when the two starts' rows span different mesh levels.
 FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt);
 
+/// A held-out row predicted by the fold that held it out: the regime network's rows carry the
+/// probability and the critical stress, the tank-treading network's the observables (NaN where a
+/// network does not take the row). With one start a row is both networks'.
+struct FlowHeldOutPrediction {
+    const ShearCampaignRow* row = nullptr;
+    int fold = 0;
+    double pTankTreading = NAN, criticalStressPa = NAN;
+    double inclinationDeg = NAN, swingDeg = NAN, ttf = NAN;
+};
+
 struct FlowCrossValidation {
     int folds = 0;
     long rows = 0;
     FlowAccuracy pooled;                 ///< every case predicted by the fold that held it out
     std::vector<FlowAccuracy> perFold;
+    std::vector<FlowHeldOutPrediction> predictions;  ///< every held-out row, in fold order (rows point into the input)
 };
 FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRow>& rows, FlowSurrogateTrainingOptions opt, int folds);
 
@@ -234,7 +245,11 @@ struct FlowTrainingSummary {
 nlohmann::json flowTrainingJson(const FlowTrainingSummary& s);
 /// accuracy.md: the held-out (and cross-validated) accuracy, then the learning curve.
 std::string flowAccuracyMarkdown(const FlowTrainingSummary& s);
-/// Writes dir/training.json and dir/accuracy.md, each atomically; returns accuracy.md's text.
+/// cv_predictions.csv: one line per held-out row with its inputs, start, regime, steady flag, the
+/// campaign's values and the fold's predictions.
+std::string flowCrossValidationCsv(const FlowCrossValidation& cv);
+/// Writes dir/training.json and dir/accuracy.md (and dir/cv_predictions.csv with a cross-validation),
+/// each atomically; returns accuracy.md's text.
 std::string writeFlowTrainingReport(const std::filesystem::path& dir, const FlowTrainingSummary& s);
 
 }  // namespace trbc

@@ -189,8 +189,25 @@ std::string flowAccuracyMarkdown(const FlowTrainingSummary& s) {
     return md;
 }
 
+std::string flowCrossValidationCsv(const FlowCrossValidation& cv) {
+    std::string csv = "case_id,start,fold,v,mu_uN_per_m,FvK,b2,etam_Pa_s_um,eta_out_mPa_s,shear_rate_per_s,shear_stress_Pa,regime,steady,"
+                      "p_tank_treading,critical_stress_Pa,inclination_deg,inclination_pred_deg,swing_deg,swing_pred_deg,"
+                      "ttf_4pi_f_over_rate,ttf_pred\n";
+    for (const FlowHeldOutPrediction& e : cv.predictions) {
+        const ShearCampaignRow& r = *e.row;
+        const ShearCampaignPoint& q = r.point;
+        csv += fmt::format("{},{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{},{:.17g},{:.17g},{:.17g},{:.17g},"
+                           "{:.17g},{:.17g},{:.17g},{:.17g}\n",
+                           q.caseId, r.start, e.fold, q.cell.v, q.cell.mu, q.cell.FvK, q.cell.b2, q.cell.etam, q.etaOut, q.shearRate,
+                           shearStressPa(q.etaOut, q.shearRate), r.regime, int(r.steady), e.pTankTreading, e.criticalStressPa,
+                           r.inclinationDeg, e.inclinationDeg, r.swingDeg, e.swingDeg, r.ttf, e.ttf);
+    }
+    return csv;
+}
+
 std::string writeFlowTrainingReport(const fs::path& dir, const FlowTrainingSummary& s) {
     const std::string md = flowAccuracyMarkdown(s);
+    if (s.crossValidation) writeFileAtomically(dir / "cv_predictions.csv", flowCrossValidationCsv(*s.crossValidation));
     writeFileAtomically(dir / "training.json", flowTrainingJson(s).dump(2) + "\n");
     writeFileAtomically(dir / "accuracy.md", md);
     return md;

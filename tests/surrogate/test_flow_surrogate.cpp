@@ -198,6 +198,21 @@ TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
     EXPECT_EQ(cv.pooled.tankTreading, tt);
     EXPECT_EQ(cv.pooled.far + cv.pooled.near, 200);
     for (const FlowAccuracy& f : cv.perFold) EXPECT_EQ(f.cases, 50);
+    // Every row is predicted once, by its fold; the pooled RMSE is that of these predictions.
+    ASSERT_EQ(cv.predictions.size(), 200u);
+    std::map<long, int> seen;
+    double sq = 0.0;
+    for (const FlowHeldOutPrediction& e : cv.predictions) {
+        ++seen[e.row->point.caseId];
+        EXPECT_TRUE(std::isfinite(e.pTankTreading));
+        if (e.row->tankTreading()) sq += std::pow(e.inclinationDeg - e.row->inclinationDeg, 2);
+        else EXPECT_TRUE(std::isfinite(e.inclinationDeg)) << "the regressors extrapolate";
+    }
+    EXPECT_EQ(seen.size(), 200u);
+    EXPECT_NEAR(std::sqrt(sq / double(tt)), cv.pooled.inclinationRmseDeg, 1e-12);
+    const std::string csv = flowCrossValidationCsv(cv);
+    EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 201);
+    EXPECT_EQ(csv.rfind("case_id,start,fold,v,", 0), 0u);
 
     std::vector<ShearCampaignRow> few(rows.begin(), rows.begin() + 19);
     EXPECT_THROW(trainFlowSurrogate(few, opt), InputError);
@@ -265,6 +280,9 @@ TEST(FlowSurrogate, RandomStartsTrainTheRegimeAndInPlaneStartsTheAngle) {
     const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, quick, 4);
     EXPECT_EQ(cv.pooled.cases, 1024);
     EXPECT_EQ(cv.pooled.tankTreading, inPlaneTt);
+    ASSERT_EQ(cv.predictions.size(), 2048u);  // each start's row of every case
+    for (const FlowHeldOutPrediction& e : cv.predictions)
+        EXPECT_EQ(std::isfinite(e.pTankTreading), e.row->start == "random") << e.row->point.caseId;
     // A learning-curve point holds both starts of its first cases.
     EXPECT_EQ(flowLearningCurveRows(rows, 0, 10).size(), 20u);
 
