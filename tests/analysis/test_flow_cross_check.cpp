@@ -14,6 +14,7 @@
 #include "core/csv.hpp"
 #include "sampling/shear_campaign_table.hpp"
 #include "surrogate/flow_surrogate.hpp"
+#include "synthetic_shear_campaign.hpp"
 #include "test_support.hpp"
 
 namespace trbc {
@@ -94,21 +95,8 @@ TEST(FlowCrossCheck, PairsSharesAndQuantilesOnHandMadeOutcomes) {
 /// Networks of a synthetic campaign: tank-treading above a stress proportional to mu, an angle
 /// falling with the stress. Small and quick: the test is of the bookkeeping, not of the fit.
 FlowSurrogate syntheticModel() {
-    std::vector<ShearCampaignRow> rows;
-    for (const ShearCampaignPoint& q : shearCampaignDesign(DesignKind::Sobol, 256, 3)) {
-        ShearCampaignRow r;
-        r.point = q;
-        const double stress = shearStressPa(q.etaOut, q.shearRate), critical = 0.02 * q.cell.mu;
-        r.regime = stress > critical ? "tank-treading" : "tumbling";
-        if (r.tankTreading()) {
-            r.inclinationDeg = 25.0 - 3.0 * std::log(stress / critical);
-            r.swingDeg = 1.0 + 2.0 * q.cell.v;
-            r.ttf = 0.3 + 0.1 * std::tanh(std::log(q.etaOut / 30.0));
-        }
-        r.turns = 4.0;
-        r.start = "random";
-        rows.push_back(r);
-    }
+    const std::vector<ShearCampaignRow> rows =
+        test::syntheticShearCampaign(256, 3, [](const ShearCampaignPoint& q) { return 0.02 * q.cell.mu; }, {25.0, 3.0, 0.0});
     FlowSurrogateTrainingOptions opt;
     opt.restarts = 1;
     opt.network.hiddenLayers = {8};

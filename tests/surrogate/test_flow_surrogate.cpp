@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "sampling/shear_campaign_table.hpp"
 #include "surrogate/flow_surrogate.hpp"
+#include "synthetic_shear_campaign.hpp"
 #include "test_support.hpp"
 
 namespace trbc {
@@ -25,23 +26,9 @@ double capillary(const ShearCampaignPoint& q) { return q.etaOut * 1e-3 * q.shear
 /// The synthetic critical capillary number: higher for a more viscous membrane.
 double criticalCa(const ShearCampaignPoint& q) { return 0.05 * std::sqrt(q.cell.etam / 0.5); }
 
+/// The critical stress of criticalCa, Ca = eta_out rate R_A / mu.
 std::vector<ShearCampaignRow> syntheticCampaign(long n) {
-    std::vector<ShearCampaignRow> rows;
-    for (const ShearCampaignPoint& q : shearCampaignDesign(DesignKind::Sobol, n, 11)) {
-        ShearCampaignRow r;
-        r.point = q;
-        const double ca = capillary(q);
-        r.regime = ca > criticalCa(q) ? "tank-treading" : "tumbling";
-        if (r.tankTreading()) {
-            r.inclinationDeg = 30.0 - 4.0 * std::log(ca / criticalCa(q)) - 5.0 * (1.0 - q.cell.v);
-            r.swingDeg = 1.0 + 2.0 * q.cell.v;
-            r.ttf = 0.3 + 0.1 * std::tanh(std::log(q.etaOut / 30.0));
-        }
-        r.turns = 4.0;
-        r.start = "random";
-        rows.push_back(r);
-    }
-    return rows;
+    return test::syntheticShearCampaign(n, 11, [](const ShearCampaignPoint& q) { return criticalCa(q) * q.cell.mu / 3.2776; });
 }
 
 /// Two restarts averaged: one training's trajectory depends on the rounding of the build's
