@@ -80,7 +80,7 @@ SETS = {
                        "{trbc} flow train --campaign {out}/level3 --hidden 16 --folds 5 --learning-curve 40,80,160,320 "
                        "--out {out}/random_only",
                        "python3 scripts/plot_flow_learning_curve.py {out}/random_only/training.json {out}/networks/training.json "
-                       "--label 'random starts only' --label 'angle and TTF from in-plane starts' --out {out}/learning_curve.png"], 52.0,
+                       "--label 'random starts only' --label 'angle and TTF from in-plane starts' --out {out}/learning_curve.png"], 100.0,
                       ["level3/campaign.json", "level3/cases.csv", "level3_inplane/campaign.json", "level3_inplane/cases.csv", "networks",
                        "random_only", "learning_curve.png"]),
     "flow_stop_rule": ("stop rules against full-length runs on the first 72 level-3 cases of the flow campaign's design",

@@ -36,9 +36,8 @@ struct PairedOutcomes {
 };
 
 bool thresholdIncomplete(const ValidationRunner& R, double etaOut, long sample) {
-    const std::string prefix = fmt::format("threshold_eta{:g}_", etaOut), suffix = fmt::format("_sample{}", sample);
-    for (const std::string& id : R.missing)
-        if (id.starts_with(prefix) && id.ends_with(suffix)) return true;
+    for (const auto& [id, c] : R.missing)
+        if (c.kind == "threshold" && c.etaOut == etaOut && c.sample == sample) return true;
     return false;
 }
 

@@ -74,9 +74,8 @@ json writeCrossCheck(const ValidationRunner& R, const ValidationRunOptions& o, c
     if (model.level > 0 && model.level != D.cfg.level)
         differs += fmt::format(" The networks answer at level {}, the direct runs are of level {}.", model.level, D.cfg.level);
     const std::string directStart = D.cfg.tiltDeg > 0.0 ? fmt::format("tilted by {:g} deg", D.cfg.tiltDeg) : "in-plane";
-    if (flowSurrogateTankTreadingStart(model) != directStart)
-        differs += fmt::format(" The direct angles and TTF start {}, the networks' from {} starts.", directStart,
-                               flowSurrogateTankTreadingStart(model));
+    if (!model.tankTreadingStart.empty() && model.tankTreadingStart != directStart)
+        differs += fmt::format(" The direct angles and TTF start {}, the networks' from {} starts.", directStart, model.tankTreadingStart);
     if (flowSurrogateProtocol(model) != D.cfg.thresholdProtocol)
         differs += fmt::format(" The direct thresholds are of the {} protocol, the networks' of the {}.", D.cfg.thresholdProtocol,
                                flowSurrogateProtocol(model));
@@ -115,14 +114,17 @@ void runSurrogateBands(const ValidationRunner& R, const ValidationRunOptions& o)
     const std::string protocol = flowSurrogateProtocol(model);
     const std::string md = fmt::format("# Shear validations through the flow networks\n\n{} draws of theta_new ({}, {} samples; seed {}), "
                                        "networks {}; command: `{}`\n\nRegimes and thresholds are those of the networks' campaign, "
-                                       "threshold protocol: {}{}.{} The angles and TTF are the tank-treading state's from {} starts.\n\n",
+                                       "threshold protocol: {}{}.{}{}\n\n",
                                        R.draws.size(), R.cfg.posterior.string(), R.posteriorSamples, R.seed, o.surrogate.string(), o.command,
                                        protocol, protocol == "ensemble" ? " (random starts, a draw tank-treads when more than half of them do)" : "",
                                        protocol == R.cfg.thresholdProtocol
                                            ? ""
                                            : fmt::format(" The configuration's threshold protocol, {}, is not the networks'.",
                                                          R.cfg.thresholdProtocol),
-                                       flowSurrogateTankTreadingStart(model)) +
+                                       model.tankTreadingStart.empty()
+                                           ? ""
+                                           : fmt::format(" The angles and TTF are the tank-treading state's from {} starts.",
+                                                         model.tankTreadingStart)) +
                            surrogateBandsMarkdown(rows);
     writeFileAtomically(R.out / "surrogate_bands.csv", surrogateBandsCsv(rows));
     writeFileAtomically(R.out / "surrogate_bands.md", md);

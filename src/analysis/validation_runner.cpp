@@ -223,7 +223,7 @@ void ValidationRunner::runAll(const std::vector<ValidationCase>& batch) {
     for (const ValidationCase& c : batch) {
         const bool finished = loadFinished(c);
         if (!finished && loadOnly) {  // not a case of this run
-            missing.insert(c.id);  // a refinement round asks for the same case again
+            missing.emplace(c.id, c);  // a refinement round asks for the same case again
             continue;
         }
         cases.push_back(c);

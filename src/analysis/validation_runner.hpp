@@ -28,7 +28,7 @@ struct ValidationRunner {
     /// Only finished records count: runAll runs nothing and lists the other cases in `missing`
     /// (reading a finished run, as `validate --surrogate --direct` does).
     bool loadOnly = false;
-    std::set<std::string> missing;
+    std::map<std::string, ValidationCase> missing;  ///< case id -> case
     std::vector<std::filesystem::path> imports;  ///< other OUT directories whose finished cases count as finished here
     int imported = 0;                            ///< cases taken from them
     std::mutex mutex;

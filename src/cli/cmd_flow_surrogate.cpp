@@ -141,7 +141,8 @@ void registerFlowTrain(CLI::App* flow) {
         "train",
         "Flow networks from a shear campaign (docs/FLOW_CAMPAIGN.md): the probability of tank-treading and the angle, swing and "
         "TTF of the tank-treading state. Writes OUT/flow_regime.json, OUT/flow_tank_treading.json, OUT/flow_surrogate.json, "
-        "the accuracy (held-out cases, optional k-fold CV and learning curve) in OUT/training.json and OUT/accuracy.md");
+        "the accuracy (held-out cases, optional k-fold CV and learning curve) in OUT/training.json and OUT/accuracy.md, and with "
+        "--folds every held-out row's predictions in OUT/cv_predictions.csv");
     cmd->add_option("--campaign", o->campaigns,
                     "a `trbc flow campaign` directory (its finished cases) or its cases.csv; repeatable: campaigns of "
                     "several mesh levels (same box) train multi-level networks that answer at the finest level, "
@@ -157,7 +158,7 @@ void registerFlowTrain(CLI::App* flow) {
     cmd->add_flag("!--no-ensemble", o->t.ensemble, "keep only the best restart (default: the restarts' mean)");
     addNumber(cmd, "--seed", o->t.network.seed, "seed of the first restart's initial weights", NumberRange::nonNegative())
         ->capture_default_str();
-    addNumber(cmd, "--test-fraction", o->t.testFraction, "share of the finished cases held out", NumberRange::rightOpen(0, 1))
+    addNumber(cmd, "--test-fraction", o->t.testFraction, "share of the cases (case ids) held out", NumberRange::rightOpen(0, 1))
         ->capture_default_str();
     addNumber(cmd, "--folds", o->folds, "k-fold cross-validation of the whole procedure (0: none)", NumberRange::closed(0, 50))
         ->capture_default_str();

@@ -122,7 +122,7 @@ void appendHeldOutPredictions(const FlowSurrogate& model, const std::vector<cons
     std::map<const ShearCampaignRow*, std::size_t> at;
     const auto entry = [&](const ShearCampaignRow* r) -> FlowHeldOutPrediction& {
         const auto [it, added] = at.emplace(r, out.size());
-        if (added) out.push_back({r, fold});
+        if (added) out.push_back({*r, fold});
         return out[it->second];
     };
     if (!regimeRows.empty()) {
@@ -205,8 +205,8 @@ RowSplit splitRows(const std::vector<const ShearCampaignRow*>& done) {
             throw InputError(fmt::format("flow surrogate: campaigns with cytosol viscosities {} and {} mPa s; train on one", done.front()->point.etaIn,
                                          r->point.etaIn));
         if (!seen.insert({r->meshLevel, r->point.caseId, r->start}).second)
-            throw InputError(fmt::format("flow surrogate: case {} of level {} given twice (the same campaign named twice?)", r->point.caseId,
-                                         r->meshLevel));
+            throw InputError(fmt::format("flow surrogate: case {} of level {}{} given twice (the same campaign named twice?)", r->point.caseId,
+                                         r->meshLevel, r->start.empty() ? "" : fmt::format(" from {} starts", r->start)));
     }
     s.regime.start = both ? "random" : *starts.begin();
     s.tankTreading.start = both ? "in-plane" : s.regime.start;
@@ -299,9 +299,6 @@ std::string flowSurrogateProtocol(const FlowSurrogate& s) {
     return s.start == "random" ? "ensemble" : s.start == "in-plane" ? "in-plane" : "not recorded";
 }
 
-std::string flowSurrogateTankTreadingStart(const FlowSurrogate& s) {
-    return s.tankTreadingStart.empty() ? "not recorded" : s.tankTreadingStart;
-}
 
 FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     FlowSurrogate s;
@@ -343,7 +340,7 @@ void FlowSurrogate::save(const fs::path& dir) const {
                                  {"networks", {{"flow_regime", fmt::format("probability of tank-treading; threshold protocol: {}",
                                                                            flowSurrogateProtocol(*this))},
                                                {"flow_tank_treading", fmt::format("inclination_deg, swing_deg, ttf_4pi_f_over_rate; start: {}",
-                                                                                  flowSurrogateTankTreadingStart(*this))}}},
+                                                                                  tankTreadingStart.empty() ? "not recorded" : tankTreadingStart)}}},
                                  {"trbc_version", kVersion}};
     if (!start.empty()) meta["start"] = start;
     if (!tankTreadingStart.empty()) meta["tank_treading_start"] = tankTreadingStart;
@@ -430,9 +427,9 @@ FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const Sh
     std::vector<const ShearCampaignRow*> regimeRows, ttRows;
     for (const ShearCampaignRow* r : rows) {
         if (!r->finished()) continue;
-        if (model.start.empty() || r->start == model.start) regimeRows.push_back(r);
+        if (r->start.empty() || model.start.empty() || r->start == model.start) regimeRows.push_back(r);
         const std::string& tt = model.tankTreadingStart.empty() ? model.start : model.tankTreadingStart;
-        if (tt.empty() || r->start == tt) ttRows.push_back(r);
+        if (r->start.empty() || tt.empty() || r->start == tt) ttRows.push_back(r);
     }
     return accuracySums(model, regimeRows, ttRows, boundaryFactor).accuracy();
 }

@@ -93,9 +93,6 @@ struct FlowSurrogate {
 /// The threshold protocol whose regime the networks give: "ensemble" (random starts), "in-plane",
 /// or "not recorded".
 std::string flowSurrogateProtocol(const FlowSurrogate& s);
-/// The start the tank-treading network's angle, swing and TTF belong to: "random", "in-plane" or
-/// "not recorded".
-std::string flowSurrogateTankTreadingStart(const FlowSurrogate& s);
 
 /// One column of inputs, in flowSurrogateInputNames order.
 Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutMPaS, double shearRatePerS);
@@ -144,7 +141,9 @@ struct FlowAccuracy {
     long near = 0, nearMisclassified = 0;  ///< within it
 };
 
-/// The accuracy of `model` on `rows` (finished ones only).
+/// The accuracy of `model` on `rows` (finished ones only): the regime on the rows of the model's
+/// start, the observables on those of its tank-treading start; a row or model without a recorded
+/// start counts for both.
 FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor);
 
 struct FlowSurrogateTrainingReport {
@@ -161,15 +160,16 @@ struct FlowSurrogateTrainingReport {
 /// then those of the finest level's cases, and every coarser case trains. Rows of both starts (the
 /// same design run from random and from in-plane starts) train the regime on the random rows and
 /// the tank-treading network on the in-plane ones; the test set is a set of case ids, so a held-out
-/// case is out of both. InputError when too few rows remain (fewer than 20 finished, or no
-/// tank-treading and no other case), or when the two starts' rows span different mesh levels.
+/// case is out of both. InputError when a network has fewer than 20 finished cases at the finest
+/// level, when training holds fewer than 10 tank-treading rows with values or lacks a tank-treading
+/// or an other regime row, or when the two starts' rows span different mesh levels.
 FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt);
 
 /// A held-out row predicted by the fold that held it out: the regime network's rows carry the
 /// probability and the critical stress, the tank-treading network's the observables (NaN where a
 /// network does not take the row). With one start a row is both networks'.
 struct FlowHeldOutPrediction {
-    const ShearCampaignRow* row = nullptr;
+    ShearCampaignRow row;
     int fold = 0;
     double pTankTreading = NAN, criticalStressPa = NAN;
     double inclinationDeg = NAN, swingDeg = NAN, ttf = NAN;
@@ -180,7 +180,7 @@ struct FlowCrossValidation {
     long rows = 0;
     FlowAccuracy pooled;                 ///< every case predicted by the fold that held it out
     std::vector<FlowAccuracy> perFold;
-    std::vector<FlowHeldOutPrediction> predictions;  ///< every held-out row, in fold order (rows point into the input)
+    std::vector<FlowHeldOutPrediction> predictions;  ///< every held-out row, in fold order
 };
 FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRow>& rows, FlowSurrogateTrainingOptions opt, int folds);
 
@@ -195,8 +195,8 @@ std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows);
 void checkShearCampaignsMatch(const std::vector<std::filesystem::path>& campaigns);
 
 /// The rows of a learning-curve point: the first n cases (by case id) of mesh level `level`, followed
-/// by every row of the other levels, which all stay in training. InputError when `level` has fewer
-/// than n rows.
+/// by every row of the other levels, which all stay in training; with two starts, both rows of each
+/// of the first n case ids. InputError when `level` has fewer than n distinct cases.
 std::vector<ShearCampaignRow> flowLearningCurveRows(const std::vector<ShearCampaignRow>& rows, int level, long n);
 
 /// The accuracy as training.json records it; a statistic without cases is null.

@@ -194,7 +194,7 @@ std::string flowCrossValidationCsv(const FlowCrossValidation& cv) {
                       "p_tank_treading,critical_stress_Pa,inclination_deg,inclination_pred_deg,swing_deg,swing_pred_deg,"
                       "ttf_4pi_f_over_rate,ttf_pred\n";
     for (const FlowHeldOutPrediction& e : cv.predictions) {
-        const ShearCampaignRow& r = *e.row;
+        const ShearCampaignRow& r = e.row;
         const ShearCampaignPoint& q = r.point;
         csv += fmt::format("{},{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{},{:.17g},{:.17g},{:.17g},{:.17g},"
                            "{:.17g},{:.17g},{:.17g},{:.17g}\n",

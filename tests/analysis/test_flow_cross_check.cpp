@@ -125,6 +125,10 @@ TEST(ValidateCli, SurrogateAgainstADirectRunOfTheSameDraws) {
                       dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("# The flow networks against direct runs"), std::string::npos) << r.out;
+    // The synthetic networks' angles are of random starts, the direct run's of the in-plane one.
+    EXPECT_NE(r.out.find("The direct angles and TTF start in-plane, the networks' from random starts."), std::string::npos) << r.out;
+    EXPECT_NE(test::slurp(out / "surrogate_bands.md").find("The angles and TTF are the tank-treading state's from random starts."),
+              std::string::npos);
     const nlohmann::json run = nlohmann::json::parse(test::slurp(direct / "validation.json"));
     const nlohmann::json bands = nlohmann::json::parse(test::slurp(out / "surrogate_bands.json"));
     EXPECT_EQ(bands["cross_check"]["compared"].get<int>(), 2);  // the angle case and the threshold viscosity

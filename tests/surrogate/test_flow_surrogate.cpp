@@ -190,9 +190,9 @@ TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
     std::map<long, int> seen;
     double sq = 0.0;
     for (const FlowHeldOutPrediction& e : cv.predictions) {
-        ++seen[e.row->point.caseId];
+        ++seen[e.row.point.caseId];
         EXPECT_TRUE(std::isfinite(e.pTankTreading));
-        if (e.row->tankTreading()) sq += std::pow(e.inclinationDeg - e.row->inclinationDeg, 2);
+        if (e.row.tankTreading()) sq += std::pow(e.inclinationDeg - e.row.inclinationDeg, 2);
         else EXPECT_TRUE(std::isfinite(e.inclinationDeg)) << "the regressors extrapolate";
     }
     EXPECT_EQ(seen.size(), 200u);
@@ -269,7 +269,7 @@ TEST(FlowSurrogate, RandomStartsTrainTheRegimeAndInPlaneStartsTheAngle) {
     EXPECT_EQ(cv.pooled.tankTreading, inPlaneTt);
     ASSERT_EQ(cv.predictions.size(), 2048u);  // each start's row of every case
     for (const FlowHeldOutPrediction& e : cv.predictions)
-        EXPECT_EQ(std::isfinite(e.pTankTreading), e.row->start == "random") << e.row->point.caseId;
+        EXPECT_EQ(std::isfinite(e.pTankTreading), e.row.start == "random") << e.row.point.caseId;
     // A learning-curve point holds both starts of its first cases.
     EXPECT_EQ(flowLearningCurveRows(rows, 0, 10).size(), 20u);
 
@@ -278,7 +278,6 @@ TEST(FlowSurrogate, RandomStartsTrainTheRegimeAndInPlaneStartsTheAngle) {
     const FlowSurrogate back = FlowSurrogate::load(tmp.path() / "m");
     EXPECT_EQ(back.start, "random");
     EXPECT_EQ(back.tankTreadingStart, "in-plane");
-    EXPECT_EQ(flowSurrogateTankTreadingStart(back), "in-plane");
 
     // Each network needs every level of the model.
     std::vector<ShearCampaignRow> levels = rows;
@@ -472,8 +471,14 @@ TEST(FlowTrainingReport, TrainingJsonAndAccuracyMarkdown) {
     s.crossValidation->pooled = handMadeAccuracy();
     s.learningCurveFolds = 5;
     s.learningCurve = std::vector<FlowLearningCurvePoint>{{20, handMadeAccuracy()}};
+    s.options.network.hiddenLayers = {16};
+    s.training.model.start = "random";
+    s.training.model.tankTreadingStart = "in-plane";
 
     const nlohmann::json j = flowTrainingJson(s);
+    EXPECT_EQ(j.at("hidden_layers"), nlohmann::json({16}));
+    EXPECT_EQ(j.at("start"), "random");
+    EXPECT_EQ(j.at("tank_treading_start"), "in-plane");
     EXPECT_EQ(j.at("command"), "trbc flow train");
     EXPECT_EQ(j.at("campaigns").size(), 2u);
     EXPECT_EQ(j.at("campaigns")[1], nlohmann::json({{"campaign", "L2"}, {"cases", 500}, {"level", 2}, {"complete", false}}));
@@ -492,6 +497,8 @@ TEST(FlowTrainingReport, TrainingJsonAndAccuracyMarkdown) {
     EXPECT_EQ(md.rfind("Multi-level networks (the mesh level an input); every accuracy below is on held-out level-3 cases", 0), 0u) << md;
     EXPECT_NE(md.find("Flow networks from L3 (64 cases, level 3) and L2 (500 cases, level 2, not complete); command: `trbc flow train`"),
               std::string::npos) << md;
+    EXPECT_NE(md.find("The regime network learns from the random starts, the tank-treading network from the in-plane starts of the same "
+                      "design; a held-out case is out of both."), std::string::npos) << md;
     EXPECT_NE(md.find("Goals: angle RMSE ≤ 0.3°, TTF RMSE ≤ 2 %, misclassified far from the boundary ≤ 3 %."), std::string::npos) << md;
     EXPECT_NE(md.find("| held out (20 %)" + row + "\n| 4-fold CV" + row + "\n"), std::string::npos) << md;
     EXPECT_NE(md.find("\nLearning curve (5-fold CV on the first N cases of the design)\n\n| set | cases |"), std::string::npos) << md;
@@ -500,11 +507,13 @@ TEST(FlowTrainingReport, TrainingJsonAndAccuracyMarkdown) {
     s.crossValidation.reset();
     s.learningCurve.reset();
     s.training.model.levels.clear();
+    s.training.model.tankTreadingStart = "random";
     const nlohmann::json plain = flowTrainingJson(s);
     EXPECT_FALSE(plain.contains("cross_validation") || plain.contains("learning_curve"));
     const std::string plainMd = flowAccuracyMarkdown(s);
     EXPECT_EQ(plainMd.rfind("Flow networks from", 0), 0u) << plainMd;
     EXPECT_EQ(plainMd.find("CV"), std::string::npos) << plainMd;
+    EXPECT_EQ(plainMd.find("The regime network learns"), std::string::npos) << "one start";
 
     test::TempDir tmp;
     EXPECT_EQ(writeFlowTrainingReport(tmp.path(), s), plainMd);
