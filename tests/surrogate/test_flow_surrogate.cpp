@@ -42,6 +42,16 @@ FlowSurrogateTrainingReport syntheticNetworks(const std::vector<ShearCampaignRow
     return trainFlowSurrogate(rows, opt);
 }
 
+/// One small network, one restart: for tests of the bookkeeping, not of the fit.
+FlowSurrogateTrainingOptions quickOptions(int epochs) {
+    FlowSurrogateTrainingOptions opt;
+    opt.restarts = 1;
+    opt.ensemble = false;
+    opt.network.hiddenLayers = {8};
+    opt.network.maxEpochs = epochs;
+    return opt;
+}
+
 TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
     const auto rows = syntheticCampaign(2048);
     const FlowSurrogateTrainingReport rep = syntheticNetworks(rows);
@@ -172,11 +182,7 @@ TEST(FlowSurrogate, MultiLevelNetworksAnswerAtTheFinestLevel) {
 
 TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
     const auto rows = syntheticCampaign(200);
-    FlowSurrogateTrainingOptions opt;
-    opt.restarts = 1;
-    opt.ensemble = false;
-    opt.network.hiddenLayers = {8};
-    opt.network.maxEpochs = 30;
+    FlowSurrogateTrainingOptions opt = quickOptions(30);
     const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, opt, 4);
     ASSERT_EQ(cv.perFold.size(), 4u);
     EXPECT_EQ(cv.pooled.cases, 200);
@@ -259,11 +265,7 @@ TEST(FlowSurrogate, RandomStartsTrainTheRegimeAndInPlaneStartsTheAngle) {
     EXPECT_NEAR(sumLog / found, 0.0, std::log(1.3)) << "a factor 2 would be the in-plane boundary";
 
     // Cross-validation scores the regime on the random rows and the angle on the in-plane rows.
-    FlowSurrogateTrainingOptions quick;
-    quick.restarts = 1;
-    quick.ensemble = false;
-    quick.network.hiddenLayers = {8};
-    quick.network.maxEpochs = 20;
+    FlowSurrogateTrainingOptions quick = quickOptions(20);
     const FlowCrossValidation cv = crossValidateFlowSurrogate(rows, quick, 4);
     EXPECT_EQ(cv.pooled.cases, 1024);
     EXPECT_EQ(cv.pooled.tankTreading, inPlaneTt);
@@ -395,11 +397,7 @@ TEST(FlowTrainingReport, LearningCurveRowsArePrefixesOfTheFinestLevel) {
 
     std::vector<ShearCampaignRow> campaign = syntheticCampaign(60);
     std::reverse(campaign.begin(), campaign.end());
-    FlowSurrogateTrainingOptions opt;
-    opt.restarts = 1;
-    opt.ensemble = false;
-    opt.network.hiddenLayers = {8};
-    opt.network.maxEpochs = 20;
+    FlowSurrogateTrainingOptions opt = quickOptions(20);
     const FlowLearningCurve curve = flowLearningCurve(campaign, 0, {48, 100, 60, 61}, opt, 2);
     EXPECT_EQ(curve.available, 60);
     EXPECT_EQ(curve.skipped, (std::vector<long>{100, 61}));
