@@ -70,55 +70,11 @@ bool hasTankTreadingValues(const ShearCampaignRow& r) {
     return r.tankTreading() && std::isfinite(r.inclinationDeg) && std::isfinite(r.swingDeg) && std::isfinite(r.ttf) && r.ttf > 0.0;
 }
 
-/// Regime statistics over `regimeRows`, the angle, swing and TTF over `ttRows` (their tank-treading ones).
-AccuracySums accuracySums(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& regimeRows,
-                          const std::vector<const ShearCampaignRow*>& ttRows, double boundaryFactor) {
-    AccuracySums s;
-    if (!regimeRows.empty()) {
-        const Eigen::MatrixXd x = flowInputs(regimeRows);
-        const Eigen::VectorXd p = model.predict(x).pTankTreading;
-        const Eigen::VectorXd tc = model.criticalStressPa(x);
-        for (std::size_t k = 0; k < regimeRows.size(); ++k) {
-            const ShearCampaignRow& r = *regimeRows[k];
-            const Eigen::Index j = Eigen::Index(k);
-            ++s.cases;
-            s.sqBrier += std::pow(p(j) - (r.tankTreading() ? 1.0 : 0.0), 2);
-            const bool wrong = (p(j) > 0.5) != r.tankTreading();
-            const double stress = shearStressPa(r.point.etaOut, r.point.shearRate);
-            const bool near = std::isfinite(tc(j)) && std::abs(std::log(stress / tc(j))) <= std::log(boundaryFactor);
-            (near ? s.near : s.far)++;
-            if (wrong) (near ? s.nearWrong : s.farWrong)++;
-        }
-    }
-    std::vector<const ShearCampaignRow*> tt;
-    for (const ShearCampaignRow* r : ttRows)
-        if (hasTankTreadingValues(*r)) tt.push_back(r);
-    if (tt.empty()) return s;
-    const FlowPrediction p = model.predict(flowInputs(tt));
-    for (std::size_t k = 0; k < tt.size(); ++k) {
-        const ShearCampaignRow& r = *tt[k];
-        const Eigen::Index j = Eigen::Index(k);
-        ++s.tt;
-        s.sqAngle += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
-        s.sqSwing += std::pow(p.swingDeg(j) - r.swingDeg, 2);
-        s.sqTtf += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
-        if (r.steady) {
-            ++s.steady;
-            s.sqAngleSteady += std::pow(p.inclinationDeg(j) - r.inclinationDeg, 2);
-            s.sqTtfSteady += std::pow(p.ttf(j) / r.ttf - 1.0, 2);
-        }
-        if (std::isfinite(r.inclinationSeDeg) && std::isfinite(r.ttfSe)) {
-            ++s.withSe;
-            s.sqAngleSe += r.inclinationSeDeg * r.inclinationSeDeg;
-            s.sqTtfSe += std::pow(r.ttfSe / r.ttf, 2);
-        }
-    }
-    return s;
-}
-
-/// The fold's predictions of its held-out rows (FlowHeldOutPrediction).
-void appendHeldOutPredictions(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& regimeRows,
-                              const std::vector<const ShearCampaignRow*>& ttRows, int fold, std::vector<FlowHeldOutPrediction>& out) {
+/// The predictions of the held-out rows of each network (FlowHeldOutPrediction), in the order of
+/// `regimeRows`, then of the `ttRows` not among them.
+std::vector<FlowHeldOutPrediction> heldOutPredictions(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& regimeRows,
+                                                      const std::vector<const ShearCampaignRow*>& ttRows, int fold) {
+    std::vector<FlowHeldOutPrediction> out;
     std::map<const ShearCampaignRow*, std::size_t> at;
     const auto entry = [&](const ShearCampaignRow* r) -> FlowHeldOutPrediction& {
         const auto [it, added] = at.emplace(r, out.size());
@@ -130,16 +86,55 @@ void appendHeldOutPredictions(const FlowSurrogate& model, const std::vector<cons
         const Eigen::VectorXd p = model.predict(x).pTankTreading, tc = model.criticalStressPa(x);
         for (std::size_t k = 0; k < regimeRows.size(); ++k) {
             FlowHeldOutPrediction& e = entry(regimeRows[k]);
+            e.regime = true;
             e.pTankTreading = p(Eigen::Index(k)), e.criticalStressPa = tc(Eigen::Index(k));
         }
     }
-    if (ttRows.empty()) return;
+    if (ttRows.empty()) return out;
     const FlowPrediction p = model.predict(flowInputs(ttRows));
     for (std::size_t k = 0; k < ttRows.size(); ++k) {
         FlowHeldOutPrediction& e = entry(ttRows[k]);
         const Eigen::Index j = Eigen::Index(k);
+        e.tankTreading = true;
         e.inclinationDeg = p.inclinationDeg(j), e.swingDeg = p.swingDeg(j), e.ttf = p.ttf(j);
     }
+    return out;
+}
+
+/// The regime statistics over the regime network's rows, the angle, swing and TTF over the
+/// tank-treading network's rows that tank-tread with values.
+AccuracySums accuracySums(const std::vector<FlowHeldOutPrediction>& predictions, double boundaryFactor) {
+    AccuracySums s;
+    for (const FlowHeldOutPrediction& e : predictions) {
+        if (!e.regime) continue;
+        const ShearCampaignRow& r = e.row;
+        ++s.cases;
+        s.sqBrier += std::pow(e.pTankTreading - (r.tankTreading() ? 1.0 : 0.0), 2);
+        const bool wrong = (e.pTankTreading > 0.5) != r.tankTreading();
+        const double stress = shearStressPa(r.point.etaOut, r.point.shearRate), tc = e.criticalStressPa;
+        const bool near = std::isfinite(tc) && std::abs(std::log(stress / tc)) <= std::log(boundaryFactor);
+        (near ? s.near : s.far)++;
+        if (wrong) (near ? s.nearWrong : s.farWrong)++;
+    }
+    for (const FlowHeldOutPrediction& e : predictions) {
+        const ShearCampaignRow& r = e.row;
+        if (!e.tankTreading || !hasTankTreadingValues(r)) continue;
+        ++s.tt;
+        s.sqAngle += std::pow(e.inclinationDeg - r.inclinationDeg, 2);
+        s.sqSwing += std::pow(e.swingDeg - r.swingDeg, 2);
+        s.sqTtf += std::pow(e.ttf / r.ttf - 1.0, 2);
+        if (r.steady) {
+            ++s.steady;
+            s.sqAngleSteady += std::pow(e.inclinationDeg - r.inclinationDeg, 2);
+            s.sqTtfSteady += std::pow(e.ttf / r.ttf - 1.0, 2);
+        }
+        if (std::isfinite(r.inclinationSeDeg) && std::isfinite(r.ttfSe)) {
+            ++s.withSe;
+            s.sqAngleSe += r.inclinationSeDeg * r.inclinationSeDeg;
+            s.sqTtfSe += std::pow(r.ttfSe / r.ttf, 2);
+        }
+    }
+    return s;
 }
 
 /// Restarts from seeds seed, seed + 1, ...; the lowest validation loss is the network, the others
@@ -299,7 +294,6 @@ std::string flowSurrogateProtocol(const FlowSurrogate& s) {
     return s.start == "random" ? "ensemble" : s.start == "in-plane" ? "in-plane" : "not recorded";
 }
 
-
 FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     FlowSurrogate s;
     s.regime = loadNetwork((dir / "flow_regime.json").string());
@@ -431,7 +425,7 @@ FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const Sh
         const std::string& tt = model.tankTreadingStart.empty() ? model.start : model.tankTreadingStart;
         if (r->start.empty() || tt.empty() || r->start == tt) ttRows.push_back(r);
     }
-    return accuracySums(model, regimeRows, ttRows, boundaryFactor).accuracy();
+    return accuracySums(heldOutPredictions(model, regimeRows, ttRows, 0), boundaryFactor).accuracy();
 }
 
 std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows) {
@@ -520,7 +514,8 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
     model.etaIn = done.front()->point.etaIn;
     model.start = split.regime.start;
     model.tankTreadingStart = split.tankTreading.start;
-    rep.test = accuracySums(rep.model, regimeRows.held, ttRows.held, opt.boundaryFactor).accuracy();
+    rep.heldOut = heldOutPredictions(rep.model, regimeRows.held, ttRows.held, opt.fold);
+    rep.test = accuracySums(rep.heldOut, opt.boundaryFactor).accuracy();
     rep.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
 }
@@ -532,14 +527,11 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
     cv.rows = long(rows.size());
     opt.folds = folds;
     AccuracySums pooled;
-    const RowSplit split = splitRows(finishedRows(rows));
     for (int f = 0; f < folds; ++f) {
         opt.fold = f;
         const FlowSurrogateTrainingReport rep = trainFlowSurrogate(rows, opt);
-        const std::set<long> test = testIds(split.ids, opt);
-        const auto regimeHeld = holdOut(split.regime, test).held, ttHeld = holdOut(split.tankTreading, test).held;
-        const AccuracySums s = accuracySums(rep.model, regimeHeld, ttHeld, opt.boundaryFactor);
-        appendHeldOutPredictions(rep.model, regimeHeld, ttHeld, f, cv.predictions);
+        const AccuracySums s = accuracySums(rep.heldOut, opt.boundaryFactor);
+        cv.predictions.insert(cv.predictions.end(), rep.heldOut.begin(), rep.heldOut.end());
         pooled.add(s);
         cv.perFold.push_back(s.accuracy());
     }

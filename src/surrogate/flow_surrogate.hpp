@@ -146,12 +146,24 @@ struct FlowAccuracy {
 /// start counts for both.
 FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const ShearCampaignRow*>& rows, double boundaryFactor);
 
+/// A held-out row predicted by the fold that held it out: the regime network's rows carry the
+/// probability and the critical stress, the tank-treading network's the observables (NaN where a
+/// network does not take the row). With one start a row is both networks'.
+struct FlowHeldOutPrediction {
+    ShearCampaignRow row;
+    int fold = 0;
+    bool regime = false, tankTreading = false;  ///< the row is held out of that network
+    double pTankTreading = NAN, criticalStressPa = NAN;
+    double inclinationDeg = NAN, swingDeg = NAN, ttf = NAN;
+};
+
 struct FlowSurrogateTrainingReport {
     FlowSurrogate model;
     std::string dataHash;
     long rows = 0, used = 0, testCases = 0;
     long regimeRows = 0, tankTreadingRows = 0;  ///< training rows of each network
     FlowAccuracy test;
+    std::vector<FlowHeldOutPrediction> heldOut;  ///< the test rows' predictions (fold = opt.fold), from which `test` follows
     double wallSeconds = 0.0;
 };
 
@@ -164,16 +176,6 @@ struct FlowSurrogateTrainingReport {
 /// level, when training holds fewer than 10 tank-treading rows with values or lacks a tank-treading
 /// or an other regime row, or when the two starts' rows span different mesh levels.
 FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRow>& rows, const FlowSurrogateTrainingOptions& opt);
-
-/// A held-out row predicted by the fold that held it out: the regime network's rows carry the
-/// probability and the critical stress, the tank-treading network's the observables (NaN where a
-/// network does not take the row). With one start a row is both networks'.
-struct FlowHeldOutPrediction {
-    ShearCampaignRow row;
-    int fold = 0;
-    double pTankTreading = NAN, criticalStressPa = NAN;
-    double inclinationDeg = NAN, swingDeg = NAN, ttf = NAN;
-};
 
 struct FlowCrossValidation {
     int folds = 0;
