@@ -20,7 +20,7 @@ BUILD.mkdir(parents=True, exist_ok=True)
 DATA = [
     # branch.json: the branch classifier of a branched model (copied when present)
     ("surrogates", ["equilibrium.json", "stretching.json", "relaxation.json", "branch.json", "accuracy.json", "cv.json"]),
-    # the flow networks (`trbc flow train`), when shipped
+    # the flow networks (`trbc flow train`, data/README.md)
     ("surrogates/flow", ["flow_regime.json", "flow_tank_treading.json", "flow_surrogate.json", "training.json", "accuracy.md"]),
     ("experiments", None),  # the whole tree
     ("examples", None),
@@ -66,7 +66,7 @@ class BuildWithData(build_py):
             else:
                 (dest / sub).mkdir(parents=True, exist_ok=True)
                 for f in files:
-                    if not (src / f).exists() and (f == "branch.json" or sub == "surrogates/flow"):
+                    if not (src / f).exists() and f == "branch.json":
                         continue
                     shutil.copy2(src / f, dest / sub / f)
 

@@ -140,6 +140,13 @@ SETS = {
     "validation/theta_new_level3_cross_check": ("direct level-3 runs of 16 theta_new draws at the cross-check cases of the flow networks",
                                                 ["{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
                                                  " --draws 16 --seed 1 --out {out} --jobs 2 --threads 1 --quiet"], 8.0, None),
+    # The shipped flow networks (data/surrogates/flow, data/README.md) through the posterior: seconds.
+    "validation/theta_new_level3_surrogate_bands": ("the theta_new bands of every shear set through the shipped flow networks, 1000 draws",
+                                                    ["{trbc} validate --config configs/validation.toml --posterior " + POSTERIOR +
+                                                     " --draws 1000 --seed 1 --surrogate data/surrogates/flow --out {out}"], 0.01, None),
+    "flow_sobol": ("Sobol' indices of the angle, the TTF and the critical stress through the shipped flow networks",
+                   ["{trbc} flow sobol --surrogate data/surrogates/flow --config configs/validation.toml --samples 4096 --seed 1 "
+                    "--out {out}"], 0.01, None),
     "validation/theta_new_level3_tube_bands": ("the theta_new bands of the microtube, 32 draws, level 3",
                                                ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
                                                 " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),

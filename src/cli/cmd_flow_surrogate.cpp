@@ -152,7 +152,7 @@ void registerFlowTrain(CLI::App* flow) {
         ->check(CLI::ExistingPath);
     addOutOption(cmd, o->out, "model directory");
     cmd->add_option("--hidden", o->hidden, "comma-separated widths of the hidden layers of both networks (tanh)")
-        ->default_str("32,32,32");
+        ->default_str("16");
     addNumber(cmd, "--restarts", o->t.restarts, "trainings per network from consecutive seeds", NumberRange::closed(1, 64))
         ->capture_default_str();
     cmd->add_flag("!--no-ensemble", o->t.ensemble, "keep only the best restart (default: the restarts' mean)");

@@ -1,7 +1,10 @@
 """trbc.FlowSurrogate on networks that `trbc flow train` makes from a synthetic shear campaign with a
 known regime boundary: broadcasting, the two ways to give the bending modulus, the exact
-cytosol-viscosity rescaling, probabilities in [0, 1], the box flag and the critical stress."""
+cytosol-viscosity rescaling, probabilities in [0, 1], the box flag and the critical stress; and the
+shipped networks against shipped direct runs."""
 import csv
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -85,3 +88,30 @@ def test_critical_stress_lies_near_the_synthetic_boundary(model):
     tc3 = model.critical_stress_Pa(eta_out_mPa_s=30.0, v=0.9, mu_uN_per_m=mu, FvK=200.0, b2=1.0, etam_Pa_s_um=0.6,
                                    eta_in_mPa_s=20.0)
     assert np.all(np.isfinite(tc3)) and not np.allclose(tc3, tc, rtol=1e-6), (tc3, tc)
+
+
+def test_shipped_networks_follow_the_direct_level3_runs_of_the_calibrated_cell():
+    """The default networks (data/surrogates/flow) against the shipped direct level-3 runs of the
+    θ_new cell, which are not in their campaign: the regime of every case that is not intermittent,
+    and the angle and TTF of the tank-treading ones within twice the networks' cross-validated RMSE.
+    A wrong output order, unit or start in the shipped files moves them by far more."""
+    root = Path(__file__).resolve().parents[2]
+    direct = root / "results" / "validation" / "theta_new_level3"
+    cell = json.loads((direct / "validation.json").read_text())["cell"]["parameters"]
+    cv = json.loads((root / "data" / "surrogates" / "flow" / "training.json").read_text())["cross_validation"]["pooled"]
+    rows = [r for r in csv.DictReader(open(direct / "shear.csv")) if r["sweep"] in ("angle", "ttf") and r["status"] == "ok"]
+    f = trbc.FlowSurrogate()
+    assert (f.start, f.tank_treading_start) == ("random", "in-plane")
+    p = f.predict(eta_out_mPa_s=np.array([float(r["eta_out_mPa_s"]) for r in rows]),
+                  shear_rate_per_s=np.array([float(r["shear_rate_per_s"]) for r in rows]), eta_in_mPa_s=10.0,
+                  **{k: cell[k] for k in ("v", "mu_uN_per_m", "kb_J", "b2", "etam_Pa_s_um")})
+    assert not p["outside_box"].any()
+    settled = [k for k, r in enumerate(rows) if r["regime"] in ("tank-treading", "tumbling")]
+    assert len(settled) >= 20
+    for k in settled:
+        assert (p["p_tank_treading"][k] > 0.5) == (rows[k]["regime"] == "tank-treading"), (rows[k]["case_id"], p["p_tank_treading"][k])
+    tt = [k for k in settled if rows[k]["regime"] == "tank-treading"]
+    angle = np.array([p["inclination_deg"][k] - float(rows[k]["inclination_deg"]) for k in tt])
+    ttf = np.array([p["ttf_4pi_f_over_rate"][k] / float(rows[k]["ttf_4pi_f_over_shear_rate"]) - 1 for k in tt])
+    assert np.sqrt(np.mean(angle ** 2)) < 2 * cv["inclination_rmse_deg"], angle
+    assert np.sqrt(np.mean(ttf ** 2)) < 2 * cv["ttf_relative_rmse"], ttf
