@@ -47,4 +47,5 @@ clean:
 # the sets, their commands and costs and runs nothing. RESULTS=name,name selects sets.
 results: bootstrap
 	$(MAKE) build
-	+/usr/bin/python3 scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)
+	$(MAKE) python
+	+$(VENV)/bin/python scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)

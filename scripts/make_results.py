@@ -135,7 +135,7 @@ SETS = {
                                   [f"tube_pg40_tol_{t}/{f}" for t in ("1e-3", "2.5e-4", "6.25e-5")
                                    for f in ("flow.json", "frames.csv", "settling/frames.csv")] +
                                   ["shear_ttf32_tol_2.5e-4/flow.json", "shear_ttf32_tol_2.5e-4/frames.csv"]),
-    # The direct runs the flow networks' bands are checked against (docs/FLOW_CAMPAIGN.md); an estimate
+    # The direct runs the flow networks' bands are checked against (docs/FLOW_NETWORKS.md); an estimate
     # until the set is first made: 16 draws of 4 angle cases, a TTF case and an ensemble threshold.
     "validation/theta_new_level3_cross_check": ("direct level-3 runs of 16 theta_new draws at the cross-check cases of the flow networks",
                                                 ["{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
@@ -147,6 +147,9 @@ SETS = {
     "flow_sobol": ("Sobol' indices of the angle, the TTF and the critical stress through the shipped flow networks",
                    ["{trbc} flow sobol --surrogate data/surrogates/flow --config configs/validation.toml --samples 4096 --seed 1 "
                     "--out {out}"], 0.01, None),
+    "flow_etam_profile": ("the membrane viscosity each shear set asks for through the shipped flow networks, the rest of theta_new held",
+                          ["python3 scripts/flow_etam_profile.py --posterior " + POSTERIOR + " --surrogate data/surrogates/flow "
+                           "--out {out}"], 0.01, None),
     "validation/theta_new_level3_tube_bands": ("the theta_new bands of the microtube, 32 draws, level 3",
                                                ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
                                                 " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),
@@ -154,7 +157,8 @@ SETS = {
 
 
 def command_line(c, trbc, out, work):
-    """The command with its placeholders filled; the scripts run under this interpreter, which has numpy."""
+    """The command with its placeholders filled; the scripts run under this interpreter, which has numpy and, under
+    `make results` (the venv), the trbc package."""
     line = c.format(trbc=trbc, out=out, work=work)
     return shlex.quote(sys.executable) + line[len("python3"):] if line.startswith("python3 ") else line
 

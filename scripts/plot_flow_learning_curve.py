@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Plot the learning curve of the flow networks (docs/FLOW_CAMPAIGN.md) from the training.json of
+"""Plot the learning curve of the flow networks (docs/FLOW_NETWORKS.md) from the training.json of
 `trbc flow train --learning-curve N1,N2,... --folds K`.
 
 Three panels against the number of finest-level cases: the cross-validated angle RMSE (deg), the

@@ -937,6 +937,7 @@ PYBIND11_MODULE(_core, m) {
     m.doc() = "trbc C++ core (pybind11); use the trbc package, which wraps it";
     (void)simd::active();  // a bad TRBC_SIMD fails the import, not a call inside a parallel region
     m.attr("__version__") = kVersion;
+    m.attr("__revision__") = gitDescribe();  // git describe of the build, "-dirty" for uncommitted changes
     registerExceptions(m);
     registerMesh(m);
     registerForwardModel(m);

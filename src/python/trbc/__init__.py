@@ -33,6 +33,7 @@ from ._core import Mesh, NumericalError, DataSet  # noqa: E402
 from ._core import evans_fung_thickness, evans_fung_radius_um, fit_hochmuth  # noqa: E402
 
 __version__ = _core.__version__
+__revision__ = _core.__revision__
 
 __all__ = [
     "Mesh", "NumericalError", "DataSet", "Surrogate", "FlowSurrogate", "Posterior", "membrane_energy", "simulate", "sfs",
@@ -197,7 +198,7 @@ class Surrogate(_core.Surrogate):
 
 
 class FlowSurrogate(_core.FlowSurrogate):
-    """The flow networks (docs/FLOW_CAMPAIGN.md): the probability that a cell in simple shear
+    """The flow networks (docs/FLOW_NETWORKS.md): the probability that a cell in simple shear
     tank-treads (over random starts) and its inclination angle, swing amplitude and tank-treading
     frequency. FlowSurrogate(model_dir=None): a `trbc flow train` directory (default: the shipped
     networks, data/surrogates/flow)."""

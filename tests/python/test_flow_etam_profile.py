@@ -1,0 +1,68 @@
+"""scripts/flow_etam_profile.py on the shipped flow networks: the η_m at which each shear set fits,
+with the rest of a posterior's mean cell held. Its rows follow the networks: at the η_m it calls
+best for an angle set, the networks' mean bias over that set lies within their CV error, and at
+the posterior's own η_m (here far from it) the angle sets do not fit."""
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import trbc
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPT = ROOT / "scripts" / "flow_etam_profile.py"
+
+
+def posterior(tmp_path, etam):
+    rng = np.random.default_rng(3)
+    d = tmp_path / "theta_new"
+    d.mkdir()
+    with open(d / "samples.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["v", "mu_uN_per_m", "kb_J", "b2", "etam_over_mu_s", "etam_Pa_s_um", "log_likelihood", "log_prior"])
+        for _ in range(50):
+            mu = 4.65 + 0.01 * rng.standard_normal()
+            w.writerow([0.93, mu, 2.26e-19, 2.0, etam / mu, etam, 0.0, 0.0])
+    return d
+
+
+def run(*args):
+    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], capture_output=True, text=True)
+
+
+def test_each_angle_set_fits_where_the_networks_bias_vanishes(tmp_path):
+    post = posterior(tmp_path, etam=1.5)
+    r = run("--posterior", post, "--surrogate", ROOT / "data" / "surrogates" / "flow", "--out", tmp_path / "out")
+    assert r.returncode == 0, r.stderr
+    header = open(tmp_path / "out" / "etam_profile.csv").readline()
+    assert trbc.__revision__ and f"trbc {trbc.__version__} ({trbc.__revision__}) | command: " in header, header
+    rows = list(csv.DictReader(l for l in open(tmp_path / "out" / "etam_profile.csv") if not l.startswith("#")))
+    assert "etam_profile.md" in {p.name for p in (tmp_path / "out").iterdir()}
+    angles = [x for x in rows if x["set"].startswith("inclination_deg")]
+    assert len(angles) == 4 and any(x["set"].startswith("critical stress") for x in rows)
+    cv = json.loads((ROOT / "data" / "surrogates" / "flow" / "training.json").read_text())["cross_validation"]["pooled"]
+    f = trbc.FlowSurrogate(ROOT / "data" / "surrogates" / "flow")
+    data = {s["eta_out_mPa_s"]: s for s in trbc.validation_data() if s["observable"] == "inclination_deg"}
+    for x in angles:
+        eta = float(x["set"].split(" at ")[1].split(" mPa s")[0])
+        best = float(x["etam_best_Pa_s_um"])
+        assert float(x["etam_lo_Pa_s_um"]) <= best <= float(x["etam_hi_Pa_s_um"])
+        s = data[eta]
+        keep = np.isfinite(s["y"]).any(axis=1)
+        p = f.predict(eta_out_mPa_s=eta, shear_rate_per_s=s["x"][keep], v=0.93, mu_uN_per_m=4.65, kb_J=2.26e-19, b2=2.0,
+                      etam_Pa_s_um=best)
+        tt = p["p_tank_treading"] > 0.5
+        bias = np.mean(p["inclination_deg"][tt] - np.nanmean(s["y"][keep], axis=1)[tt])
+        assert abs(bias) <= cv["inclination_rmse_deg"] * 1.05, (eta, best, bias)  # the grid's step
+        # This posterior's η_m, 1.5 Pa s µm, lies outside every angle set's interval.
+        assert float(x["etam_hi_Pa_s_um"]) < 1.5, x
+
+
+def test_bad_arguments_are_named(tmp_path):
+    r = run("--posterior", tmp_path, "--out", tmp_path / "out")
+    assert r.returncode != 0 and "no samples.csv" in r.stderr
+    r = run("--posterior", posterior(tmp_path, 0.7), "--grid", "5", "--out", tmp_path / "out")
+    assert r.returncode != 0 and "--grid 5 is outside [20, 100000]" in r.stderr
