@@ -33,7 +33,8 @@ def grid_in_box(f, cell, n):
 
 
 def bias_profile(f, cell, etam, s, relative, tolerance):
-    """(best, lo, hi, rms at best, bias and TT share per eta_m) of one angle or TTF set."""
+    """Per eta_m of one angle or TTF set: whether it fits, the RMS misfit and the mean bias over the
+    tank-treading rates, the share of the rates that tank-tread; and the number of rates."""
     x, y = s["x"], s["y"]
     keep = np.isfinite(y).any(axis=1)
     rates, data = x[keep], np.nanmean(y[keep], axis=1)

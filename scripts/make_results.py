@@ -135,11 +135,14 @@ SETS = {
                                   [f"tube_pg40_tol_{t}/{f}" for t in ("1e-3", "2.5e-4", "6.25e-5")
                                    for f in ("flow.json", "frames.csv", "settling/frames.csv")] +
                                   ["shear_ttf32_tol_2.5e-4/flow.json", "shear_ttf32_tol_2.5e-4/frames.csv"]),
-    # The direct runs the flow networks' bands are checked against (docs/FLOW_NETWORKS.md); an estimate
-    # until the set is first made: 16 draws of 4 angle cases, a TTF case and an ensemble threshold.
+    # The direct runs the flow networks' bands are checked against (docs/FLOW_NETWORKS.md), and the
+    # shipped networks against them (networks/): 16 draws of 4 angle cases, a TTF case and an ensemble threshold.
     "validation/theta_new_level3_cross_check": ("direct level-3 runs of 16 theta_new draws at the cross-check cases of the flow networks",
                                                 ["{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
-                                                 " --draws 16 --seed 1 --out {out} --jobs 2 --threads 1 --quiet"], 8.0, None),
+                                                 " --draws 16 --seed 1 --out {out} --jobs 2 --threads 1 --quiet",
+                                                 "{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
+                                                 " --draws 1000 --seed 1 --surrogate data/surrogates/flow --direct {out} --out {out}/networks"],
+                                                8.0, None),
     # The shipped flow networks (data/surrogates/flow, data/README.md) through the posterior: seconds.
     "validation/theta_new_level3_surrogate_bands": ("the theta_new bands of every shear set through the shipped flow networks, 1000 draws",
                                                     ["{trbc} validate --config configs/validation.toml --posterior " + POSTERIOR +

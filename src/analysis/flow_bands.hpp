@@ -1,5 +1,5 @@
 #pragma once
-// The shear validations through the flow networks (docs/FLOW_CAMPAIGN.md, "Bands through the
+// The shear validations through the flow networks (docs/FLOW_NETWORKS.md, "Bands through the
 // networks"): every angle, TTF and threshold case of a validation config predicted for many draws
 // of a theta_new posterior by surrogate/flow_surrogate.hpp in seconds, with the band over the draws,
 // its Monte Carlo error and its verdict against the experimental scatter, as the direct draws of

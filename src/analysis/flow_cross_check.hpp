@@ -1,5 +1,5 @@
 #pragma once
-// The flow networks against direct runs of the same posterior draws (docs/FLOW_CAMPAIGN.md,
+// The flow networks against direct runs of the same posterior draws (docs/FLOW_NETWORKS.md,
 // "Cross-check against direct runs"): a finished `trbc validate --draws N` run is read back
 // (ValidationRunner::loadOnly), and each of its angle, TTF and threshold cases is compared with
 // the networks

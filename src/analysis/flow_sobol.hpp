@@ -1,5 +1,5 @@
 #pragma once
-// Which cell parameter drives which flow observable (docs/FLOW_CAMPAIGN.md, Sobol' indices): the
+// Which cell parameter drives which flow observable (docs/FLOW_NETWORKS.md, Sobol' indices): the
 // Sobol' indices (surrogate/sobol.hpp) of the flow networks' outputs with respect to
 // (v, mu, FvK, b2, eta_m), uniform on the prior box, at every validation viscosity of a config:
 //  * per angle sweep: the tank-treading inclination at the sweep's central rate sqrt(rate_min rate_max);

@@ -1,4 +1,4 @@
-// trbc flow train: the flow networks (surrogate/flow_surrogate.hpp, docs/FLOW_CAMPAIGN.md) from a
+// trbc flow train: the flow networks (surrogate/flow_surrogate.hpp, docs/FLOW_NETWORKS.md) from a
 // shear campaign, their held-out accuracy, optional k-fold cross-validation and a learning curve
 // over prefixes of the campaign.
 #include <fmt/format.h>
@@ -123,7 +123,7 @@ void registerFlowSobol(CLI::App* flow) {
     CLI::App* cmd = flow->add_subcommand(
         "sobol",
         "Sobol' indices of the flow networks' angle, TTF and critical stress at every validation viscosity of --config with respect "
-        "to (v, mu, FvK, b2, eta_m) on the prior box (docs/FLOW_CAMPAIGN.md): OUT/sobol_indices.csv, OUT/sobol_table.md");
+        "to (v, mu, FvK, b2, eta_m) on the prior box (docs/FLOW_NETWORKS.md): OUT/sobol_indices.csv, OUT/sobol_table.md");
     cmd->add_option("--surrogate", o->surrogate, "flow networks (a `trbc flow train` directory)")->required()->check(CLI::ExistingDirectory);
     cmd->add_option("--config", o->config, "validation configuration whose sweeps name the outputs")->required()->check(CLI::ExistingFile);
     addNumber(cmd, "--samples", o->samples, "N, base rows of the Saltelli design", NumberRange::closed(2, double(1L << 22)))
@@ -139,7 +139,7 @@ void registerFlowTrain(CLI::App* flow) {
     auto o = std::make_shared<FlowTrainCli>();
     CLI::App* cmd = flow->add_subcommand(
         "train",
-        "Flow networks from a shear campaign (docs/FLOW_CAMPAIGN.md): the probability of tank-treading and the angle, swing and "
+        "Flow networks from a shear campaign (docs/FLOW_NETWORKS.md): the probability of tank-treading and the angle, swing and "
         "TTF of the tank-treading state. Writes OUT/flow_regime.json, OUT/flow_tank_treading.json, OUT/flow_surrogate.json, "
         "the accuracy (held-out cases, optional k-fold CV and learning curve) in OUT/training.json and OUT/accuracy.md, and with "
         "--folds every held-out row's predictions in OUT/cv_predictions.csv");

@@ -65,7 +65,7 @@ void addValidateOptions(CLI::App* cmd, ValidateCommandOptions& o) {
     cmd->add_option("--direct", o.direct,
                     "with --surrogate: a finished `trbc validate --draws N` output directory of the same config and posterior; its "
                     "angle, TTF and threshold cases are compared with the networks at the same draws and over the --draws "
-                    "(surrogate_cross_check.csv, .md; docs/FLOW_CAMPAIGN.md)")
+                    "(surrogate_cross_check.csv, .md; docs/FLOW_NETWORKS.md)")
         ->check(CLI::ExistingDirectory);
 }
 

@@ -180,6 +180,12 @@ std::vector<int> levelsOf(const std::vector<const ShearCampaignRow*>& rows) {
     return {levels.begin(), levels.end()};
 }
 
+/// Whether a row of start `rowStart` belongs to the network of start `networkStart`: the same start,
+/// or a table or a model that does not record it (one start then serves both networks).
+bool ofStart(const std::string& rowStart, const std::string& networkStart) {
+    return rowStart.empty() || networkStart.empty() || rowStart == networkStart;
+}
+
 RowSplit splitRows(const std::vector<const ShearCampaignRow*>& done) {
     RowSplit s;
     if (done.empty()) return s;
@@ -207,8 +213,8 @@ RowSplit splitRows(const std::vector<const ShearCampaignRow*>& done) {
     s.tankTreading.start = both ? "in-plane" : s.regime.start;
     std::vector<const ShearCampaignRow*> regimeRows, ttRows;
     for (const ShearCampaignRow* r : done) {
-        if (r->start == s.regime.start) regimeRows.push_back(r);
-        if (r->start == s.tankTreading.start) ttRows.push_back(r);
+        if (ofStart(r->start, s.regime.start)) regimeRows.push_back(r);
+        if (ofStart(r->start, s.tankTreading.start)) ttRows.push_back(r);
     }
     s.levels = levelsOf(done);
     if (both && levelsOf(regimeRows) != levelsOf(ttRows))
@@ -421,9 +427,8 @@ FlowAccuracy flowAccuracy(const FlowSurrogate& model, const std::vector<const Sh
     std::vector<const ShearCampaignRow*> regimeRows, ttRows;
     for (const ShearCampaignRow* r : rows) {
         if (!r->finished()) continue;
-        if (r->start.empty() || model.start.empty() || r->start == model.start) regimeRows.push_back(r);
-        const std::string& tt = model.tankTreadingStart.empty() ? model.start : model.tankTreadingStart;
-        if (r->start.empty() || tt.empty() || r->start == tt) ttRows.push_back(r);
+        if (ofStart(r->start, model.start)) regimeRows.push_back(r);
+        if (ofStart(r->start, model.tankTreadingStart.empty() ? model.start : model.tankTreadingStart)) ttRows.push_back(r);
     }
     return accuracySums(heldOutPredictions(model, regimeRows, ttRows, 0), boundaryFactor).accuracy();
 }

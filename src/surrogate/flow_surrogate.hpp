@@ -1,5 +1,5 @@
 #pragma once
-// The flow networks (docs/FLOW_CAMPAIGN.md, networks): trained on a shear campaign
+// The flow networks (docs/FLOW_NETWORKS.md, networks): trained on a shear campaign
 // (sampling/shear_campaign_table.hpp) with the MLPs, schedule and restarts of the cell surrogate.
 //
 //  * regime: (v, mu, FvK, b2, eta_m, eta_out, rate) -> the probability that the cell tank-treads.
@@ -100,11 +100,17 @@ Eigen::Matrix<double, 7, 1> flowInput(const CellParameters& cell, double etaOutM
 Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows);
 
 
+/// The cell surrogates' training options with one hidden layer of 16: on the production campaign's
+/// first few hundred cases in seven inputs, 5-fold CV gives it the lowest angle error of 8, 16, 32,
+/// 16-16 and 32-32-32; the deeper networks overfit (docs/FLOW_NETWORKS.md).
+inline TrainingOptions flowNetworkDefaults() {
+    TrainingOptions o;
+    o.hiddenLayers = {16};
+    return o;
+}
+
 struct FlowSurrogateTrainingOptions {
-    /// Layers, seeds and schedule (scaled to the rows, scheduleForRows). One hidden layer of 16: on the
-    /// production campaign's first few hundred cases in seven inputs, 5-fold CV gives it the lowest
-    /// angle error of 8, 16, 32, 16-16 and 32-32-32; the deeper networks overfit (docs/FLOW_CAMPAIGN.md).
-    TrainingOptions network{.hiddenLayers = {16}};
+    TrainingOptions network = flowNetworkDefaults();  ///< layers, seeds and schedule (scaled to the rows, scheduleForRows)
     int restarts = 4;         ///< trainings per network from seeds seed, seed+1, ...; the best is kept
     bool ensemble = true;     ///< the other restarts become ensemble members (mean prediction)
     double testFraction = 0.1;
