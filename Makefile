@@ -44,8 +44,10 @@ clean:
 	rm -rf $(BUILD) $(VENV) trbc.egg-info
 
 # Every shipped result set again (scripts/make_results.py); `make results --dry-run` (or -n) lists
-# the sets, their commands and costs and runs nothing. RESULTS=name,name selects sets.
+# the sets, their commands and costs and runs nothing. RESULTS=name,name selects sets. The sets run
+# under the venv, whose trbc package the Python scripts import (a dry run, which makes no venv, under
+# /usr/bin/python3).
 results: bootstrap
 	$(MAKE) build
 	$(MAKE) python
-	+$(VENV)/bin/python scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)
+	+py=$(VENV)/bin/python; test -x $$py || py=/usr/bin/python3; $$py scripts/make_results.py --trbc $(BUILD)/trbc $(if $(RESULTS),--only $(RESULTS)) $(if $(findstring n,$(firstword -$(MAKEFLAGS))),--dry-run)

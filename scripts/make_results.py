@@ -150,8 +150,8 @@ SETS = {
     "flow_sobol": ("Sobol' indices of the angle, the TTF and the critical stress through the shipped flow networks",
                    ["{trbc} flow sobol --surrogate data/surrogates/flow --config configs/validation.toml --samples 4096 --seed 1 "
                     "--out {out}"], 0.01, None),
-    "flow_etam_profile": ("the membrane viscosity each shear set asks for through the shipped flow networks, the rest of theta_new held",
-                          ["python3 scripts/flow_etam_profile.py --posterior " + POSTERIOR + " --surrogate data/surrogates/flow "
+    "flow_etam_scan": ("the membrane viscosity each shear set asks for through the shipped flow networks, the rest of theta_new held",
+                          ["python3 scripts/flow_etam_scan.py --posterior " + POSTERIOR + " --surrogate data/surrogates/flow "
                            "--out {out}"], 0.01, None),
     "validation/theta_new_level3_tube_bands": ("the theta_new bands of the microtube, 32 draws, level 3",
                                                ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +

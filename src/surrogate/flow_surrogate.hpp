@@ -101,8 +101,9 @@ Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows);
 
 
 /// The cell surrogates' training options with one hidden layer of 16: on the production campaign's
-/// first few hundred cases in seven inputs, 5-fold CV gives it the lowest angle error of 8, 16, 32,
-/// 16-16 and 32-32-32; the deeper networks overfit (docs/FLOW_NETWORKS.md).
+/// first few hundred cases in seven inputs, 5-fold CV of 8, 16, 32, 16-16 and 32-32-32 gives 16 and
+/// 32 the lowest angle and TTF errors and 16 the fewer misclassified cases; the deeper networks
+/// overfit (docs/FLOW_NETWORKS.md).
 inline TrainingOptions flowNetworkDefaults() {
     TrainingOptions o;
     o.hiddenLayers = {16};
