@@ -52,6 +52,17 @@ FlowSurrogateTrainingOptions quickOptions(int epochs) {
     return opt;
 }
 
+// The flow networks' own default architecture (docs/FLOW_NETWORKS.md), not the cell surrogates'
+// 32-32-32; the rest of the options are the cell surrogates'.
+TEST(FlowSurrogate, TrainsOneHiddenLayerOf16ByDefault) {
+    const FlowSurrogateTrainingOptions flow;
+    EXPECT_EQ(flow.network.hiddenLayers, std::vector<int>{16});
+    const TrainingOptions cell;
+    EXPECT_NE(cell.hiddenLayers, flow.network.hiddenLayers);
+    EXPECT_EQ(flow.network.batchSize, cell.batchSize);
+    EXPECT_EQ(flow.network.learningRate, cell.learningRate);
+}
+
 TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
     const auto rows = syntheticCampaign(2048);
     const FlowSurrogateTrainingReport rep = syntheticNetworks(rows);
