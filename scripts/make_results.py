@@ -13,6 +13,7 @@ and a run on another machine continues from them. Sets are listed cheapest first
 sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
 when it is missing)."""
 import argparse
+import glob
 import json
 import os
 import shlex
@@ -42,7 +43,8 @@ STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
 # A kept entry "SRC" copies OUT/SRC to results/<name>/SRC, "SRC=DEST" to results/<name>/DEST; a
-# directory is copied whole. The set's README.md (the hand-written description) is carried over.
+# directory is copied whole, and a SRC with a * every match. The set's README.md (the hand-written
+# description) is carried over.
 # {trbc} is the binary, {out} the set's work directory, {work} the root of all of them.
 SETS = {
     "calibration": ("the shipped calibration: posterior statistics, report, stage ledger",
@@ -142,7 +144,8 @@ SETS = {
                                                  " --draws 16 --seed 1 --out {out} --jobs 2 --threads 1 --quiet",
                                                  "{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
                                                  " --draws 1000 --seed 1 --surrogate data/surrogates/flow --direct {out} --out {out}/networks"],
-                                                8.0, None),
+                                                2.6, ["validation.json", "validation.md", "bands.csv", "draws.csv", "comparison.csv", "shear.csv",
+                                                      "threshold.csv", "experimental_data.json", "figures", "networks", "cases/*.json"]),
     # The shipped flow networks (data/surrogates/flow, data/README.md) through the posterior: seconds.
     "validation/theta_new_level3_surrogate_bands": ("the theta_new bands of every shear set through the shipped flow networks, 1000 draws",
                                                     ["{trbc} validate --config configs/validation.toml --posterior " + POSTERIOR +
@@ -157,6 +160,27 @@ SETS = {
                                                ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
                                                 " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),
 }
+
+
+def copy_kept(out, staged, keep, ignore=None):
+    """Copies the kept entries of OUT into STAGED; an entry with a * copies every match to the same
+    relative path. Returns the first entry that matches nothing (None when all were there)."""
+    os.makedirs(staged, exist_ok=True)
+    for entry in keep:
+        src, _, to = entry.partition("=")
+        if "*" in src:
+            pairs = [(m, os.path.join(staged, os.path.relpath(m, out))) for m in sorted(glob.glob(os.path.join(out, src)))]
+        else:
+            pairs = [(os.path.join(out, src), os.path.join(staged, to or src))] if os.path.exists(os.path.join(out, src)) else []
+        if not pairs:
+            return os.path.join(out, src)
+        for src_path, to_path in pairs:
+            os.makedirs(os.path.dirname(to_path), exist_ok=True)
+            if os.path.isdir(src_path):
+                shutil.copytree(src_path, to_path, ignore=ignore)
+            else:
+                shutil.copy2(src_path, to_path)
+    return None
 
 
 def command_line(c, trbc, out, work):
@@ -310,18 +334,10 @@ def main():
         shutil.rmtree(staged, ignore_errors=True)
         ignore = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd")
         if keep:
-            os.makedirs(staged)
-            for entry in keep:
-                src, _, to = entry.partition("=")
-                src_path, to_path = os.path.join(out, src), os.path.join(staged, to or src)
-                if not os.path.exists(src_path):
-                    shutil.rmtree(staged, ignore_errors=True)
-                    sys.exit(f"make_results: {n}: {src_path} was not made; results/{n} is unchanged")
-                os.makedirs(os.path.dirname(to_path), exist_ok=True)
-                if os.path.isdir(src_path):
-                    shutil.copytree(src_path, to_path, ignore=ignore)
-                else:
-                    shutil.copy2(src_path, to_path)
+            missing = copy_kept(out, staged, keep, ignore)
+            if missing:
+                shutil.rmtree(staged, ignore_errors=True)
+                sys.exit(f"make_results: {n}: {missing} was not made; results/{n} is unchanged")
         else:
             shutil.copytree(out, staged, ignore=ignore)
         readme = os.path.join(dest, "README.md")

@@ -77,3 +77,22 @@ def test_dry_run_finds_the_command_and_revision_of_single_runs_and_tables(tmp_pa
     nothing.mkdir(parents=True)
     (nothing / "notes.md").write_text("no command here\n")
     assert m.recorded("sobol") == ("", None)
+
+
+def test_kept_entries_copy_files_folders_and_matches(tmp_path):
+    m = load(tmp_path / "repo")
+    out = tmp_path / "out"
+    (out / "cases" / "a").mkdir(parents=True)
+    (out / "cases" / "a" / "frames.csv").write_text("big")
+    (out / "cases" / "a.json").write_text("{}")
+    (out / "cases" / "b.json").write_text("{}")
+    (out / "figures").mkdir()
+    (out / "figures" / "f.png").write_text("png")
+    (out / "validation.json").write_text("{}")
+    staged = tmp_path / "staged"
+    assert m.copy_kept(str(out), str(staged), ["validation.json", "figures", "cases/*.json", "validation.json=copy.json"]) is None
+    assert sorted(p.name for p in (staged / "cases").iterdir()) == ["a.json", "b.json"]  # not the folder a/
+    assert (staged / "figures" / "f.png").read_text() == "png"
+    assert (staged / "copy.json").exists()
+    assert m.copy_kept(str(out), str(tmp_path / "s2"), ["cases/*.csv"]) == str(out / "cases" / "*.csv")
+    assert m.copy_kept(str(out), str(tmp_path / "s3"), ["absent.md"]) == str(out / "absent.md")
