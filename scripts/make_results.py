@@ -163,13 +163,23 @@ SETS = {
 
 
 def copy_kept(out, staged, keep, ignore=None):
-    """Copies the kept entries of OUT into STAGED; an entry with a * copies every match to the same
-    relative path. Returns the first entry that matches nothing (None when all were there)."""
+    """Copies the kept entries of OUT into STAGED; an entry with a * copies every match (files the
+    ignore patterns name excepted) to the same relative path. Returns the path of the first entry
+    that matches nothing (None when all were there). An entry that leaves OUT, or a * with =DEST,
+    is refused."""
     os.makedirs(staged, exist_ok=True)
     for entry in keep:
         src, _, to = entry.partition("=")
+        if os.path.isabs(src) or os.path.normpath(src).startswith(".."):
+            sys.exit(f"make_results: kept entry {entry}: not a path inside the set's work directory")
         if "*" in src:
-            pairs = [(m, os.path.join(staged, os.path.relpath(m, out))) for m in sorted(glob.glob(os.path.join(out, src)))]
+            if to:
+                sys.exit(f"make_results: kept entry {entry}: a pattern keeps its matches' own paths, without =DEST")
+            matches = sorted(glob.glob(src, root_dir=out))
+            if ignore is not None:
+                skipped = ignore(out, [os.path.basename(m) for m in matches])
+                matches = [m for m in matches if os.path.basename(m) not in skipped]
+            pairs = [(os.path.join(out, m), os.path.join(staged, m)) for m in matches]
         else:
             pairs = [(os.path.join(out, src), os.path.join(staged, to or src))] if os.path.exists(os.path.join(out, src)) else []
         if not pairs:
@@ -177,7 +187,7 @@ def copy_kept(out, staged, keep, ignore=None):
         for src_path, to_path in pairs:
             os.makedirs(os.path.dirname(to_path), exist_ok=True)
             if os.path.isdir(src_path):
-                shutil.copytree(src_path, to_path, ignore=ignore)
+                shutil.copytree(src_path, to_path, ignore=ignore, dirs_exist_ok=True)
             else:
                 shutil.copy2(src_path, to_path)
     return None

@@ -96,3 +96,22 @@ def test_kept_entries_copy_files_folders_and_matches(tmp_path):
     assert (staged / "copy.json").exists()
     assert m.copy_kept(str(out), str(tmp_path / "s2"), ["cases/*.csv"]) == str(out / "cases" / "*.csv")
     assert m.copy_kept(str(out), str(tmp_path / "s3"), ["absent.md"]) == str(out / "absent.md")
+
+
+def test_kept_patterns_skip_ignored_files_and_refuse_a_destination(tmp_path):
+    m = load(tmp_path / "repo")
+    out = tmp_path / "out"
+    (out / "cases").mkdir(parents=True)
+    (out / "cases" / "a.json").write_text("{}")
+    (out / "cases" / "run.log").write_text("log")
+    staged = tmp_path / "staged"
+    ignore = m.shutil.ignore_patterns("*.log")
+    assert m.copy_kept(str(out), str(staged), ["cases", "cases/*"], ignore) is None  # overlapping entries
+    assert sorted(p.name for p in (staged / "cases").iterdir()) == ["a.json"]
+    for bad in (["cases/*.json=records"], ["../elsewhere"]):
+        try:
+            m.copy_kept(str(out), str(tmp_path / "s4"), bad)
+        except SystemExit as e:
+            assert "kept entry" in str(e)
+        else:
+            raise AssertionError(bad)

@@ -53,7 +53,7 @@ FlowSurrogateTrainingOptions quickOptions(int epochs) {
 }
 
 // The flow networks' own default architecture (docs/FLOW_NETWORKS.md), not the cell surrogates'
-// 32-32-32; the rest of the options are the cell surrogates'.
+// 32-32-32; their schedule is the cell surrogates'.
 TEST(FlowSurrogate, TrainsOneHiddenLayerOf16ByDefault) {
     const FlowSurrogateTrainingOptions flow;
     EXPECT_EQ(flow.network.hiddenLayers, std::vector<int>{16});
@@ -61,6 +61,12 @@ TEST(FlowSurrogate, TrainsOneHiddenLayerOf16ByDefault) {
     EXPECT_NE(cell.hiddenLayers, flow.network.hiddenLayers);
     EXPECT_EQ(flow.network.batchSize, cell.batchSize);
     EXPECT_EQ(flow.network.learningRate, cell.learningRate);
+    EXPECT_EQ(flow.network.patience, cell.patience);
+    EXPECT_EQ(flow.network.reductionFactor, cell.reductionFactor);
+    EXPECT_EQ(flow.network.maxReductions, cell.maxReductions);
+    EXPECT_EQ(flow.network.maxEpochs, cell.maxEpochs);
+    EXPECT_EQ(flow.network.trainFraction, cell.trainFraction);
+    EXPECT_EQ(flow.network.seed, cell.seed);
 }
 
 TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
