@@ -69,13 +69,13 @@ def bias_scan(f, cell, etam, s, relative, tolerance):
     return fits, rms, bias, share, len(rates)
 
 
-def scan_rows(f, cell, etam, k_mean, accuracy):
+def scan_rows(f, cell, etam, k_mean, accuracy, data):
     rows = []
 
     def interval(fits):
         return (etam[fits].min(), etam[fits].max()) if fits.any() else (np.nan, np.nan)
 
-    for s in trbc.validation_data():
+    for s in data:
         obs = s["observable"]
         if obs in ("inclination_deg", "ttf_4pi_f_over_rate"):
             relative = obs == "ttf_4pi_f_over_rate"
@@ -145,7 +145,7 @@ def main():
     etam = grid_in_box(f, cell, a.grid, queries)
     mean_etam = mean["etam_Pa_s_um"]
     k_mean = int(np.argmin(np.abs(np.log(etam / mean_etam)))) if etam.min() <= mean_etam <= etam.max() else None
-    rows = scan_rows(f, cell, etam, k_mean, accuracy)
+    rows = scan_rows(f, cell, etam, k_mean, accuracy, data)
 
     mu = cell["mu_uN_per_m"]
     for r in rows:

@@ -2,6 +2,7 @@
 // shear campaign, their held-out accuracy, optional k-fold cross-validation and a learning curve
 // over prefixes of the campaign.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <omp.h>
 
 #include <algorithm>
@@ -152,7 +153,7 @@ void registerFlowTrain(CLI::App* flow) {
         ->check(CLI::ExistingPath);
     addOutOption(cmd, o->out, "model directory");
     cmd->add_option("--hidden", o->hidden, "comma-separated widths of the hidden layers of both networks (tanh)")
-        ->default_str("16");
+        ->default_str(fmt::format("{}", fmt::join(flowNetworkDefaults().hiddenLayers, ",")));
     addNumber(cmd, "--restarts", o->t.restarts, "trainings per network from consecutive seeds", NumberRange::closed(1, 64))
         ->capture_default_str();
     cmd->add_flag("!--no-ensemble", o->t.ensemble, "keep only the best restart (default: the restarts' mean)");
