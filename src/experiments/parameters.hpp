@@ -4,6 +4,7 @@
 //
 // Internal units of the experiments (docs/MEMBRANE_MODEL.md, units): um, pN, s. Moduli then keep their paper
 // values (uN/m = pN/um, Pa s um = pN s/um) except kb: 1 J = 1e18 pN um.
+#include <cmath>
 #include <string>
 
 #include "membrane/parameters.hpp"
@@ -48,6 +49,28 @@ inline CellParameters paperTable1Cell() {
 /// rate of a stress.
 inline double shearStressPa(double etaOutMPaS, double shearRatePerS) { return etaOutMPaS * 1e-3 * shearRatePerS; }
 inline double shearRateFromStress(double etaOutMPaS, double stressPa) { return stressPa / (etaOutMPaS * 1e-3); }
+
+/// Dimensionless groups of a cell in flow (docs/FLOW.md). Every membrane modulus is proportional to
+/// mu at fixed FvK and b2, so a flow's observables depend on these and on v and b2 only.
+struct FlowGroups {
+    double capillary = 0.0;          ///< Ca = eta_out rate R / mu
+    double viscosityRatio = 0.0;     ///< lambda = eta_in / eta_out
+    double membraneViscosity = 0.0;  ///< Bq = eta_m / (eta_out R)
+    double FvK = 0.0;
+    double shearStressPa = 0.0;      ///< eta_out rate
+};
+/// The groups at radius R (um; the cell's R_A by default). mu in uN/m = pN/um and the stress in
+/// Pa = pN/um^2 make Ca = stress R / mu dimensionless; eta_m in Pa s um over eta_out R in Pa s um.
+inline FlowGroups flowGroups(const CellParameters& cell, double etaOutMPaS, double etaInMPaS, double shearRatePerS,
+                             double radiusUm = std::sqrt(cell::radiusSquared)) {
+    FlowGroups g;
+    g.shearStressPa = shearStressPa(etaOutMPaS, shearRatePerS);
+    g.capillary = g.shearStressPa * radiusUm / cell.mu;
+    g.viscosityRatio = etaInMPaS / etaOutMPaS;
+    g.membraneViscosity = cell.etam / (etaOutMPaS * 1e-3 * radiusUm);
+    g.FvK = cell.FvK;
+    return g;
+}
 
 /// The prior box of docs/MEMBRANE_MODEL.md, parameters (FvK support [10, 1000], Fext [0, 200] pN).
 struct PriorRange {

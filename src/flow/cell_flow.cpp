@@ -697,14 +697,8 @@ CellFlowModel::CellFlowModel(const MembraneFlowSpec& spec, const Faces& faces, c
 }
 
 FlowGroups CellFlowModel::groups() const {
-    FlowGroups g;
-    const double eta = scales_.viscosity, R = scales_.length;
-    g.capillary = eta * flow_.shearRate * R / cell_.mu;
-    g.viscosityRatio = lambda_;
-    g.membraneViscosity = cell_.etam / (eta * R);
-    g.FvK = cell_.FvK;
-    g.shearStressPa = eta * flow_.shearRate;
-    return g;
+    const double etaOutMPaS = scales_.viscosity * 1e3;
+    return flowGroups(cell_, etaOutMPaS, lambda_ * etaOutMPaS, flow_.shearRate, scales_.length);
 }
 
 VelocityEvaluation membraneVelocity(const CellFlowModel& model, const Vertices& X, const CellFlowOptions& opt,

@@ -93,15 +93,6 @@ struct FlowScales {
     double force() const { return viscosity * length * length / time; }  ///< pN
 };
 
-/// Dimensionless groups of docs/FLOW.md.
-struct FlowGroups {
-    double capillary = 0.0;          ///< Ca = eta_out rate R_A / mu
-    double viscosityRatio = 0.0;     ///< lambda = eta_in / eta_out
-    double membraneViscosity = 0.0;  ///< E = eta_m / (eta_out R_A)
-    double FvK = 0.0;
-    double shearStressPa = 0.0;      ///< eta_out rate
-};
-
 /// A membrane given directly in internal units (trbc flow capsule): the moduli in units of
 /// eta_out rate L (in-plane) and eta_out rate L^3 (bending), the edge friction gamma' = 4 E / sqrt 3
 /// (E = eta_m / (eta_out L)), the viscosity ratio, simple shear at unit rate. Without the global area

@@ -25,7 +25,8 @@ namespace fs = std::filesystem;
 namespace {
 
 using T = VariableTransform;
-const std::vector<VariableTransform> kInputTransforms = {T::Identity, T::Log, T::Log, T::Identity, T::Log, T::Log, T::Log};
+/// Of flowNetworkInputNames: v, log FvK, b2, log Ca, log viscosity ratio, log Bq.
+const std::vector<VariableTransform> kInputTransforms = {T::Identity, T::Log, T::Identity, T::Log, T::Log, T::Log};
 constexpr int kStressAxis = 6, kEtaOutAxis = 5;
 
 /// Sums over held-out cases, from which FlowAccuracy follows (so that folds pool exactly).
@@ -282,17 +283,31 @@ Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows) {
     return x;
 }
 
+const std::vector<std::string>& flowNetworkInputNames() {
+    static const std::vector<std::string> names = {"v", "FvK", "b2", "Ca", "eta_in_over_eta_out", "Bq"};
+    return names;
+}
+
+Eigen::Matrix<double, 6, 1> flowNetworkInput(const Eigen::Ref<const Eigen::Matrix<double, 7, 1>>& x, double etaInMPaS) {
+    const CellParameters cell{x(0), x(1), x(2), x(3), x(4)};
+    const FlowGroups g = flowGroups(cell, x(kEtaOutAxis), etaInMPaS, x(kStressAxis));
+    Eigen::Matrix<double, 6, 1> out;
+    out << cell.v, g.FvK, cell.b2, g.capillary, g.viscosityRatio, g.membraneViscosity;
+    return out;
+}
+
 std::vector<std::string> FlowSurrogate::inputNames() const {
-    std::vector<std::string> names = flowSurrogateInputNames();
+    std::vector<std::string> names = flowNetworkInputNames();
     if (multiLevel()) names.push_back(kFlowLevelInput);
     return names;
 }
 
 Eigen::MatrixXd FlowSurrogate::networkInputs(const Eigen::Ref<const Eigen::MatrixXd>& x7) const {
-    if (!multiLevel()) return x7;
-    Eigen::MatrixXd x(8, x7.cols());
-    x.topRows(7) = x7;
-    x.row(7).setConstant(level);
+    if (x7.rows() != 7) throw InputError(fmt::format("flow surrogate: inputs have {} rows, expected 7", x7.rows()));
+    const Eigen::Index groups = Eigen::Index(flowNetworkInputNames().size());
+    Eigen::MatrixXd x(groups + (multiLevel() ? 1 : 0), x7.cols());
+    for (Eigen::Index j = 0; j < x7.cols(); ++j) x.col(j).head(groups) = flowNetworkInput(x7.col(j), etaIn);
+    if (multiLevel()) x.row(groups).setConstant(level);
     return x;
 }
 
@@ -320,8 +335,10 @@ FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     if (!(s.etaIn > 0.0)) throw InputError(fmt::format("{}: eta_in_mPa_s {} must be > 0", meta.string(), s.etaIn));
     for (const TrainedNetwork* n : {&s.regime, &s.tankTreading})
         if (n->net.numInputs() != int(s.inputNames().size()) || n->inputNames != s.inputNames())
-            throw InputError(fmt::format("{}: the flow networks of the levels [{}] take the {} inputs {}", dir.string(), fmt::join(s.levels, ", "),
-                                         s.inputNames().size(), fmt::join(s.inputNames(), ", ")));
+            throw InputError(fmt::format("{}: networks with the inputs {}; flow networks of the levels [{}] take the {} inputs {} "
+                                         "(train them again with `trbc flow train`)",
+                                         dir.string(), fmt::join(n->inputNames, ", "), fmt::join(s.levels, ", "), s.inputNames().size(),
+                                         fmt::join(s.inputNames(), ", ")));
     if (s.regime.net.numOutputs() != 1 || s.tankTreading.net.numOutputs() != 3)
         throw InputError(fmt::format("{}: flow_regime.json needs 1 output and flow_tank_treading.json 3", dir.string()));
     return s;
@@ -480,11 +497,12 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
                                      "regime, in training; at least 10, 1 and 1 needed",
                                      ttCount, regimeTt, long(train.size()) - regimeTt));
 
-    // Each row at its own level (networkInputs puts the model's level).
+    model.etaIn = done.front()->point.etaIn;  // the viscosity ratio of every row (one cytosol, splitRows)
+    // Each row at its own level (networkInputs puts the model's level in the last row).
     auto inputsAtOwnLevel = [&](const std::vector<const ShearCampaignRow*>& rs) {
         Eigen::MatrixXd x = model.networkInputs(flowInputs(rs));
         if (model.multiLevel())
-            for (std::size_t k = 0; k < rs.size(); ++k) x(7, Eigen::Index(k)) = rs[k]->meshLevel;
+            for (std::size_t k = 0; k < rs.size(); ++k) x(x.rows() - 1, Eigen::Index(k)) = rs[k]->meshLevel;
         return x;
     };
     const Eigen::MatrixXd Xr = inputsAtOwnLevel(train), Xt = inputsAtOwnLevel(tt);
@@ -516,7 +534,6 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
         if (!e.empty()) throw InputError(e);
     model.regime = std::move(nets[0]);
     model.tankTreading = std::move(nets[1]);
-    model.etaIn = done.front()->point.etaIn;
     model.start = split.regime.start;
     model.tankTreadingStart = split.tankTreading.start;
     rep.heldOut = heldOutPredictions(rep.model, regimeRows.held, ttRows.held, opt.fold);

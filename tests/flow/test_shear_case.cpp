@@ -99,6 +99,32 @@ TEST(ShearCase, TumblingCellHasNoInclinationButAnAdvancingOrientation) {
     EXPECT_LT(r.series.orientationDeg.back(), r.series.orientationDeg.front() - 180.0);
 }
 
+// Every membrane modulus is proportional to mu at fixed FvK and b2, so the cell at (s mu, s rate)
+// runs the same flow at the same strains: the observables depend on Ca = eta_out rate R_A / mu, not on
+// mu and the rate apart. The flow networks take the dimensionless groups on this ground
+// (surrogate/flow_surrogate.hpp).
+TEST(ShearCase, TheSameFlowWhenTheModuliAndTheRateScaleTogether) {
+    ShearCaseOptions a = cheapShear(28.9, 50.0), b = a;
+    b.cell.mu *= 2.0, b.shearRate *= 2.0;  // 9.98 uN/m: inside the prior box
+    const ShearCaseResult ra = runShearCase(a), rb = runShearCase(b);
+    ASSERT_TRUE(ra.completed && rb.completed) << ra.message << rb.message;
+    const ShearObservables &oa = *ra.observables, &ob = *rb.observables;
+    EXPECT_EQ(oa.regime, ob.regime);
+    EXPECT_NEAR(oa.inclinationDeg, ob.inclinationDeg, 1e-6);
+    EXPECT_NEAR(oa.swingAmplitudeDeg, ob.swingAmplitudeDeg, 1e-6);
+    EXPECT_NEAR(oa.ttf4piFOverRate, ob.ttf4piFOverRate, 1e-8);
+    ASSERT_EQ(ra.flow.frames.size(), rb.flow.frames.size());
+    EXPECT_LT((ra.flow.final * ra.scales.length - rb.flow.final * rb.scales.length).cwiseAbs().maxCoeff(), 1e-8);  // um
+    EXPECT_NEAR(ra.tEndSeconds, 2.0 * rb.tEndSeconds, 1e-12);
+
+    // A stiffer cell at the same rate is another flow (a lower Ca): the check above can fail.
+    ShearCaseOptions c = a;
+    c.cell.mu *= 2.0;
+    const ShearCaseResult rc = runShearCase(c);
+    ASSERT_TRUE(rc.completed) << rc.message;
+    EXPECT_GT(std::abs(rc.observables->inclinationDeg - oa.inclinationDeg), 0.1);  // 0.41 deg at level 1
+}
+
 TEST(ShearCase, AFailedRunIsAResultNotAnException) {
     ShearCaseOptions o = cheapShear(28.9, 50.0);
     o.step.maxSteps = 3;

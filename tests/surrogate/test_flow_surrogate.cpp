@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <nlohmann/json.hpp>
 
 #include "analysis/flow_bands.hpp"
 #include "analysis/flow_sobol.hpp"
@@ -53,10 +54,12 @@ FlowSurrogateTrainingOptions quickOptions(int epochs) {
 }
 
 // The flow networks' own default architecture (docs/FLOW_NETWORKS.md), not the cell surrogates'
-// 32-32-32; their schedule is the cell surrogates'.
-TEST(FlowSurrogate, TrainsOneHiddenLayerOf16ByDefault) {
+// 32-32-32, and the mean of 16 restarts; their schedule is the cell surrogates'.
+TEST(FlowSurrogate, TrainsOneHiddenLayerOf32ByDefault) {
     const FlowSurrogateTrainingOptions flow;
-    EXPECT_EQ(flow.network.hiddenLayers, std::vector<int>{16});
+    EXPECT_EQ(flow.network.hiddenLayers, std::vector<int>{32});
+    EXPECT_EQ(flow.restarts, 16);
+    EXPECT_TRUE(flow.ensemble);
     const TrainingOptions cell;
     EXPECT_NE(cell.hiddenLayers, flow.network.hiddenLayers);
     EXPECT_EQ(flow.network.batchSize, cell.batchSize);
@@ -110,6 +113,16 @@ TEST(FlowSurrogate, LearnsASyntheticCampaignAndFindsItsBoundary) {
         EXPECT_NEAR(a.pTankTreading(j), b.pTankTreading(j), 1e-12);
         EXPECT_NEAR(a.inclinationDeg(j), b.inclinationDeg(j), 1e-9);
         EXPECT_FALSE(a.outsideBox[std::size_t(j)]);
+    }
+    // The networks see the groups: a cell with every modulus and the rate three times larger is the
+    // same flow (tests/flow/test_shear_case.cpp), and the same prediction.
+    Eigen::MatrixXd stiffer = x;
+    stiffer.row(1) *= 3.0, stiffer.row(6) *= 3.0;
+    const FlowPrediction same = rep.model.predict(stiffer);
+    for (Eigen::Index j = 0; j < x.cols(); ++j) {
+        EXPECT_NEAR(a.pTankTreading(j), same.pTankTreading(j), 1e-12);
+        EXPECT_NEAR(a.inclinationDeg(j), same.inclinationDeg(j), 1e-9);
+        EXPECT_NEAR(a.ttf(j), same.ttf(j), 1e-12);
     }
     EXPECT_TRUE((a.pTankTreading.array() >= 0.0).all() && (a.pTankTreading.array() <= 1.0).all());
     Eigen::MatrixXd outside = x.leftCols(1);
@@ -166,7 +179,7 @@ TEST(FlowSurrogate, MultiLevelNetworksAnswerAtTheFinestLevel) {
     EXPECT_EQ(rep.model.levels, (std::vector<int>{2, 3}));
     EXPECT_EQ(rep.testCases, 16);  // 10 % of the fine cases
     EXPECT_EQ(rep.regimeRows, 768 + 160 - 16);
-    EXPECT_EQ(rep.model.regime.net.numInputs(), 8);
+    EXPECT_EQ(rep.model.regime.net.numInputs(), 7);  // the six groups and the level
     EXPECT_LT(rep.test.inclinationRmseDeg, 0.75) << "the fine level's angle, not the coarse level's (1.5 deg off)";
 
     std::vector<const ShearCampaignRow*> some;
@@ -195,6 +208,35 @@ TEST(FlowSurrogate, MultiLevelNetworksAnswerAtTheFinestLevel) {
     EXPECT_THROW(syntheticNetworks(cytosols), InputError);
     rows.back().meshLevel = 0;
     EXPECT_THROW(syntheticNetworks(rows), InputError);
+}
+
+// The network input of a hand-computed case: v, FvK, b2, Ca = tau R_A / mu, eta_in / eta_out and
+// Bq = eta_m / (eta_out R_A), R_A = 3.27765 um.
+TEST(FlowSurrogate, NetworkInputsAreTheFlowsDimensionlessGroups) {
+    const CellParameters cell{0.9, 4.0, 200.0, 1.5, 0.7};
+    const Eigen::Matrix<double, 7, 1> x = flowInput(cell, 30.0, 50.0);  // tau = 1.5 Pa
+    const Eigen::Matrix<double, 6, 1> g = flowNetworkInput(x, 10.0);
+    EXPECT_DOUBLE_EQ(g(0), 0.9);
+    EXPECT_DOUBLE_EQ(g(1), 200.0);
+    EXPECT_DOUBLE_EQ(g(2), 1.5);
+    EXPECT_NEAR(g(3), 1.5 * 3.2776457 / 4.0, 1e-6);
+    EXPECT_NEAR(g(4), 1.0 / 3.0, 1e-15);
+    EXPECT_NEAR(g(5), 0.7 / (0.030 * 3.2776457), 1e-5);
+    EXPECT_EQ(flowNetworkInputNames().size(), 6u);
+
+    // Networks of other inputs (a physical one in place of a group) are refused by name, not evaluated.
+    const FlowSurrogateTrainingReport rep = trainFlowSurrogate(syntheticCampaign(256), quickOptions(5));
+    test::TempDir tmp;
+    rep.model.save(tmp.path() / "m");
+    auto regime = nlohmann::json::parse(test::slurp(tmp.path() / "m" / "flow_regime.json"));
+    regime["input_names"][3] = "mu_uN_per_m";
+    test::writeText(tmp.path() / "m" / "flow_regime.json", regime.dump());
+    try {
+        FlowSurrogate::load(tmp.path() / "m");
+        ADD_FAILURE() << "networks of other inputs must be refused";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("take the 6 inputs v, FvK, b2, Ca, eta_in_over_eta_out, Bq"), std::string::npos) << e.what();
+    }
 }
 
 TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
