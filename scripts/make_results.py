@@ -77,9 +77,9 @@ SETS = {
                             None),
     "flow_campaign": ("the shear-flow campaign at level 3 from random and in-plane starts, its networks and learning curves",
                       [CAMPAIGN.format(start="random", name="level3"), CAMPAIGN.format(start="in-plane", name="level3_inplane"),
-                       "{trbc} flow train --campaign {out}/level3 --campaign {out}/level3_inplane --hidden 16 --folds 5 "
+                       "{trbc} flow train --campaign {out}/level3 --campaign {out}/level3_inplane --folds 5 "
                        "--learning-curve 40,80,160,320 --out {out}/networks",
-                       "{trbc} flow train --campaign {out}/level3 --hidden 16 --folds 5 --learning-curve 40,80,160,320 "
+                       "{trbc} flow train --campaign {out}/level3 --folds 5 --learning-curve 40,80,160,320 "
                        "--out {out}/random_only",
                        "python3 scripts/plot_flow_learning_curve.py {out}/random_only/training.json {out}/networks/training.json "
                        "--label 'random starts only' --label 'angle and TTF from in-plane starts' --out {out}/learning_curve.png"], 100.0,
