@@ -2,7 +2,8 @@
 // The flow networks (docs/FLOW_NETWORKS.md, networks): trained on a shear campaign
 // (sampling/shear_campaign_table.hpp) with the MLPs, schedule and restarts of the cell surrogate.
 //
-//  * regime: (v, mu, FvK, b2, eta_m, eta_out, rate) -> the probability that the cell tank-treads.
+//  * regime: the flow's groups of (v, mu, FvK, b2, eta_m, eta_out, rate) -> the probability that the
+//    cell tank-treads.
 //    Trained on the labels 1 (tank-treading) and 0 (tumbling or intermittent) with the squared
 //    error, i.e. the Brier score: its minimiser is P(tank-treading | inputs), here over the
 //    campaign's random starts (the ensemble protocol), so the network is a probability without a
