@@ -51,11 +51,12 @@ inline double shearStressPa(double etaOutMPaS, double shearRatePerS) { return et
 inline double shearRateFromStress(double etaOutMPaS, double stressPa) { return stressPa / (etaOutMPaS * 1e-3); }
 
 /// Dimensionless groups of a cell in flow (docs/FLOW.md). Every membrane modulus is proportional to
-/// mu at fixed FvK and b2, so a flow's observables depend on these and on v and b2 only.
+/// mu at fixed FvK and b2, so a deterministic flow's observables depend on these and on v and b2
+/// only (a thermal kick or noise adds kT / kb).
 struct FlowGroups {
     double capillary = 0.0;          ///< Ca = eta_out rate R / mu
     double viscosityRatio = 0.0;     ///< lambda = eta_in / eta_out
-    double membraneViscosity = 0.0;  ///< Bq = eta_m / (eta_out R)
+    double membraneViscosity = 0.0;  ///< E = eta_m / (eta_out R), the Boussinesq number Bq
     double FvK = 0.0;
     double shearStressPa = 0.0;      ///< eta_out rate
 };

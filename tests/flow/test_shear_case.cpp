@@ -104,8 +104,10 @@ TEST(ShearCase, TumblingCellHasNoInclinationButAnAdvancingOrientation) {
 // mu and the rate apart. The flow networks take the dimensionless groups on this ground
 // (surrogate/flow_surrogate.hpp).
 TEST(ShearCase, TheSameFlowWhenTheModuliAndTheRateScaleTogether) {
+    // Not a power of two, so that the scaled arithmetic rounds differently and only the physics can
+    // make the two runs agree.
     ShearCaseOptions a = cheapShear(28.9, 50.0), b = a;
-    b.cell.mu *= 2.0, b.shearRate *= 2.0;  // 9.98 uN/m: inside the prior box
+    b.cell.mu *= 1.7, b.shearRate *= 1.7;
     const ShearCaseResult ra = runShearCase(a), rb = runShearCase(b);
     ASSERT_TRUE(ra.completed && rb.completed) << ra.message << rb.message;
     const ShearObservables &oa = *ra.observables, &ob = *rb.observables;
@@ -114,8 +116,8 @@ TEST(ShearCase, TheSameFlowWhenTheModuliAndTheRateScaleTogether) {
     EXPECT_NEAR(oa.swingAmplitudeDeg, ob.swingAmplitudeDeg, 1e-6);
     EXPECT_NEAR(oa.ttf4piFOverRate, ob.ttf4piFOverRate, 1e-8);
     ASSERT_EQ(ra.flow.frames.size(), rb.flow.frames.size());
-    EXPECT_LT((ra.flow.final * ra.scales.length - rb.flow.final * rb.scales.length).cwiseAbs().maxCoeff(), 1e-8);  // um
-    EXPECT_NEAR(ra.tEndSeconds, 2.0 * rb.tEndSeconds, 1e-12);
+    EXPECT_LT((ra.flow.final * ra.scales.length - rb.flow.final * rb.scales.length).cwiseAbs().maxCoeff(), 1e-6);  // um
+    EXPECT_NEAR(ra.tEndSeconds, 1.7 * rb.tEndSeconds, 1e-12);
 
     // A stiffer cell at the same rate is another flow (a lower Ca): the check above can fail.
     ShearCaseOptions c = a;
