@@ -5,8 +5,6 @@
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
-#include <iostream>  // Eigen/MetisSupport uses std::cerr without including it
-#include <Eigen/MetisSupport>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -21,6 +19,7 @@
 #include "core/random.hpp"
 #include "core/version.hpp"
 #include "flow/cell_flow_checkpoint.hpp"
+#include "flow/sparse_ordering.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/validate.hpp"
 #include "solvers/bdf2.hpp"
@@ -115,7 +114,7 @@ private:
                std::equal(outer_.begin(), outer_.end(), K.outerIndexPtr()) &&
                std::equal(inner_.begin(), inner_.end(), K.innerIndexPtr());
     }
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>> ldlt_;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, SerialMetisOrdering<int>> ldlt_;
     std::vector<int> outer_, inner_;
 };
 

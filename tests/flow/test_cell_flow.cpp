@@ -17,11 +17,13 @@
 #include <filesystem>
 #include <numbers>
 #include <thread>
+#include <vector>
 
 #include "core/error.hpp"
 #include "core/scratch_dir.hpp"
 #include "flow/cell_flow.hpp"
 #include "flow/shear_observables.hpp"
+#include "flow/sparse_ordering.hpp"
 #include "mesh/geometry.hpp"
 #include "mesh/icosphere.hpp"
 #include "test_support.hpp"
@@ -474,6 +476,31 @@ TEST(CellFlow, BendingCorrectionStaysOffForACellSoftInBendingAndBadRatiosAreRefu
         o.bendingPreconditionerRatio = bad;
         EXPECT_THROW(integrateCellFlow(m, X0, o), InputError) << bad;
     }
+}
+
+TEST(CellFlow, TheFactorsOrderingIsTheLoneCallsWhateverRunsBesideIt) {
+    // The vertex graph of a level-4 sphere (2562 vertices), as the preconditioner's pattern.
+    const Mesh s = icosphere(4);
+    std::vector<Eigen::Triplet<double>> t;
+    for (Eigen::Index f = 0; f < s.F.cols(); ++f)
+        for (int k = 0; k < 3; ++k) t.emplace_back(s.F(k, f), s.F((k + 1) % 3, f), 1.0), t.emplace_back(s.F(k, f), s.F(k, f), 6.0);
+    Eigen::SparseMatrix<double> K(s.X.cols(), s.X.cols());
+    K.setFromTriplets(t.begin(), t.end());
+    K = Eigen::SparseMatrix<double>(K + Eigen::SparseMatrix<double>(K.transpose()));
+    using Ordering = SerialMetisOrdering<int>;
+    Ordering::PermutationType lone;
+    Ordering()(K, lone);
+    ASSERT_EQ(lone.size(), K.rows());
+    // Two threads ordering at once, as cases run side by side in a campaign.
+    constexpr int kCalls = 40;
+    std::vector<Ordering::PermutationType> got(2 * kCalls);
+    std::thread a([&] { for (int k = 0; k < kCalls; ++k) Ordering()(K, got[k]); });
+    std::thread b([&] { for (int k = 0; k < kCalls; ++k) Ordering()(K, got[kCalls + k]); });
+    a.join();
+    b.join();
+    int differ = 0;
+    for (const auto& p : got) differ += !(p.indices() == lone.indices());
+    EXPECT_EQ(differ, 0) << "of " << got.size() << " concurrent orderings";
 }
 
 TEST(CellFlow, TurningTheInitialCellChangesTheTankTreadingStateLittle) {
