@@ -98,9 +98,6 @@ SETS = {
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
                                      " --threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),
-    "validation/theta_new_level3_high_viscosity": ("the 55.9 and 104 mPa s angle sets, theta_new cell",
-                                                   ["{trbc} validate --config configs/validation_high_viscosity.toml --out {out} "
-                                                    "--jobs 2"], None, None),
     "validation/reference_cell_level3": ("the reference implementation's shear set-up",
                                          ["{trbc} validate --config configs/validation_reference_cell_subset.toml --out {out} "
                                           "--jobs 2 --threads 1"], None, None),
@@ -121,7 +118,7 @@ SETS = {
                                            " --draws 32 --seed 1 --level 2 --only ttf,threshold,angle --out {out} --jobs 2 --threads 1"], None, None),
     "validation/theta_new_level3_high_viscosity_steady": ("the 55.9 and 104 mPa s angle sets stopped at the steady state",
                                                           ["{trbc} validate --config configs/validation_high_viscosity_steady.toml "
-                                                           "--out {out} --jobs 2"], None, None),
+                                                           "--posterior " + POSTERIOR + " --out {out} --jobs 2"], None, None),
     "validation/shear_levels": ("the resolution check: one TTF case of the Table 1 cell at levels 2, 3 and 4",
                                 [SHEAR_TTF32 + "--level 2 --rotations 10 --threads 1 --out {out}/ttf32_L2",
                                  SHEAR_TTF32 + "--level 2 --rotations 4 --threads 1 --out {out}/ttf32_L2_r4",

@@ -9,7 +9,9 @@ list from trbc's Python package, trbc.validation_data, where it imports):
 
   angle_vs_shear_rate.png      mean inclination angle (error bar = swinging
                                amplitude) vs shear rate, one panel per outer
-                               viscosity; Fischer & Korzeniewski 2015 donors
+                               viscosity, tumbling (x) and intermittent
+                               (diamond) cases without an angle on the axis;
+                               Fischer & Korzeniewski 2015 donors
   ttf_vs_shear_rate.png        4 pi f / shear rate vs shear rate;
                                Fischer (donors 1-2, 28.9 mPa s)
   critical_stress_vs_eta.png   TT/TB threshold stress interval per eta
@@ -44,9 +46,9 @@ below the axes); a series without data for a figure is left out of it. In the
 shear-flow figures the series are shifted by a few points horizontally so that
 their points and error bars do not hide each other (the threshold brackets of the
 series stand side by side; the sweep cases keep the regime colour and take the
-series' marker shape; tumbling markers get one row per series). In the tube
-figures nothing is shifted; earlier series get bigger markers. The footer names
-the series drawn and their level (from the CSV rows' "level" column, else
+series' marker shape; tumbling and intermittent markers without an angle get one row
+per series, on the axis). In the tube figures nothing is shifted; earlier series get
+bigger markers. The footer names the series drawn and their level (from the CSV rows' "level" column, else
 validation.json "level"/"tube_level"). --out is required in this form; a DIR
 positional cannot be combined with it (a DIR after a --series group belongs to it).
 
@@ -592,6 +594,7 @@ def plot_angle(run):
             # simulation: tank-treading (or unclassified) rows with an angle
             tt = []
             tb = []
+            im = []  # intermittent without an angle: drawn on the axis, as the tumbling ones
             other = []
             for r in rs:
                 g = fnum(r["shear_rate_per_s"])
@@ -600,6 +603,8 @@ def plot_angle(run):
                 if reg == "tumbling":
                     tb.append(g)
                 elif th is None:
+                    if reg == "intermittent":
+                        im.append(g)
                     continue
                 elif reg in ("tank-treading", "", "empty"):
                     tt.append((g, th, fnum(r.get("swing_amplitude_deg"))))
@@ -628,14 +633,24 @@ def plot_angle(run):
                             zorder=5, **tkw(run, tr))
                 anchor(ax, run, np.r_[g, g], np.r_[th - err, th + err])
                 xs_all += list(g)
+            row = ctx.stack(ax, s) if tb or im else None
             if tb:
                 ax.plot(tb, np.zeros(len(tb)), ls="none", marker="x", ms=7, mew=1.6,
                         color=(s.colour if run.multi else REGIME_STYLE["tumbling"][0]),
                         label=ctx.label(s, "simulation: tumbling (no angle)",
                                         ": tumbling (no angle)", 2),
-                        zorder=6, clip_on=False, **tkw(run, ctx.stack(ax, s)))
+                        zorder=6, clip_on=False, **tkw(run, row))
                 anchor(ax, run, tb, np.zeros(len(tb)))
                 xs_all += tb
+            if im:
+                st = REGIME_STYLE["intermittent"]
+                ax.plot(im, np.zeros(len(im)), ls="none", marker=st[1], ms=5, mfc="none", mew=1.4,
+                        color=(s.colour if run.multi else st[0]),
+                        label=ctx.label(s, "simulation: intermittent (no angle)",
+                                        ": intermittent (no angle)", 3),
+                        zorder=6, clip_on=False, **tkw(run, row))
+                anchor(ax, run, im, np.zeros(len(im)))
+                xs_all += im
         for s in run.series:
             pts = band_points(s, "angle", "inclination [deg]", "shear_rate_per_s", eta)
             draw_bands(ax, run, s, ctx, pts, s.colour if run.multi else PANEL_COLOURS[k % len(PANEL_COLOURS)])

@@ -75,11 +75,16 @@ TEST(ValidationConfig, ShippedConfigHasEveryCaseOfValidationMd) {
     EXPECT_EQ(c.cellSource, "table1");
     EXPECT_DOUBLE_EQ(c.stepTol, 1e-3);       // the shear's
     EXPECT_DOUBLE_EQ(c.tubeStepTol, 6.25e-5);  // the tube's (docs/FLOW_TUBE.md, "Step tolerance")
-    // The two higher viscosities for theta_new alone: the same 28 angle cases as the full set's.
+    // The two higher viscosities alone: the same 28 angle cases as the full set's, with its cell
+    // (--posterior replaces it in both) and its shear settings.
     const ValidationConfig hv = readValidationConfig(kRepo / "configs" / "validation_high_viscosity.toml", kExperiments);
     const std::vector<ValidationCase> hvCases = initialValidationCases(hv);
     ASSERT_EQ(hvCases.size(), 28u);
-    EXPECT_EQ(hv.cellSource, "explicit");
+    EXPECT_EQ(hv.cellSource, c.cellSource);
+    EXPECT_EQ(hv.stepTol, c.stepTol);
+    EXPECT_EQ(hv.etaIn, c.etaIn);
+    EXPECT_EQ(hv.rotations, c.rotations);
+    EXPECT_EQ(hv.tiltDeg, c.tiltDeg);
     for (std::size_t k = 0; k < hvCases.size(); ++k) EXPECT_EQ(hvCases[k].id, cases[28 + k].id);
 }
 

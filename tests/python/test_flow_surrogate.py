@@ -99,7 +99,7 @@ def test_shipped_networks_follow_the_direct_level3_runs_of_the_calibrated_cell()
     direct = root / "results" / "validation" / "theta_new_level3"
     cell = json.loads((direct / "validation.json").read_text())["cell"]["parameters"]
     cv = json.loads((root / "data" / "surrogates" / "flow" / "training.json").read_text())["cross_validation"]["pooled"]
-    rows = [r for r in csv.DictReader(open(direct / "shear.csv")) if r["sweep"] in ("angle", "ttf") and r["status"] == "ok"]
+    rows = [r for r in csv.DictReader(l for l in open(direct / "shear.csv") if not l.startswith("#")) if r["sweep"] in ("angle", "ttf") and r["status"] == "ok"]
     f = trbc.FlowSurrogate()
     assert (f.start, f.tank_treading_start) == ("random", "in-plane")
     p = f.predict(eta_out_mPa_s=np.array([float(r["eta_out_mPa_s"]) for r in rows]),
