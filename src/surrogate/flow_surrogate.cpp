@@ -5,6 +5,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -25,8 +26,25 @@ namespace fs = std::filesystem;
 namespace {
 
 using T = VariableTransform;
-/// Of flowNetworkInputNames: v, log FvK, b2, log Ca, log viscosity ratio, log Bq.
-const std::vector<VariableTransform> kInputTransforms = {T::Identity, T::Log, T::Identity, T::Log, T::Log, T::Log};
+
+/// The networks' inputs in the order of flowNetworkInput, each with the transform training puts on
+/// it: the log of the positive groups that span decades.
+struct NetworkInputAxis {
+    const char* name;
+    VariableTransform transform;
+};
+constexpr std::array<NetworkInputAxis, 6> kNetworkInputs = {{{"v", T::Identity},
+                                                             {"FvK", T::Log},
+                                                             {"b2", T::Identity},
+                                                             {"Ca", T::Log},
+                                                             {"eta_in_over_eta_out", T::Log},
+                                                             {"Bq", T::Log}}};
+
+std::vector<VariableTransform> networkInputTransforms() {
+    std::vector<VariableTransform> t;
+    for (const NetworkInputAxis& a : kNetworkInputs) t.push_back(a.transform);
+    return t;
+}
 constexpr int kStressAxis = 6, kEtaOutAxis = 5;
 
 /// Sums over held-out cases, from which FlowAccuracy follows (so that folds pool exactly).
@@ -284,10 +302,15 @@ Eigen::MatrixXd flowInputs(const std::vector<const ShearCampaignRow*>& rows) {
 }
 
 const std::vector<std::string>& flowNetworkInputNames() {
-    static const std::vector<std::string> names = {"v", "FvK", "b2", "Ca", "eta_in_over_eta_out", "Bq"};
+    static const std::vector<std::string> names = [] {
+        std::vector<std::string> n;
+        for (const NetworkInputAxis& a : kNetworkInputs) n.emplace_back(a.name);
+        return n;
+    }();
     return names;
 }
 
+// The order of kNetworkInputs.
 Eigen::Matrix<double, 6, 1> flowNetworkInput(const Eigen::Ref<const Eigen::Matrix<double, 7, 1>>& x, double etaInMPaS) {
     const CellParameters cell{x(0), x(1), x(2), x(3), x(4)};
     const FlowGroups g = flowGroups(cell, x(kEtaOutAxis), etaInMPaS, x(kStressAxis));
@@ -517,7 +540,7 @@ FlowSurrogateTrainingReport trainFlowSurrogate(const std::vector<ShearCampaignRo
         try {
             TrainingOptions o = scheduleForRows(opt.network, k == 0 ? Xr.cols() : Xt.cols(), 128);
             o.testFraction = 0.0;  // the test cases are already out
-            o.inputTransforms = kInputTransforms;
+            o.inputTransforms = networkInputTransforms();
             if (model.multiLevel()) o.inputTransforms.push_back(T::Identity);
             o.outputTransforms = k == 0 ? std::vector<VariableTransform>{T::Identity}
                                         : std::vector<VariableTransform>{T::Identity, T::Identity, T::Log};

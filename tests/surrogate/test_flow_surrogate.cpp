@@ -237,6 +237,27 @@ TEST(FlowSurrogate, NetworkInputsAreTheFlowsDimensionlessGroups) {
     } catch (const InputError& e) {
         EXPECT_NE(std::string(e.what()).find("take the 6 inputs v, FvK, b2, Ca, eta_in_over_eta_out, Bq"), std::string::npos) << e.what();
     }
+
+    // A campaign in another cytosol: its viscosity ratio is eta_in / eta_out of that cytosol, in
+    // training, in the saved model and in every prediction.
+    std::vector<ShearCampaignRow> thick = syntheticCampaign(256);
+    for (ShearCampaignRow& r : thick) r.point.etaIn = 20.0;
+    const FlowSurrogateTrainingReport at20 = trainFlowSurrogate(thick, quickOptions(5));
+    EXPECT_EQ(at20.model.etaIn, 20.0);
+    rep.model.save(tmp.path() / "ten");
+    at20.model.save(tmp.path() / "twenty");
+    const FlowSurrogate loaded = FlowSurrogate::load(tmp.path() / "twenty");
+    EXPECT_EQ(loaded.etaIn, 20.0);
+    std::vector<const ShearCampaignRow*> some;
+    for (std::size_t k = 0; k < thick.size(); k += 51) some.push_back(&thick[k]);
+    const Eigen::MatrixXd x7 = flowInputs(some);
+    const Eigen::MatrixXd z = loaded.networkInputs(x7);
+    for (Eigen::Index j = 0; j < x7.cols(); ++j) EXPECT_DOUBLE_EQ(z(4, j), 20.0 / x7(5, j));
+    const FlowPrediction byDefault = loaded.predict(x7), named = loaded.predict(x7, Eigen::VectorXd::Constant(x7.cols(), 20.0));
+    EXPECT_EQ(byDefault.inclinationDeg, named.inclinationDeg);
+    EXPECT_EQ(byDefault.pTankTreading, named.pTankTreading);
+    // The same inputs read by the campaign-at-10 networks see half the ratio.
+    EXPECT_NEAR(FlowSurrogate::load(tmp.path() / "ten").networkInputs(x7)(4, 0), 10.0 / x7(5, 0), 1e-15);
 }
 
 TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
