@@ -9,15 +9,14 @@
 #              measured critical stress is at 0.59 1/s) for eta_m in {0.3, 0.42, 0.55, 0.69},
 #              v in {0.90, 0.94, 0.97} and a start tilted 7 deg out of the shear plane
 #   theta_new  the three diagnostic cases (23.9 mPa s / 55 1/s, 10.7 mPa s / 39 1/s, 100 mPa s / 0.7401
-#              1/s) for the theta_new means of the shipped calibration (results/calibration:
-#              v 0.9296, mu 4.667 uN/m, kb 2.258e-19 J, b2 1.998, eta_m 0.699 Pa s um)
-# Usage: scripts/flow_scan.sh TRBC OUT [JOBS] [SET]; SET etam (default), threshold or theta_new. Writes OUT/<case>/
+#              1/s) for the calibrated cell of the theta_new posterior POSTERIOR (`flow shear --posterior`)
+# Usage: scripts/flow_scan.sh TRBC OUT [JOBS] [SET] [POSTERIOR]; SET etam (default), threshold or theta_new
+# (which needs POSTERIOR, DIR/inference/phase3/theta_new of `trbc calibrate`). Writes OUT/<case>/
 # (flow.json, frames.csv, shapes) and OUT/summary.csv; the shipped copies keep flow.json and frames.csv.
 set -euo pipefail
-trbc="$1"; out="$2"; jobs="${3:-2}"; set="${4:-etam}"
+trbc="$1"; out="$2"; jobs="${3:-2}"; set="${4:-etam}"; posterior="${5:-}"
 mkdir -p "$out"
 table1="--mu 4.99 --kb 2.10e-19 --b2 1.84"
-own="--v 0.9296 --mu 4.667 --kb 2.258e-19 --b2 1.998 --etam 0.699"
 common="--level 3 --rotations 10 --threads 1"
 cases=()
 case "$set" in
@@ -40,6 +39,9 @@ case "$set" in
     done
     ;;
   theta_new)
+    if [ -z "$posterior" ]; then echo "flow_scan.sh: SET theta_new needs POSTERIOR (DIR/inference/phase3/theta_new)" >&2; exit 2; fi
+    case "$posterior" in *[[:space:]]*) echo "flow_scan.sh: POSTERIOR '$posterior' has white space; give a path without" >&2; exit 2 ;; esac
+    own="--posterior $posterior"
     cases+=("own_angle239|$own --eta-out 23.9 --shear-rate 55")
     cases+=("own_regime107|$own --eta-out 10.7 --shear-rate 39")
     cases+=("own_eta100_rate0.7401|$own --eta-out 100 --shear-rate 0.7401")

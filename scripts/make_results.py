@@ -73,7 +73,7 @@ SETS = {
                        None),
     "flow_scan_threshold": ("the 100 mPa s threshold of the Table 1 cell over eta_m, v and a tilt",
                             ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 2.0, None),
-    "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new"], 0.5,
+    "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new " + POSTERIOR], 0.5,
                             None),
     "flow_campaign": ("the shear-flow campaign at level 3 from random and in-plane starts, its networks and learning curves",
                       [CAMPAIGN.format(start="random", name="level3"), CAMPAIGN.format(start="in-plane", name="level3_inplane"),
