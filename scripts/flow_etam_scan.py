@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The membrane viscosity each shear-flow data set asks for, through the flow networks.
 
-A one-parameter scan: v, mu, kb and b2 are held at the means of a theta_new posterior, and eta_m
+A one-parameter scan: v, mu, kb and b2 are held at the calibrated cell of a theta_new posterior
+(trbc.calibrated_cell, the cell of every `--posterior`), and eta_m
 runs over the networks' box on a log grid. Per set (docs/FLOW_NETWORKS.md, "One membrane
 viscosity?"):
 - inclination angle at one viscosity, or the TTF: the data are averaged over the donors at each
@@ -132,8 +133,8 @@ def main():
     if missing:
         fail(f"--posterior {a.posterior}: samples.csv has no column {', '.join(missing)} (a theta_new posterior has all of "
              f"{', '.join(HELD + ('etam_Pa_s_um',))})")
-    mean = post.mean()
-    cell = {k: mean[k] for k in HELD}
+    calibrated = trbc.calibrated_cell(a.posterior)
+    cell = {k: calibrated[k] for k in HELD}
     model = Path(a.surrogate) if a.surrogate else trbc.data_dir("surrogates", "flow")
     f = trbc.FlowSurrogate(model)
     training = json.loads((model / "training.json").read_text())
@@ -143,7 +144,7 @@ def main():
     data = trbc.validation_data()
     queries = [(s["eta_out_mPa_s"], s["x"]) for s in data if s["observable"] in ("inclination_deg", "ttf_4pi_f_over_rate")]
     etam = grid_in_box(f, cell, a.grid, queries)
-    mean_etam = mean["etam_Pa_s_um"]
+    mean_etam = calibrated["etam_Pa_s_um"]
     k_mean = int(np.argmin(np.abs(np.log(etam / mean_etam)))) if etam.min() <= mean_etam <= etam.max() else None
     rows = scan_rows(f, cell, etam, k_mean, accuracy, data)
 
@@ -170,7 +171,7 @@ def main():
         "# The membrane viscosity each shear set asks for, through the flow networks", "",
         f"Command: `{command}`; networks {model} (revision {revision}; {accuracy_name}: angle {accuracy['inclination_rmse_deg']:.2f} deg, "
         f"TTF {100 * accuracy['ttf_relative_rmse']:.1f} %); trbc {trbc.__version__} ({trbc.__revision__}).", "",
-        "Held at the posterior's means: " + ", ".join(f"{k} {cell[k]:.4g}" for k in HELD)
+        f"Held at the calibrated cell ({calibrated['estimator']}): " + ", ".join(f"{k} {cell[k]:.4g}" for k in HELD)
         + f". The posterior's eta_m: mean {mean_etam:.3g}, 5-95 % {q['etam_Pa_s_um'][0]:.3g}-{q['etam_Pa_s_um'][1]:.3g} Pa s um{ratio}. "
         f"eta_m grid: {len(etam)} points, {etam.min():.3g}-{etam.max():.3g} Pa s um (the networks' box at every case).", "",
         "| set | points | best eta_m (Pa s um) | eta_m that fits (Pa s um) | eta_m / mu that fits (s) | misfit at best | "

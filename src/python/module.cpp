@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "analysis/calibrated_cell.hpp"
 #include "analysis/prediction.hpp"
 #include "analysis/validation_data.hpp"
 #include "core/csv.hpp"
@@ -908,6 +909,16 @@ void registerInference(py::module_& m) {
           "resume"_a, "threads"_a, "progress"_a, "method"_a = "joint", "chains"_a = 16, "warmup"_a = 1000, "draws"_a = 2500,
           "thin"_a = 4);
     m.def("read_samples", &readSamples, "file"_a);
+    m.def(
+        "calibrated_cell",
+        [](const std::string& posterior) {
+            const CalibratedCell c = calibratedCell(posterior, "posterior");
+            py::dict d;
+            d["v"] = c.cell.v, d["mu_uN_per_m"] = c.cell.mu, d["kb_J"] = c.kbJ, d["FvK"] = c.cell.FvK, d["b2"] = c.cell.b2;
+            d["etam_Pa_s_um"] = c.cell.etam, d["estimator"] = c.estimator, d["source"] = c.source.string();
+            return d;
+        },
+        "posterior"_a, "The calibrated cell of a theta_new posterior (analysis/calibrated_cell.hpp)");
     m.def("predict", &predict, "posterior"_a, "surrogate"_a, "data_set"_a, "grid"_a, "max_samples"_a, "seed"_a);
 }
 

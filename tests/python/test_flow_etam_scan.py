@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import trbc
 
@@ -78,3 +79,27 @@ def test_bad_arguments_are_named(tmp_path):
     (outside / "samples.csv").write_text((good / "samples.csv").read_text().replace("0.93,", "0.3,"))
     r = run("--posterior", outside, "--out", tmp_path / "out")
     assert r.returncode != 0 and "lies outside it" in r.stderr, r.stderr
+
+
+def test_calibrated_cell_is_the_statistics_means_where_the_inference_has_them(tmp_path):
+    """trbc.calibrated_cell, the cell of every --posterior: the sample means of a bare samples.csv,
+    the Rao-Blackwellised means of the inference's posterior_stats.csv beside it otherwise."""
+    bare = trbc.calibrated_cell(posterior(tmp_path, etam=0.7))
+    samples = trbc.Posterior(tmp_path / "theta_new" / "samples.csv")
+    assert bare["estimator"] == "sample means"
+    assert bare["mu_uN_per_m"] == pytest.approx(samples["mu_uN_per_m"].mean(), rel=1e-12)
+    assert bare["FvK"] == pytest.approx(bare["mu_uN_per_m"] * 1e-6 * (3.2776457e-6) ** 2 / bare["kb_J"], rel=1e-4)
+
+    inf = tmp_path / "inf"
+    (inf / "phase3").mkdir(parents=True)
+    (tmp_path / "theta_new").rename(inf / "phase3" / "theta_new")
+    means = {"v": 0.929, "mu_uN_per_m": 4.66, "kb_J": 2.26e-19, "b2": 2.001, "etam_Pa_s_um": 0.699}
+    with open(inf / "posterior_stats.csv", "w") as f:
+        f.write("# a provenance line\nposterior,parameter,mean,sd\n")
+        f.write("evans_fung_1972,v,0.5,0.1\n")
+        for k, m in means.items():
+            f.write(f"theta_new,{k},{m!r},1\n")
+    cell = trbc.calibrated_cell(inf / "phase3" / "theta_new")
+    assert cell["estimator"].startswith("Rao-Blackwellised")
+    for k, m in means.items():
+        assert cell[k] == m, (k, cell[k])

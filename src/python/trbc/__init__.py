@@ -38,7 +38,8 @@ __revision__ = _core.__revision__
 __all__ = [
     "Mesh", "NumericalError", "DataSet", "Surrogate", "FlowSurrogate", "Posterior", "membrane_energy", "simulate", "sfs",
     "data_dir", "load_data_sets", "phase1_log_posterior", "hierarchical_log_posterior", "infer",
-    "load_inference", "load_validation", "validation_data", "predict", "flow_shear", "flow_tube", "INPUT_NAMES", "OUTPUT_NAMES",
+    "load_inference", "load_validation", "validation_data", "predict", "calibrated_cell", "flow_shear", "flow_tube", "INPUT_NAMES",
+    "OUTPUT_NAMES",
     "evans_fung_thickness", "evans_fung_radius_um", "fit_hochmuth",
 ]
 
@@ -327,6 +328,14 @@ class Posterior:
 
     def __repr__(self) -> str:
         return f"trbc.Posterior({self.phase}/{self.name}: {len(self)} samples of {', '.join(self.names)})"
+
+
+def calibrated_cell(posterior: _PathLike) -> dict:
+    """The calibrated cell of a theta_new posterior (DIR/inference/phase3/theta_new of `trbc calibrate`,
+    DIR/phase3/theta_new of `trbc infer`, or its samples.csv), the one every trbc command takes from
+    `--posterior`: the Rao-Blackwellised means of the inference's posterior_stats.csv where it has
+    them, else the sample means. {v, mu_uN_per_m, kb_J, FvK, b2, etam_Pa_s_um, estimator, source}."""
+    return _core.calibrated_cell(str(posterior))
 
 
 def load_inference(out: _PathLike) -> dict:
