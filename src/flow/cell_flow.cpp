@@ -94,7 +94,7 @@ Eigen::SparseMatrix<double> cotanLaplacian(const Vertices& X, const Faces& F) {
 /// the fill-reducing ordering and the symbolic analysis are done once and each step refactorises
 /// the values only. The ordering is METIS's nested dissection: on a closed surface mesh it leaves
 /// less fill than AMD (level 4: 647k against 733k entries in L, 0.70x the factorisation time and
-/// 0.82x a solve; docs/PERFORMANCE.md). A different pattern (another mesh) is analysed afresh.
+/// 0.82x a solve; docs/PERFORMANCE_FLOW.md). A different pattern (another mesh) is analysed afresh.
 class SparseFactor {
 public:
     void factorize(const Eigen::SparseMatrix<double>& K) {

@@ -149,7 +149,7 @@ static void farSum(const T (&x0)[3], const FarPoints<T>& p, const PointDensity<T
 /// wg_q = w_q g_q: one pass per 8 points, each point's position, normal and densities loaded once
 /// for both targets, 1 / r kept in registers (inverseSqrt8), twelve independent accumulators, the
 /// double layer's factor -6 applied to the block sums. The multiplies set the pace (about 31 per
-/// pair for both layers), so the gain over two farSum calls is modest (docs/PERFORMANCE.md,
+/// pair for both layers), so the gain over two farSum calls is modest (docs/PERFORMANCE_FLOW.md,
 /// "Flow solver").
 template <bool kSingle, bool kDouble>
 static void farSumTwoTargets(const float (&x0)[2][3], const FarPoints<float>& p, const PointDensity<float>& wg,
