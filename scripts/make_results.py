@@ -67,8 +67,9 @@ SETS = {
     "mesh_convergence": ("the six observables at levels 3-5 at three cells",
                          ["bash scripts/mesh_convergence.sh {trbc} {out}"], 0.3, None),
     "branch_map": ("the two equilibrium branches near v = 1", ["python3 scripts/branch_map.py --trbc {trbc} --jobs 2 --out {out} --figure {out}/branch_map.png"], 1.0, None),
-    "relaxation_low_v": ("tc at v 0.65-0.75, inertial and overdamped, levels 3-4",
-                         ["bash scripts/relaxation_low_v.sh {trbc} {out} \"3 4\""], 0.5, None),
+    "relaxation_low_v": ("tc at v 0.65-0.75, inertial and overdamped at levels 3-4, inertial at level 5",
+                         ["bash scripts/relaxation_low_v.sh {trbc} {out} \"3 4\"",
+                          "bash scripts/relaxation_low_v.sh {trbc} {out} 5 inertial"], 0.6, None),
     "flow_scan_etam": ("two shear cases of the Table 1 cell over eta_m", ["bash scripts/flow_scan.sh {trbc} {out} 2 etam"], 1.0,
                        None),
     "flow_scan_threshold": ("the 100 mPa s threshold of the Table 1 cell over eta_m, v and a tilt",
@@ -116,9 +117,15 @@ SETS = {
     "validation/theta_new_level2_bands": ("the theta_new bands of the shear sets, 32 draws, level 2",
                                           ["{trbc} validate --config configs/validation_banded.toml --posterior " + POSTERIOR +
                                            " --draws 32 --seed 1 --level 2 --only ttf,threshold,angle --out {out} --jobs 2 --threads 1"], None, None),
-    "validation/theta_new_level3_high_viscosity_steady": ("the 55.9 and 104 mPa s angle sets stopped at the steady state",
+    "validation/theta_new_level3_high_viscosity_steady": ("the 55.9 and 104 mPa s angle sets stopped at the steady state, and at full length",
                                                           ["{trbc} validate --config configs/validation_high_viscosity_steady.toml "
-                                                           "--posterior " + POSTERIOR + " --out {out} --jobs 2"], None, None),
+                                                           "--posterior " + POSTERIOR + " --out {out} --jobs 2",
+                                                           # the full-length runs of the same cases, timed alone
+                                                           "{trbc} validate --config configs/validation_high_viscosity.toml "
+                                                           "--posterior " + POSTERIOR + " --out {out}/full_length --jobs 2 --threads 1"],
+                                                          0.6, ["validation.json", "validation.md", "comparison.csv", "shear.csv",
+                                                                 "cases/*.json", "full_length/validation.json",
+                                                                 "full_length/validation.md", "full_length/shear.csv"]),
     "validation/shear_levels": ("the resolution check: one TTF case of the Table 1 cell at levels 2, 3 and 4",
                                 [SHEAR_TTF32 + "--level 2 --rotations 10 --threads 1 --out {out}/ttf32_L2",
                                  SHEAR_TTF32 + "--level 2 --rotations 4 --threads 1 --out {out}/ttf32_L2_r4",
@@ -296,7 +303,8 @@ def main():
         if n not in SETS:
             sys.exit(f"--only: unknown set '{n}' (valid: {', '.join(SETS)})")
     cost = {n: SETS[n][2] if SETS[n][2] is not None else (recorded(n)[1] or 0.0) for n in names}
-    names.sort(key=lambda n: cost[n])
+    # Cheapest first, but the calibration before every set that reads its posterior.
+    names.sort(key=lambda n: (n != "calibration", cost[n]))
     work = os.path.abspath(a.work)
     if a.save_progress:
         for n in names:

@@ -115,3 +115,16 @@ def test_kept_patterns_skip_ignored_files_and_refuse_a_destination(tmp_path):
             assert "kept entry" in str(e)
         else:
             raise AssertionError(bad)
+
+
+def test_the_calibration_comes_before_every_set_that_reads_its_posterior():
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, str(SCRIPT), "--dry-run", "--trbc", "trbc"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    order = [line.split(":")[0] for line in r.stdout.splitlines() if line and not line.startswith((" ", "\n")) and ": " in line
+             and not line[0].isdigit()]
+    m = load(Path(__file__).resolve().parents[2])
+    readers = [n for n in order if any(m.POSTERIOR in c for c in m.SETS[n][1])]
+    assert readers and "calibration" in order
+    assert all(order.index("calibration") < order.index(n) for n in readers), order
