@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Diagnostic shear-flow scans of the Table 1 cell (v 0.94, mu 4.99 uN/m, kb 2.10e-19 J, b2 1.84,
 # eta_m 0.69 Pa s um), level 3, 10 rotations (docs/VALIDATION_RESULTS.md, "Membrane viscosity, reduced
-# volume and an out-of-plane start at level 3"). Two sets:
+# volume and an out-of-plane start at level 3"). Three sets:
 #   etam       eta_m in {0.3, 0.42, 0.55, 0.69} Pa s um at 23.9 mPa s / 55 1/s (inclination angle) and
 #              10.7 mPa s / 39 1/s (regime), plus the 10.7 mPa s case started 7 deg out of the shear plane
 #   threshold  the tumbling / tank-treading threshold at 100 mPa s, at three rates around it (0.5477,
@@ -12,7 +12,8 @@
 #              1/s) for the calibrated cell of the theta_new posterior POSTERIOR (`flow shear --posterior`)
 # Usage: scripts/flow_scan.sh TRBC OUT [JOBS] [SET] [POSTERIOR]; SET etam (default), threshold or theta_new
 # (which needs POSTERIOR, DIR/inference/phase3/theta_new of `trbc calibrate`). Writes OUT/<case>/
-# (flow.json, frames.csv, shapes) and OUT/summary.csv; the shipped copies keep flow.json and frames.csv.
+# (flow.json, frames.csv, steps.csv, shapes) and OUT/summary.csv; `make results` keeps all but the shapes,
+# the checkpoints and the logs.
 set -euo pipefail
 trbc="$1"; out="$2"; jobs="${3:-2}"; set="${4:-etam}"; posterior="${5:-}"
 mkdir -p "$out"
@@ -40,7 +41,8 @@ case "$set" in
     ;;
   theta_new)
     if [ -z "$posterior" ]; then echo "flow_scan.sh: SET theta_new needs POSTERIOR (DIR/inference/phase3/theta_new)" >&2; exit 2; fi
-    case "$posterior" in *[[:space:]]*) echo "flow_scan.sh: POSTERIOR '$posterior' has white space; give a path without" >&2; exit 2 ;; esac
+    case "$posterior" in *[[:space:]\'\"\\]*) echo "flow_scan.sh: POSTERIOR '$posterior' has white space, quotes or backslashes; give a path without" >&2; exit 2 ;; esac
+    [ -d "$posterior" ] || [ -f "$posterior" ] || { echo "flow_scan.sh: POSTERIOR '$posterior' does not exist" >&2; exit 2; }
     own="--posterior $posterior"
     cases+=("own_angle239|$own --eta-out 23.9 --shear-rate 55")
     cases+=("own_regime107|$own --eta-out 10.7 --shear-rate 39")
@@ -66,3 +68,7 @@ for f in sorted(out.glob("*/flow.json")):
 (out / "summary.csv").write_text("\n".join(rows) + "\n")
 print("\n".join(rows))
 PY
+# A case without its flow.json failed (its log says why): the scan is incomplete.
+missing=0
+for c in "${cases[@]}"; do id="${c%%|*}"; [ -f "$out/$id/flow.json" ] || { echo "flow_scan.sh: $id has no flow.json (see $out/$id.log)" >&2; missing=1; }; done
+exit "$missing"
