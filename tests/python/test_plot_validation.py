@@ -39,3 +39,29 @@ def test_figures_take_the_points_of_experimental_data_json(tmp_path):
     for f in FIGURES:
         drawn, bare = (tmp_path / "figs" / f).read_bytes(), (tmp_path / "bare" / f).read_bytes()
         assert drawn != bare, f"{f}: the experimental points are missing"
+
+
+def test_intermittent_cases_without_an_angle_are_drawn(tmp_path):
+    """The angle figure marks the intermittent cases that have no angle, as it marks the tumbling
+    ones: removing those rows changes the figure."""
+    lines = (SHIPPED / "shear.csv").read_text().splitlines(keepends=True)
+    header = next(l for l in lines if not l.startswith("#")).strip().split(",")
+    col = {name: k for k, name in enumerate(header)}
+
+    def intermittent_without_angle(line):
+        cells = line.strip().split(",")
+        return (len(cells) == len(header) and cells[col["sweep"]] == "angle" and cells[col["regime"]] == "intermittent"
+                and cells[col["inclination_deg"]] == "")
+
+    assert any(intermittent_without_angle(l) for l in lines)
+    figures = {}
+    for name, keep in (("all", lines), ("without", [l for l in lines if not intermittent_without_angle(l)])):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "shear.csv").write_text("".join(keep))
+        for f in ("validation.json", "experimental_data.json"):
+            shutil.copy(SHIPPED / f, d / f)
+        r = plot(d, tmp_path / f"{name}_figs")
+        assert r.returncode == 0, r.stderr
+        figures[name] = (tmp_path / f"{name}_figs" / "angle_vs_shear_rate.png").read_bytes()
+    assert figures["all"] != figures["without"]
