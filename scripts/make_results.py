@@ -166,6 +166,19 @@ SETS = {
 }
 
 
+_NOT_SHIPPED = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd")
+
+
+def shipped_only(directory, names):
+    """copytree's ignore: run files that are not shipped (checkpoints, shapes, logs), and the per-case
+    run folders of `trbc validate` (DIR/cases/<id>/: time series and shapes); its case records
+    DIR/cases/<id>.json are shipped."""
+    skipped = set(_NOT_SHIPPED(directory, names))
+    if os.path.basename(directory) == "cases":
+        skipped |= {n for n in names if os.path.isdir(os.path.join(directory, n))}
+    return skipped
+
+
 def copy_kept(out, staged, keep, ignore=None):
     """Copies the kept entries of OUT into STAGED; an entry with a * copies every match (files the
     ignore patterns name excepted) to the same relative path. Returns the path of the first entry
@@ -347,7 +360,7 @@ def main():
         dest = os.path.join(ROOT, "results", n)
         staged = dest + ".new"
         shutil.rmtree(staged, ignore_errors=True)
-        ignore = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd")
+        ignore = shipped_only
         if keep:
             missing = copy_kept(out, staged, keep, ignore)
             if missing:

@@ -128,3 +128,16 @@ def test_the_calibration_comes_before_every_set_that_reads_its_posterior():
     readers = [n for n in order if any(m.POSTERIOR in c for c in m.SETS[n][1])]
     assert readers and "calibration" in order
     assert all(order.index("calibration") < order.index(n) for n in readers), order
+
+
+def test_the_case_records_of_a_validation_set_are_shipped_without_their_run_folders(tmp_path):
+    m = load(tmp_path / "repo")
+    out = tmp_path / "work" / "validation" / "v"
+    (out / "cases" / "angle_1").mkdir(parents=True)
+    (out / "cases" / "angle_1.json").write_text("{}")
+    (out / "cases" / "angle_1" / "frames.csv").write_text("t\n")
+    (out / "validation.json").write_text("{}")
+    (out / "run.log").write_text("")
+    m.shutil.copytree(out, tmp_path / "staged", ignore=m.shipped_only)
+    shipped = sorted(str(p.relative_to(tmp_path / "staged")) for p in (tmp_path / "staged").rglob("*"))
+    assert shipped == ["cases", "cases/angle_1.json", "validation.json"], shipped
