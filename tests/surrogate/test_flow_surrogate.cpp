@@ -258,6 +258,14 @@ TEST(FlowSurrogate, NetworkInputsAreTheFlowsDimensionlessGroups) {
     EXPECT_EQ(byDefault.pTankTreading, named.pTankTreading);
     // The same inputs read by the campaign-at-10 networks see half the ratio.
     EXPECT_NEAR(FlowSurrogate::load(tmp.path() / "ten").networkInputs(x7)(4, 0), 10.0 / x7(5, 0), 1e-15);
+    // And so did training: on the same rows the scaler's mean of log(eta_in / eta_out) is log 2 higher,
+    // every other input's the same.
+    for (const char* net : {"flow_regime.json", "flow_tank_treading.json"}) {
+        const auto ten = nlohmann::json::parse(test::slurp(tmp.path() / "ten" / net)).at("input_mean");
+        const auto twenty = nlohmann::json::parse(test::slurp(tmp.path() / "twenty" / net)).at("input_mean");
+        for (int i = 0; i < 6; ++i)
+            EXPECT_NEAR(twenty[i].get<double>() - ten[i].get<double>(), i == 4 ? std::log(2.0) : 0.0, 1e-12) << net << " input " << i;
+    }
 }
 
 TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
