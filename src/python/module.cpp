@@ -914,8 +914,14 @@ void registerInference(py::module_& m) {
         [](const std::string& posterior) {
             const CalibratedCell c = calibratedCell(posterior, "posterior");
             py::dict d;
-            d["v"] = c.cell.v, d["mu_uN_per_m"] = c.cell.mu, d["kb_J"] = c.kbJ, d["FvK"] = c.cell.FvK, d["b2"] = c.cell.b2;
-            d["etam_Pa_s_um"] = c.cell.etam, d["estimator"] = c.estimator, d["source"] = c.source.string();
+            d["v"] = c.cell.v;
+            d["mu_uN_per_m"] = c.cell.mu;
+            d["kb_J"] = c.kbJ;
+            d["FvK"] = c.cell.FvK;
+            d["b2"] = c.cell.b2;
+            d["etam_Pa_s_um"] = c.cell.etam;
+            d["estimator"] = c.estimator;
+            d["source"] = c.source.string();
             return d;
         },
         "posterior"_a, "The calibrated cell of a theta_new posterior (analysis/calibrated_cell.hpp)");
