@@ -16,6 +16,7 @@ import argparse
 import glob
 import json
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -252,6 +253,12 @@ def recorded(name):
                 continue
             if command:
                 return command, None
+    # Tables whose first line is trbc's provenance line "# trbc VERSION (REVISION) | command: ... |".
+    for f in [os.path.join(d, t) for t in subs if t.endswith(".csv")]:
+        with open(f, errors="replace") as text:
+            m = re.match(r"# trbc \S+ \(([^)]*)\) \| command: (.*?) \|", text.readline())
+        if m:
+            return f"{m.group(2)} (revision {m.group(1)})", None
     # Tables that name their command in a line "Command...: `...`".
     for f in [os.path.join(d, t) for t in subs if t.endswith(".md")]:
         with open(f, errors="replace") as text:
