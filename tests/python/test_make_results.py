@@ -73,6 +73,10 @@ def test_dry_run_finds_the_command_and_revision_of_single_runs_and_tables(tmp_pa
     table.mkdir(parents=True)
     (table / "summary.md").write_text("# Surrogate vs direct\n\nCommand: `scripts/surrogate_vs_direct.py --n 20`\n")
     assert m.recorded("surrogate_vs_direct")[0] == "scripts/surrogate_vs_direct.py --n 20"
+    stats = tmp_path / "repo" / "results" / "calibration"
+    stats.mkdir(parents=True)
+    (stats / "posterior_stats.csv").write_text("# trbc 0.1.0 (def5678) | command: trbc infer --out X | seed: 1\nposterior,mean\n")
+    assert m.recorded("calibration")[0] == "trbc infer --out X (revision def5678)"
     nothing = tmp_path / "repo" / "results" / "sobol"
     nothing.mkdir(parents=True)
     (nothing / "notes.md").write_text("no command here\n")
