@@ -68,7 +68,10 @@ SETS = {
                             ["python3 scripts/surrogate_vs_direct.py --trbc {trbc} --n 20 --seed 99 --level 4 --out {out}"], 0.05, None),
     "mesh_convergence": ("the six observables at levels 3-5 at three cells",
                          ["bash scripts/mesh_convergence.sh {trbc} {out}"], 0.3, None),
-    "branch_map": ("the two equilibrium branches near v = 1", ["python3 scripts/branch_map.py --trbc {trbc} --jobs 2 --out {out} --figure {out}/branch_map.png"], 1.0, None),
+    "branch_map": ("the two equilibrium branches near v = 1, levels 3 and 4",
+                   ["python3 scripts/branch_map.py --trbc {trbc} --jobs 2 --out {out} --figure {out}/branch_map.png",
+                    "python3 scripts/branch_map.py --trbc {trbc} --level 4 --v 0.98,0.99,0.995,0.999 --fvk 50,122,200,400 "
+                    "--jobs 2 --out {out} --figure {out}/branch_map_L4.png"], 1.0, None),
     "relaxation_low_v": ("tc at v 0.65-0.75, inertial and overdamped at levels 3-4, inertial at level 5",
                          ["bash scripts/relaxation_low_v.sh {trbc} {out} \"3 4\"",
                           "bash scripts/relaxation_low_v.sh {trbc} {out} 5 inertial"], 0.6, None),
