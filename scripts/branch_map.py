@@ -14,7 +14,7 @@ and the seeded thermal kicks of it). Writes
 
 Usage:
   scripts/branch_map.py [--trbc build/trbc] [--level 3] [--v 0.95,0.97,...] [--fvk 10,50,...]
-                        [--out results/branch_map] [--figure docs/figures/branch_map.png] [--jobs 2]
+                        [--out results/branch_map] [--figure results/branch_map/branch_map.png] [--jobs 2]
 
 Rows already in OUT/branch_map.csv with the same level are kept (a killed run continues).
 Only numpy and matplotlib are needed.
@@ -136,7 +136,7 @@ def main():
     ap.add_argument("--v", default=DEFAULT_V, help="comma-separated reduced volumes")
     ap.add_argument("--fvk", default=DEFAULT_FVK, help="comma-separated FvK numbers")
     ap.add_argument("--out", default=str(REPO / "results" / "branch_map"))
-    ap.add_argument("--figure", default=str(REPO / "docs" / "figures" / "branch_map.png"))
+    ap.add_argument("--figure", default=str(REPO / "results" / "branch_map" / "branch_map.png"))
     ap.add_argument("--jobs", type=int, default=2, help="points computed at once")
     a = ap.parse_args()
     if not 2 <= a.level <= 6:
