@@ -60,7 +60,7 @@ SETS = {
                    "corner_suresh_2005.png", "corner_hochmuth_1979_cell1.png", "corner_hochmuth_1979_cell2.png",
                    "corner_hochmuth_1979_cell3.png", "corner_hochmuth_1979_cell4.png", "corner_theta_new.png", "predict"]),
     "inference_seed_study": ("theta_new of the default trbc infer for seeds 1-8",
-                             ["python3 scripts/seed_study.py --trbc {trbc} --out {out} --seeds 1 2 3 4 5 6 7 8"], 0.3,
+                             ["python3 scripts/seed_study.py --trbc {trbc} --out {out} --seeds 1 2 3 4 5 6 7 8"], 0.4,
                              ["seed_study.csv", "seed_study.md"]),  # not the eight runs' samples (600 MB)
     "sobol": ("Sobol' indices of the six observables", ["{trbc} sobol --samples 4096 --seed 1 --threads 2 --out {out}"], 0.05,
               None),
@@ -71,15 +71,15 @@ SETS = {
     "branch_map": ("the two equilibrium branches near v = 1, levels 3 and 4",
                    ["python3 scripts/branch_map.py --trbc {trbc} --jobs 2 --out {out} --figure {out}/branch_map.png",
                     "python3 scripts/branch_map.py --trbc {trbc} --level 4 --v 0.98,0.99,0.995,0.999 --fvk 50,122,200,400 "
-                    "--jobs 2 --out {out} --figure {out}/branch_map_L4.png"], 1.0, None),
+                    "--jobs 2 --out {out} --figure {out}/branch_map_L4.png"], 0.1, None),
     "relaxation_low_v": ("tc at v 0.65-0.75, inertial and overdamped at levels 3-4, inertial at level 5",
                          ["bash scripts/relaxation_low_v.sh {trbc} {out} \"3 4\"",
-                          "bash scripts/relaxation_low_v.sh {trbc} {out} 5 inertial"], 0.6, None),
-    "flow_scan_etam": ("two shear cases of the Table 1 cell over eta_m", ["bash scripts/flow_scan.sh {trbc} {out} 2 etam"], 1.0,
+                          "bash scripts/relaxation_low_v.sh {trbc} {out} 5 inertial"], 0.3, None),
+    "flow_scan_etam": ("two shear cases of the Table 1 cell over eta_m", ["bash scripts/flow_scan.sh {trbc} {out} 2 etam"], 0.1,
                        None),
     "flow_scan_threshold": ("the 100 mPa s threshold of the Table 1 cell over eta_m, v and a tilt",
                             ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 2.0, None),
-    "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new " + POSTERIOR], 0.5,
+    "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new " + POSTERIOR], 0.04,
                             None),
     "flow_campaign": ("the shear-flow campaign at level 3 from random and in-plane starts, its networks and learning curves",
                       [CAMPAIGN.format(start="random", name="level3"), CAMPAIGN.format(start="in-plane", name="level3_inplane"),
@@ -136,13 +136,13 @@ SETS = {
                                  SHEAR_TTF32 + "--level 2 --rotations 4 --threads 1 --out {out}/ttf32_L2_r4",
                                  SHEAR_TTF32 + "--level 3 --rotations 10 --threads 1 --out {out}/ttf32_L3",
                                  SHEAR_TTF32 + "--level 3 --rotations 4 --threads 2 --out {out}/ttf32_L3_r4",
-                                 SHEAR_TTF32 + "--level 4 --rotations 4 --threads 2 --out {out}/ttf32_L4_r4"], 1.3,
+                                 SHEAR_TTF32 + "--level 4 --rotations 4 --threads 2 --out {out}/ttf32_L4_r4"], 0.13,
                                 [f"ttf32_{r}/{f}" for r in ("L2", "L2_r4", "L3", "L3_r4", "L4_r4")
                                  for f in ("flow.json", "frames.csv", "steps.csv")]),
     "validation/step_tolerance": ("the step-tolerance checks of a tube case and a shear case, level 3",
                                   [TUBE_PG40 + "--step-tol " + t + " --out {out}/tube_pg40_tol_" + t for t in ("1e-3", "2.5e-4", "6.25e-5")] +
                                   ["{trbc} flow shear --eta-out 28.9 --shear-rate 32.39631125836553 --eta-in 10 --level 3 --rotations 10 "
-                                   "--step-tol 0.00025 --threads 1 --out {out}/shear_ttf32_tol_2.5e-4"], 0.9,
+                                   "--step-tol 0.00025 --threads 1 --out {out}/shear_ttf32_tol_2.5e-4"], 0.4,
                                   [f"tube_pg40_tol_{t}/{f}" for t in ("1e-3", "2.5e-4", "6.25e-5")
                                    for f in ("flow.json", "frames.csv", "settling/frames.csv")] +
                                   ["shear_ttf32_tol_2.5e-4/flow.json", "shear_ttf32_tol_2.5e-4/frames.csv"]),
