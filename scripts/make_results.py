@@ -78,7 +78,7 @@ SETS = {
     "flow_scan_etam": ("two shear cases of the Table 1 cell over eta_m", ["bash scripts/flow_scan.sh {trbc} {out} 2 etam"], 0.1,
                        None),
     "flow_scan_threshold": ("the 100 mPa s threshold of the Table 1 cell over eta_m, v and a tilt",
-                            ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 2.0, None),
+                            ["bash scripts/flow_scan.sh {trbc} {out} 2 threshold"], 0.25, None),
     "flow_scan_theta_new": ("three shear cases of the theta_new cell", ["bash scripts/flow_scan.sh {trbc} {out} 2 theta_new " + POSTERIOR], 0.04,
                             None),
     "flow_campaign": ("the shear-flow campaign at level 3 from random and in-plane starts, its networks and learning curves",
