@@ -7,7 +7,8 @@
 the wall times its own records carry, where they do) and the command that made the copy shipped
 now. A run makes each selected set in WORK/<name> and then replaces results/<name> with it, so a
 failed or interrupted set leaves the shipped one untouched; the validation sets resume (`trbc
-validate` keeps its finished cases) and so does the flow campaign (`--resume`), the others start again.
+validate` keeps its finished cases), and so do the flow campaign (`--resume`) and the capsule and
+threshold scans (finished cases are skipped); the others start again.
 --save-progress ships the flow campaign's finished cases under results/flow_campaign/progress/,
 and a run on another machine continues from them. Sets are listed cheapest first; the
 sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
@@ -31,12 +32,13 @@ TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.0
              "--settle-relax 1.5 --settle-tol 0.002 --threads 2 --vtk-every 50 ")
 
 # A campaign of many hours continues where an interrupted `make results` left it (--resume once its
-# campaign.json exists); its work folder is kept (RESUMED).
+# campaign.json exists), and so do the case-by-case scans (their scripts skip finished cases); their
+# work folders are kept (RESUMED).
 # The same design from random starts (the regime network's, the ensemble protocol) and from the
 # in-plane start (the tank-treading network's, the start of validate's angle and TTF runs).
 CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level 3 --seed 20261129 --threads 1 --no-cache "
             "--steady-rule 3,0.1,0.005 --start {start} --out {{out}}/{name} $(test -f {{out}}/{name}/campaign.json && echo --resume)")
-RESUMED = ("flow_campaign", "flow_stop_rule")
+RESUMED = ("flow_campaign", "flow_stop_rule", "flow_verification/capsule", "flow_threshold/scan")
 # What a resumed set has finished so far, shipped under results/<name>/progress/ by --save-progress
 # so that another machine continues it: a run whose work folder lacks these files starts from them.
 PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"]}
@@ -100,7 +102,10 @@ SETS = {
                                   ["python3 scripts/capsule_verification.py --trbc {trbc} --out {out}"], 3.0, None),
     "flow_threshold/scan": ("the threshold under three protocols, three cells, four viscosities",
                             ["python3 scripts/threshold_protocols.py --trbc {trbc} --out {out} --level 3 --members 8 "
-                             "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --fluctuating 3"], 18.0, None),
+                             "--cells theta_new --viscosities 30,100 --protocols ensemble --posterior " + POSTERIOR,
+                             "python3 scripts/threshold_protocols.py --trbc {trbc} --out {out} --level 3 --members 8 "
+                             "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --protocols in-plane,fluctuating "
+                             "--fluctuating 3 --descend --posterior " + POSTERIOR], 11.0, None),
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
                                      " --threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),
@@ -347,7 +352,7 @@ def main():
             if keep:
                 print("  keeps: " + ", ".join(keep))
             print(f"  shipped copy made by: {command or '(no record)'}")
-        print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets and the flow campaign resume, the others start again")
+        print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets, the flow campaign and the scans resume, the others start again")
         return
     # The sets drawn from the calibration's posterior need it in WORK: made first when missing.
     if any(POSTERIOR in c for n in names for c in SETS[n][1]) and "calibration" not in names and \

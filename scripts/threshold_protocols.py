@@ -8,10 +8,12 @@ resumes after a kill), then OUT/cases.csv, OUT/fractions.csv and OUT/threshold_t
 
     scripts/threshold_protocols.py --trbc build/trbc --out results/threshold_protocols [--level 3]
         [--members 8] [--fluctuating 0] [--thermal-step 0.2] [--jobs 2] [--full-length] [--cells reference,table1,theta_new] [--viscosities 10.7,23.9,30,100]
-        [--protocols in-plane,ensemble,fluctuating] [--descend] [--dry-run]
+        [--protocols in-plane,ensemble,fluctuating] [--descend] [--posterior DIR] [--dry-run]
 
 Cells: the reference implementation's shear set-up (Table 1 means for mu, kappa_b, b2; eta_m 0.42
-Pa s um; v 0.95), the paper's Table 1 means, trbc's theta_new posterior means. Stresses: six per
+Pa s um; v 0.95), the paper's Table 1 means, and theta_new: the calibrated cell of --posterior
+(trbc.calibrated_cell, the cell of every trbc command's --posterior). A kept case whose record
+holds another cell (another posterior) runs again. Stresses: six per
 outer viscosity, log-spaced over the range where that viscosity's thresholds lie.
 
 The critical stress of a protocol is where the tank-treading fraction crosses 1/2, interpolated
@@ -37,9 +39,7 @@ import time
 CELLS = {
     "reference": dict(v=0.95, mu=4.99, kb=2.10e-19, b2=1.84, etam=0.42),
     "table1": dict(v=0.94, mu=4.99, kb=2.10e-19, b2=1.84, etam=0.69),
-    "theta_new": dict(v=0.9297396564886498, mu=4.6566855671327145, kb=2.258889261687751e-19, b2=2.0072406191529075,
-                      etam=0.6981572103032143),
-}
+}  # "theta_new" comes from --posterior
 # Shear stresses (Pa) per outer viscosity (mPa s): around the brackets that the in-plane start found.
 STRESS_RANGE = {10.7: (0.2, 1.5), 23.9: (0.03, 0.25), 30.0: (0.03, 0.25), 100.0: (0.03, 0.2)}
 ETA_IN = 10.0
@@ -85,21 +85,29 @@ def command(trbc, c, out):
     return cmd
 
 
+RECORD_CELL = {"v": "v", "mu": "mu_uN_per_m", "kb": "kb_J", "b2": "b2", "etam": "etam_Pa_s_um"}
+
+
+def same_cell(recorded, p):
+    """The record's parameters.cell is the cell p (to 1e-9 relative; a record without it passes)."""
+    return all(abs(recorded[RECORD_CELL[k]] - p[k]) <= 1e-9 * abs(p[k]) for k in RECORD_CELL if RECORD_CELL[k] in recorded)
+
+
 def finished(out, c):
-    """A case with a record of the current protocol. A fluctuating case made before trbc capped the
-    thermal step at eta_m/mu (its record lacks diagnostics.thermal.step_times_rate), where the cap
-    shortens the step, is not."""
+    """A case with a record of the current cell and protocol. A fluctuating case made before trbc
+    capped the thermal step at eta_m/mu (its record lacks diagnostics.thermal.step_times_rate),
+    where the cap shortens the step, is not."""
     f = os.path.join(out, "cases", c["id"], "flow.json")
-    if not os.path.exists(f):
-        return False
-    p = CELLS[c["cell"]]
-    if c["protocol"] != "fluctuating" or THERMAL_STEP <= c["rate"] * p["etam"] / p["mu"]:
-        return True
     try:
         with open(f) as fh:
             j = json.load(fh)
     except (OSError, ValueError):
         return False
+    p = CELLS[c["cell"]]
+    if not same_cell(j.get("parameters", {}).get("cell", {}), p):
+        return False
+    if c["protocol"] != "fluctuating" or THERMAL_STEP <= c["rate"] * p["etam"] / p["mu"]:
+        return True
     return "step_times_rate" in j.get("diagnostics", {}).get("thermal", {}) or j.get("thermal_step_capped", False)
 
 
@@ -107,8 +115,8 @@ def run(trbc, c, out):
     d = os.path.join(out, "cases", c["id"])
     if finished(out, c):
         return c["id"], "kept", 0.0
-    if os.path.exists(os.path.join(d, "flow.json")):  # made with the uncapped step: kept aside, run again
-        os.replace(d, d + ".uncapped")
+    if os.path.exists(os.path.join(d, "flow.json")):  # another cell or the uncapped step: kept aside, run again
+        os.replace(d, d + time.strftime(".replaced-%Y%m%dT%H%M%S"))
     t0 = time.time()
     r = subprocess.run(command(trbc, c, out), capture_output=True, text=True)
     if r.returncode < 0:  # killed by a signal: not a result, the next run repeats the case
@@ -116,8 +124,10 @@ def run(trbc, c, out):
     if r.returncode != 0 and not os.path.exists(os.path.join(d, "flow.json")):
         os.makedirs(d, exist_ok=True)
         with open(os.path.join(d, "flow.json"), "w") as f:
+            p = CELLS[c["cell"]]
             json.dump({"status": "failed", "reason": r.stderr.strip().splitlines()[-1:] or ["exit %d" % r.returncode],
-                       "observables": {"regime": None}, "thermal_step_capped": c["protocol"] == "fluctuating"}, f)
+                       "observables": {"regime": None}, "thermal_step_capped": c["protocol"] == "fluctuating",
+                       "parameters": {"cell": {RECORD_CELL[k]: p[k] for k in RECORD_CELL}}}, f)
     return c["id"], "ran", time.time() - t0
 
 
@@ -235,6 +245,18 @@ def summarise(out, all_cases, members):
     return table
 
 
+def posterior_cell(posterior):
+    try:
+        import trbc
+    except ImportError as e:
+        sys.exit(f"--posterior: the trbc Python package is needed to read it ({e})")
+    try:
+        c = trbc.calibrated_cell(posterior)
+    except Exception as e:  # the binding's error names the file and what is missing
+        sys.exit(f"--posterior {posterior}: {e}")
+    return dict(v=c["v"], mu=c["mu_uN_per_m"], kb=c["kb_J"], b2=c["b2"], etam=c["etam_Pa_s_um"])
+
+
 def main():
     global THERMAL_STEP, STOP_WHEN_STEADY
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -249,6 +271,7 @@ def main():
     ap.add_argument("--full-length", action="store_true",
                     help="run every case its full --rotations (default: stop at the steady state, `flow shear --stop-when-steady`)")
     ap.add_argument("--cells", default="reference,table1,theta_new")
+    ap.add_argument("--posterior", help="theta_new posterior (DIR/inference/phase3/theta_new of `trbc calibrate`): the theta_new cell")
     ap.add_argument("--viscosities", default="10.7,23.9,30,100")
     ap.add_argument("--protocols", default="in-plane,ensemble,fluctuating",
                     help="which protocols' cases to run now (the table always shows every finished case)")
@@ -259,8 +282,8 @@ def main():
     a = ap.parse_args()
     cells = a.cells.split(",")
     for c in cells:
-        if c not in CELLS:
-            sys.exit(f"--cells: unknown cell '{c}' (valid: {', '.join(CELLS)})")
+        if c not in CELLS and c != "theta_new":
+            sys.exit(f"--cells: unknown cell '{c}' (valid: {', '.join(CELLS)}, theta_new)")
     try:
         viscosities = [float(x) for x in a.viscosities.split(",")]
     except ValueError:
@@ -276,6 +299,10 @@ def main():
     for p in protocols:
         if p not in PROTOCOL_ORDER:
             sys.exit(f"--protocols: unknown protocol '{p}' (valid: {', '.join(PROTOCOL_ORDER)})")
+    if "theta_new" in cells:
+        if not a.posterior:
+            sys.exit("--cells theta_new needs --posterior DIR (the calibration's inference/phase3/theta_new)")
+        CELLS["theta_new"] = posterior_cell(a.posterior)
     THERMAL_STEP = a.thermal_step
     STOP_WHEN_STEADY = not a.full_length
     all_cases = cases(cells, viscosities, a.members, a.fluctuating, a.level, a.rotations)

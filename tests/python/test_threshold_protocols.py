@@ -71,3 +71,24 @@ def test_a_fresh_scan_runs_the_in_plane_cases_before_it_descends(tmp_path):
     assert sorted(ran[6:]) == sorted(f"reference_eta30_tau{s}_T{k}" for s in ("0.1071", "0.07006", "0.04584") for k in (1, 2, 3))
     r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path / "x"), "--descend"], capture_output=True, text=True)
     assert r.returncode != 0 and "--fluctuating N >= 1" in r.stderr
+
+
+def test_a_kept_case_of_another_cell_runs_again(tmp_path):
+    ran, _ = run(tmp_path, "--protocols", "in-plane")
+    assert len(ran) == 6
+    rec = tmp_path / "scan" / "cases" / "reference_eta30_tau0.25_inplane" / "flow.json"
+    rec.write_text('{"status": "ok", "observables": {"regime": "tank-treading"}, '
+                   '"parameters": {"cell": {"v": 0.95, "mu_uN_per_m": 4.5, "kb_J": 2.1e-19, "b2": 1.84, "etam_Pa_s_um": 0.42}}}')
+    ran, _ = run(tmp_path, "--protocols", "in-plane")
+    assert ran == ["reference_eta30_tau0.25_inplane"]
+    # The record of the scan's own cell (mu 4.99) is kept.
+    rec.write_text(rec.read_text().replace('"status"', '"parameters": {"cell": {"v": 0.95, "mu_uN_per_m": 4.99, "kb_J": 2.1e-19, '
+                                                       '"b2": 1.84, "etam_Pa_s_um": 0.42}}, "status"', 1))
+    ran, _ = run(tmp_path, "--protocols", "in-plane")
+    assert ran == []
+
+
+def test_the_theta_new_cell_needs_a_posterior(tmp_path):
+    r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path / "x"), "--cells", "theta_new", "--dry-run"],
+                       capture_output=True, text=True)
+    assert r.returncode != 0 and "--cells theta_new needs --posterior" in r.stderr
