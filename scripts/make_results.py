@@ -105,7 +105,8 @@ SETS = {
                              "--cells theta_new --viscosities 30,100 --protocols ensemble --posterior " + POSTERIOR,
                              "python3 scripts/threshold_protocols.py --trbc {trbc} --out {out} --level 3 --members 8 "
                              "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --protocols in-plane,fluctuating "
-                             "--fluctuating 3 --descend --posterior " + POSTERIOR], 11.0, None),
+                             "--fluctuating 3 --descend --posterior " + POSTERIOR], 11.0,
+                            ["command.txt", "cases.csv", "fractions.csv", "threshold_table.md"]),
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
                                      " --threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),
@@ -181,11 +182,11 @@ _NOT_SHIPPED = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-
 
 def shipped_only(directory, names):
     """copytree's ignore: run files that are not shipped (checkpoints, shapes, logs), and the per-case
-    run folders of `trbc validate` (DIR/cases/<id>/: time series and shapes); its case records
-    DIR/cases/<id>.json are shipped."""
+    run folders of `trbc validate` (DIR/cases/<id>/ beside its case record DIR/cases/<id>.json: time
+    series and shapes); the case records are shipped, and so is a folder without a record beside it."""
     skipped = set(_NOT_SHIPPED(directory, names))
     if os.path.basename(directory) == "cases":
-        skipped |= {n for n in names if os.path.isdir(os.path.join(directory, n))}
+        skipped |= {n for n in names if os.path.isdir(os.path.join(directory, n)) and n + ".json" in names}
     return skipped
 
 

@@ -145,3 +145,14 @@ def test_the_case_records_of_a_validation_set_are_shipped_without_their_run_fold
     m.shutil.copytree(out, tmp_path / "staged", ignore=m.shipped_only)
     shipped = sorted(str(p.relative_to(tmp_path / "staged")) for p in (tmp_path / "staged").rglob("*"))
     assert shipped == ["cases", "cases/angle_1.json", "validation.json"], shipped
+
+
+def test_a_cases_folder_without_records_beside_its_subfolders_is_shipped_whole(tmp_path):
+    m = load(tmp_path / "repo")
+    out = tmp_path / "work" / "scan"
+    (out / "cases" / "c1").mkdir(parents=True)
+    (out / "cases" / "c1" / "flow.json").write_text("{}")
+    (out / "cases" / "c1" / "checkpoint").write_text("")
+    m.shutil.copytree(out, tmp_path / "staged", ignore=m.shipped_only)
+    shipped = sorted(str(p.relative_to(tmp_path / "staged")) for p in (tmp_path / "staged").rglob("*"))
+    assert shipped == ["cases", "cases/c1", "cases/c1/flow.json"], shipped
