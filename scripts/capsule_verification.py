@@ -73,7 +73,7 @@ def run(trbc, outdir, c):
     return c["id"], f"done in {time.time() - t0:.0f} s"
 
 
-def table(outdir):
+def table(outdir, command_line):
     rows = []
     for c in cases():
         path = os.path.join(outdir, "cases", c["id"] + ".json")
@@ -83,15 +83,16 @@ def table(outdir):
         o, d = r["observables"], r["diagnostics"]
         rows.append(dict(c, D12=o["taylor_D12"], theta_deg=o["inclination_deg"], omega_over_rate=o["membrane_frequency_over_rate"],
                          steady=o["steady_state_reached"], area_change=o["area_change"], steps=d["steps"], wall_s=d["wall_s"],
-                         vertices=r["provenance"]["vertices"], version=r["provenance"]["version"]))
+                         vertices=r["provenance"]["vertices"], version=r["provenance"]["version"],
+                         revision=r["provenance"].get("revision", "not recorded")))
     with open(os.path.join(outdir, "cases.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
         w.writerows(rows)
     get = {(r["group"], r["law"], r["ca"], r["lam"], r["eb"], r["em"], r["level"]): r for r in rows}
-    md = ["# Capsule verification", "", "Made by `scripts/capsule_verification.py --trbc build/trbc --out "
-          "results/flow_verification/capsule` (trbc " + rows[0]["version"] + "). Regularising bending EB = 1e-3 unless "
-          "stated.", "", "## Small deformation, Ca = 0.01: D12 / Ca against (5/8)(3 + G_s/K_s)", "",
+    revisions = ", ".join(sorted({r["revision"] for r in rows}))  # more than one: cases of different builds
+    md = ["# Capsule verification", "", f"Command: `{command_line}`; trbc {rows[0]['version']} (revision {revisions}). "
+          "Regularising bending EB = 1e-3 unless stated.", "", "## Small deformation, Ca = 0.01: D12 / Ca against (5/8)(3 + G_s/K_s)", "",
           "| law | lambda | theory | level 3 | level 4 | deviation L3 / L4 | theta L4 (deg) | omega / rate L4 |", "|---|---|---|---|---|---|---|---|"]
     for law in ("neo-hookean", "skalak", "lim"):
         for lam in (0.2, 1.0, 5.0):
@@ -158,7 +159,7 @@ def main():
         with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
             for cid, status in pool.map(lambda c: run(a.trbc, a.out, c), todo):
                 print(f"capsule_verification: {cid}: {status}", flush=True)
-    table(a.out)
+    table(a.out, " ".join(["scripts/capsule_verification.py"] + sys.argv[1:]))
     print(f"capsule_verification: tables in {a.out}/capsule_table.md and cases.csv")
     return 0
 

@@ -273,7 +273,8 @@ def recorded(name):
         with open(f, errors="replace") as text:
             for line in text:
                 if line.startswith("Command") and line.count("`") >= 2:
-                    return line.split("`")[1][:160], None
+                    m = re.search(r"\(revision ([^)]*)\)", line)
+                    return line.split("`")[1][:160] + (f" (revision {m.group(1)})" if m else ""), None
     for text in ("command.txt", "README.md"):
         f = os.path.join(d, text)
         if os.path.exists(f):

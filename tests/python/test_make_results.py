@@ -73,6 +73,11 @@ def test_dry_run_finds_the_command_and_revision_of_single_runs_and_tables(tmp_pa
     table.mkdir(parents=True)
     (table / "summary.md").write_text("# Surrogate vs direct\n\nCommand: `scripts/surrogate_vs_direct.py --n 20`\n")
     assert m.recorded("surrogate_vs_direct")[0] == "scripts/surrogate_vs_direct.py --n 20"
+    capsule = tmp_path / "repo" / "results" / "capsule"
+    capsule.mkdir(parents=True)
+    (capsule / "capsule_table.md").write_text("# Capsule\n\nCommand: `scripts/capsule_verification.py --out X`; trbc 0.1.0 "
+                                              "(revision 9abcdef). Regularising bending.\n")
+    assert m.recorded("capsule")[0] == "scripts/capsule_verification.py --out X (revision 9abcdef)"
     stats = tmp_path / "repo" / "results" / "calibration"
     stats.mkdir(parents=True)
     (stats / "posterior_stats.csv").write_text("# trbc 0.1.0 (def5678) | command: trbc infer --out X | seed: 1\nposterior,mean\n")
