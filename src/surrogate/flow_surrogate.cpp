@@ -27,18 +27,21 @@ namespace {
 
 using T = VariableTransform;
 
-/// The networks' inputs in the order of flowNetworkInput, each with the transform training puts on
-/// it: the log of the positive groups that span decades.
+/// The networks' inputs: each one's name, its value from the cell and the flow's groups, and the
+/// transform training puts on it (the log of the positive groups that span decades).
 struct NetworkInputAxis {
     const char* name;
+    double (*value)(const CellParameters&, const FlowGroups&);
     VariableTransform transform;
 };
-constexpr std::array<NetworkInputAxis, 6> kNetworkInputs = {{{"v", T::Identity},
-                                                             {"FvK", T::Log},
-                                                             {"b2", T::Identity},
-                                                             {"Ca", T::Log},
-                                                             {"eta_in_over_eta_out", T::Log},
-                                                             {"Bq", T::Log}}};
+constexpr std::array<NetworkInputAxis, 6> kNetworkInputs = {{
+    {"v", [](const CellParameters& c, const FlowGroups&) { return c.v; }, T::Identity},
+    {"FvK", [](const CellParameters&, const FlowGroups& g) { return g.FvK; }, T::Log},
+    {"b2", [](const CellParameters& c, const FlowGroups&) { return c.b2; }, T::Identity},
+    {"Ca", [](const CellParameters&, const FlowGroups& g) { return g.capillary; }, T::Log},
+    {"eta_in_over_eta_out", [](const CellParameters&, const FlowGroups& g) { return g.viscosityRatio; }, T::Log},
+    {"Bq", [](const CellParameters&, const FlowGroups& g) { return g.membraneViscosity; }, T::Log},
+}};
 
 std::vector<VariableTransform> networkInputTransforms() {
     std::vector<VariableTransform> t;
@@ -310,12 +313,11 @@ const std::vector<std::string>& flowNetworkInputNames() {
     return names;
 }
 
-// The order of kNetworkInputs.
 Eigen::Matrix<double, 6, 1> flowNetworkInput(const Eigen::Ref<const Eigen::Matrix<double, 7, 1>>& x, double etaInMPaS) {
     const CellParameters cell{x(0), x(1), x(2), x(3), x(4)};
     const FlowGroups g = flowGroups(cell, x(kEtaOutAxis), etaInMPaS, x(kStressAxis));
     Eigen::Matrix<double, 6, 1> out;
-    out << cell.v, g.FvK, cell.b2, g.capillary, g.viscosityRatio, g.membraneViscosity;
+    for (std::size_t k = 0; k < kNetworkInputs.size(); ++k) out(Eigen::Index(k)) = kNetworkInputs[k].value(cell, g);
     return out;
 }
 
