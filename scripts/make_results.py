@@ -107,6 +107,14 @@ SETS = {
                              "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --protocols in-plane,fluctuating "
                              "--fluctuating 3 --descend --posterior " + POSTERIOR], 11.0,
                             ["command.txt", "cases.csv", "fractions.csv", "threshold_table.md"]),
+    "flow_threshold/ramp_theta_new_eta100": ("the theta_new cell's shear ramp at 100 mPa s",
+                                             ["{trbc} flow ramp --eta-out 100 --rates 0.3,0.4384,0.6406,0.9362,1.368,2.0 "
+                                              "--rotations 10 --level 3 --threads 1 --posterior " + POSTERIOR +
+                                              " --vtk-every 1000000 --out {out}"], 0.6, ["ramp.json"]),
+    "inference_sensitivity": ("theta_new's sensitivity to the population model, and the two routes of phases 2-3",
+                              ["python3 scripts/inference_sensitivity.py --trbc {trbc} --out {out} --seed 1 "
+                               "--seed-study results/inference_seed_study/seed_study.csv"], 0.2,
+                              ["sensitivity.md", "sensitivity.csv", "routes.md", "routes.csv"]),
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
                                      " --threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),
