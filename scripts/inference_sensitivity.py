@@ -19,7 +19,8 @@ of the mean in posterior SDs of the default and the ratio of the SDs, with the l
 mean in SDs) and OUT/routes.csv and OUT/routes.md (the joint route, over the seeds of --seed-study
 when given, else the default run, against the re-weighting route's two seeds: the difference of
 the means over their combined MCSE, the re-weighting MCSE being the larger of its stated one and
-the standard error of its two seeds)."""
+the standard error of its two seeds), with the posterior medians of the population SDs of the
+three runs (OUT/population_sd.csv)."""
 import argparse
 import csv
 import json
@@ -96,7 +97,7 @@ def joint_from_seed_study(path):
 
 
 def g(x, digits=4):
-    return f"{x:.{digits}g}"
+    return f"{x:#.{digits}g}"
 
 
 def sensitivity_table(out, default, variants, header):
@@ -165,6 +166,40 @@ def routes_table(out, joint, joint_label, rw, header):
     return md
 
 
+def population_sd_medians(run_dir):
+    """Posterior medians of the population SDs (sd_* of DIR/phase2/hyper/samples.csv)."""
+    path = os.path.join(run_dir, "phase2", "hyper", "samples.csv")
+    with open(path) as f:
+        rows = list(csv.DictReader(ln for ln in f if not ln.startswith("#")))
+    if not rows:
+        sys.exit(f"inference_sensitivity: {path} holds no samples")
+    out = {}
+    for k in (c for c in rows[0] if c.startswith("sd_")):
+        x = sorted(float(r[k]) for r in rows)
+        n = len(x)
+        out[k] = x[n // 2] if n % 2 else 0.5 * (x[n // 2 - 1] + x[n // 2])
+    return out
+
+
+def population_table(out, runs, header):
+    """The posterior median of every population SD, one column per run [(label, medians)]."""
+    names = list(runs[0][1])
+    md = ["", "## Population SDs", "", "Posterior medians of the population-SD hyper-parameters (phase 2), in the units of "
+          "`posterior_stats.csv` (κ_b in J).", "",
+          "| hyper-parameter | " + " | ".join(label for label, _ in runs) + " |", "|---|" + "---|" * len(runs)]
+    for k in names:
+        md.append(f"| {k} | " + " | ".join(g(m[k], 3) for _, m in runs) + " |")
+    with open(os.path.join(out, "population_sd.csv"), "w", newline="") as f:
+        f.write(header_line(header) + "\n")
+        w = csv.writer(f)
+        w.writerow(["hyper_parameter"] + [label for label, _ in runs])
+        for k in names:
+            w.writerow([k] + [m[k] for _, m in runs])
+    with open(os.path.join(out, "routes.md"), "a") as f:
+        f.write("\n".join(md) + "\n")
+    return md
+
+
 def header_line(header):
     return "# " + header.replace("\n", " ")
 
@@ -217,6 +252,9 @@ def main():
         joint = {p: dict(mean=default[p]["mean"], sd=default[p]["sd"], mcse=default[p]["mcse_mean"], n=1) for p, _, _ in PARAMS}
         label = f"the default run (seed {a.seed})"
     print("\n".join(routes_table(a.out, joint, label, rw, header)))
+    medians = [(f"joint (seed {a.seed})", population_sd_medians(default_dir))] + [
+        (f"re-weighting, seed {sd}", population_sd_medians(os.path.join(a.out, f"reweighting_seed{sd}"))) for sd in REWEIGHTING_SEEDS]
+    print("\n".join(population_table(a.out, medians, header)))
 
 
 if __name__ == "__main__":

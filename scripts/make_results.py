@@ -114,7 +114,7 @@ SETS = {
     "inference_sensitivity": ("theta_new's sensitivity to the population model, and the two routes of phases 2-3",
                               ["python3 scripts/inference_sensitivity.py --trbc {trbc} --out {out} --seed 1 "
                                "--seed-study results/inference_seed_study/seed_study.csv"], 0.2,
-                              ["sensitivity.md", "sensitivity.csv", "routes.md", "routes.csv"]),
+                              ["sensitivity.md", "sensitivity.csv", "routes.md", "routes.csv", "population_sd.csv"]),
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
                                      " --threshold-protocol in-plane --out {out} --jobs 2 --threads 1"], None, None),

@@ -14,7 +14,8 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "inference_sensitivit
 
 # theta_new's v: mean 0.93 + 0.01 per unit of log2(--hyper-sd-scale), +0.02 without truncation,
 # 0.90 + 0.01 * seed by re-weighting; SD 0.05 (0.1 by re-weighting); MCSE 0.001. Every other
-# parameter: mean 2, SD 1. A phase-2 or phase-3 run needs the earlier phases in --out.
+# parameter: mean 2, SD 1. The population's sd_v has median 0.05 (0.08 by re-weighting). A
+# phase-2 or phase-3 run needs the earlier phases in --out.
 FAKE = r'''
 import math, os, sys
 a = sys.argv[1:]
@@ -27,6 +28,11 @@ for p in {"all": ("phase1", "phase2", "phase3"), "2": ("phase2",), "3": ("phase3
     os.makedirs(os.path.join(out, p), exist_ok=True)
 if phase == "all":
     open(os.path.join(out, "phase1_prior_box.json"), "w").write("{}")
+if phase in ("all", "2"):
+    os.makedirs(os.path.join(out, "phase2", "hyper"), exist_ok=True)
+    sd_v = (0.09, 0.07, 0.08) if val("--method") == "reweighting" else (0.05, 0.04, 0.06)
+    with open(os.path.join(out, "phase2", "hyper", "samples.csv"), "w") as f:
+        f.write("# trbc\nmean_v,sd_v,sd_b2\n" + "".join(f"0.9,{x},1\n" for x in sd_v))
 seed = int(val("--seed"))
 if val("--method") == "reweighting":
     v, sd = 0.90 + 0.01 * seed, 0.1
@@ -68,7 +74,7 @@ def test_variants_shift_by_their_option_and_the_routes_compare(tmp_path):
     assert math.isclose(float(rows["no_truncation", "v"]["shift_sd"]), 0.4, abs_tol=1e-12)
     assert float(rows["box_off", "v"]["shift_sd"]) == 0.0 and float(rows["sd_half", "b2"]["sd_ratio"]) == 1.0
     md = (tmp_path / "s" / "sensitivity.md").read_text()
-    assert "(revision abc1234)" in md and "| population-SD bounds halved | `--hyper-sd-scale 0.5` | 0.92 / 0.05 (-0.20 SD, x1.00) |" in md
+    assert "(revision abc1234)" in md and "| population-SD bounds halved | `--hyper-sd-scale 0.5` | 0.9200 / 0.0500 (-0.20 SD, x1.00) |" in md
     # Re-weighting seeds 1 and 2: 0.91 and 0.92, average 0.915 against the joint 0.93; the seeds'
     # standard error 0.005 beats the stated sqrt(2) 0.001 / 2, so the combined MCSE is
     # sqrt(0.001^2 + 0.005^2).
@@ -76,6 +82,9 @@ def test_variants_shift_by_their_option_and_the_routes_compare(tmp_path):
         f.readline()
         v = next(x for x in csv.DictReader(f) if x["parameter"] == "v")
     assert math.isclose(float(v["difference_over_combined_mcse"]), -0.015 / math.hypot(0.001, 0.005), rel_tol=1e-9)
+    # The population SDs' medians: 0.05 for the joint route, 0.08 for re-weighting.
+    md = (tmp_path / "s" / "routes.md").read_text()
+    assert "| sd_v | 0.0500 | 0.0800 | 0.0800 |" in md and "| sd_b2 | 1.00 | 1.00 | 1.00 |" in md
     # A second run finds every run finished and runs nothing.
     r, ran = run(tmp_path)
     assert r.returncode == 0 and ran == []
@@ -92,6 +101,6 @@ def test_the_joint_route_over_the_seeds_of_a_seed_study(tmp_path):
     md = (tmp_path / "s" / "routes.md").read_text()
     assert "the mean over the 2 seeds of" in md
     # Joint 0.93 ± sqrt(2) 0.002 / 2.
-    assert "| v | 0.93 ± 0.0014 |" in md
+    assert "| v | 0.9300 ± 0.0014 |" in md
     r, _ = run(tmp_path, "--seed-study", str(tmp_path / "missing.csv"))
     assert r.returncode != 0 and "--seed-study" in r.stderr and "no such file" in r.stderr
