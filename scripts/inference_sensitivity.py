@@ -123,13 +123,7 @@ def sensitivity_table(out, default, variants, header):
             rows.append(dict(variant=name, option=" ".join(option), parameter=p, mean=st[p]["mean"], sd=st[p]["sd"],
                              mcse_mean=st[p]["mcse_mean"], shift_sd=shift, sd_ratio=ratio))
         md.append(f"| {label} | `{' '.join(option)}` | " + " | ".join(cells) + " |")
-    with open(os.path.join(out, "sensitivity.csv"), "w", newline="") as f:
-        f.write(header_line(header) + "\n")
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    with open(os.path.join(out, "sensitivity.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
+    write_table(out, "sensitivity", header, rows, md)
     return md
 
 
@@ -156,13 +150,7 @@ def routes_table(out, joint, joint_label, rw, header):
                          **{f"reweighting_seed{sd}_{k}": r[p][c] for sd, r in zip(REWEIGHTING_SEEDS, rw)
                             for k, c in (("mean", "mean"), ("mcse", "mcse_mean"), ("sd", "sd"))},
                          difference_over_combined_mcse=z))
-    with open(os.path.join(out, "routes.csv"), "w", newline="") as f:
-        f.write(header_line(header) + "\n")
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    with open(os.path.join(out, "routes.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
+    write_table(out, "routes", header, rows, md)
     return md
 
 
@@ -198,6 +186,17 @@ def population_table(out, runs, header):
     with open(os.path.join(out, "routes.md"), "a") as f:
         f.write("\n".join(md) + "\n")
     return md
+
+
+def write_table(out, stem, header, rows, md):
+    """OUT/STEM.csv (the header as its '#' line, then the rows) and OUT/STEM.md."""
+    with open(os.path.join(out, stem + ".csv"), "w", newline="") as f:
+        f.write(header_line(header) + "\n")
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    with open(os.path.join(out, stem + ".md"), "w") as f:
+        f.write("\n".join(md) + "\n")
 
 
 def header_line(header):
