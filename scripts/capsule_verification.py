@@ -156,11 +156,21 @@ def main():
     if not a.table_only:
         # The level-4 cases first: they set the wall time.
         todo.sort(key=lambda c: -c["level"])
+        failed = []
         with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
             for cid, status in pool.map(lambda c: run(a.trbc, a.out, c), todo):
                 print(f"capsule_verification: {cid}: {status}", flush=True)
+                if status.startswith("FAILED"):
+                    failed.append(cid)
+    if not any(os.path.exists(os.path.join(a.out, "cases", c["id"] + ".json")) for c in todo):
+        print(f"capsule_verification: no finished case in {a.out}/cases: no table", file=sys.stderr)
+        return 1
     table(a.out, " ".join(["scripts/capsule_verification.py"] + sys.argv[1:]))
     print(f"capsule_verification: tables in {a.out}/capsule_table.md and cases.csv")
+    if not a.table_only and failed:
+        # The table lacks their rows: not a complete set (a re-run repeats only these).
+        print(f"capsule_verification: {len(failed)} case(s) failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
 
 

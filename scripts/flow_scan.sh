@@ -5,7 +5,7 @@
 #   etam       eta_m in {0.3, 0.42, 0.55, 0.69} Pa s um at 23.9 mPa s / 55 1/s (inclination angle) and
 #              10.7 mPa s / 39 1/s (regime), plus the 10.7 mPa s case started 7 deg out of the shear plane
 #   threshold  the tumbling / tank-treading threshold at 100 mPa s, at three rates around it (0.5477,
-#              0.7401, 1 1/s: the level-3 bracket of the Table 1 cell is [0.74, 1.41] 1/s, the largest
+#              0.7401, 1 1/s: the level-3 bracket of the Table 1 cell is [1, 1.41] 1/s, the largest
 #              measured critical stress is at 0.59 1/s) for eta_m in {0.3, 0.42, 0.55, 0.69},
 #              v in {0.90, 0.94, 0.97} and a start tilted 7 deg out of the shear plane
 #   theta_new  the three diagnostic cases (23.9 mPa s / 55 1/s, 10.7 mPa s / 39 1/s, 100 mPa s / 0.7401

@@ -60,10 +60,12 @@ def read_theta_new(path):
 def run_commands(d, commands, setup=None):
     """Runs the commands into d unless d/sensitivity_run.json records the same ones (a finished run)."""
     marker = os.path.join(d, "sensitivity_run.json")
-    if os.path.exists(marker):
+    try:
         with open(marker) as f:
             if json.load(f).get("commands") == commands:
                 return
+    except (OSError, ValueError):  # absent or unreadable: the run is not finished
+        pass
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     if setup:
@@ -74,8 +76,9 @@ def run_commands(d, commands, setup=None):
         r = subprocess.run(cmd, stdout=subprocess.DEVNULL)
         if r.returncode != 0:
             sys.exit(f"inference_sensitivity: {' '.join(cmd)} exited with {r.returncode}; {d} is left unfinished")
-    with open(marker, "w") as f:
+    with open(marker + ".tmp", "w") as f:
         json.dump({"commands": commands, "wall_s": time.time() - t0}, f)
+    os.replace(marker + ".tmp", marker)
 
 
 def joint_from_seed_study(path):

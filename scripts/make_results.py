@@ -185,7 +185,9 @@ SETS = {
 }
 
 
-_NOT_SHIPPED = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd")
+# *.tmp.*: a record a killed writer left before renaming it into place.
+_NOT_SHIPPED = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd",
+                                      "*.tmp.*")
 
 
 def shipped_only(directory, names):

@@ -89,8 +89,8 @@ RECORD_CELL = {"v": "v", "mu": "mu_uN_per_m", "kb": "kb_J", "b2": "b2", "etam": 
 
 
 def same_cell(recorded, p):
-    """The record's parameters.cell is the cell p (to 1e-9 relative; a record without it passes)."""
-    return all(abs(recorded[RECORD_CELL[k]] - p[k]) <= 1e-9 * abs(p[k]) for k in RECORD_CELL if RECORD_CELL[k] in recorded)
+    """The record's parameters.cell is the cell p, to 1e-9 relative (a record without it is not)."""
+    return all(RECORD_CELL[k] in recorded and abs(recorded[RECORD_CELL[k]] - p[k]) <= 1e-9 * abs(p[k]) for k in RECORD_CELL)
 
 
 def finished(out, c):
@@ -116,7 +116,10 @@ def run(trbc, c, out):
     if finished(out, c):
         return c["id"], "kept", 0.0
     if os.path.exists(os.path.join(d, "flow.json")):  # another cell or the uncapped step: kept aside, run again
-        os.replace(d, d + time.strftime(".replaced-%Y%m%dT%H%M%S"))
+        aside, k = d + time.strftime(".replaced-%Y%m%dT%H%M%S"), 1
+        while os.path.exists(aside):
+            aside, k = f"{d}{time.strftime('.replaced-%Y%m%dT%H%M%S')}-{k}", k + 1
+        os.replace(d, aside)
     t0 = time.time()
     r = subprocess.run(command(trbc, c, out), capture_output=True, text=True)
     if r.returncode < 0:  # killed by a signal: not a result, the next run repeats the case
@@ -179,7 +182,22 @@ def crossing(stresses, fractions):
     return None
 
 
-def summarise(out, all_cases, members):
+def provenance_line(out, all_cases, command):
+    """The table's first line: the command, the builds' revisions in the finished records, the cells."""
+    revisions = set()
+    for c in all_cases:
+        try:
+            with open(os.path.join(out, "cases", c["id"], "flow.json")) as f:
+                revisions.add(json.load(f).get("provenance", {}).get("revision"))
+        except (OSError, ValueError):
+            continue
+    revisions = sorted(r for r in revisions if r) or ["not recorded"]
+    cells = "; ".join(f"{name}: " + ", ".join(f"{k} {CELLS[name][k]:.6g}" for k in RECORD_CELL)
+                      for name in dict.fromkeys(c["cell"] for c in all_cases))
+    return f"Command: `{command}`; trbc (revision {', '.join(revisions)}). Cells: {cells}."
+
+
+def summarise(out, all_cases, members, command):
     rows, groups = [], {}
     for c in all_cases:
         reg, status = regime(out, c)
@@ -241,7 +259,7 @@ def summarise(out, all_cases, members):
                                for x in sorted(g_all))
             table.append(f"| {cell} | {eta:g} | {protocol} | {cells_} | {crit} |")
     with open(os.path.join(out, "threshold_table.md"), "w") as f:
-        f.write("\n".join(table) + "\n")
+        f.write(provenance_line(out, all_cases, command) + "\n\n" + "\n".join(table) + "\n")
     return table
 
 
@@ -342,7 +360,7 @@ def main():
                 rows.append(([c for c in sel if c["protocol"] == "fluctuating"], [c for c in sel if c["protocol"] == "in-plane"]))
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
             list(ex.map(lambda r: descend_row(a.trbc, a.out, r[0], r[1], log), rows))
-    print("\n".join(summarise(a.out, all_cases, a.members)))
+    print("\n".join(summarise(a.out, all_cases, a.members, " ".join(["scripts/threshold_protocols.py"] + sys.argv[1:]))))
 
 
 if __name__ == "__main__":

@@ -24,7 +24,8 @@ tt = stress >= 0.1 or (thermal and stress >= 0.06 and (seed == 3 or stress >= 0.
 out = val("--out")
 os.makedirs(out, exist_ok=True)
 with open(os.path.join(out, "flow.json"), "w") as f:
-    json.dump({"status": "ok", "observables": {"regime": "tank-treading" if tt else "tumbling"},
+    cell = {k: float(val("--" + o)) for k, o in (("v", "v"), ("mu_uN_per_m", "mu"), ("kb_J", "kb"), ("b2", "b2"), ("etam_Pa_s_um", "etam"))}
+    json.dump({"status": "ok", "observables": {"regime": "tank-treading" if tt else "tumbling"}, "parameters": {"cell": cell},
                "diagnostics": {"thermal": {"step_times_rate": 0.05}} if thermal else {}}, f)
 with open(os.environ["FAKE_LOG"], "a") as f:
     f.write(os.path.basename(out) + "\n")
@@ -60,6 +61,9 @@ def test_fluctuating_rows_descend_from_the_in_plane_threshold(tmp_path):
     with open(tmp_path / "scan" / "cases.csv") as f:
         status = {r["id"]: r["status"] for r in csv.DictReader(f)}
     assert status["reference_eta30_tau0.25_T1"] == "not run" and status["reference_eta30_tau0.07006_T2"] == "ok"
+    head = (tmp_path / "scan" / "threshold_table.md").read_text().splitlines()[0]
+    assert head.startswith("Command: `scripts/threshold_protocols.py --trbc") and "(revision not recorded)" in head
+    assert "Cells: reference: v 0.95, mu 4.99, kb 2.1e-19, b2 1.84, etam 0.42." in head
     # A second run keeps every finished case and runs nothing.
     ran, _ = run(tmp_path, "--protocols", "fluctuating", "--descend")
     assert ran == []
@@ -81,11 +85,13 @@ def test_a_kept_case_of_another_cell_runs_again(tmp_path):
                    '"parameters": {"cell": {"v": 0.95, "mu_uN_per_m": 4.5, "kb_J": 2.1e-19, "b2": 1.84, "etam_Pa_s_um": 0.42}}}')
     ran, _ = run(tmp_path, "--protocols", "in-plane")
     assert ran == ["reference_eta30_tau0.25_inplane"]
-    # The record of the scan's own cell (mu 4.99) is kept.
-    rec.write_text(rec.read_text().replace('"status"', '"parameters": {"cell": {"v": 0.95, "mu_uN_per_m": 4.99, "kb_J": 2.1e-19, '
-                                                       '"b2": 1.84, "etam_Pa_s_um": 0.42}}, "status"', 1))
+    # The re-run record holds the scan's own cell (mu 4.99) and is kept.
     ran, _ = run(tmp_path, "--protocols", "in-plane")
     assert ran == []
+    # A record that names no cell (a failure recorded without one) runs again.
+    rec.write_text('{"status": "failed", "observables": {"regime": null}}')
+    ran, _ = run(tmp_path, "--protocols", "in-plane")
+    assert ran == ["reference_eta30_tau0.25_inplane"]
 
 
 def test_the_theta_new_cell_needs_a_posterior(tmp_path):
