@@ -99,7 +99,7 @@ SETS = {
                         "{trbc} flow steady-rules --campaign {out}/full_length " + STOP_RULES + " > {out}/steady_rules.md"], 1.4,
                        ["full_length/campaign.json", "full_length/cases.csv", "full_length/by_turn", "steady_rules.md"]),
     "flow_verification/capsule": ("the spherical-capsule verification table",
-                                  ["python3 scripts/capsule_verification.py --trbc {trbc} --out {out}"], 3.0, None),
+                                  ["python3 scripts/capsule_verification.py --trbc {trbc} --out {out}"], 0.4, None),
     "flow_threshold/scan": ("the threshold under three protocols, three cells, four viscosities",
                             ["python3 scripts/threshold_protocols.py --trbc {trbc} --out {out} --level 3 --members 8 "
                              "--cells theta_new --viscosities 30,100 --protocols ensemble --posterior " + POSTERIOR,
@@ -110,10 +110,10 @@ SETS = {
     "flow_threshold/ramp_theta_new_eta100": ("the theta_new cell's shear ramp at 100 mPa s",
                                              ["{trbc} flow ramp --eta-out 100 --rates 0.3,0.4384,0.6406,0.9362,1.368,2.0 "
                                               "--rotations 10 --level 3 --threads 1 --posterior " + POSTERIOR +
-                                              " --vtk-every 1000000 --out {out}"], 0.6, ["ramp.json"]),
+                                              " --vtk-every 1000000 --out {out}"], 0.15, ["ramp.json"]),
     "inference_sensitivity": ("theta_new's sensitivity to the population model, and the two routes of phases 2-3",
                               ["python3 scripts/inference_sensitivity.py --trbc {trbc} --out {out} --seed 1 "
-                               "--seed-study results/inference_seed_study/seed_study.csv"], 0.2,
+                               "--seed-study results/inference_seed_study/seed_study.csv"], 0.5,
                               ["sensitivity.md", "sensitivity.csv", "routes.md", "routes.csv", "population_sd.csv"]),
     "validation/theta_new_level3": ("the flow-validation set of the theta_new cell, level 3",
                                     ["{trbc} validate --config configs/validation.toml --level 3 --posterior " + POSTERIOR +
