@@ -63,7 +63,7 @@ SETS = {
                    "corner_hochmuth_1979_cell3.png", "corner_hochmuth_1979_cell4.png", "corner_theta_new.png", "predict"]),
     "inference_seed_study": ("theta_new of the default trbc infer for seeds 1-8",
                              ["python3 scripts/seed_study.py --trbc {trbc} --out {out} --seeds 1 2 3 4 5 6 7 8"], 0.4,
-                             ["seed_study.csv", "seed_study.md"]),  # not the eight runs' samples (600 MB)
+                             ["seed_study.csv", "seed_study.md", "seed_study_phase1.csv"]),  # not the eight runs' samples (600 MB)
     "sobol": ("Sobol' indices of the six observables", ["{trbc} sobol --samples 4096 --seed 1 --threads 2 --out {out}"], 0.05,
               None),
     "surrogate_vs_direct": ("the surrogates against direct level-4 simulations at 20 points",

@@ -7,7 +7,8 @@ standard errors.
 
 Each seed runs `trbc infer --phase all --seed S --out OUT/seed_S` (skipped when OUT/seed_S already
 holds a finished run with the same options, so the study resumes). Writes OUT/seed_study.csv (one
-row per seed and parameter) and OUT/seed_study.md: per parameter of theta_new the mean over seeds
+row per seed and parameter), OUT/seed_study_phase1.csv (the same for every data set's phase-1
+posterior) and OUT/seed_study.md: per parameter of theta_new the mean over seeds
 of each statistic, the SD over seeds of the mean and median in units of the posterior SD, the
 relative SD over seeds of the posterior SD, the mean stated MCSE beside the observed scatter, and
 the wall time per run.
@@ -23,18 +24,49 @@ import sys
 import time
 
 
-def read_stats(path):
+def read_stats(path, posterior="theta_new"):
+    """{parameter: statistics} of one posterior of a posterior_stats.csv, or with posterior=None
+    {(posterior, parameter): statistics} of all of them."""
     rows = {}
     with open(path) as f:
         for r in csv.DictReader((ln for ln in f if not ln.startswith("#"))):
-            if r["posterior"] == "theta_new":
-                rows[r["parameter"]] = {k: float(v) for k, v in r.items() if k not in ("posterior", "parameter")}
+            if posterior is None or r["posterior"] == posterior:
+                key = (r["posterior"], r["parameter"]) if posterior is None else r["parameter"]
+                rows[key] = {k: float(v) for k, v in r.items() if k not in ("posterior", "parameter")}
     return rows
 
 
 def sd(values):
     m = sum(values) / len(values)
     return math.sqrt(sum((v - m) ** 2 for v in values) / (len(values) - 1)) if len(values) > 1 else float("nan")
+
+
+def phase1_scatter(phase1, seeds, out):
+    """The same scatter for phase 1, the single-data-set posteriors that start phases 2-3: writes
+    OUT/seed_study_phase1.csv and returns the table's lines, largest scatter of the mean first."""
+    keys = list(phase1[seeds[0]].keys())
+    with open(os.path.join(out, "seed_study_phase1.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["seed", "data_set", "parameter", "mean", "sd", "mcse_mean", "mcse_sd"])
+        for seed in seeds:
+            for k in keys:
+                r = phase1[seed][k]
+                w.writerow([seed, k[0], k[1], r["mean"], r["sd"], r["mcse_mean"], r["mcse_sd"]])
+    rows = []
+    for k in keys:
+        col = lambda stat: [phase1[s][k][stat] for s in seeds]
+        psd = sum(col("sd")) / len(seeds)
+        rows.append((sd(col("mean")) / psd, k, sum(col("mean")) / len(seeds), sum(col("mcse_mean")) / len(seeds) / psd, psd,
+                     sd(col("sd")) / psd))
+    rows.sort(key=lambda r: -r[0])
+    lines = ["", "## Phase 1", "",
+             "The same scatter for each data set's phase-1 posterior (`phase1/posterior_stats.csv` of each run; "
+             "`seed_study_phase1.csv`), largest scatter of the mean first.", "",
+             "| data set | parameter | mean | SD over seeds of the mean (in SD) | stated MCSE of the mean (in SD) | posterior SD "
+             "| SD over seeds of the SD (rel.) |", "|---|---|---|---|---|---|---|"]
+    for smean, (ds, p), m, mcse, psd, ssd in rows:
+        lines.append(f"| {ds} | {p} | {m:.4g} | {smean:.3f} | {mcse:.3f} | {psd:.4g} | {ssd:.3f} |")
+    return lines
 
 
 def main():
@@ -46,7 +78,7 @@ def main():
     a = ap.parse_args()
     extra = [x for x in a.extra if x != "--"]
     os.makedirs(a.out, exist_ok=True)
-    results, walls = {}, {}
+    results, phase1, walls = {}, {}, {}
     for seed in a.seeds:
         d = os.path.join(a.out, f"seed_{seed}")
         cmd = [a.trbc, "infer", "--phase", "all", "--seed", str(seed), "--out", d, "--quiet"] + extra
@@ -60,6 +92,7 @@ def main():
             walls[seed] = time.time() - t0
             json.dump({"command": cmd, "wall_s": walls[seed]}, open(done, "w"))
         results[seed] = read_stats(os.path.join(d, "posterior_stats.csv"))
+        phase1[seed] = read_stats(os.path.join(d, "phase1", "posterior_stats.csv"), posterior=None)
 
     params = list(results[a.seeds[0]].keys())
     with open(os.path.join(a.out, "seed_study.csv"), "w", newline="") as f:
@@ -92,6 +125,7 @@ def main():
     lines += ["", f"Largest scatter over seeds: mean {worst['mean']:.3f} SD, median {worst['median']:.3f} SD, posterior SD "
                   f"{100 * worst['sd']:.1f} %.",
               f"Wall time per run: median {ws[len(ws) // 2]:.0f} s, min {ws[0]:.0f} s, max {ws[-1]:.0f} s (this machine, as run)."]
+    lines += phase1_scatter(phase1, a.seeds, a.out)
     open(os.path.join(a.out, "seed_study.md"), "w").write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
