@@ -129,8 +129,9 @@ std::string thresholdProtocolText(const ValidationConfig& c) {
     return members + "; a rate tank-treads when more than half of its members do";
 }
 
-std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t, const ValidationConfig& c) {
-    const std::string protocol = " Threshold protocol: " + thresholdProtocolText(c) + ".";
+/// `withThreshold`: the set ran threshold cases, so its text names their protocol.
+std::string validationMarkdown(std::size_t cases, int failed, const ComparisonTable& t, const ValidationConfig& c, bool withThreshold) {
+    const std::string protocol = withThreshold ? " Threshold protocol: " + thresholdProtocolText(c) + "." : std::string();
     return fmt::format("# Flow validations against experiments\n\n{} cases ({} failed); {} predictions inside the experimental "
                        "scatter, {} outside, {} without data nearby, {} neither (threshold not bracketed or not monotone, "
                        "tank-treading without a TTF). A tumbling or intermittent cell where the donors tank-tread counts as "
@@ -344,7 +345,9 @@ json writeValidationTables(const ValidationRunner& R, json& bandRows) {
     writeFileAtomically(R.out / "experimental_data.json", validationDataJson(evidence.data()).dump(1) + "\n");
     json summary = {{"cases", cases}, {"failed", failed}, {"inside", table.inside}, {"outside", table.outside},
                     {"no_data", table.noData}, {"other", table.other}, {"comparisons", table.rows.size()}};
-    std::string md = validationMarkdown(cases, failed, table, R.cfg);
+    const bool withThreshold =
+        std::any_of(R.cases.begin(), R.cases.end(), [](const ValidationCase& c) { return c.kind == "threshold"; });
+    std::string md = validationMarkdown(cases, failed, table, R.cfg, withThreshold);
     if (!R.draws.empty()) {
         const BandTable bands = drawTables(R, evidence, table);
         md += bands.markdown(R);

@@ -407,6 +407,12 @@ TEST(ValidateCli, TinySetRunsResumesAndTabulates) {
     EXPECT_EQ(j["summary"]["failed"].get<int>(), 0);
     const std::string shear = test::slurp(fs::path(out) / "shear.csv");
     EXPECT_NE(shear.find("angle_eta23.9_rate20,angle,23.9,20,"), std::string::npos) << shear;
+    // The threshold protocol is named where the set ran threshold cases, and only there.
+    EXPECT_NE(test::slurp(fs::path(out) / "validation.md").find("Threshold protocol: one run per rate"), std::string::npos);
+    r = test::runTrbc("validate --config " + cfg.string() + " --only angle --out " + out + "_angle --import " + out, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("0 run now"), std::string::npos) << r.out;
+    EXPECT_EQ(test::slurp(fs::path(out + "_angle") / "validation.md").find("Threshold protocol"), std::string::npos);
     // Resume: nothing runs again; a lost case record (a run killed before it finished) runs again alone.
     r = test::runTrbc("validate --config " + cfg.string() + " --out " + out, dir.path());
     ASSERT_EQ(r.status, 0) << r.err;
