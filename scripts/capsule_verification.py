@@ -57,20 +57,24 @@ def command(trbc, c):
 
 
 def run(trbc, outdir, c):
+    """(case id, whether it has a record, what happened)."""
     path = os.path.join(outdir, "cases", c["id"] + ".json")
     if os.path.exists(path):
-        return c["id"], "finished earlier"
+        return c["id"], True, "finished earlier"
     t0 = time.time()
     p = subprocess.run(command(trbc, c), capture_output=True, text=True)
     if p.returncode != 0:
-        return c["id"], f"FAILED (exit {p.returncode}): {p.stderr.strip()[-300:]}"
-    j = json.loads(p.stdout)
+        return c["id"], False, f"failed (exit {p.returncode}): {p.stderr.strip()[-300:]}"
+    try:
+        j = json.loads(p.stdout)
+    except json.JSONDecodeError as e:
+        return c["id"], False, f"failed: its output is not a JSON record ({e})"
     j.pop("series", None)  # the observables and diagnostics are kept; the series is re-made by the command
     tmp = path + f".tmp.{os.getpid()}"
     with open(tmp, "w") as f:
         json.dump({"case": c, "result": j}, f, indent=1)
     os.replace(tmp, path)
-    return c["id"], f"done in {time.time() - t0:.0f} s"
+    return c["id"], True, f"done in {time.time() - t0:.0f} s"
 
 
 def table(outdir, command_line):
@@ -158,9 +162,9 @@ def main():
         todo.sort(key=lambda c: -c["level"])
         failed = []
         with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
-            for cid, status in pool.map(lambda c: run(a.trbc, a.out, c), todo):
+            for cid, ok, status in pool.map(lambda c: run(a.trbc, a.out, c), todo):
                 print(f"capsule_verification: {cid}: {status}", flush=True)
-                if status.startswith("FAILED"):
+                if not ok:
                     failed.append(cid)
     if not any(os.path.exists(os.path.join(a.out, "cases", c["id"] + ".json")) for c in todo):
         print(f"capsule_verification: no finished case in {a.out}/cases: no table", file=sys.stderr)
