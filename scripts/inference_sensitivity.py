@@ -23,6 +23,7 @@ the standard error of its two seeds), with the posterior medians of the populati
 three runs (OUT/population_sd.csv)."""
 import argparse
 import csv
+import functools
 import json
 import math
 import os
@@ -57,12 +58,24 @@ def read_theta_new(path):
     return rows, first.strip() if first.startswith("#") else ""
 
 
+@functools.lru_cache(maxsize=None)
+def trbc_version(trbc):
+    """`trbc --version`: the version and the revision of the build."""
+    r = subprocess.run([trbc, "--version"], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"inference_sensitivity: {trbc} --version exited with {r.returncode}: is --trbc a trbc binary?")
+    return r.stdout.strip()
+
+
 def run_commands(d, commands, setup=None):
-    """Runs the commands into d unless d/sensitivity_run.json records the same ones (a finished run)."""
+    """Runs the commands into d unless d/sensitivity_run.json records the same ones, run by a build
+    of the same revision (a finished run)."""
     marker = os.path.join(d, "sensitivity_run.json")
+    version = trbc_version(commands[0][0])
     try:
         with open(marker) as f:
-            if json.load(f).get("commands") == commands:
+            done = json.load(f)
+            if done.get("commands") == commands and done.get("trbc") == version:
                 return
     except (OSError, ValueError):  # absent or unreadable: the run is not finished
         pass
@@ -77,7 +90,7 @@ def run_commands(d, commands, setup=None):
         if r.returncode != 0:
             sys.exit(f"inference_sensitivity: {' '.join(cmd)} exited with {r.returncode}; {d} is left unfinished")
     with open(marker + ".tmp", "w") as f:
-        json.dump({"commands": commands, "wall_s": time.time() - t0}, f)
+        json.dump({"commands": commands, "trbc": version, "wall_s": time.time() - t0}, f)
     os.replace(marker + ".tmp", marker)
 
 

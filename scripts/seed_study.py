@@ -6,7 +6,7 @@ standard errors.
     scripts/seed_study.py --trbc build/trbc --out OUT --seeds 1 2 3 4 5 6 7 8 [-- extra infer options]
 
 Each seed runs `trbc infer --phase all --seed S --out OUT/seed_S` (skipped when OUT/seed_S already
-holds a finished run with the same options, so the study resumes). Writes OUT/seed_study.csv (one
+holds a finished run with the same options by a build of the same revision, so the study resumes). Writes OUT/seed_study.csv (one
 row per seed and parameter), OUT/seed_study_phase1.csv (the same for every data set's phase-1
 posterior) and OUT/seed_study.md: per parameter of theta_new the mean over seeds
 of each statistic, the SD over seeds of the mean and median in units of the posterior SD, the
@@ -79,18 +79,20 @@ def main():
     extra = [x for x in a.extra if x != "--"]
     os.makedirs(a.out, exist_ok=True)
     results, phase1, walls = {}, {}, {}
+    version = subprocess.run([a.trbc, "--version"], capture_output=True, text=True, check=True).stdout.strip()
     for seed in a.seeds:
         d = os.path.join(a.out, f"seed_{seed}")
         cmd = [a.trbc, "infer", "--phase", "all", "--seed", str(seed), "--out", d, "--quiet"] + extra
         done = os.path.join(d, "seed_study_run.json")
-        if os.path.exists(done) and json.load(open(done)).get("command") == cmd:
-            walls[seed] = json.load(open(done))["wall_s"]
+        marker = json.load(open(done)) if os.path.exists(done) else {}
+        if marker.get("command") == cmd and marker.get("trbc") == version:
+            walls[seed] = marker["wall_s"]
         else:
             t0 = time.time()
             print("seed study:", " ".join(shlex.quote(c) for c in cmd), file=sys.stderr, flush=True)
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
             walls[seed] = time.time() - t0
-            json.dump({"command": cmd, "wall_s": walls[seed]}, open(done, "w"))
+            json.dump({"command": cmd, "trbc": version, "wall_s": walls[seed]}, open(done, "w"))
         results[seed] = read_stats(os.path.join(d, "posterior_stats.csv"))
         phase1[seed] = read_stats(os.path.join(d, "phase1", "posterior_stats.csv"), posterior=None)
 

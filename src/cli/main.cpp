@@ -89,7 +89,9 @@ int main(int argc, char** argv) {
     keepFreedMemory();
     trbc::cli::setCommandLine(argc, argv);
     CLI::App app{"trbc: a calibrated, transferable red-blood-cell membrane model"};
-    app.set_version_flag("--version", std::string(trbc::kVersion));
+    // The revision beside the version, as every record's provenance names the build: scripts that
+    // keep a finished run compare it, so that a rebuilt binary runs again.
+    app.set_version_flag("--version", fmt::format("{} ({})", trbc::kVersion, trbc::gitDescribe()));
     app.require_subcommand(1);
     trbc::cli::registerForces(app);
     trbc::cli::registerMesh(app);

@@ -1,5 +1,6 @@
 // `trbc forces` end to end: runs the CLI on the provided meshes and checks its JSON energies
 // against docs/MEMBRANE_MODEL.md, reference values, and its CSV forces against central finite differences of the library energy.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -9,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/version.hpp"
 #include "membrane/model.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
@@ -121,6 +123,8 @@ TEST(CliForces, RejectsBadParametersWithAClearMessageAndNoOutput) {
 TEST(Cli, HelpAndVersionExitZeroParseErrorsExitTwo) {
     for (const char* args : {"--help", "--version", "flow tube --help", "simulate --help"})
         EXPECT_EQ(runCli(args).status, 0) << args;
+    // The version names the revision, as the records do.
+    EXPECT_NE(runCli("--version").out.find(fmt::format("{} ({})", kVersion, gitDescribe())), std::string::npos);
     for (const char* args : {"--no-such-option", "simulate --level 9", "flow tube --radius 3 --pressure-gradient 1 --settle-relax x"})
         EXPECT_EQ(runCli(args).status, 2) << args;
 }

@@ -19,6 +19,8 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "inference_sensitivit
 FAKE = r'''
 import math, os, sys
 a = sys.argv[1:]
+if a == ["--version"]:
+    sys.exit(print("0.1.0 (" + os.environ.get("FAKE_REVISION", "abc1234") + ")"))
 val = lambda k, d=None: a[a.index(k) + 1] if k in a else d
 out, phase = val("--out"), val("--phase")
 need = {"2": "phase1", "3": "phase2"}.get(phase)
@@ -48,14 +50,14 @@ with open(os.environ["FAKE_LOG"], "a") as f:
 '''
 
 
-def run(tmp_path, *args):
+def run(tmp_path, *args, revision="abc1234"):
     fake = tmp_path / "trbc"
     (tmp_path / "fake.py").write_text(FAKE)
     fake.write_text(f"#!/bin/sh\nexec {shlex.quote(sys.executable)} {shlex.quote(str(tmp_path / 'fake.py'))} \"$@\"\n")
     fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
     log = tmp_path / "ran.log"
     r = subprocess.run([sys.executable, str(SCRIPT), "--trbc", str(fake), "--out", str(tmp_path / "s"), *args],
-                       capture_output=True, text=True, env=dict(os.environ, FAKE_LOG=str(log)))
+                       capture_output=True, text=True, env=dict(os.environ, FAKE_LOG=str(log), FAKE_REVISION=revision))
     ran = log.read_text().split() if log.exists() else []
     log.unlink(missing_ok=True)
     return r, ran
@@ -85,9 +87,11 @@ def test_variants_shift_by_their_option_and_the_routes_compare(tmp_path):
     # The population SDs' medians: 0.05 for the joint route, 0.08 for re-weighting.
     md = (tmp_path / "s" / "routes.md").read_text()
     assert "| sd_v | 0.0500 | 0.0800 | 0.0800 |" in md and "| sd_b2 | 1.00 | 1.00 | 1.00 |" in md
-    # A second run finds every run finished and runs nothing.
+    # A second run finds every run finished and runs nothing; a build of another revision runs all.
     r, ran = run(tmp_path)
     assert r.returncode == 0 and ran == []
+    r, ran = run(tmp_path, revision="def5678")
+    assert r.returncode == 0 and len(ran) == 10
 
 
 def test_the_joint_route_over_the_seeds_of_a_seed_study(tmp_path):

@@ -17,6 +17,8 @@ HEADER = "posterior,parameter,mean,median,sd,q05,q95,mcse_mean,mcse_median,mcse_
 FAKE = r'''
 import os, sys
 a = sys.argv[1:]
+if a == ["--version"]:
+    sys.exit(print("0.1.0 (" + os.environ.get("FAKE_REVISION", "abc1234") + ")"))
 out, seed = a[a.index("--out") + 1], int(a[a.index("--seed") + 1])
 os.makedirs(os.path.join(out, "phase1"), exist_ok=True)
 row = lambda post, par, m, sd: f"{post},{par},{m},{m},{sd},{m - sd},{m + sd},0.01,0.01,0.01\n"
@@ -35,9 +37,9 @@ def fake_trbc(tmp_path):
     return path
 
 
-def run(tmp_path, out):
+def run(tmp_path, out, revision="abc1234"):
     return subprocess.run([sys.executable, str(SCRIPT), "--trbc", str(fake_trbc(tmp_path)), "--out", str(out), "--seeds", "1", "2", "3"],
-                          capture_output=True, text=True, check=True)
+                          capture_output=True, text=True, check=True, env=dict(os.environ, FAKE_REVISION=revision))
 
 
 def test_the_phase1_table_gives_each_data_sets_scatter_in_posterior_sd(tmp_path):
@@ -61,11 +63,12 @@ def test_the_phase1_table_gives_each_data_sets_scatter_in_posterior_sd(tmp_path)
     assert "| v | 0.92 | 0.200 |" in md
 
 
-def test_a_second_run_runs_no_seed_again(tmp_path):
+def test_a_second_run_runs_no_seed_again_unless_the_build_changed(tmp_path):
     out = tmp_path / "study"
     run(tmp_path, out)
     first = (out / "seed_study.md").read_text()
     run(tmp_path, out)
     assert (out / "runs.log").read_text().split() == ["1", "2", "3"]
     assert (out / "seed_study.md").read_text() == first
-    assert os.path.exists(out / "seed_3" / "seed_study_run.json")
+    run(tmp_path, out, revision="def5678")
+    assert (out / "runs.log").read_text().split() == ["1", "2", "3"] * 2
