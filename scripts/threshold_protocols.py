@@ -93,16 +93,23 @@ def same_cell(recorded, p):
     return all(RECORD_CELL[k] in recorded and abs(recorded[RECORD_CELL[k]] - p[k]) <= 1e-9 * abs(p[k]) for k in RECORD_CELL)
 
 
-def finished(out, c):
-    """A case with a record of the current cell and protocol. A fluctuating case made before trbc
-    capped the thermal step at eta_m/mu (its record lacks diagnostics.thermal.step_times_rate),
-    where the cap shortens the step, is not."""
-    f = os.path.join(out, "cases", c["id"], "flow.json")
+def finished_record(out, c):
+    """The case's record when it is one of the current cell and protocol, else None. A fluctuating
+    case made before trbc capped the thermal step at eta_m/mu (its record lacks
+    diagnostics.thermal.step_times_rate), where the cap shortens the step, is not."""
     try:
-        with open(f) as fh:
+        with open(os.path.join(out, "cases", c["id"], "flow.json")) as fh:
             j = json.load(fh)
     except (OSError, ValueError):
-        return False
+        return None
+    return j if is_current(j, c) else None
+
+
+def finished(out, c):
+    return finished_record(out, c) is not None
+
+
+def is_current(j, c):
     p = CELLS[c["cell"]]
     if not same_cell(j.get("parameters", {}).get("cell", {}), p):
         return False
@@ -162,14 +169,9 @@ def descend_row(trbc, out, row, inplane, log):
 
 
 def regime(out, c):
-    if not finished(out, c):
-        return None, None
-    try:
-        with open(os.path.join(out, "cases", c["id"], "flow.json")) as f:
-            j = json.load(f)
-    except (OSError, ValueError):
-        return None, None
-    return j.get("observables", {}).get("regime"), j.get("status")
+    """(regime, status) of a finished case, (None, None) otherwise."""
+    j = finished_record(out, c)
+    return (None, None) if j is None else (j.get("observables", {}).get("regime"), j.get("status"))
 
 
 def crossing(stresses, fractions):
@@ -182,15 +184,8 @@ def crossing(stresses, fractions):
     return None
 
 
-def provenance_line(out, all_cases, command):
-    """The table's first line: the command, the builds' revisions in the finished records, the cells."""
-    revisions = set()
-    for c in all_cases:
-        try:
-            with open(os.path.join(out, "cases", c["id"], "flow.json")) as f:
-                revisions.add(json.load(f).get("provenance", {}).get("revision"))
-        except (OSError, ValueError):
-            continue
+def provenance_line(revisions, all_cases, command):
+    """The table's first line: the command, the builds' revisions of the finished records, the cells."""
     revisions = sorted(r for r in revisions if r) or ["not recorded"]
     cells = "; ".join(f"{name}: " + ", ".join(f"{k} {CELLS[name][k]:.6g}" for k in RECORD_CELL)
                       for name in dict.fromkeys(c["cell"] for c in all_cases))
@@ -198,10 +193,13 @@ def provenance_line(out, all_cases, command):
 
 
 def summarise(out, all_cases, members, command):
-    rows, groups = [], {}
+    rows, groups, revisions = [], {}, set()
     for c in all_cases:
-        reg, status = regime(out, c)
+        j = finished_record(out, c)
+        reg, status = (None, None) if j is None else (j.get("observables", {}).get("regime"), j.get("status"))
         rows.append(dict(c, regime=reg, status=status))
+        if j is not None:
+            revisions.add(j.get("provenance", {}).get("revision"))
         if reg is None and status is None:
             continue
         key = (c["cell"], c["eta"], c["protocol"])
@@ -259,7 +257,7 @@ def summarise(out, all_cases, members, command):
                                for x in sorted(g_all))
             table.append(f"| {cell} | {eta:g} | {protocol} | {cells_} | {crit} |")
     with open(os.path.join(out, "threshold_table.md"), "w") as f:
-        f.write(provenance_line(out, all_cases, command) + "\n\n" + "\n".join(table) + "\n")
+        f.write(provenance_line(revisions, all_cases, command) + "\n\n" + "\n".join(table) + "\n")
     return table
 
 
