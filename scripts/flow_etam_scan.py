@@ -37,26 +37,29 @@ def fail(message):
     sys.exit(f"flow_etam_scan: {message}")
 
 
-def grid_in_box(f, cell, n, queries):
-    """eta_m on a log grid over GRID, kept where every (eta_out, rate) query is inside the box."""
+def grid_predictions(f, cell, n, sets):
+    """eta_m on a log grid over GRID, kept where every rate of every set is inside the box, and the
+    networks' predictions on it per set (rows eta_m, columns the set's rates, with a value or not)."""
     g = np.exp(np.linspace(np.log(GRID[0]), np.log(GRID[1]), n))
-    inside = np.ones(len(g), dtype=bool)
-    for eta, rates in queries:
-        E, R = np.meshgrid(g, rates, indexing="ij")
-        inside &= ~f.predict(eta_out_mPa_s=eta, shear_rate_per_s=R, etam_Pa_s_um=E, **cell)["outside_box"].any(axis=1)
+    inside, predictions = np.ones(len(g), dtype=bool), []
+    for s in sets:
+        E, R = np.meshgrid(g, s["x"], indexing="ij")
+        p = f.predict(eta_out_mPa_s=s["eta_out_mPa_s"], shear_rate_per_s=R, etam_Pa_s_um=E, **cell)
+        inside &= ~p["outside_box"].any(axis=1)
+        predictions.append(p)
     if not inside.any():
         fail("no eta_m of the grid puts every case inside the networks' box: the held cell ("
              + ", ".join(f"{k} {cell[k]:.4g}" for k in HELD) + ") lies outside it")
-    return g[inside]
+    return g[inside], [{k: v[inside] for k, v in p.items()} for p in predictions]
 
 
-def bias_scan(f, cell, etam, s, relative, tolerance):
-    """Per eta_m of one angle or TTF set: whether it fits, the RMS misfit and the mean bias over the
-    tank-treading rates, and the share of the rates that tank-tread."""
+def bias_scan(p, s, relative, tolerance):
+    """Per eta_m of one angle or TTF set, from the predictions p at its rates: whether it fits, the
+    RMS misfit and the mean bias over the tank-treading rates, and the share of the rates that
+    tank-tread."""
     keep = np.isfinite(s["y"]).any(axis=1)
     rates, data = s["x"][keep], np.nanmean(s["y"][keep], axis=1)
-    E, R = np.meshgrid(etam, rates, indexing="ij")
-    p = f.predict(eta_out_mPa_s=s["eta_out_mPa_s"], shear_rate_per_s=R, etam_Pa_s_um=E, **cell)
+    p = {k: v[:, keep] for k, v in p.items()}
     key = "ttf_4pi_f_over_rate" if relative else "inclination_deg"
     resid = p[key] / data - 1 if relative else p[key] - data
     tt = p["p_tank_treading"] > 0.5
@@ -70,8 +73,10 @@ def bias_scan(f, cell, etam, s, relative, tolerance):
     return fits, rms, bias, share, len(rates)
 
 
-def scan_rows(f, cell, etam, k_mean, accuracy, data):
-    rows = []
+def scan_rows(f, cell, etam, predictions, k_mean, accuracy, data):
+    """One row per set of data; predictions: those of grid_predictions, in the order of the angle
+    and TTF sets in data."""
+    rows, by_set = [], iter(predictions)
 
     def interval(fits):
         return (etam[fits].min(), etam[fits].max()) if fits.any() else (np.nan, np.nan)
@@ -81,7 +86,7 @@ def scan_rows(f, cell, etam, k_mean, accuracy, data):
         if obs in ("inclination_deg", "ttf_4pi_f_over_rate"):
             relative = obs == "ttf_4pi_f_over_rate"
             tol = accuracy["ttf_relative_rmse"] if relative else accuracy["inclination_rmse_deg"]
-            fits, rms, bias, share, n = bias_scan(f, cell, etam, s, relative, tol)
+            fits, rms, bias, share, n = bias_scan(next(by_set), s, relative, tol)
             best = int(np.nanargmin(np.where(fits, rms, np.nan))) if fits.any() else None
             unit = "" if relative else " deg"
             lo, hi = interval(fits)
@@ -142,11 +147,10 @@ def main():
     accuracy, accuracy_name = ((cv["pooled"], f"{cv['folds']}-fold CV") if cv else (training["test"], "held-out test"))
 
     data = trbc.validation_data()
-    queries = [(s["eta_out_mPa_s"], s["x"]) for s in data if s["observable"] in ("inclination_deg", "ttf_4pi_f_over_rate")]
-    etam = grid_in_box(f, cell, a.grid, queries)
+    etam, predictions = grid_predictions(f, cell, a.grid, [s for s in data if s["observable"] in ("inclination_deg", "ttf_4pi_f_over_rate")])
     mean_etam = calibrated["etam_Pa_s_um"]
     k_mean = int(np.argmin(np.abs(np.log(etam / mean_etam)))) if etam.min() <= mean_etam <= etam.max() else None
-    rows = scan_rows(f, cell, etam, k_mean, accuracy, data)
+    rows = scan_rows(f, cell, etam, predictions, k_mean, accuracy, data)
 
     mu = cell["mu_uN_per_m"]
     for r in rows:
