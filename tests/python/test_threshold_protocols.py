@@ -25,21 +25,24 @@ out = val("--out")
 os.makedirs(out, exist_ok=True)
 with open(os.path.join(out, "flow.json"), "w") as f:
     cell = {k: float(val("--" + o)) for k, o in (("v", "v"), ("mu_uN_per_m", "mu"), ("kb_J", "kb"), ("b2", "b2"), ("etam_Pa_s_um", "etam"))}
-    json.dump({"status": "ok", "observables": {"regime": "tank-treading" if tt else "tumbling"}, "parameters": {"cell": cell},
-               "diagnostics": {"thermal": {"step_times_rate": 0.05}} if thermal else {}}, f)
+    rec = {"status": "ok", "observables": {"regime": "tank-treading" if tt else "tumbling"}, "parameters": {"cell": cell},
+           "diagnostics": {"thermal": {"step_times_rate": 0.05}} if thermal else {}}
+    if os.environ.get("FAKE_REVISION"):
+        rec["provenance"] = {"revision": os.environ["FAKE_REVISION"]}
+    json.dump(rec, f)
 with open(os.environ["FAKE_LOG"], "a") as f:
     f.write(os.path.basename(out) + "\n")
 '''
 
 
-def run(tmp_path, *args):
+def run(tmp_path, *args, revision=""):
     fake = tmp_path / "trbc"
     fake.write_text(f"#!/bin/sh\nexec {shlex.quote(sys.executable)} {shlex.quote(str(tmp_path / 'fake.py'))} \"$@\"\n")
     (tmp_path / "fake.py").write_text(FAKE)
     fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
     r = subprocess.run([sys.executable, str(SCRIPT), "--trbc", str(fake), "--out", str(tmp_path / "scan"), "--cells", "reference",
                         "--viscosities", "30", "--fluctuating", "3", "--jobs", "2", *args],
-                       capture_output=True, text=True, env=dict(os.environ, FAKE_LOG=str(tmp_path / "ran.log")))
+                       capture_output=True, text=True, env=dict(os.environ, FAKE_LOG=str(tmp_path / "ran.log"), FAKE_REVISION=revision))
     assert r.returncode == 0, r.stderr
     log = tmp_path / "ran.log"
     ran = log.read_text().split() if log.exists() else []
@@ -92,6 +95,21 @@ def test_a_kept_case_of_another_cell_runs_again(tmp_path):
     rec.write_text('{"status": "failed", "observables": {"regime": null}}')
     ran, _ = run(tmp_path, "--protocols", "in-plane")
     assert ran == ["reference_eta30_tau0.25_inplane"]
+
+
+def test_the_table_names_the_revisions_of_the_records_it_counts(tmp_path):
+    run(tmp_path, "--protocols", "in-plane,fluctuating", "--descend", revision="abc1234")
+    # A record of another cell and build where --descend runs nothing (0.25 Pa, fluctuating): not
+    # counted, so not named.
+    stale = tmp_path / "scan" / "cases" / "reference_eta30_tau0.25_T1"
+    stale.mkdir(parents=True)
+    (stale / "flow.json").write_text('{"status": "ok", "observables": {"regime": "tank-treading"}, "provenance": {"revision": "0ld0000"}, '
+                                     '"parameters": {"cell": {"v": 0.95, "mu_uN_per_m": 4.5, "kb_J": 2.1e-19, "b2": 1.84, "etam_Pa_s_um": 0.42}}}')
+    ran, table = run(tmp_path, "--protocols", "in-plane,fluctuating", "--descend", revision="abc1234")
+    assert ran == []
+    head = (tmp_path / "scan" / "threshold_table.md").read_text().splitlines()[0]
+    assert "(revision abc1234)" in head, head
+    assert "0.25: 1/1 |" in table and "0.25: 1/" not in next(line for line in table.splitlines() if "| fluctuating |" in line)
 
 
 def test_the_theta_new_cell_needs_a_posterior(tmp_path):
