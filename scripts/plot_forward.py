@@ -43,7 +43,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 # module (PYTHONPATH=build/python alone) or an older build lacks them.
 try:
     import trbc  # noqa: E402
-    trbc.fit_hochmuth, trbc.evans_fung_thickness  # noqa: B018
+    trbc.fit_hochmuth, trbc.evans_fung_thickness, trbc.load_data_sets  # noqa: B018
 except (ImportError, AttributeError) as exc:
     sys.exit(f"plot_forward: error: cannot use trbc ({exc}); install it with `make python`, or build "
              f"`cmake --build build --target trbc_python` and set PYTHONPATH=src/python:build/python")
@@ -203,7 +203,7 @@ def thickness_extrema(r, h):
     return h[k], rs, h[j], r[j]
 
 
-def plot_equilibrium(sim, d, data, out):
+def plot_equilibrium(sim, d, sets, out):
     prof_path = d / "equilibrium_profile.csv"
     prof = read_csv(prof_path)
     if prof is None:
@@ -284,17 +284,14 @@ def plot_equilibrium(sim, d, data, out):
     ax.text(0, yD - 0.07, r"$D$", fontsize=8, color="0.25", ha="center", va="top")
 
     # table: simulated vs measured
-    ef_path = data / "equilibrium" / "evans_fung_1972.csv"
     meas = {}
-    if not ef_path.is_file():
-        note(f"{ef_path} not found; measured values not shown")
+    ef = sets.get("evans_fung_1972")
+    if ef is None:
+        note("no evans_fung_1972 data set; measured values not shown")
     else:
-        try:
-            with open(ef_path, newline="") as fh:
-                for row in csv.DictReader((ln for ln in fh if not ln.startswith("#"))):
-                    meas[row["quantity"].strip()] = (float(row["mean_um"]), float(row["sd_um"]))
-        except (KeyError, ValueError) as exc:
-            note(f"evans_fung_1972.csv: unexpected format ({exc})")
+        for key, m, sd in zip(("D", "hmin", "hmax"), ef.shape, ef.shape_sd_um):
+            if np.isfinite(sd):
+                meas[key] = (float(m), float(sd))
     names = {"D": "D    ", "hmin": "h_min", "hmax": "h_max"}
     lines = ["(µm)     sim.   Evans–Fung 1972",
              "                 mean ± sd"]
@@ -337,7 +334,7 @@ def plot_equilibrium(sim, d, data, out):
 
 
 # ---------------------------------------------------------------- figure 2
-def plot_stretching(sim, d, data, out):
+def plot_stretching(sim, d, sets, out):
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     anything = False
 
@@ -369,16 +366,14 @@ def plot_stretching(sim, d, data, out):
         note("no single-force stretching result (Fext_pN, D0_um, D1_um) in simulate.json")
 
     sources = []
-    for label, rel, mk, filled in (("Mills et al. 2004", "stretching/mills_2004/mills_2004.csv", "o", True),
-                                   ("Suresh et al. 2005", "stretching/suresh_2005/suresh_2005.csv", "s", False)):
-        tab = read_csv(data / rel)
-        if tab is None:
-            note(f"{data / rel} not found; skipped")
+    for label, name, mk, filled in (("Mills et al. 2004", "mills_2004", "o", True),
+                                    ("Suresh et al. 2005", "suresh_2005", "s", False)):
+        ds = sets.get(name)
+        if ds is None:
+            note(f"no {name} data set; skipped")
             continue
-        if not need_cols(tab, ["Fext", "D0", "D1"], data / rel):
-            continue
-        for key, col in (("D1", C_D1), ("D0", C_D0)):
-            ax.plot(tab["Fext"], tab[key], ls="none", marker=mk, ms=5,
+        for diameter, col in ((ds.D1_um, C_D1), (ds.D0_um, C_D0)):
+            ax.plot(ds.force_pN, diameter, ls="none", marker=mk, ms=5,
                     mfc=col if filled else "white", mec=col, mew=1.1, alpha=0.9, zorder=4)
         sources.append((label, mk, filled))
         anything = True
@@ -415,7 +410,7 @@ def plot_stretching(sim, d, data, out):
 
 
 # ---------------------------------------------------------------- figure 3
-def plot_relaxation(sim, d, data, out):
+def plot_relaxation(sim, d, sets, out):
     rel_path = d / "relaxation.csv"
     rel = read_csv(rel_path)
     sim_ok = rel is not None and need_cols(rel, ["t_s", "z"], rel_path)
@@ -456,18 +451,15 @@ def plot_relaxation(sim, d, data, out):
 
     cells = []
     for i in range(1, 5):
-        pth = data / "relaxation" / "hochmuth_1979" / f"{i}.csv"
-        tab = read_csv(pth)
-        if tab is None:
-            note(f"{pth} not found; skipped")
+        ds = sets.get(f"hochmuth_1979_cell{i}")
+        if ds is None:
+            note(f"no hochmuth_1979_cell{i} data set; skipped")
             continue
-        if not need_cols(tab, ["t", "L_W"], pth):
-            continue
-        f = fit_hochmuth(tab["t"], tab["L_W"], pth)
+        f = fit_hochmuth(ds.t_s, ds.aspect, ds.file)
         if f is not None:
             print(f"Hochmuth 1979 cell {i}: tc = {f['tc']:.4f} s, zinf = {f['zinf']:.4f}, "
                   f"z0 = {f['z0']:.4f}, rms = {f['rms']:.3g}")
-        cells.append((i, tab["t"], tab["L_W"], f))
+        cells.append((i, ds.t_s, ds.aspect, f))
 
     if not sim_ok and not cells:
         note("nothing to plot for relaxation; figure skipped")
@@ -583,14 +575,17 @@ def main(argv=None):
     if not isinstance(sim, dict):
         die(f"{sj}: top level is not a JSON object")
 
-    data = Path(a.data)
-    if not data.is_dir():
-        note(f"data folder {data} not found; experimental data will be missing")
+    # The data sets as trbc reads them for the calibration (the shipped layout or a datasets.json).
+    try:
+        sets = {s.name: s for s in trbc.load_data_sets(a.data)}
+    except ValueError as exc:  # bad input: the simulation is drawn without the data
+        note(f"--data {a.data}: {exc}; experimental data will be missing")
+        sets = {}
     out = Path(a.out)
 
     written = []
     for fn in (plot_equilibrium, plot_stretching, plot_relaxation):
-        p = fn(sim, d, data, out)
+        p = fn(sim, d, sets, out)
         if p is not None:
             written.append(p)
     if not written:

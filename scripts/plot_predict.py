@@ -48,15 +48,23 @@ def coverage(out_dir):
     return points
 
 
-def evans_fung_sd(data_dir):
-    sds = {}
-    if data_dir:
-        path = os.path.join(data_dir, "equilibrium", "evans_fung_1972.csv")
-        if os.path.exists(path):
-            with open(path, newline="") as f:
-                for r in csv.DictReader((ln for ln in f if not ln.startswith("#"))):
-                    sds[r["quantity"] + "_um"] = (float(r["mean_um"]), float(r["sd_um"]))
-    return sds
+def equilibrium_mean_sd(data_dir):
+    """{"D_um": (mean, SD), ...} of the data directory's equilibrium set, as trbc reads it (the
+    shipped layout or a datasets.json); {} with a note when trbc or the set is not there, or the
+    file gives no SD."""
+    try:
+        import trbc
+        sets = trbc.load_data_sets(data_dir)
+    except (ImportError, ValueError) as exc:  # no trbc, or bad data: the figures are drawn without the marks
+        print(f"plot_predict: note: no equilibrium data marks ({exc})", file=sys.stderr)
+        return {}
+    out = {}
+    for d in sets:
+        if d.experiment == "equilibrium":
+            for name, mean, sd in zip(("D_um", "hmin_um", "hmax_um"), d.shape, d.shape_sd_um):
+                if sd == sd:  # not NaN
+                    out[name] = (float(mean), float(sd))
+    return out
 
 
 def draw_data(ax, pts, observable):
@@ -82,7 +90,7 @@ def main():
     ap.add_argument("--data-dir", default=os.environ.get("TRBC_EXPERIMENT_DATA", default_data))
     a = ap.parse_args()
     cov = coverage(a.out)
-    sds = evans_fung_sd(a.data_dir)
+    sds = equilibrium_mean_sd(a.data_dir)
     files = sorted(glob.glob(os.path.join(a.out, "predict_*_*.csv")))
     made = []
     for path in files:

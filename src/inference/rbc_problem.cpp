@@ -72,8 +72,9 @@ const char* experimentName(RbcExperiment e) {
 // Data
 
 RbcDataSet readEquilibriumData(const fs::path& file, std::string name) {
-    const NumericTable t = readNumericTable(file, {"mean_um"});
+    const NumericTable t = readNumericTable(file, {"mean_um", "sd_um"}, {"sd_um"});
     const Eigen::VectorXd mean = t.column("mean_um", "population mean in um");
+    const Eigen::VectorXd sd = t.find("sd_um") >= 0 ? t.column("sd_um") : Eigen::VectorXd::Constant(mean.size(), NAN);
     const int q = t.find("quantity");
     if (q < 0)
         throw InputError(fmt::format("{}: missing column 'quantity' (D, hmin or hmax) (columns found: {})", file.string(),
@@ -102,8 +103,11 @@ RbcDataSet readEquilibriumData(const fs::path& file, std::string name) {
             throw InputError(fmt::format("{}:{}: column 'quantity' = '{}' is not one of D, hmin, hmax", file.string(), lineNo, quantity));
         if (found[k]) throw InputError(fmt::format("{}:{}: quantity '{}' appears twice", file.string(), lineNo, quantity));
         if (!(mean[r] > 0.0)) outOfRange(t, r, "mean_um", mean[r], "a mean dimension must be > 0 um");
+        if (!std::isnan(sd[r]) && !(sd[r] >= 0.0 && std::isfinite(sd[r])))
+            outOfRange(t, r, "sd_um", sd[r], "a standard deviation must be finite and >= 0 um, or blank");
         found[k] = true;
         d.shape[k] = mean[r];
+        d.shapeSd[k] = sd[r];
     }
     for (int k = 0; k < 3; ++k)
         if (!found[k]) throw InputError(fmt::format("{}: missing the row with quantity '{}'", file.string(), names[k]));

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -69,13 +70,16 @@ struct RbcDataSet {
     std::filesystem::path file;
     std::string contentHash;        ///< FNV-1a of the file bytes (provenance)
     Eigen::Vector3d shape = Eigen::Vector3d::Zero();  ///< equilibrium: mean D, hmin, hmax (um)
+    /// equilibrium: the population SD of D, hmin, hmax (um) where the file gives one (sd_um), NaN
+    /// elsewhere; for figures and reports: the likelihood's error model is inferred instead.
+    Eigen::Vector3d shapeSd = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     Eigen::VectorXd force, d0, d1;  ///< stretching: bead force F_j (pN), transverse D0_j, axial D1_j (um)
     Eigen::VectorXd time, aspect;   ///< relaxation: t_k (s), z_k = L/W
     RbcPriorBox prior;              ///< phase-1 prior box of the physical parameters
 };
 
 /// Readers; every problem is an InputError naming the file, the line and the column.
-/// Equilibrium: columns quantity (D, hmin, hmax), mean_um (> 0); sd_um is not used.
+/// Equilibrium: columns quantity (D, hmin, hmax), mean_um (> 0), optional sd_um (>= 0 or blank).
 RbcDataSet readEquilibriumData(const std::filesystem::path& file, std::string name = "evans_fung_1972");
 /// Stretching: columns Fext (pN, >= 0), D0, D1 (um, > 0), at least one row.
 RbcDataSet readStretchingData(const std::filesystem::path& file, std::string name);

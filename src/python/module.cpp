@@ -881,6 +881,8 @@ void registerInference(py::module_& m) {
         .def_property_readonly("experiment", [](const RbcDataSet& d) { return experimentName(d.experiment); })
         .def_property_readonly("file", [](const RbcDataSet& d) { return d.file.string(); })
         .def_property_readonly("shape", [](const RbcDataSet& d) { return ownedVector(d.shape); }, "equilibrium: mean D, hmin, hmax (um)")
+        .def_property_readonly("shape_sd_um", [](const RbcDataSet& d) { return ownedVector(d.shapeSd); },
+                               "equilibrium: population SD of D, hmin, hmax (um); NaN where the file gives none")
         .def_property_readonly("force_pN", [](const RbcDataSet& d) { return ownedVector(d.force); })
         .def_property_readonly("D0_um", [](const RbcDataSet& d) { return ownedVector(d.d0); })
         .def_property_readonly("D1_um", [](const RbcDataSet& d) { return ownedVector(d.d1); })

@@ -170,7 +170,28 @@ TEST(RbcInference, BadDataFilesNameFileLineAndColumn) {
     expectInputError([&] { readEquilibriumData(f); }, {f.string(), "hmax"});
     writeFile(f, "quantity,mean_um\nD,7.8\nhmin,0.8\nhmax,2..5\n");
     expectInputError([&] { readEquilibriumData(f); }, {f.string() + ":4", "mean_um"});
+    writeFile(f, "quantity,mean_um,sd_um\nD,7.8,0.6\nhmin,0.8,-0.1\nhmax,2.5,0.3\n");
+    expectInputError([&] { readEquilibriumData(f); }, {f.string() + ":3", "sd_um", ">= 0"});
     expectInputError([&] { loadRbcDataSets(tmp.path() / "nowhere"); }, {"nowhere"});
+}
+
+// The population SDs of the shape are read where the file gives them (a blank one is NaN), and the
+// likelihood ignores them.
+TEST(RbcInference, EquilibriumDataKeepTheirStandardDeviationsApartFromTheLikelihood) {
+    test::TempDir tmp;
+    const fs::path f = tmp.path() / "eq.csv";
+    writeFile(f, "quantity,mean_um,sd_um\nhmax,2.58,0.27\nD,7.82,0.62\nhmin,0.81,\n");
+    const RbcDataSet d = readEquilibriumData(f);
+    EXPECT_EQ(d.shape, Eigen::Vector3d(7.82, 0.81, 2.58));
+    EXPECT_EQ(d.shapeSd[0], 0.62);
+    EXPECT_TRUE(std::isnan(d.shapeSd[1]));
+    EXPECT_EQ(d.shapeSd[2], 0.27);
+    writeFile(f, "quantity,mean_um\nD,7.82\nhmin,0.81\nhmax,2.58\n");
+    const RbcDataSet without = readEquilibriumData(f);
+    EXPECT_TRUE(without.shapeSd.array().isNaN().all());
+    Eigen::MatrixXd theta(3, 1);
+    theta << 0.9, 300.0, 0.05;
+    EXPECT_EQ(equilibriumLogLikelihood(analyticModel(), d, theta)[0], equilibriumLogLikelihood(analyticModel(), without, theta)[0]);
 }
 
 // ------------------------------------------------------------------------------------------------

@@ -1,0 +1,76 @@
+"""scripts/plot_forward.py and scripts/plot_predict.py take the experimental data as trbc reads them for
+the calibration (trbc.load_data_sets), so a data directory laid out by a datasets.json works as the
+shipped one does."""
+import csv
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import trbc
+
+REPO = Path(__file__).resolve().parents[2]
+DATA = REPO / "data" / "experiments"
+SHIPPED = {"evans_fung_1972": ("equilibrium", "equilibrium/evans_fung_1972.csv"),
+           "mills_2004": ("stretching", "stretching/mills_2004/mills_2004.csv"),
+           "suresh_2005": ("stretching", "stretching/suresh_2005/suresh_2005.csv"),
+           **{f"hochmuth_1979_cell{i}": ("relaxation", f"relaxation/hochmuth_1979/{i}.csv") for i in range(1, 5)}}
+
+
+def manifest_dir(tmp_path, names):
+    """The named shipped sets under other file names, listed in a datasets.json."""
+    d = tmp_path / "mine"
+    d.mkdir()
+    entries = []
+    for k, name in enumerate(names):
+        experiment, rel = SHIPPED[name]
+        shutil.copy(DATA / rel, d / f"set{k}.csv")
+        entries.append({"name": name, "experiment": experiment, "file": f"set{k}.csv"})
+    (d / "datasets.json").write_text(json.dumps(entries))
+    return d
+
+
+def shipped_sds():
+    with open(DATA / "equilibrium" / "evans_fung_1972.csv") as f:
+        rows = {r["quantity"]: float(r["sd_um"]) for r in csv.DictReader(ln for ln in f if not ln.startswith("#"))}
+    return [rows["D"], rows["hmin"], rows["hmax"]]
+
+
+def test_the_equilibrium_set_carries_its_standard_deviations():
+    ef = next(d for d in trbc.load_data_sets() if d.name == "evans_fung_1972")
+    assert np.array_equal(ef.shape_sd_um, shipped_sds())
+    other = next(d for d in trbc.load_data_sets() if d.name == "mills_2004")
+    assert np.isnan(other.shape_sd_um).all()
+
+
+def plot_forward(data, out):
+    return subprocess.run([sys.executable, str(REPO / "scripts" / "plot_forward.py"), str(REPO / "docs" / "figures" / "reference_L4"),
+                           "--data", str(data), "--out", str(out), "--prefix", "t_"], capture_output=True, text=True)
+
+
+def test_plot_forward_draws_the_sets_of_a_manifest_directory(tmp_path):
+    r = plot_forward(manifest_dir(tmp_path, list(SHIPPED)), tmp_path / "figs")
+    assert r.returncode == 0, r.stderr
+    assert "data set" not in r.stderr, r.stderr  # every set found
+    assert [ln.split(":")[0] for ln in r.stdout.splitlines() if ln.startswith("Hochmuth 1979 cell")] == [
+        f"Hochmuth 1979 cell {i}" for i in range(1, 5)]
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["t_equilibrium.png", "t_relaxation.png", "t_stretching.png"]
+    # A directory without the relaxation cells: the figure is drawn, and the note names each one.
+    shutil.rmtree(tmp_path / "mine")
+    r = plot_forward(manifest_dir(tmp_path, ["evans_fung_1972", "mills_2004"]), tmp_path / "figs2")
+    assert r.returncode == 0, r.stderr
+    assert all(f"no hochmuth_1979_cell{i} data set" in r.stderr for i in range(1, 5)) and "no suresh_2005 data set" in r.stderr
+
+
+def test_plot_predict_marks_the_equilibrium_mean_and_sd_of_any_data_directory(tmp_path):
+    sys.path.insert(0, str(REPO / "scripts"))
+    try:
+        import plot_predict
+    finally:
+        sys.path.pop(0)
+    marks = plot_predict.equilibrium_mean_sd(str(manifest_dir(tmp_path, ["mills_2004", "evans_fung_1972"])))
+    ef = next(d for d in trbc.load_data_sets() if d.name == "evans_fung_1972")
+    assert marks == {k: (m, s) for k, m, s in zip(("D_um", "hmin_um", "hmax_um"), ef.shape, shipped_sds())}
+    assert plot_predict.equilibrium_mean_sd(str(tmp_path / "nowhere")) == {}
