@@ -29,6 +29,7 @@ import csv
 import json
 import math
 import sys
+from itertools import cycle
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +57,10 @@ DPI = 150
 C_SIM = "#1f3b73"      # simulation (dark blue)
 C_D1 = "#c0392b"       # axial diameter
 C_D0 = "#2471a3"       # transverse diameter
-C_CELLS = ["#d35400", "#27ae60", "#8e44ad", "#7f8c8d"]  # Hochmuth cells 1-4
+C_CELLS = ["#d35400", "#27ae60", "#8e44ad", "#7f8c8d"]  # Hochmuth cells 1-4, then again
+# The figures' names of the shipped data sets; another set is named as its datasets.json does.
+LABELS = {"evans_fung_1972": "Evans–Fung 1972", "mills_2004": "Mills et al. 2004", "suresh_2005": "Suresh et al. 2005",
+          **{f"hochmuth_1979_cell{i}": f"Hochmuth et al. 1979, cell {i}" for i in range(1, 5)}}
 
 plot_style.apply(**{"savefig.dpi": DPI})
 
@@ -284,23 +288,23 @@ def plot_equilibrium(sim, d, sets, out):
     ax.text(0, yD - 0.07, r"$D$", fontsize=8, color="0.25", ha="center", va="top")
 
     # table: simulated vs measured
-    meas = {}
-    ef = sets.get("evans_fung_1972")
-    if ef is None:
-        note("no evans_fung_1972 data set; measured values not shown")
+    meas = {}  # quantity: (mean, SD or NaN)
+    eq = [s for s in sets if s.experiment == "equilibrium"]
+    if not eq:
+        note("no equilibrium data set; measured values not shown")
     else:
-        for key, m, sd in zip(("D", "hmin", "hmax"), ef.shape, ef.shape_sd_um):
-            if np.isfinite(sd):
-                meas[key] = (float(m), float(sd))
+        for key, m, sd in zip(("D", "hmin", "hmax"), eq[0].shape, eq[0].shape_sd_um):
+            meas[key] = (float(m), float(sd))
+        print(f"{eq[0].name}: " + ", ".join(f"{k} {m:.3g} ± {sd:.3g} um" for k, (m, sd) in meas.items()))
     names = {"D": "D    ", "hmin": "h_min", "hmax": "h_max"}
-    lines = ["(µm)     sim.   Evans–Fung 1972",
+    lines = [f"(µm)     sim.   {LABELS.get(eq[0].name, eq[0].name) if eq else 'measured'}",
              "                 mean ± sd"]
     for key in ("D", "hmin", "hmax"):
         s = sim_vals[key]
         star = "*" if key in from_profile else " "
         if key in meas:
             m, sd = meas[key]
-            lines.append(f"{names[key]}  {s:6.3f}{star} {m:5.2f} ± {sd:.2f}")
+            lines.append(f"{names[key]}  {s:6.3f}{star} {m:5.2f}" + (f" ± {sd:.2f}" if np.isfinite(sd) else ""))
         else:
             lines.append(f"{names[key]}  {s:6.3f}{star}")
     devs = [f"{names[k].strip()} {(sim_vals[k] - meas[k][0]) / meas[k][1]:+.1f}"
@@ -366,12 +370,11 @@ def plot_stretching(sim, d, sets, out):
         note("no single-force stretching result (Fext_pN, D0_um, D1_um) in simulate.json")
 
     sources = []
-    for label, name, mk, filled in (("Mills et al. 2004", "mills_2004", "o", True),
-                                    ("Suresh et al. 2005", "suresh_2005", "s", False)):
-        ds = sets.get(name)
-        if ds is None:
-            note(f"no {name} data set; skipped")
-            continue
+    stretching = [s for s in sets if s.experiment == "stretching"]
+    if not stretching:
+        note("no stretching data set; the data are not drawn")
+    for k, ds in enumerate(stretching):
+        label, mk, filled = LABELS.get(ds.name, ds.name), "osD^v"[k % 5], k % 2 == 0
         for diameter, col in ((ds.D1_um, C_D1), (ds.D0_um, C_D0)):
             ax.plot(ds.force_pN, diameter, ls="none", marker=mk, ms=5,
                     mfc=col if filled else "white", mec=col, mew=1.1, alpha=0.9, zorder=4)
@@ -450,16 +453,16 @@ def plot_relaxation(sim, d, sets, out):
                 sfit = f
 
     cells = []
-    for i in range(1, 5):
-        ds = sets.get(f"hochmuth_1979_cell{i}")
-        if ds is None:
-            note(f"no hochmuth_1979_cell{i} data set; skipped")
-            continue
+    relaxation = [s for s in sets if s.experiment == "relaxation"]
+    if not relaxation:
+        note("no relaxation data set; the data are not drawn")
+    for ds in relaxation:
+        name = LABELS.get(ds.name, ds.name)
         f = fit_hochmuth(ds.t_s, ds.aspect, ds.file)
         if f is not None:
-            print(f"Hochmuth 1979 cell {i}: tc = {f['tc']:.4f} s, zinf = {f['zinf']:.4f}, "
+            print(f"{name}: tc = {f['tc']:.4f} s, zinf = {f['zinf']:.4f}, "
                   f"z0 = {f['z0']:.4f}, rms = {f['rms']:.3g}")
-        cells.append((i, ds.t_s, ds.aspect, f))
+        cells.append((name, ds.t_s, ds.aspect, f))
 
     if not sim_ok and not cells:
         note("nothing to plot for relaxation; figure skipped")
@@ -479,9 +482,8 @@ def plot_relaxation(sim, d, sets, out):
                      color=C_SIM, lw=1.4, zorder=5,
                      label=(rf"Hochmuth fit: $t_c$ = {sfit['tc']:.3g} s, $z_\infty$ = {sfit['zinf']:.3g}"
                             + ("" if sfit["src"] == "simulate.json" else f" ({sfit['src']})")))
-    for (i, t, z, f), col in zip(cells, C_CELLS):
-        axz.plot(t, z, ls="none", marker="^", ms=4, color=col, alpha=0.85, zorder=3,
-                 label=f"Hochmuth et al. 1979, cell {i}")
+    for (name, t, z, f), col in zip(cells, cycle(C_CELLS)):
+        axz.plot(t, z, ls="none", marker="^", ms=4, color=col, alpha=0.85, zorder=3, label=name)
         if f is not None:
             tt = np.linspace(f["t0"], np.nanmax(t), 200)
             axz.plot(tt, hochmuth(tt - f["t0"], f["tc"], f["zinf"], f["z0"]),
@@ -513,14 +515,14 @@ def plot_relaxation(sim, d, sets, out):
     elif sim_ok:
         note("no Hochmuth fit for the simulation; its log form not drawn")
     tc_exp = []
-    for (i, t, z, f), col in zip(cells, C_CELLS):
+    for (name, t, z, f), col in zip(cells, cycle(C_CELLS)):
         if f is None:
             continue
         y = hochmuth_log(z, f["zinf"], f["z0"])
         n_clip = int(np.sum(~np.isfinite(y)))
         extra = f", {n_clip} clipped" if n_clip else ""
         axl.plot(t, y, ls="none", marker="^", ms=4, color=col, alpha=0.85, zorder=3,
-                 label=rf"cell {i}: $t_c$ = {f['tc']:.3f} s  ($z_\infty$ = {f['zinf']:.2f}{extra})")
+                 label=rf"{name.removeprefix('Hochmuth et al. 1979, ')}: $t_c$ = {f['tc']:.3f} s  ($z_\infty$ = {f['zinf']:.2f}{extra})")
         tt = np.array([f["t0"], np.nanmax(t)])
         axl.plot(tt, -(tt - f["t0"]) / f["tc"], color=col, lw=0.8, ls="--", alpha=0.8, zorder=2)
         tc_exp.append(f["tc"])
@@ -577,10 +579,10 @@ def main(argv=None):
 
     # The data sets as trbc reads them for the calibration (the shipped layout or a datasets.json).
     try:
-        sets = {s.name: s for s in trbc.load_data_sets(a.data)}
-    except ValueError as exc:  # bad input: the simulation is drawn without the data
+        sets = trbc.load_data_sets(a.data)
+    except (ValueError, RuntimeError) as exc:  # bad input, or a path the filesystem refuses: drawn without the data
         note(f"--data {a.data}: {exc}; experimental data will be missing")
-        sets = {}
+        sets = []
     out = Path(a.out)
 
     written = []

@@ -6,7 +6,8 @@ Usage: scripts/plot_predict.py OUT [--data-dir EXPERIMENTS_DIR]
 Reads OUT/predict_<posterior>_<experiment>.csv (+ _density.csv for equilibrium) and OUT/coverage.csv
 and writes OUT/predict_<posterior>_<experiment>.png:
   stretching   D0 and D1 against Fext: 50/90/99 % bands, median, mean, the data points
-  equilibrium  predictive densities of D, hmin, hmax with the Evans-Fung mean +- SD
+  equilibrium  predictive densities of D, hmin, hmax with the data's mean +- SD (read by trbc's
+               Python package, trbc.load_data_sets; without it the marks are left out)
   relaxation   z(t) bands with the Hochmuth cell's points
 Data points outside their 90 % band are drawn as red crosses.
 """
@@ -52,18 +53,20 @@ def equilibrium_mean_sd(data_dir):
     """{"D_um": (mean, SD), ...} of the data directory's equilibrium set, as trbc reads it (the
     shipped layout or a datasets.json); {} with a note when trbc or the set is not there, or the
     file gives no SD."""
+    out = {}
     try:
         import trbc
-        sets = trbc.load_data_sets(data_dir)
-    except (ImportError, ValueError) as exc:  # no trbc, or bad data: the figures are drawn without the marks
+        for d in trbc.load_data_sets(data_dir):
+            if d.experiment == "equilibrium":
+                for name, mean, sd in zip(("D_um", "hmin_um", "hmax_um"), d.shape, d.shape_sd_um):
+                    if sd == sd:  # not NaN
+                        out[name] = (float(mean), float(sd))
+                break
+    except (ImportError, AttributeError, ValueError, RuntimeError) as exc:
+        # no trbc (or one without the data sets), bad data, or a path the filesystem refuses: the
+        # figures are drawn without the marks
         print(f"plot_predict: note: no equilibrium data marks ({exc})", file=sys.stderr)
         return {}
-    out = {}
-    for d in sets:
-        if d.experiment == "equilibrium":
-            for name, mean, sd in zip(("D_um", "hmin_um", "hmax_um"), d.shape, d.shape_sd_um):
-                if sd == sd:  # not NaN
-                    out[name] = (float(mean), float(sd))
     return out
 
 

@@ -71,7 +71,7 @@ struct RbcDataSet {
     std::string contentHash;        ///< FNV-1a of the file bytes (provenance)
     Eigen::Vector3d shape = Eigen::Vector3d::Zero();  ///< equilibrium: mean D, hmin, hmax (um)
     /// equilibrium: the population SD of D, hmin, hmax (um) where the file gives one (sd_um), NaN
-    /// elsewhere; for figures and reports: the likelihood's error model is inferred instead.
+    /// elsewhere; drawn by the figures, not used by the likelihood (its error model is inferred).
     Eigen::Vector3d shapeSd = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     Eigen::VectorXd force, d0, d1;  ///< stretching: bead force F_j (pN), transverse D0_j, axial D1_j (um)
     Eigen::VectorXd time, aspect;   ///< relaxation: t_k (s), z_k = L/W

@@ -54,14 +54,20 @@ def test_plot_forward_draws_the_sets_of_a_manifest_directory(tmp_path):
     r = plot_forward(manifest_dir(tmp_path, list(SHIPPED)), tmp_path / "figs")
     assert r.returncode == 0, r.stderr
     assert "data set" not in r.stderr, r.stderr  # every set found
-    assert [ln.split(":")[0] for ln in r.stdout.splitlines() if ln.startswith("Hochmuth 1979 cell")] == [
-        f"Hochmuth 1979 cell {i}" for i in range(1, 5)]
+    assert [ln.split(":")[0] for ln in r.stdout.splitlines() if ln.startswith("Hochmuth et al. 1979")] == [
+        f"Hochmuth et al. 1979, cell {i}" for i in range(1, 5)]
+    # the equilibrium table's measured column: the file's means and SDs
+    sd = shipped_sds()
+    assert f"evans_fung_1972: D 7.82 ± {sd[0]:.3g} um, hmin 0.81 ± {sd[1]:.3g} um, hmax 2.58 ± {sd[2]:.3g} um" in r.stdout
     assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["t_equilibrium.png", "t_relaxation.png", "t_stretching.png"]
-    # A directory without the relaxation cells: the figure is drawn, and the note names each one.
+    # A directory without relaxation data: the figure is still drawn, and a note says so.
     shutil.rmtree(tmp_path / "mine")
     r = plot_forward(manifest_dir(tmp_path, ["evans_fung_1972", "mills_2004"]), tmp_path / "figs2")
     assert r.returncode == 0, r.stderr
-    assert all(f"no hochmuth_1979_cell{i} data set" in r.stderr for i in range(1, 5)) and "no suresh_2005 data set" in r.stderr
+    assert "no relaxation data set" in r.stderr and "no stretching data set" not in r.stderr
+    # A path the filesystem refuses: drawn without the data, not a traceback.
+    r = plot_forward(tmp_path / ("x" * 300), tmp_path / "figs3")
+    assert r.returncode == 0 and "experimental data will be missing" in r.stderr, r.stderr
 
 
 def test_plot_predict_marks_the_equilibrium_mean_and_sd_of_any_data_directory(tmp_path):
@@ -74,3 +80,4 @@ def test_plot_predict_marks_the_equilibrium_mean_and_sd_of_any_data_directory(tm
     ef = next(d for d in trbc.load_data_sets() if d.name == "evans_fung_1972")
     assert marks == {k: (m, s) for k, m, s in zip(("D_um", "hmin_um", "hmax_um"), ef.shape, shipped_sds())}
     assert plot_predict.equilibrium_mean_sd(str(tmp_path / "nowhere")) == {}
+    assert plot_predict.equilibrium_mean_sd(str(tmp_path / ("x" * 300))) == {}
