@@ -23,8 +23,6 @@ the standard error of its two seeds), with the posterior medians of the populati
 three runs (OUT/population_sd.csv)."""
 import argparse
 import csv
-import functools
-import json
 import math
 import os
 import re
@@ -33,6 +31,8 @@ import shutil
 import subprocess
 import sys
 import time
+
+import finished_runs
 
 PARAMS = [("v", "v", 1.0), ("mu_uN_per_m", "µ (µN/m)", 1.0), ("kb_J", "κ_b (1e-19 J)", 1e19), ("b2", "b2", 1.0),
           ("etam_Pa_s_um", "η_m (Pa s µm)", 1.0)]
@@ -58,27 +58,12 @@ def read_theta_new(path):
     return rows, first.strip() if first.startswith("#") else ""
 
 
-@functools.lru_cache(maxsize=None)
-def trbc_version(trbc):
-    """`trbc --version`: the version and the revision of the build."""
-    r = subprocess.run([trbc, "--version"], capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"inference_sensitivity: {trbc} --version exited with {r.returncode}: is --trbc a trbc binary?")
-    return r.stdout.strip()
-
-
 def run_commands(d, commands, setup=None):
     """Runs the commands into d unless d/sensitivity_run.json records the same ones, run by a build
     of the same revision (a finished run)."""
     marker = os.path.join(d, "sensitivity_run.json")
-    version = trbc_version(commands[0][0])
-    try:
-        with open(marker) as f:
-            done = json.load(f)
-            if done.get("commands") == commands and done.get("trbc") == version:
-                return
-    except (OSError, ValueError):  # absent or unreadable: the run is not finished
-        pass
+    if finished_runs.finished(marker, commands, commands[0][0]):
+        return
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     if setup:
@@ -89,9 +74,7 @@ def run_commands(d, commands, setup=None):
         r = subprocess.run(cmd, stdout=subprocess.DEVNULL)
         if r.returncode != 0:
             sys.exit(f"inference_sensitivity: {' '.join(cmd)} exited with {r.returncode}; {d} is left unfinished")
-    with open(marker + ".tmp", "w") as f:
-        json.dump({"commands": commands, "trbc": version, "wall_s": time.time() - t0}, f)
-    os.replace(marker + ".tmp", marker)
+    finished_runs.mark_finished(marker, commands, commands[0][0], time.time() - t0)
 
 
 def joint_from_seed_study(path):

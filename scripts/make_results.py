@@ -9,8 +9,9 @@ now. A run makes each selected set in WORK/<name> and then replaces results/<nam
 failed or interrupted set leaves the shipped one untouched; the validation sets resume (`trbc
 validate` keeps its finished cases), and so do the flow campaign (`--resume`) and the capsule and
 threshold scans (finished cases are skipped); the others start again.
---save-progress ships the flow campaign's finished cases under results/flow_campaign/progress/,
-and a run on another machine continues from them. Sets are listed cheapest first; the
+--save-progress ships the finished cases of the sets of many hours (the flow campaign, the
+threshold scan, the tube bands) under results/<name>/progress/, and a run on another machine
+continues from them. Sets are listed cheapest first; the
 sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
 when it is missing)."""
 import argparse
@@ -39,9 +40,13 @@ TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.0
 CAMPAIGN = ("mpirun -n 2 {{trbc}} flow campaign --cases 4096 --level 3 --seed 20261129 --threads 1 --no-cache "
             "--steady-rule 3,0.1,0.005 --start {start} --out {{out}}/{name} $(test -f {{out}}/{name}/campaign.json && echo --resume)")
 RESUMED = ("flow_campaign", "flow_stop_rule", "flow_verification/capsule", "flow_threshold/scan")
-# What a resumed set has finished so far, shipped under results/<name>/progress/ by --save-progress
-# so that another machine continues it: a run whose work folder lacks these files starts from them.
-PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"]}
+# What a set of many hours has finished so far, shipped under results/<name>/progress/ by
+# --save-progress so that another machine continues it. A campaign's files go together: a work folder
+# without its campaign starts from them. An entry with a * is a set of independent case records
+# (validate's, the threshold scan's): each record the work folder lacks is copied in.
+PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"],
+            "flow_threshold/scan": ["cases/*/flow.json"],
+            "validation/theta_new_level3_tube_bands": ["cases/*.json"]}
 STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
@@ -292,33 +297,55 @@ def recorded(name):
     return "", None
 
 
+def progress_files(name, root):
+    """The PROGRESS entries of NAME that exist under ROOT, patterns expanded."""
+    found = []
+    for f in PROGRESS[name]:
+        if "*" in f:
+            found += sorted(glob.glob(f, root_dir=root))
+        elif os.path.exists(os.path.join(root, f)):
+            found.append(f)
+    return found
+
+
 def save_progress(name, out):
     """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/, replacing what was there
     (the folder's README.md stays)."""
     dest = os.path.join(ROOT, "results", name, "progress")
-    found = [f for f in PROGRESS[name] if os.path.exists(os.path.join(out, f))]
+    found = progress_files(name, out)
     if not found:
         print(f"make_results: {name}: nothing in {out} to save", file=sys.stderr)
         return
-    for f in PROGRESS[name]:  # what was shipped before goes; the folder's README stays
+    for f in progress_files(name, dest):  # what was shipped before goes; the folder's README stays
         old = os.path.join(dest, f)
-        if os.path.isdir(old):
-            shutil.rmtree(old)
-        elif os.path.exists(old):
-            os.remove(old)
+        (shutil.rmtree if os.path.isdir(old) else os.remove)(old)
     for f in found:
         src, to = os.path.join(out, f), os.path.join(dest, f)
         os.makedirs(os.path.dirname(to), exist_ok=True)
         (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
-    print(f"make_results: {name}: {', '.join(found)} -> results/{name}/progress", file=sys.stderr)
+    print(f"make_results: {name}: {len(found)} entries -> results/{name}/progress", file=sys.stderr)
 
 
 def restore_progress(name, out):
     """results/<name>/progress/ into a work folder: each campaign (folder of PROGRESS) that has not
-    started there is copied whole, so a run continues it; one that has started keeps its own files."""
+    started there is copied whole, so a run continues it; one that has started keeps its own files.
+    Case records (a * entry) are copied one by one where the work folder lacks them."""
     src_root = os.path.join(ROOT, "results", name, "progress")
-    for folder in sorted({os.path.dirname(f) for f in PROGRESS[name]}):
-        files = [f for f in PROGRESS[name] if os.path.dirname(f) == folder]
+    if not os.path.isdir(src_root):
+        return
+    records = [f for p in PROGRESS[name] if "*" in p for f in sorted(glob.glob(p, root_dir=src_root))]
+    copied = 0
+    for f in records:
+        to = os.path.join(out, f)
+        if not os.path.exists(to):
+            os.makedirs(os.path.dirname(to), exist_ok=True)
+            shutil.copy2(os.path.join(src_root, f), to)
+            copied += 1
+    if records:
+        print(f"make_results: {name}: {copied} of {len(records)} case records from results/{name}/progress/", file=sys.stderr)
+    campaign = [f for f in PROGRESS[name] if "*" not in f]
+    for folder in sorted({os.path.dirname(f) for f in campaign}):
+        files = [f for f in campaign if os.path.dirname(f) == folder]
         if any(os.path.exists(os.path.join(out, f)) for f in files):
             continue
         for f in files:

@@ -295,7 +295,8 @@ def plot_equilibrium(sim, d, sets, out):
     else:
         for key, m, sd in zip(("D", "hmin", "hmax"), eq[0].shape, eq[0].shape_sd_um):
             meas[key] = (float(m), float(sd))
-        print(f"{eq[0].name}: " + ", ".join(f"{k} {m:.3g} ± {sd:.3g} um" for k, (m, sd) in meas.items()))
+        print(f"{eq[0].name}: " + ", ".join(f"{k} {m:.3g}" + (f" ± {sd:.3g}" if np.isfinite(sd) else "") + " um"
+                                             for k, (m, sd) in meas.items()))
     names = {"D": "D    ", "hmin": "h_min", "hmax": "h_max"}
     lines = [f"(µm)     sim.   {LABELS.get(eq[0].name, eq[0].name) if eq else 'measured'}",
              "                 mean ± sd"]
@@ -580,7 +581,7 @@ def main(argv=None):
     # The data sets as trbc reads them for the calibration (the shipped layout or a datasets.json).
     try:
         sets = trbc.load_data_sets(a.data)
-    except (ValueError, RuntimeError) as exc:  # bad input, or a path the filesystem refuses: drawn without the data
+    except ValueError as exc:  # bad input, or a path the filesystem refuses: drawn without the data
         note(f"--data {a.data}: {exc}; experimental data will be missing")
         sets = []
     out = Path(a.out)

@@ -62,7 +62,7 @@ def equilibrium_mean_sd(data_dir):
                     if sd == sd:  # not NaN
                         out[name] = (float(mean), float(sd))
                 break
-    except (ImportError, AttributeError, ValueError, RuntimeError) as exc:
+    except (ImportError, AttributeError, ValueError) as exc:
         # no trbc (or one without the data sets), bad data, or a path the filesystem refuses: the
         # figures are drawn without the marks
         print(f"plot_predict: note: no equilibrium data marks ({exc})", file=sys.stderr)

@@ -15,13 +15,14 @@ the wall time per run.
 """
 import argparse
 import csv
-import json
 import math
 import os
 import shlex
 import subprocess
 import sys
 import time
+
+import finished_runs
 
 
 def read_stats(path, posterior="theta_new"):
@@ -41,6 +42,15 @@ def sd(values):
     return math.sqrt(sum((v - m) ** 2 for v in values) / (len(values) - 1)) if len(values) > 1 else float("nan")
 
 
+def scatter(stats, seeds, key):
+    """One posterior parameter over the seeds (stats[seed][key]): the mean over the seeds of each
+    statistic (and of its MCSE), and the SD over the seeds of the mean, the median and the SD, each
+    divided by the posterior SD (the mean over the seeds of the SD)."""
+    col = lambda stat: [stats[s][key][stat] for s in seeds]
+    avg = {stat: sum(col(stat)) / len(seeds) for stat in stats[seeds[0]][key]}
+    return avg, {stat: sd(col(stat)) / avg["sd"] for stat in ("mean", "median", "sd")}
+
+
 def phase1_scatter(phase1, seeds, out):
     """The same scatter for phase 1, the single-data-set posteriors that start phases 2-3: writes
     OUT/seed_study_phase1.csv and returns the table's lines, largest scatter of the mean first."""
@@ -54,10 +64,8 @@ def phase1_scatter(phase1, seeds, out):
                 w.writerow([seed, k[0], k[1], r["mean"], r["sd"], r["mcse_mean"], r["mcse_sd"]])
     rows = []
     for k in keys:
-        col = lambda stat: [phase1[s][k][stat] for s in seeds]
-        psd = sum(col("sd")) / len(seeds)
-        rows.append((sd(col("mean")) / psd, k, sum(col("mean")) / len(seeds), sum(col("mcse_mean")) / len(seeds) / psd, psd,
-                     sd(col("sd")) / psd))
+        avg, spread = scatter(phase1, seeds, k)
+        rows.append((spread["mean"], k, avg["mean"], avg["mcse_mean"] / avg["sd"], avg["sd"], spread["sd"]))
     rows.sort(key=lambda r: -r[0])
     lines = ["", "## Phase 1", "",
              "The same scatter for each data set's phase-1 posterior (`phase1/posterior_stats.csv` of each run; "
@@ -79,20 +87,20 @@ def main():
     extra = [x for x in a.extra if x != "--"]
     os.makedirs(a.out, exist_ok=True)
     results, phase1, walls = {}, {}, {}
-    version = subprocess.run([a.trbc, "--version"], capture_output=True, text=True, check=True).stdout.strip()
     for seed in a.seeds:
         d = os.path.join(a.out, f"seed_{seed}")
         cmd = [a.trbc, "infer", "--phase", "all", "--seed", str(seed), "--out", d, "--quiet"] + extra
-        done = os.path.join(d, "seed_study_run.json")
-        marker = json.load(open(done)) if os.path.exists(done) else {}
-        if marker.get("command") == cmd and marker.get("trbc") == version:
-            walls[seed] = marker["wall_s"]
+        marker = os.path.join(d, "seed_study_run.json")
+        done = finished_runs.finished(marker, [cmd], a.trbc)
+        if done:
+            walls[seed] = done["wall_s"]
         else:
             t0 = time.time()
             print("seed study:", " ".join(shlex.quote(c) for c in cmd), file=sys.stderr, flush=True)
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            if subprocess.run(cmd, stdout=subprocess.DEVNULL).returncode != 0:
+                sys.exit(f"seed_study: {' '.join(cmd)} failed; {d} is left unfinished")
             walls[seed] = time.time() - t0
-            json.dump({"command": cmd, "trbc": version, "wall_s": walls[seed]}, open(done, "w"))
+            finished_runs.mark_finished(marker, [cmd], a.trbc, walls[seed])
         results[seed] = read_stats(os.path.join(d, "posterior_stats.csv"))
         phase1[seed] = read_stats(os.path.join(d, "phase1", "posterior_stats.csv"), posterior=None)
 
@@ -116,13 +124,11 @@ def main():
              "|---|---|---|---|---|---|---|---|---|---|"]
     worst = {"mean": 0.0, "median": 0.0, "sd": 0.0}
     for p in params:
-        col = lambda k: [results[s][p][k] for s in a.seeds]
-        m = lambda k: sum(col(k)) / len(a.seeds)
-        psd = m("sd")
-        smean, smed, ssd = sd(col("mean")) / psd, sd(col("median")) / psd, sd(col("sd")) / psd
-        worst["mean"], worst["median"], worst["sd"] = max(worst["mean"], smean), max(worst["median"], smed), max(worst["sd"], ssd)
-        lines.append(f"| {p} | {m('mean'):.4g} | {smean:.3f} | {m('mcse_mean') / psd:.3f} | {m('median'):.4g} | {smed:.3f} | "
-                     f"{m('mcse_median') / psd:.3f} | {psd:.4g} | {ssd:.3f} | {m('mcse_sd') / psd:.3f} |")
+        m, spread = scatter(results, a.seeds, p)
+        psd = m["sd"]
+        worst = {k: max(worst[k], spread[k]) for k in worst}
+        lines.append(f"| {p} | {m['mean']:.4g} | {spread['mean']:.3f} | {m['mcse_mean'] / psd:.3f} | {m['median']:.4g} | "
+                     f"{spread['median']:.3f} | {m['mcse_median'] / psd:.3f} | {psd:.4g} | {spread['sd']:.3f} | {m['mcse_sd'] / psd:.3f} |")
     ws = sorted(walls.values())
     lines += ["", f"Largest scatter over seeds: mean {worst['mean']:.3f} SD, median {worst['median']:.3f} SD, posterior SD "
                   f"{100 * worst['sd']:.1f} %.",

@@ -202,13 +202,20 @@ std::vector<RbcDataSet> loadManifest(const fs::path& dir) {
 }  // namespace
 
 std::vector<RbcDataSet> loadRbcDataSets(const fs::path& dir) {
-    if (fs::is_directory(dir) && fs::exists(dir / kRbcDataManifest)) return loadManifest(dir);
-    if (!fs::is_directory(dir))
-        throw InputError(fmt::format("experimental data directory '{}' does not exist (it must contain equilibrium/, "
-                                     "stretching/ and relaxation/; see data/README.md)", dir.string()));
+    // The error_code overloads: a path the filesystem refuses (too long, no permission) is bad input
+    // like a missing one, not a std::filesystem_error.
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) {
+        const bool absent = !ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory;
+        throw InputError(fmt::format("experimental data directory '{}' {} (it must contain equilibrium/, stretching/ and "
+                                     "relaxation/, or a {}; see data/README.md)",
+                                     dir.string(), absent ? std::string("does not exist") : "cannot be read: " + ec.message(),
+                                     kRbcDataManifest));
+    }
+    if (fs::exists(dir / kRbcDataManifest, ec)) return loadManifest(dir);
     for (const fs::path& rel : {fs::path("equilibrium/evans_fung_1972.csv"), fs::path("stretching/mills_2004/mills_2004.csv"),
                                fs::path("stretching/suresh_2005/suresh_2005.csv"), fs::path("relaxation/hochmuth_1979/1.csv")})
-        if (!fs::exists(dir / rel))
+        if (!fs::exists(dir / rel, ec))
             throw InputError(fmt::format("experimental data directory '{}' lacks {} (docs/BAYESIAN_INFERENCE.md, data/README.md)", dir.string(),
                                          rel.string()));
     std::vector<RbcDataSet> sets;

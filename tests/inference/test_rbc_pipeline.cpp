@@ -172,7 +172,9 @@ TEST(RbcInference, BadDataFilesNameFileLineAndColumn) {
     expectInputError([&] { readEquilibriumData(f); }, {f.string() + ":4", "mean_um"});
     writeFile(f, "quantity,mean_um,sd_um\nD,7.8,0.6\nhmin,0.8,-0.1\nhmax,2.5,0.3\n");
     expectInputError([&] { readEquilibriumData(f); }, {f.string() + ":3", "sd_um", ">= 0"});
-    expectInputError([&] { loadRbcDataSets(tmp.path() / "nowhere"); }, {"nowhere"});
+    expectInputError([&] { loadRbcDataSets(tmp.path() / "nowhere"); }, {"nowhere", "does not exist"});
+    // A name longer than any filesystem allows (ENAMETOOLONG): bad input, not a filesystem_error.
+    expectInputError([&] { loadRbcDataSets(tmp.path() / std::string(300, 'x')); }, {"xxxx", "cannot be read"});
 }
 
 // The population SDs of the shape are read where the file gives them (a blank one is NaN), and the

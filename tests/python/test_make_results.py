@@ -161,3 +161,38 @@ def test_a_cases_folder_without_records_beside_its_subfolders_is_shipped_whole(t
     m.shutil.copytree(out, tmp_path / "staged", ignore=m.shipped_only)
     shipped = sorted(str(p.relative_to(tmp_path / "staged")) for p in (tmp_path / "staged").rglob("*"))
     assert shipped == ["cases", "cases/c1", "cases/c1/flow.json"], shipped
+
+
+def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
+    name = "validation/theta_new_level3_tube_bands"
+    m = load(tmp_path / "repo")
+    work = tmp_path / "work" / name
+    (work / "cases" / "tube_a").mkdir(parents=True)  # a case's run folder: not progress
+    (work / "cases" / "tube_a.json").write_text('{"id": "a"}')
+    (work / "cases" / "tube_b.json").write_text('{"id": "b"}')
+    (work / "validation.json").write_text("{}")
+    progress = tmp_path / "repo" / "results" / name / "progress"
+    (progress / "cases").mkdir(parents=True)
+    (progress / "cases" / "tube_old.json").write_text('{"id": "old"}')  # replaced by the save
+    m.save_progress(name, str(work))
+    assert sorted(p.name for p in (progress / "cases").iterdir()) == ["tube_a.json", "tube_b.json"]
+    assert not (progress / "validation.json").exists()
+
+    # Another machine has finished case a on its own and lacks b: only b is copied in.
+    other = tmp_path / "other" / name
+    (other / "cases").mkdir(parents=True)
+    (other / "cases" / "tube_a.json").write_text('{"id": "a", "own": true}')
+    m.restore_progress(name, str(other))
+    assert (other / "cases" / "tube_a.json").read_text() == '{"id": "a", "own": true}'
+    assert (other / "cases" / "tube_b.json").read_text() == '{"id": "b"}'
+
+    # The threshold scan's records live in per-case folders.
+    scan = tmp_path / "work" / "flow_threshold" / "scan"
+    (scan / "cases" / "c1" / "checkpoint").mkdir(parents=True)
+    (scan / "cases" / "c1" / "flow.json").write_text("{}")
+    m.save_progress("flow_threshold/scan", str(scan))
+    shipped = tmp_path / "repo" / "results" / "flow_threshold" / "scan" / "progress" / "cases" / "c1"
+    assert (shipped / "flow.json").exists() and not (shipped / "checkpoint").exists()
+    fresh = tmp_path / "fresh" / "scan"
+    m.restore_progress("flow_threshold/scan", str(fresh))
+    assert (fresh / "cases" / "c1" / "flow.json").exists()

@@ -70,6 +70,14 @@ def test_plot_forward_draws_the_sets_of_a_manifest_directory(tmp_path):
     assert r.returncode == 0 and "experimental data will be missing" in r.stderr, r.stderr
 
 
+def test_an_equilibrium_set_without_standard_deviations_prints_its_means_alone(tmp_path):
+    d = manifest_dir(tmp_path, ["evans_fung_1972"])
+    (d / "set0.csv").write_text("quantity,mean_um\nD,7.82\nhmin,0.81\nhmax,2.58\n")
+    r = plot_forward(d, tmp_path / "figs")
+    assert r.returncode == 0, r.stderr
+    assert "evans_fung_1972: D 7.82 um, hmin 0.81 um, hmax 2.58 um" in r.stdout, r.stdout
+
+
 def test_plot_predict_marks_the_equilibrium_mean_and_sd_of_any_data_directory(tmp_path):
     sys.path.insert(0, str(REPO / "scripts"))
     try:
