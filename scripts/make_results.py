@@ -9,11 +9,12 @@ now. A run makes each selected set in WORK/<name> and then replaces results/<nam
 failed or interrupted set leaves the shipped one untouched; the validation sets resume (`trbc
 validate` keeps its finished cases), and so do the flow campaign (`--resume`) and the capsule and
 threshold scans (finished cases are skipped); the others start again.
---save-progress ships the finished cases of the sets of many hours (the flow campaign, the
-threshold scan, the tube bands) under results/<name>/progress/, and a run on another machine
-continues from them. Sets are listed cheapest first; the
-sets of the calibrated cell read the posterior that the calibration set leaves in WORK (made first
-when it is missing)."""
+--save-progress ships the finished cases of the sets of many hours that have not finished (the
+flow campaign, the threshold scan, the validation sets) under results/<name>/progress/, and a run
+on another machine continues from them. Sets are listed cheapest first; the
+sets of the calibrated cell read the posterior that the calibration set leaves in WORK: the one
+it ships (results/calibration/posterior.tar.xz) unless the calibration is made in the same run,
+and made first when none is shipped."""
 import argparse
 import glob
 import json
@@ -23,10 +24,17 @@ import shlex
 import shutil
 import subprocess
 import sys
+import tarfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 POSTERIOR = "{work}/calibration/inference/phase3/theta_new"  # the posterior the calibration set makes
+# The calibration's theta_new samples and statistics, shipped beside it: the Markov chains amplify
+# the last bit in which two CPUs differ, so a calibration made on another machine is another
+# posterior (within its Monte Carlo error), and the sets drawn from it would be other draws. The sets
+# read this one unless the calibration itself is made again.
+SHIPPED_POSTERIOR = ("posterior.tar.xz", ["inference/posterior_stats.csv", "inference/phase3/theta_new/run.json",
+                                          "inference/phase3/theta_new/samples.csv"])
 
 SHEAR_TTF32 = "{trbc} flow shear --eta-out 28.9 --shear-rate 32.39631125836553 --eta-in 10 --step-tol 0.001 "
 TUBE_PG40 = ("{trbc} flow tube --radius 3.3 --pressure-gradient 40 --eta-out 1.003 --level 3 --duration 30 --settle 60 "
@@ -45,8 +53,7 @@ RESUMED = ("flow_campaign", "flow_stop_rule", "flow_verification/capsule", "flow
 # without its campaign starts from them. An entry with a * is a set of independent case records
 # (validate's, the threshold scan's): each record the work folder lacks is copied in.
 PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"],
-            "flow_threshold/scan": ["cases/*/flow.json"],
-            "validation/theta_new_level3_tube_bands": ["cases/*.json"]}
+            "flow_threshold/scan": ["cases/*/flow.json"]}
 STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
@@ -57,7 +64,7 @@ STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0
 SETS = {
     "calibration": ("the shipped calibration: posterior statistics, report, stage ledger",
                     ["{trbc} calibrate --config configs/paper.toml --out {out}"], 0.3,
-                    ["inference/posterior_stats.csv=posterior_stats.csv", "report.html", "stages.json"]),
+                    ["inference/posterior_stats.csv=posterior_stats.csv", "report.html", "stages.json", SHIPPED_POSTERIOR[0]]),
     "inference": ("trbc infer on the shipped surrogates, seed 1: statistics, corner plots, predictions",
                   ["{trbc} infer --phase all --seed 1 --out {out}",
                    "{trbc} predict --inference {out} --out {out}/predict --threads 2 --quiet",
@@ -189,6 +196,9 @@ SETS = {
                                                 " --draws 32 --seed 1 --only tube --out {out} --jobs 2 --threads 1 --quiet"], None, None),
 }
 
+PROGRESS.update({n: ["cases/*.json"] for n in SETS if n.startswith("validation/")})
+# In a set's work folder once the set has replaced results/<name>: its progress is not shipped.
+MADE = ".made"
 
 # *.tmp.*: a record a killed writer left before renaming it into place.
 _NOT_SHIPPED = shutil.ignore_patterns("checkpoint", "*.vtk", "*.stdout", ".trbc-output", "*.log", "checkpoint.key", "shapes.pvd",
@@ -312,6 +322,9 @@ def save_progress(name, out):
     """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/, replacing what was there
     (the folder's README.md stays)."""
     dest = os.path.join(ROOT, "results", name, "progress")
+    if os.path.exists(os.path.join(out, MADE)):
+        print(f"make_results: {name}: finished and shipped, no progress to save", file=sys.stderr)
+        return
     found = progress_files(name, out)
     if not found:
         print(f"make_results: {name}: nothing in {out} to save", file=sys.stderr)
@@ -356,6 +369,27 @@ def restore_progress(name, out):
                 print(f"make_results: {name}: continues from results/{name}/progress/{f}", file=sys.stderr)
 
 
+def pack_posterior(out):
+    """OUT/posterior.tar.xz: the files of SHIPPED_POSTERIOR under their paths in the calibration's OUT."""
+    with tarfile.open(os.path.join(out, SHIPPED_POSTERIOR[0]), "w:xz") as tar:
+        for f in SHIPPED_POSTERIOR[1]:
+            tar.add(os.path.join(out, f), arcname=f)
+
+
+def unpack_posterior(work):
+    """results/calibration/posterior.tar.xz into WORK/calibration (False when it is not shipped)."""
+    shipped = os.path.join(ROOT, "results", "calibration", SHIPPED_POSTERIOR[0])
+    if not os.path.exists(shipped):
+        return False
+    with tarfile.open(shipped, "r:xz") as tar:
+        names = tar.getnames()
+        if sorted(names) != sorted(SHIPPED_POSTERIOR[1]):
+            sys.exit(f"make_results: {shipped} holds {', '.join(names)}, not {', '.join(SHIPPED_POSTERIOR[1])}")
+        tar.extractall(os.path.join(work, "calibration"))  # the names are checked above: no path leaves WORK
+    print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]})", file=sys.stderr)
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trbc", default="build/trbc")
@@ -363,8 +397,8 @@ def main():
     ap.add_argument("--work", default="out/results", help="where the sets are made before they replace results/<name>")
     ap.add_argument("--dry-run", action="store_true", help="list the sets, their commands and costs; run nothing")
     ap.add_argument("--save-progress", action="store_true",
-                    help="copy the finished part of the resumed sets in WORK (" + ", ".join(PROGRESS) +
-                         ") to results/<name>/progress/, to be continued on another machine; run nothing")
+                    help="copy the finished cases of the unfinished sets in WORK that resume (the flow campaign, the threshold "
+                         "scan, the validation sets) to results/<name>/progress/, to be continued on another machine; run nothing")
     a = ap.parse_args()
     names = [n for n in a.only.split(",") if n] or list(SETS)
     for n in names:
@@ -393,9 +427,10 @@ def main():
             print(f"  shipped copy made by: {command or '(no record)'}")
         print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets, the flow campaign and the scans resume, the others start again")
         return
-    # The sets drawn from the calibration's posterior need it in WORK: made first when missing.
+    # The sets drawn from the calibration's posterior need it in WORK: the shipped one, or made
+    # first when none is shipped.
     if any(POSTERIOR in c for n in names for c in SETS[n][1]) and "calibration" not in names and \
-            not os.path.isdir(POSTERIOR.format(work=work)):
+            not os.path.isdir(POSTERIOR.format(work=work)) and not unpack_posterior(work):
         names.insert(0, "calibration")
     for n in names:
         what, commands, _, keep = SETS[n]
@@ -403,6 +438,8 @@ def main():
         if not n.startswith("validation/") and n not in RESUMED:
             shutil.rmtree(out, ignore_errors=True)
         os.makedirs(out, exist_ok=True)
+        if os.path.exists(os.path.join(out, MADE)):
+            os.remove(os.path.join(out, MADE))
         if n in PROGRESS:
             restore_progress(n, out)
         t0 = time.time()
@@ -411,6 +448,8 @@ def main():
             print(f"make_results: {n}: {line}", file=sys.stderr, flush=True)
             if subprocess.run(line, shell=True, cwd=ROOT).returncode != 0:
                 sys.exit(f"make_results: {n} failed: {line}; results/{n} is unchanged")
+        if n == "calibration":
+            pack_posterior(out)
         # Staged beside results/<name> and swapped in only when every kept file is there.
         dest = os.path.join(ROOT, "results", n)
         staged = dest + ".new"
@@ -429,6 +468,7 @@ def main():
         if os.path.exists(dest):
             shutil.rmtree(dest)
         os.rename(staged, dest)
+        open(os.path.join(out, MADE), "w").close()
         print(f"make_results: {n} made in {(time.time() - t0) / 60:.1f} min -> results/{n}", file=sys.stderr)
 
 

@@ -186,6 +186,12 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     assert (other / "cases" / "tube_a.json").read_text() == '{"id": "a", "own": true}'
     assert (other / "cases" / "tube_b.json").read_text() == '{"id": "b"}'
 
+    # A set that has finished and replaced results/<name> has no progress to ship.
+    (work / m.MADE).write_text("")
+    (work / "cases" / "tube_c.json").write_text('{"id": "c"}')
+    m.save_progress(name, str(work))
+    assert not (progress / "cases" / "tube_c.json").exists()
+
     # The threshold scan's records live in per-case folders.
     scan = tmp_path / "work" / "flow_threshold" / "scan"
     (scan / "cases" / "c1" / "checkpoint").mkdir(parents=True)
@@ -196,3 +202,40 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     fresh = tmp_path / "fresh" / "scan"
     m.restore_progress("flow_threshold/scan", str(fresh))
     assert (fresh / "cases" / "c1" / "flow.json").exists()
+
+
+def test_the_sets_of_the_calibrated_cell_read_the_shipped_posterior(tmp_path):
+    m = load(tmp_path / "repo")
+    made = tmp_path / "made" / "calibration"
+    for f in m.SHIPPED_POSTERIOR[1]:
+        (made / f).parent.mkdir(parents=True, exist_ok=True)
+        (made / f).write_text(f"content of {f}\n")
+    (made / "inference" / "phase3" / "theta_new" / "extra.csv").write_text("not shipped\n")
+    m.pack_posterior(str(made))
+    shipped = tmp_path / "repo" / "results" / "calibration"
+    shipped.mkdir(parents=True)
+    (made / m.SHIPPED_POSTERIOR[0]).rename(shipped / m.SHIPPED_POSTERIOR[0])
+    work = tmp_path / "work"
+    assert m.unpack_posterior(str(work))
+    for f in m.SHIPPED_POSTERIOR[1]:
+        assert (work / "calibration" / f).read_text() == f"content of {f}\n"
+    assert not (work / "calibration" / "inference" / "phase3" / "theta_new" / "extra.csv").exists()
+    assert m.POSTERIOR.format(work=str(work)) == str(work / "calibration" / "inference" / "phase3" / "theta_new")
+    # Nothing shipped: the calibration is made instead.
+    assert not load(tmp_path / "bare").unpack_posterior(str(tmp_path / "work2"))
+
+
+def test_a_shipped_posterior_with_other_files_is_refused(tmp_path):
+    import io
+    import tarfile
+    import pytest
+    m = load(tmp_path / "repo")
+    shipped = tmp_path / "repo" / "results" / "calibration"
+    shipped.mkdir(parents=True)
+    with tarfile.open(shipped / m.SHIPPED_POSTERIOR[0], "w:xz") as tar:
+        info = tarfile.TarInfo("../outside.csv")
+        info.size = 1
+        tar.addfile(info, io.BytesIO(b"x"))
+    with pytest.raises(SystemExit, match="outside.csv"):
+        m.unpack_posterior(str(tmp_path / "work"))
+    assert not (tmp_path / "outside.csv").exists()
