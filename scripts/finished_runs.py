@@ -28,6 +28,8 @@ def finished(marker, commands, trbc):
             done = json.load(f)
     except (OSError, ValueError):
         return None
+    if not isinstance(done, dict):
+        return None
     return done if done.get("commands") == commands and done.get("trbc") == trbc_version(trbc) else None
 
 

@@ -214,6 +214,7 @@ def main():
         sys.exit(f"--seed-study {a.seed_study}: no such file")
     if a.threads < 1:
         sys.exit(f"--threads {a.threads}: give at least 1")
+    finished_runs.trbc_version(a.trbc)  # a --trbc that is no trbc stops here, before any folder is touched
     os.makedirs(a.out, exist_ok=True)
     common = ["--seed", str(a.seed), "--threads", str(a.threads), "--quiet"]
     default_dir = os.path.join(a.out, "default")

@@ -54,6 +54,8 @@ RESUMED = ("flow_campaign", "flow_stop_rule", "flow_verification/capsule", "flow
 # (validate's, the threshold scan's): each record the work folder lacks is copied in.
 PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"],
             "flow_threshold/scan": ["cases/*/flow.json"]}
+# A case folder the threshold scan set aside (another cell's record, run again): not progress.
+SET_ASIDE = ".replaced-"
 STOP_RULES = " ".join("--rule " + r for r in ("4,0.1,0.005", "3,0.1,0.005", "3,0.2,0.01", "3,0.3,0.015", "4,0.05,0.0025"))
 
 # name: (what, [commands], cost in CPU hours of the 2-core machine, files kept (None: all of OUT)).
@@ -197,6 +199,7 @@ SETS = {
 }
 
 PROGRESS.update({n: ["cases/*.json"] for n in SETS if n.startswith("validation/")})
+PROGRESS["validation/theta_new_level3_high_viscosity_steady"].append("full_length/cases/*.json")
 # In a set's work folder once the set has replaced results/<name>: its progress is not shipped.
 MADE = ".made"
 
@@ -307,20 +310,34 @@ def recorded(name):
     return "", None
 
 
-def progress_files(name, root):
-    """The PROGRESS entries of NAME that exist under ROOT, patterns expanded."""
+def progress_files(name, root, records=None):
+    """The PROGRESS entries of NAME that exist under ROOT, patterns expanded (records=True: only the
+    case records of * entries, False: only the campaign entries)."""
     found = []
     for f in PROGRESS[name]:
-        if "*" in f:
-            found += sorted(glob.glob(f, root_dir=root))
-        elif os.path.exists(os.path.join(root, f)):
+        if "*" in f and records is not False:
+            found += [m for m in sorted(glob.glob(f, root_dir=root)) if SET_ASIDE not in m]
+        elif "*" not in f and records is not True and os.path.exists(os.path.join(root, f)):
             found.append(f)
     return found
 
 
+def copy_whole(src, to):
+    """A file or folder copied under a temporary name and renamed into place, so that a killed copy
+    leaves nothing at TO that a later run would take for finished."""
+    os.makedirs(os.path.dirname(to), exist_ok=True)
+    tmp = to + ".tmp.copy"
+    shutil.rmtree(tmp, ignore_errors=True)
+    (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, tmp)
+    if os.path.isdir(to):
+        shutil.rmtree(to)
+    os.replace(tmp, to)
+
+
 def save_progress(name, out):
-    """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/, replacing what was there
-    (the folder's README.md stays)."""
+    """WORK/<name>'s finished part (PROGRESS) to results/<name>/progress/: a campaign's files replace
+    the shipped ones; case records are added to the shipped ones (another machine's records that
+    this work folder lacks stay). The folder's README.md stays."""
     dest = os.path.join(ROOT, "results", name, "progress")
     if os.path.exists(os.path.join(out, MADE)):
         print(f"make_results: {name}: finished and shipped, no progress to save", file=sys.stderr)
@@ -329,13 +346,11 @@ def save_progress(name, out):
     if not found:
         print(f"make_results: {name}: nothing in {out} to save", file=sys.stderr)
         return
-    for f in progress_files(name, dest):  # what was shipped before goes; the folder's README stays
+    for f in progress_files(name, dest, records=False):  # a campaign shipped before goes
         old = os.path.join(dest, f)
         (shutil.rmtree if os.path.isdir(old) else os.remove)(old)
     for f in found:
-        src, to = os.path.join(out, f), os.path.join(dest, f)
-        os.makedirs(os.path.dirname(to), exist_ok=True)
-        (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
+        copy_whole(os.path.join(out, f), os.path.join(dest, f))
     print(f"make_results: {name}: {len(found)} entries -> results/{name}/progress", file=sys.stderr)
 
 
@@ -346,48 +361,70 @@ def restore_progress(name, out):
     src_root = os.path.join(ROOT, "results", name, "progress")
     if not os.path.isdir(src_root):
         return
-    records = [f for p in PROGRESS[name] if "*" in p for f in sorted(glob.glob(p, root_dir=src_root))]
-    copied = 0
-    for f in records:
-        to = os.path.join(out, f)
-        if not os.path.exists(to):
-            os.makedirs(os.path.dirname(to), exist_ok=True)
-            shutil.copy2(os.path.join(src_root, f), to)
-            copied += 1
+    records = progress_files(name, src_root, records=True)
+    missing = [f for f in records if not os.path.exists(os.path.join(out, f))]
+    for f in missing:
+        copy_whole(os.path.join(src_root, f), os.path.join(out, f))
     if records:
-        print(f"make_results: {name}: {copied} of {len(records)} case records from results/{name}/progress/", file=sys.stderr)
+        print(f"make_results: {name}: {len(missing)} of {len(records)} case records from results/{name}/progress/", file=sys.stderr)
     campaign = [f for f in PROGRESS[name] if "*" not in f]
     for folder in sorted({os.path.dirname(f) for f in campaign}):
         files = [f for f in campaign if os.path.dirname(f) == folder]
         if any(os.path.exists(os.path.join(out, f)) for f in files):
             continue
         for f in files:
-            src, to = os.path.join(src_root, f), os.path.join(out, f)
-            if os.path.exists(src):
-                os.makedirs(os.path.dirname(to), exist_ok=True)
-                (shutil.copytree if os.path.isdir(src) else shutil.copy2)(src, to)
+            if os.path.exists(os.path.join(src_root, f)):
+                copy_whole(os.path.join(src_root, f), os.path.join(out, f))
                 print(f"make_results: {name}: continues from results/{name}/progress/{f}", file=sys.stderr)
 
 
 def pack_posterior(out):
-    """OUT/posterior.tar.xz: the files of SHIPPED_POSTERIOR under their paths in the calibration's OUT."""
+    """OUT/posterior.tar.xz: the files of SHIPPED_POSTERIOR under their paths in the calibration's OUT,
+    without owners or times, so that the same samples give the same archive."""
+    def plain(info):
+        info.uid = info.gid = 0
+        info.uname = info.gname = ""
+        info.mtime = 0
+        return info
     with tarfile.open(os.path.join(out, SHIPPED_POSTERIOR[0]), "w:xz") as tar:
         for f in SHIPPED_POSTERIOR[1]:
-            tar.add(os.path.join(out, f), arcname=f)
+            tar.add(os.path.join(out, f), arcname=f, filter=plain)
 
 
 def unpack_posterior(work):
-    """results/calibration/posterior.tar.xz into WORK/calibration (False when it is not shipped)."""
+    """results/calibration/posterior.tar.xz into WORK/calibration, replacing what is there (False when
+    none is shipped). Unpacked beside it and renamed into place: a killed unpack leaves the earlier
+    posterior or none, never part of one."""
     shipped = os.path.join(ROOT, "results", "calibration", SHIPPED_POSTERIOR[0])
     if not os.path.exists(shipped):
         return False
+    target = os.path.join(work, "calibration")
+    tmp = target + ".tmp.unpack"
+    shutil.rmtree(tmp, ignore_errors=True)
     with tarfile.open(shipped, "r:xz") as tar:
-        names = tar.getnames()
-        if sorted(names) != sorted(SHIPPED_POSTERIOR[1]):
-            sys.exit(f"make_results: {shipped} holds {', '.join(names)}, not {', '.join(SHIPPED_POSTERIOR[1])}")
-        tar.extractall(os.path.join(work, "calibration"))  # the names are checked above: no path leaves WORK
+        members = tar.getmembers()
+        if sorted(m.name for m in members) != sorted(SHIPPED_POSTERIOR[1]) or not all(m.isfile() for m in members):
+            sys.exit(f"make_results: {shipped} holds {', '.join(m.name for m in members)}, "
+                     f"not the files {', '.join(SHIPPED_POSTERIOR[1])}")
+        tar.extractall(tmp)  # the names are checked above: no path leaves TMP
+    for f in SHIPPED_POSTERIOR[1]:
+        to = os.path.join(target, f)
+        os.makedirs(os.path.dirname(to), exist_ok=True)
+        os.replace(os.path.join(tmp, f), to)
+    shutil.rmtree(tmp)
     print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]})", file=sys.stderr)
     return True
+
+
+def posterior_for(names, work):
+    """The posterior the sets of the calibrated cell read: the calibration's own when it is among
+    NAMES (made first), else the shipped one, unpacked over whatever WORK holds; with none shipped,
+    the one WORK holds, or the calibration added first. Returns the names in the order to make them."""
+    if not any(POSTERIOR in c for n in names for c in SETS[n][1]) or "calibration" in names:
+        return names
+    if unpack_posterior(work) or os.path.isdir(POSTERIOR.format(work=work)):
+        return names
+    return ["calibration"] + names
 
 
 def main():
@@ -427,11 +464,7 @@ def main():
             print(f"  shipped copy made by: {command or '(no record)'}")
         print(f"\n{len(names)} sets, about {total:.0f} CPU h in all; the validation sets, the flow campaign and the scans resume, the others start again")
         return
-    # The sets drawn from the calibration's posterior need it in WORK: the shipped one, or made
-    # first when none is shipped.
-    if any(POSTERIOR in c for n in names for c in SETS[n][1]) and "calibration" not in names and \
-            not os.path.isdir(POSTERIOR.format(work=work)) and not unpack_posterior(work):
-        names.insert(0, "calibration")
+    names = posterior_for(names, work)
     for n in names:
         what, commands, _, keep = SETS[n]
         out = os.path.join(work, n)

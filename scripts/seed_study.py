@@ -85,6 +85,7 @@ def main():
     ap.add_argument("extra", nargs=argparse.REMAINDER, help="options passed to trbc infer (after --)")
     a = ap.parse_args()
     extra = [x for x in a.extra if x != "--"]
+    finished_runs.trbc_version(a.trbc)  # a --trbc that is no trbc stops here, before any folder is touched
     os.makedirs(a.out, exist_ok=True)
     results, phase1, walls = {}, {}, {}
     for seed in a.seeds:

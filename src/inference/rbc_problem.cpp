@@ -160,6 +160,17 @@ RbcDataSet readRelaxationData(const fs::path& file, std::string name) {
 
 namespace {
 
+/// Why P cannot be used as a data path ("does not exist", "cannot be read: ..."), or "" when it
+/// exists. The error_code overloads: a path the filesystem refuses (too long, no permission) is bad
+/// input like a missing one, not a std::filesystem_error.
+std::string missingReason(const fs::path& p, bool directory) {
+    std::error_code ec;
+    const bool ok = directory ? fs::is_directory(p, ec) : fs::exists(p, ec);
+    if (ok) return "";
+    const bool absent = !ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory;
+    return absent ? std::string("does not exist") : "cannot be read: " + ec.message();
+}
+
 /// DIR/datasets.json: [{"name": ..., "experiment": "equilibrium|stretching|relaxation", "file": ...}, ...],
 /// files relative to DIR (written by `trbc calibrate`, which copies the configured CSVs there).
 std::vector<RbcDataSet> loadManifest(const fs::path& dir) {
@@ -183,7 +194,8 @@ std::vector<RbcDataSet> loadManifest(const fs::path& dir) {
         checkFileName(name, manifest.string() + ": data set name");
         fs::path file = e["file"].get<std::string>();
         if (file.is_relative()) file = dir / file;
-        if (!fs::exists(file)) throw InputError(fmt::format("{}: data set '{}': file {} does not exist", manifest.string(), name, file.string()));
+        if (const std::string why = missingReason(file, false); !why.empty())
+            throw InputError(fmt::format("{}: data set '{}': file {} {}", manifest.string(), name, file.string(), why));
         if (exp == "equilibrium")
             sets.push_back(readEquilibriumData(file, name));
         else if (exp == "stretching")
@@ -202,22 +214,16 @@ std::vector<RbcDataSet> loadManifest(const fs::path& dir) {
 }  // namespace
 
 std::vector<RbcDataSet> loadRbcDataSets(const fs::path& dir) {
-    // The error_code overloads: a path the filesystem refuses (too long, no permission) is bad input
-    // like a missing one, not a std::filesystem_error.
-    std::error_code ec;
-    if (!fs::is_directory(dir, ec)) {
-        const bool absent = !ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory;
+    if (const std::string why = missingReason(dir, true); !why.empty())
         throw InputError(fmt::format("experimental data directory '{}' {} (it must contain equilibrium/, stretching/ and "
                                      "relaxation/, or a {}; see data/README.md)",
-                                     dir.string(), absent ? std::string("does not exist") : "cannot be read: " + ec.message(),
-                                     kRbcDataManifest));
-    }
-    if (fs::exists(dir / kRbcDataManifest, ec)) return loadManifest(dir);
+                                     dir.string(), why, kRbcDataManifest));
+    if (missingReason(dir / kRbcDataManifest, false).empty()) return loadManifest(dir);
     for (const fs::path& rel : {fs::path("equilibrium/evans_fung_1972.csv"), fs::path("stretching/mills_2004/mills_2004.csv"),
                                fs::path("stretching/suresh_2005/suresh_2005.csv"), fs::path("relaxation/hochmuth_1979/1.csv")})
-        if (!fs::exists(dir / rel, ec))
-            throw InputError(fmt::format("experimental data directory '{}' lacks {} (docs/BAYESIAN_INFERENCE.md, data/README.md)", dir.string(),
-                                         rel.string()));
+        if (const std::string why = missingReason(dir / rel, false); !why.empty())
+            throw InputError(fmt::format("experimental data directory '{}': {} {} (docs/BAYESIAN_INFERENCE.md, data/README.md)", dir.string(),
+                                         rel.string(), why));
     std::vector<RbcDataSet> sets;
     sets.push_back(readEquilibriumData(dir / "equilibrium" / "evans_fung_1972.csv", "evans_fung_1972"));
     sets.push_back(readStretchingData(dir / "stretching" / "mills_2004" / "mills_2004.csv", "mills_2004"));

@@ -175,6 +175,16 @@ TEST(RbcInference, BadDataFilesNameFileLineAndColumn) {
     expectInputError([&] { loadRbcDataSets(tmp.path() / "nowhere"); }, {"nowhere", "does not exist"});
     // A name longer than any filesystem allows (ENAMETOOLONG): bad input, not a filesystem_error.
     expectInputError([&] { loadRbcDataSets(tmp.path() / std::string(300, 'x')); }, {"xxxx", "cannot be read"});
+    // The same for a manifest's file, and a shipped layout that lacks one file names it.
+    const fs::path manifestDir = tmp.path() / "manifest";
+    fs::create_directories(manifestDir);
+    for (const auto& [file, why] : {std::pair<std::string, std::string>{std::string(300, 'y'), "cannot be read"}, {"gone.csv", "does not exist"}}) {
+        writeFile(manifestDir / "datasets.json", "[{\"name\": \"m\", \"experiment\": \"stretching\", \"file\": \"" + file + "\"}]");
+        expectInputError([&] { loadRbcDataSets(manifestDir); }, {"datasets.json", "data set 'm'", why});
+    }
+    const fs::path partial = writeSyntheticData(tmp.path() / "partial");
+    fs::remove(partial / "stretching" / "mills_2004" / "mills_2004.csv");
+    expectInputError([&] { loadRbcDataSets(partial); }, {"mills_2004.csv does not exist"});
 }
 
 // The population SDs of the shape are read where the file gives them (a blank one is NaN), and the

@@ -1,6 +1,9 @@
 """scripts/make_results.py: a resumed set's finished part is shipped under results/<name>/progress/
 and a work folder that has not started continues from it, without overwriting one that has."""
 import importlib.util
+import io
+import os
+import tarfile
 from pathlib import Path
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "make_results.py"
@@ -173,9 +176,11 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     (work / "validation.json").write_text("{}")
     progress = tmp_path / "repo" / "results" / name / "progress"
     (progress / "cases").mkdir(parents=True)
-    (progress / "cases" / "tube_old.json").write_text('{"id": "old"}')  # replaced by the save
+    (progress / "cases" / "tube_other.json").write_text('{"id": "other"}')  # another machine's: kept
+    (progress / "cases" / "tube_a.json").write_text('{"id": "a", "older": true}')  # replaced by this one
     m.save_progress(name, str(work))
-    assert sorted(p.name for p in (progress / "cases").iterdir()) == ["tube_a.json", "tube_b.json"]
+    assert sorted(p.name for p in (progress / "cases").iterdir()) == ["tube_a.json", "tube_b.json", "tube_other.json"]
+    assert (progress / "cases" / "tube_a.json").read_text() == '{"id": "a"}'
     assert not (progress / "validation.json").exists()
 
     # Another machine has finished case a on its own and lacks b: only b is copied in.
@@ -192,13 +197,24 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     m.save_progress(name, str(work))
     assert not (progress / "cases" / "tube_c.json").exists()
 
+    # The steady-stop set's second run keeps its records in full_length/cases/.
+    steady = tmp_path / "work" / "steady"
+    (steady / "full_length" / "cases").mkdir(parents=True)
+    (steady / "full_length" / "cases" / "angle_1.json").write_text("{}")
+    m.save_progress("validation/theta_new_level3_high_viscosity_steady", str(steady))
+    assert (tmp_path / "repo" / "results" / "validation" / "theta_new_level3_high_viscosity_steady" / "progress" / "full_length" /
+            "cases" / "angle_1.json").exists()
+
     # The threshold scan's records live in per-case folders.
     scan = tmp_path / "work" / "flow_threshold" / "scan"
     (scan / "cases" / "c1" / "checkpoint").mkdir(parents=True)
     (scan / "cases" / "c1" / "flow.json").write_text("{}")
+    (scan / "cases" / "c1.replaced-20260101T000000").mkdir()  # set aside by the scan: not progress
+    (scan / "cases" / "c1.replaced-20260101T000000" / "flow.json").write_text("{}")
     m.save_progress("flow_threshold/scan", str(scan))
     shipped = tmp_path / "repo" / "results" / "flow_threshold" / "scan" / "progress" / "cases" / "c1"
     assert (shipped / "flow.json").exists() and not (shipped / "checkpoint").exists()
+    assert sorted(p.name for p in shipped.parent.iterdir()) == ["c1"]
     fresh = tmp_path / "fresh" / "scan"
     m.restore_progress("flow_threshold/scan", str(fresh))
     assert (fresh / "cases" / "c1" / "flow.json").exists()
@@ -238,4 +254,53 @@ def test_a_shipped_posterior_with_other_files_is_refused(tmp_path):
         tar.addfile(info, io.BytesIO(b"x"))
     with pytest.raises(SystemExit, match="outside.csv"):
         m.unpack_posterior(str(tmp_path / "work"))
-    assert not (tmp_path / "outside.csv").exists()
+    assert not (tmp_path / "work" / "outside.csv").exists() and not (tmp_path / "outside.csv").exists()
+    # The right names, but one of them a link: refused too.
+    with tarfile.open(shipped / m.SHIPPED_POSTERIOR[0], "w:xz") as tar:
+        for k, f in enumerate(m.SHIPPED_POSTERIOR[1]):
+            info = tarfile.TarInfo(f)
+            if k == 0:
+                info.type, info.linkname = tarfile.SYMTYPE, "/etc/passwd"
+                tar.addfile(info)
+            else:
+                info.size = 1
+                tar.addfile(info, io.BytesIO(b"x"))
+    with pytest.raises(SystemExit, match="not the files"):
+        m.unpack_posterior(str(tmp_path / "work"))
+
+
+def test_the_shipped_posterior_replaces_a_stale_one_unless_the_calibration_is_made(tmp_path):
+    m = load(tmp_path / "repo")
+    made = tmp_path / "made"
+    for f in m.SHIPPED_POSTERIOR[1]:
+        (made / f).parent.mkdir(parents=True, exist_ok=True)
+        (made / f).write_text("shipped\n")
+    m.pack_posterior(str(made))
+    (tmp_path / "repo" / "results" / "calibration").mkdir(parents=True)
+    (made / m.SHIPPED_POSTERIOR[0]).rename(tmp_path / "repo" / "results" / "calibration" / m.SHIPPED_POSTERIOR[0])
+    work = tmp_path / "work"
+    stale = work / "calibration" / "inference" / "phase3" / "theta_new" / "samples.csv"
+    stale.parent.mkdir(parents=True)
+    stale.write_text("another machine's\n")
+    reader = next(n for n in m.SETS if m.POSTERIOR in " ".join(m.SETS[n][1]))
+    # The calibration made in the same run: its own posterior, nothing unpacked.
+    assert m.posterior_for(["calibration", reader], str(work)) == ["calibration", reader]
+    assert stale.read_text() == "another machine's\n"
+    # Otherwise the shipped one, over the stale one.
+    assert m.posterior_for([reader], str(work)) == [reader]
+    assert stale.read_text() == "shipped\n"
+    assert not (work / "calibration.tmp.unpack").exists()
+    # Sets that do not read the posterior: nothing unpacked.
+    other = next(n for n in m.SETS if n != "calibration" and m.POSTERIOR not in " ".join(m.SETS[n][1]))
+    assert m.posterior_for([other], str(tmp_path / "work2")) == [other]
+    assert not (tmp_path / "work2").exists()
+    # Nothing shipped and nothing in WORK: the calibration first.
+    bare = load(tmp_path / "bare")
+    assert bare.posterior_for([reader], str(tmp_path / "work3")) == ["calibration", reader]
+    # Two packs of the same files are the same archive.
+    m.pack_posterior(str(made))
+    first = (made / m.SHIPPED_POSTERIOR[0]).read_bytes()
+    for f in m.SHIPPED_POSTERIOR[1]:
+        os.utime(made / f, (1, 1))
+    m.pack_posterior(str(made))
+    assert (made / m.SHIPPED_POSTERIOR[0]).read_bytes() == first

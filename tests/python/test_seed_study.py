@@ -72,3 +72,11 @@ def test_a_second_run_runs_no_seed_again_unless_the_build_changed(tmp_path):
     assert (out / "seed_study.md").read_text() == first
     run(tmp_path, out, revision="def5678")
     assert (out / "runs.log").read_text().split() == ["1", "2", "3"] * 2
+
+
+def test_a_trbc_that_is_missing_or_no_trbc_stops_the_study_before_any_folder_is_made(tmp_path):
+    for trbc in (tmp_path / "absent", "/bin/false"):
+        r = subprocess.run([sys.executable, str(SCRIPT), "--trbc", str(trbc), "--out", str(tmp_path / "study"), "--seeds", "1"],
+                           capture_output=True, text=True)
+        assert r.returncode != 0 and "--trbc" in r.stderr and "Traceback" not in r.stderr, r.stderr
+        assert not (tmp_path / "study").exists()
