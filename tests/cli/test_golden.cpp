@@ -4,7 +4,10 @@
 //    README's printed JSON (made by the default, portable build) within 5e-4 relative. The solvers
 //    stop at their tolerances, so the rounding of another instruction set moves the numbers: tc by
 //    1.2e-4 and the shapes by up to 2e-6 between the portable and a -march=native build (measured).
-//    Any change of the model, the protocols or the solvers' settings moves them by more.
+//    Any change of the model, the protocols or the solvers' settings moves them by more. tc, fitted
+//    to the relaxation curve, moves more with the machine: the same revision gives 0.16802 s on one
+//    machine and 0.16745 s on another (3.4e-3), where D, hmin and hmax agree to the last digit and
+//    D0, D1 to 1e-6 (measured), so tc is held to 5e-3.
 //  * The theta_new table of the headline results against the shipped posterior statistics
 //    (results/calibration/posterior_stats.csv, made by `make demo`): every printed mean, median, SD
 //    and Monte Carlo error within half a unit of its last printed digit.
@@ -52,7 +55,8 @@ TEST(Golden, ReadmeFirstCommandReproducesItsPrintedObservables) {
     ASSERT_EQ(j.at("provenance").at("level"), 4);
     for (const auto& [name, value] : printed) {
         const double now = j.at("observables").at(name).get<double>();
-        EXPECT_NEAR(now, value, 5e-4 * std::abs(value)) << name << ": README shows " << value << ", trbc simulate gives " << now;
+        const double tolerance = name == "tc_s" ? 5e-3 : 5e-4;
+        EXPECT_NEAR(now, value, tolerance * std::abs(value)) << name << ": README shows " << value << ", trbc simulate gives " << now;
     }
 }
 
