@@ -51,7 +51,8 @@ RESUMED = ("flow_campaign", "flow_stop_rule", "flow_verification/capsule", "flow
 # What a set of many hours has finished so far, shipped under results/<name>/progress/ by
 # --save-progress so that another machine continues it. A campaign's files go together: a work folder
 # without its campaign starts from them. An entry with a * is a set of independent case records
-# (validate's, the threshold scan's): each record the work folder lacks is copied in.
+# (validate's, the threshold scan's): validate takes them with --import, and the scan's that the work
+# folder lacks are copied in.
 PROGRESS = {"flow_campaign": ["level3/campaign.json", "level3/parts", "level3_inplane/campaign.json", "level3_inplane/parts"],
             "flow_threshold/scan": ["cases/*/flow.json"]}
 # A case folder the threshold scan set aside (another cell's record, run again): not progress.
@@ -310,16 +311,25 @@ def recorded(name):
     return "", None
 
 
-def progress_files(name, root, records=None):
-    """The PROGRESS entries of NAME that exist under ROOT, patterns expanded (records=True: only the
-    case records of * entries, False: only the campaign entries)."""
-    found = []
-    for f in PROGRESS[name]:
-        if "*" in f and records is not False:
-            found += [m for m in sorted(glob.glob(f, root_dir=root)) if SET_ASIDE not in m]
-        elif "*" not in f and records is not True and os.path.exists(os.path.join(root, f)):
-            found.append(f)
-    return found
+def progress_records(name, root):
+    """The case records of NAME's * entries of PROGRESS under ROOT, patterns expanded."""
+    return [m for f in PROGRESS[name] if "*" in f for m in sorted(glob.glob(f, root_dir=root)) if SET_ASIDE not in m]
+
+
+def campaign_files(name, root):
+    """NAME's campaign entries of PROGRESS (those without a *) that exist under ROOT."""
+    return [f for f in PROGRESS[name] if "*" not in f and os.path.exists(os.path.join(root, f))]
+
+
+def import_option(name, command):
+    """` --import results/<name>/progress[/SUB]` for a validate command of NAME that runs cases into
+    {out}[/SUB], where such progress is shipped: validate takes each record whose key matches and
+    replaces a stale one of the work folder. Empty otherwise."""
+    m = re.search(r"\bvalidate\b.*--out \{out\}(/\S+)?", command)
+    if not m or "--surrogate" in command:
+        return ""
+    source = os.path.join(ROOT, "results", name, "progress") + (m.group(1) or "")
+    return " --import " + shlex.quote(source) if os.path.isdir(os.path.join(source, "cases")) else ""
 
 
 def copy_whole(src, to):
@@ -342,11 +352,11 @@ def save_progress(name, out):
     if os.path.exists(os.path.join(out, MADE)):
         print(f"make_results: {name}: finished and shipped, no progress to save", file=sys.stderr)
         return
-    found = progress_files(name, out)
+    found = campaign_files(name, out) + progress_records(name, out)
     if not found:
         print(f"make_results: {name}: nothing in {out} to save", file=sys.stderr)
         return
-    for f in progress_files(name, dest, records=False):  # a campaign shipped before goes
+    for f in campaign_files(name, dest):  # a campaign shipped before goes
         old = os.path.join(dest, f)
         (shutil.rmtree if os.path.isdir(old) else os.remove)(old)
     for f in found:
@@ -357,16 +367,19 @@ def save_progress(name, out):
 def restore_progress(name, out):
     """results/<name>/progress/ into a work folder: each campaign (folder of PROGRESS) that has not
     started there is copied whole, so a run continues it; one that has started keeps its own files.
-    Case records (a * entry) are copied one by one where the work folder lacks them."""
+    The threshold scan's case records are copied one by one where the work folder lacks them (the
+    validation sets take theirs with --import, import_option)."""
     src_root = os.path.join(ROOT, "results", name, "progress")
     if not os.path.isdir(src_root):
         return
-    records = progress_files(name, src_root, records=True)
-    missing = [f for f in records if not os.path.exists(os.path.join(out, f))]
-    for f in missing:
-        copy_whole(os.path.join(src_root, f), os.path.join(out, f))
-    if records:
-        print(f"make_results: {name}: {len(missing)} of {len(records)} case records from results/{name}/progress/", file=sys.stderr)
+    if not name.startswith("validation/"):
+        records = progress_records(name, src_root)
+        missing = [f for f in records if not os.path.exists(os.path.join(out, f))]
+        for f in missing:
+            copy_whole(os.path.join(src_root, f), os.path.join(out, f))
+        if records:
+            print(f"make_results: {name}: {len(missing)} of {len(records)} case records from results/{name}/progress/",
+                  file=sys.stderr)
     campaign = [f for f in PROGRESS[name] if "*" not in f]
     for folder in sorted({os.path.dirname(f) for f in campaign}):
         files = [f for f in campaign if os.path.dirname(f) == folder]
@@ -406,6 +419,13 @@ def unpack_posterior(work):
         if sorted(m.name for m in members) != sorted(SHIPPED_POSTERIOR[1]) or not all(m.isfile() for m in members):
             sys.exit(f"make_results: {shipped} holds {', '.join(m.name for m in members)}, "
                      f"not the files {', '.join(SHIPPED_POSTERIOR[1])}")
+        def in_place(m):
+            f = os.path.join(target, m.name)
+            return os.path.isfile(f) and os.path.getsize(f) == m.size and open(f, "rb").read() == tar.extractfile(m).read()
+        if all(in_place(m) for m in members):
+            print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]}, "
+                  "already in place)", file=sys.stderr)
+            return True
         tar.extractall(tmp)  # the names are checked above: no path leaves TMP
     for f in SHIPPED_POSTERIOR[1]:
         to = os.path.join(target, f)
@@ -458,7 +478,7 @@ def main():
             total += cost[n]
             print(f"{n}: {what}\n  cost: about {cost[n]:.2g} CPU h on the 2-core machine")
             for c in commands:
-                print("  $ " + command_line(c, a.trbc, os.path.join(work, n), work))
+                print("  $ " + command_line(c, a.trbc, os.path.join(work, n), work) + import_option(n, c))
             if keep:
                 print("  keeps: " + ", ".join(keep))
             print(f"  shipped copy made by: {command or '(no record)'}")
@@ -477,7 +497,7 @@ def main():
             restore_progress(n, out)
         t0 = time.time()
         for c in commands:
-            line = command_line(c, a.trbc, out, work)
+            line = command_line(c, a.trbc, out, work) + import_option(n, c)
             print(f"make_results: {n}: {line}", file=sys.stderr, flush=True)
             if subprocess.run(line, shell=True, cwd=ROOT).returncode != 0:
                 sys.exit(f"make_results: {n} failed: {line}; results/{n} is unchanged")

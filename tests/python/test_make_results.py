@@ -183,13 +183,23 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     assert (progress / "cases" / "tube_a.json").read_text() == '{"id": "a"}'
     assert not (progress / "validation.json").exists()
 
-    # Another machine has finished case a on its own and lacks b: only b is copied in.
+    # Another machine takes them with validate's --import (which keeps a local record whose key
+    # matches and replaces a stale one); nothing is copied by hand.
     other = tmp_path / "other" / name
     (other / "cases").mkdir(parents=True)
     (other / "cases" / "tube_a.json").write_text('{"id": "a", "own": true}')
     m.restore_progress(name, str(other))
-    assert (other / "cases" / "tube_a.json").read_text() == '{"id": "a", "own": true}'
-    assert (other / "cases" / "tube_b.json").read_text() == '{"id": "b"}'
+    assert sorted(p.name for p in (other / "cases").iterdir()) == ["tube_a.json"]
+    command = m.SETS[name][1][0]
+    assert m.import_option(name, command) == " --import " + str(progress)
+    line = m.command_line(command, "trbc", str(other), str(other.parent)) + m.import_option(name, command)
+    assert line.endswith(f"--out {other} --jobs 2 --threads 1 --quiet --import {progress}"), line
+    # A set with no progress shipped, and a command that runs no cases: no option.
+    assert m.import_option("validation/theta_new_level3", m.SETS["validation/theta_new_level3"][1][0]) == ""
+    cross = "validation/theta_new_level3_cross_check"
+    (tmp_path / "repo" / "results" / cross / "progress" / "cases").mkdir(parents=True)
+    assert m.import_option(cross, m.SETS[cross][1][0]).startswith(" --import ")
+    assert m.import_option(cross, m.SETS[cross][1][1]) == ""  # --surrogate: no cases run
 
     # A set that has finished and replaced results/<name> has no progress to ship.
     (work / m.MADE).write_text("")
@@ -202,8 +212,12 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     (steady / "full_length" / "cases").mkdir(parents=True)
     (steady / "full_length" / "cases" / "angle_1.json").write_text("{}")
     m.save_progress("validation/theta_new_level3_high_viscosity_steady", str(steady))
-    assert (tmp_path / "repo" / "results" / "validation" / "theta_new_level3_high_viscosity_steady" / "progress" / "full_length" /
-            "cases" / "angle_1.json").exists()
+    steady_progress = tmp_path / "repo" / "results" / "validation" / "theta_new_level3_high_viscosity_steady" / "progress"
+    assert (steady_progress / "full_length" / "cases" / "angle_1.json").exists()
+    steady_commands = m.SETS["validation/theta_new_level3_high_viscosity_steady"][1]
+    assert m.import_option("validation/theta_new_level3_high_viscosity_steady", steady_commands[0]) == ""  # no cases/ shipped
+    assert (m.import_option("validation/theta_new_level3_high_viscosity_steady", steady_commands[1]) ==
+            " --import " + str(steady_progress / "full_length"))
 
     # The threshold scan's records live in per-case folders.
     scan = tmp_path / "work" / "flow_threshold" / "scan"
@@ -290,6 +304,13 @@ def test_the_shipped_posterior_replaces_a_stale_one_unless_the_calibration_is_ma
     assert m.posterior_for([reader], str(work)) == [reader]
     assert stale.read_text() == "shipped\n"
     assert not (work / "calibration.tmp.unpack").exists()
+    # The same files already in place: left as they are (the same inode), not unpacked again.
+    inode = stale.stat().st_ino
+    assert m.posterior_for([reader], str(work)) == [reader]
+    assert stale.stat().st_ino == inode
+    stale.write_text("shipper\n")  # same size, other bytes: replaced
+    assert m.posterior_for([reader], str(work)) == [reader]
+    assert stale.read_text() == "shipped\n" and stale.stat().st_ino != inode
     # Sets that do not read the posterior: nothing unpacked.
     other = next(n for n in m.SETS if n != "calibration" and m.POSTERIOR not in " ".join(m.SETS[n][1]))
     assert m.posterior_for([other], str(tmp_path / "work2")) == [other]
