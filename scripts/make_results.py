@@ -421,7 +421,10 @@ def unpack_posterior(work):
                      f"not the files {', '.join(SHIPPED_POSTERIOR[1])}")
         def in_place(m):
             f = os.path.join(target, m.name)
-            return os.path.isfile(f) and os.path.getsize(f) == m.size and open(f, "rb").read() == tar.extractfile(m).read()
+            if not os.path.isfile(f) or os.path.getsize(f) != m.size:
+                return False
+            with open(f, "rb") as local:
+                return local.read() == tar.extractfile(m).read()
         if all(in_place(m) for m in members):
             print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]}, "
                   "already in place)", file=sys.stderr)
