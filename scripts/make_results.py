@@ -257,6 +257,11 @@ def command_line(c, trbc, out, work):
     return shlex.quote(sys.executable) + line[len("python3"):] if line.startswith("python3 ") else line
 
 
+def read_json(f):
+    with open(f) as text:
+        return json.load(text)
+
+
 def recorded(name):
     """(command, CPU hours) of the shipped copy, from its own records where it has them; the command
     ends with "(revision R)" when the record names the build's revision."""
@@ -272,7 +277,7 @@ def recorded(name):
         f = os.path.join(d, record)
         if os.path.exists(f):
             try:
-                j = json.load(open(f))
+                j = read_json(f)
             except (OSError, ValueError):
                 continue
             hours = j["case_wall_s_total"] / 3600 if "case_wall_s_total" in j else None
@@ -286,7 +291,7 @@ def recorded(name):
     for f in records:
         if os.path.isfile(f):
             try:
-                command = made_by(json.load(open(f)))
+                command = made_by(read_json(f))
             except (OSError, ValueError, AttributeError):
                 continue
             if command:
@@ -307,7 +312,8 @@ def recorded(name):
     for text in ("command.txt", "README.md"):
         f = os.path.join(d, text)
         if os.path.exists(f):
-            return open(f).readline().strip()[:160], None
+            with open(f) as text:
+                return text.readline().strip()[:160], None
     return "", None
 
 
