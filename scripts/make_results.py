@@ -327,15 +327,19 @@ def campaign_files(name, root):
     return [f for f in PROGRESS[name] if "*" not in f and os.path.exists(os.path.join(root, f))]
 
 
-def import_option(name, command):
-    """` --import results/<name>/progress[/SUB]` for a validate command of NAME that runs cases into
-    {out}[/SUB], where such progress is shipped: validate takes each record whose key matches and
-    replaces a stale one of the work folder. Empty otherwise."""
-    m = re.search(r"\bvalidate\b.*--out \{out\}(/\S+)?", command)
+def with_import(name, command):
+    """A validate command of NAME that runs cases into {out}[/SUB], with `--import
+    results/<name>/progress[/SUB]` after its --out where such progress is shipped: validate takes
+    each record whose key matches and replaces a stale one of the work folder. Any other command as
+    it is."""
+    m = re.search(r"\bvalidate\b.*?--out \{out\}(/\S+)?", command)
     if not m or "--surrogate" in command:
-        return ""
+        return command
     source = os.path.join(ROOT, "results", name, "progress") + (m.group(1) or "")
-    return " --import " + shlex.quote(source) if os.path.isdir(os.path.join(source, "cases")) else ""
+    if not os.path.isdir(os.path.join(source, "cases")):
+        return command
+    option = " --import " + shlex.quote(source).replace("{", "{{").replace("}", "}}")
+    return command[:m.end()] + option + command[m.end():]
 
 
 def copy_whole(src, to):
@@ -374,7 +378,7 @@ def restore_progress(name, out):
     """results/<name>/progress/ into a work folder: each campaign (folder of PROGRESS) that has not
     started there is copied whole, so a run continues it; one that has started keeps its own files.
     The threshold scan's case records are copied one by one where the work folder lacks them (the
-    validation sets take theirs with --import, import_option)."""
+    validation sets take theirs with --import, with_import)."""
     src_root = os.path.join(ROOT, "results", name, "progress")
     if not os.path.isdir(src_root):
         return
@@ -411,8 +415,8 @@ def pack_posterior(out):
 
 
 def unpack_posterior(work):
-    """results/calibration/posterior.tar.xz into WORK/calibration, replacing what is there (False when
-    none is shipped). Unpacked beside it and renamed into place: a killed unpack leaves the earlier
+    """results/calibration/posterior.tar.xz into WORK/calibration, replacing files that differ (False
+    when none is shipped; nothing is written when every file already matches). Unpacked beside it and renamed into place: a killed unpack leaves the earlier
     posterior or none, never part of one."""
     shipped = os.path.join(ROOT, "results", "calibration", SHIPPED_POSTERIOR[0])
     if not os.path.exists(shipped):
@@ -487,7 +491,7 @@ def main():
             total += cost[n]
             print(f"{n}: {what}\n  cost: about {cost[n]:.2g} CPU h on the 2-core machine")
             for c in commands:
-                print("  $ " + command_line(c, a.trbc, os.path.join(work, n), work) + import_option(n, c))
+                print("  $ " + command_line(with_import(n, c), a.trbc, os.path.join(work, n), work))
             if keep:
                 print("  keeps: " + ", ".join(keep))
             print(f"  shipped copy made by: {command or '(no record)'}")
@@ -506,7 +510,7 @@ def main():
             restore_progress(n, out)
         t0 = time.time()
         for c in commands:
-            line = command_line(c, a.trbc, out, work) + import_option(n, c)
+            line = command_line(with_import(n, c), a.trbc, out, work)
             print(f"make_results: {n}: {line}", file=sys.stderr, flush=True)
             if subprocess.run(line, shell=True, cwd=ROOT).returncode != 0:
                 sys.exit(f"make_results: {n} failed: {line}; results/{n} is unchanged")

@@ -517,6 +517,14 @@ TEST(ValidateCli, ShardsRunApartAndImportMergesThem) {
     EXPECT_EQ(tableBody(merged / "threshold.csv"), tableBody(o1 / "threshold.csv"));
     const nlohmann::json j = nlohmann::json::parse(test::slurp(merged / "validation.json"));
     EXPECT_EQ(j["cases_imported"].get<int>(), 5);
+    // A stale record in OUT (another cell's key) is replaced by the matching imported one, not kept.
+    const fs::path stale = dir.path() / "m3";
+    writeText(stale / "cases" / "angle_eta23.9_rate60.json", R"({"key": "another cell", "result": {}})");
+    r = test::runTrbc(base + " --out " + stale.string() + imports, dir.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("0 run now"), std::string::npos) << r.out;
+    EXPECT_EQ(nlohmann::json::parse(test::slurp(stale / "cases" / "angle_eta23.9_rate60.json"))["key"],
+              nlohmann::json::parse(test::slurp(o2 / "cases" / "angle_eta23.9_rate60.json"))["key"]);
     // Another cell: the imported records do not match, so nothing is taken from them.
     const fs::path cfg2 = writeText(dir.path() / "tiny2.toml", test::slurp(cfg) + "[cell]\nsource = \"explicit\"\nv = 0.94\nmu_uN_per_m = 4.99\nkb_J = 2.10e-19\nb2 = 1.84\netam_Pa_s_um = 0.3\n");
     r = test::runTrbc("validate --config " + cfg2.string() + " --out " + (dir.path() / "m2").string() + imports + " --dry-run", dir.path());

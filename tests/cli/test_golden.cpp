@@ -8,8 +8,8 @@
 //    to the relaxation curve, moves more with the machine: the same revision gives 0.16802 s on one
 //    machine and 0.16745 s on another (3.4e-3), where D, hmin and hmax agree to the last digit and
 //    D0, D1 to 1e-6 (measured), so tc is held to 5e-3. The cause is the relaxation's inner
-//    tolerance: late in the relaxation the forces are of its size, and a change of mu by 2.5e-14
-//    alone moves tc by the same 3.4e-3 (docs/FORWARD_MODEL.md, relaxation).
+//    tolerance: late in the relaxation the forces are of its size, and a relative change of mu
+//    by 2.5e-14 alone moves tc by the same 3.4e-3 (docs/FORWARD_MODEL.md, relaxation).
 //  * The theta_new table of the headline results against the shipped posterior statistics
 //    (results/calibration/posterior_stats.csv, made by `make demo`): every printed mean, median, SD
 //    and Monte Carlo error within half a unit of its last printed digit.

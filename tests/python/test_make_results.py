@@ -166,7 +166,7 @@ def test_a_cases_folder_without_records_beside_its_subfolders_is_shipped_whole(t
     assert shipped == ["cases", "cases/c1", "cases/c1/flow.json"], shipped
 
 
-def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
+def test_case_records_in_progress_are_shipped_merged_and_imported(tmp_path):
     name = "validation/theta_new_level3_tube_bands"
     m = load(tmp_path / "repo")
     work = tmp_path / "work" / name
@@ -191,16 +191,16 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     m.restore_progress(name, str(other))
     assert sorted(p.name for p in (other / "cases").iterdir()) == ["tube_a.json"]
     command = m.SETS[name][1][0]
-    assert m.import_option(name, command) == " --import " + str(progress)
-    line = m.command_line(command, "trbc", str(other), str(other.parent)) + m.import_option(name, command)
-    assert line.endswith(f"--out {other} --jobs 2 --threads 1 --quiet --import {progress}"), line
-    # A set with no progress shipped, and a command that runs no cases: no option.
-    assert m.import_option("validation/theta_new_level3", m.SETS["validation/theta_new_level3"][1][0]) == ""
+    line = m.command_line(m.with_import(name, command), "trbc", str(other), str(other.parent))
+    assert line.endswith(f"--out {other} --import {progress} --jobs 2 --threads 1 --quiet"), line
+    # A set with no progress shipped, and a command that runs no cases: as they are.
+    plain = m.SETS["validation/theta_new_level3"][1][0]
+    assert m.with_import("validation/theta_new_level3", plain) == plain
     cross = "validation/theta_new_level3_cross_check"
-    (tmp_path / "repo" / "results" / cross / "progress" / "cases").mkdir(parents=True)
-    assert m.import_option(cross, m.SETS[cross][1][0]).startswith(" --import ")
-    assert m.import_option(cross, m.SETS[cross][1][1]) == ""  # --surrogate: no cases run
-
+    for sub in ("cases", "networks/cases"):  # progress beside both of its --out folders
+        (tmp_path / "repo" / "results" / cross / "progress" / sub).mkdir(parents=True)
+    assert "--import" in m.with_import(cross, m.SETS[cross][1][0])
+    assert m.with_import(cross, m.SETS[cross][1][1]) == m.SETS[cross][1][1]  # --surrogate: no cases run
     # A set that has finished and replaced results/<name> has no progress to ship.
     (work / m.MADE).write_text("")
     (work / "cases" / "tube_c.json").write_text('{"id": "c"}')
@@ -215,9 +215,9 @@ def test_case_records_in_progress_are_shipped_and_merged_one_by_one(tmp_path):
     steady_progress = tmp_path / "repo" / "results" / "validation" / "theta_new_level3_high_viscosity_steady" / "progress"
     assert (steady_progress / "full_length" / "cases" / "angle_1.json").exists()
     steady_commands = m.SETS["validation/theta_new_level3_high_viscosity_steady"][1]
-    assert m.import_option("validation/theta_new_level3_high_viscosity_steady", steady_commands[0]) == ""  # no cases/ shipped
-    assert (m.import_option("validation/theta_new_level3_high_viscosity_steady", steady_commands[1]) ==
-            " --import " + str(steady_progress / "full_length"))
+    steady = "validation/theta_new_level3_high_viscosity_steady"
+    assert m.with_import(steady, steady_commands[0]) == steady_commands[0]  # no cases/ shipped beside {out}
+    assert f"--out {{out}}/full_length --import {steady_progress / 'full_length'} --jobs" in m.with_import(steady, steady_commands[1])
 
     # The threshold scan's records live in per-case folders.
     scan = tmp_path / "work" / "flow_threshold" / "scan"
@@ -306,10 +306,10 @@ def test_the_shipped_posterior_replaces_a_stale_one_unless_the_calibration_is_ma
     assert not (work / "calibration.tmp.unpack").exists()
     # The same files already in place: left as they are (the same inode), not unpacked again.
     inode = stale.stat().st_ino
-    assert m.posterior_for([reader], str(work)) == [reader]
+    assert m.unpack_posterior(str(work)) is True
     assert stale.stat().st_ino == inode
     stale.write_text("shipper\n")  # same size, other bytes: replaced
-    assert m.posterior_for([reader], str(work)) == [reader]
+    assert m.unpack_posterior(str(work)) is True
     assert stale.read_text() == "shipped\n" and stale.stat().st_ino != inode
     # Sets that do not read the posterior: nothing unpacked.
     other = next(n for n in m.SETS if n != "calibration" and m.POSTERIOR not in " ".join(m.SETS[n][1]))
