@@ -182,7 +182,7 @@ SETS = {
                                                  " --draws 16 --seed 1 --out {out} --jobs 2 --threads 1 --quiet",
                                                  "{trbc} validate --config configs/validation_cross_check.toml --posterior " + POSTERIOR +
                                                  " --draws 1000 --seed 1 --surrogate data/surrogates/flow --direct {out} --out {out}/networks"],
-                                                2.6, ["validation.json", "validation.md", "bands.csv", "draws.csv", "comparison.csv", "shear.csv",
+                                                2.3, ["validation.json", "validation.md", "bands.csv", "draws.csv", "comparison.csv", "shear.csv",
                                                       "threshold.csv", "experimental_data.json", "figures", "networks", "cases/*.json"]),
     # The shipped flow networks (data/surrogates/flow, data/README.md) through the posterior: seconds.
     "validation/theta_new_level3_surrogate_bands": ("the theta_new bands of every shear set through the shipped flow networks, 1000 draws",
