@@ -16,6 +16,7 @@ sets of the calibrated cell read the posterior that the calibration set leaves i
 it ships (results/calibration/posterior.tar.xz) unless the calibration is made in the same run,
 and made first when none is shipped."""
 import argparse
+import filecmp
 import glob
 import json
 import os
@@ -327,13 +328,20 @@ def campaign_files(name, root):
     return [f for f in PROGRESS[name] if "*" not in f and os.path.exists(os.path.join(root, f))]
 
 
+def runs_cases(command):
+    """The match of a validate command's `--out {out}[/SUB]` when the command runs cases there (not
+    a --surrogate one), else None: the commands whose case records resume through --import."""
+    m = re.search(r"\bvalidate\b.*?--out \{out\}(/\S+)?", command)
+    return m if m and "--surrogate" not in command else None
+
+
 def with_import(name, command):
     """A validate command of NAME that runs cases into {out}[/SUB], with `--import
     results/<name>/progress[/SUB]` after its --out where such progress is shipped: validate takes
     each record whose key matches and replaces a stale one of the work folder. Any other command as
     it is."""
-    m = re.search(r"\bvalidate\b.*?--out \{out\}(/\S+)?", command)
-    if not m or "--surrogate" in command:
+    m = runs_cases(command)
+    if not m:
         return command
     source = os.path.join(ROOT, "results", name, "progress") + (m.group(1) or "")
     if not os.path.isdir(os.path.join(source, "cases")):
@@ -377,12 +385,12 @@ def save_progress(name, out):
 def restore_progress(name, out):
     """results/<name>/progress/ into a work folder: each campaign (folder of PROGRESS) that has not
     started there is copied whole, so a run continues it; one that has started keeps its own files.
-    The threshold scan's case records are copied one by one where the work folder lacks them (the
-    validation sets take theirs with --import, with_import)."""
+    The case records of a set whose commands do not import them (the threshold scan) are copied one
+    by one where the work folder lacks them; the others take theirs with --import (with_import)."""
     src_root = os.path.join(ROOT, "results", name, "progress")
     if not os.path.isdir(src_root):
         return
-    if not name.startswith("validation/"):
+    if not any(runs_cases(c) for c in SETS[name][1]):
         records = progress_records(name, src_root)
         missing = [f for f in records if not os.path.exists(os.path.join(out, f))]
         for f in missing:
@@ -416,8 +424,9 @@ def pack_posterior(out):
 
 def unpack_posterior(work):
     """results/calibration/posterior.tar.xz into WORK/calibration, replacing files that differ (False
-    when none is shipped; nothing is written when every file already matches). Unpacked beside it and renamed into place: a killed unpack leaves the earlier
-    posterior or none, never part of one."""
+    when none is shipped). The archive is read once, into a folder beside the target; files that
+    already match are left in place, the others renamed into place, so that a killed unpack leaves
+    the earlier posterior or none, never part of one."""
     shipped = os.path.join(ROOT, "results", "calibration", SHIPPED_POSTERIOR[0])
     if not os.path.exists(shipped):
         return False
@@ -429,23 +438,16 @@ def unpack_posterior(work):
         if sorted(m.name for m in members) != sorted(SHIPPED_POSTERIOR[1]) or not all(m.isfile() for m in members):
             sys.exit(f"make_results: {shipped} holds {', '.join(m.name for m in members)}, "
                      f"not the files {', '.join(SHIPPED_POSTERIOR[1])}")
-        def in_place(m):
-            f = os.path.join(target, m.name)
-            if not os.path.isfile(f) or os.path.getsize(f) != m.size:
-                return False
-            with open(f, "rb") as local:
-                return local.read() == tar.extractfile(m).read()
-        if all(in_place(m) for m in members):
-            print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]}, "
-                  "already in place)", file=sys.stderr)
-            return True
         tar.extractall(tmp)  # the names are checked above: no path leaves TMP
-    for f in SHIPPED_POSTERIOR[1]:
+    differ = [f for f in SHIPPED_POSTERIOR[1] if not os.path.isfile(os.path.join(target, f))
+              or not filecmp.cmp(os.path.join(tmp, f), os.path.join(target, f), shallow=False)]
+    for f in differ:
         to = os.path.join(target, f)
         os.makedirs(os.path.dirname(to), exist_ok=True)
         os.replace(os.path.join(tmp, f), to)
     shutil.rmtree(tmp)
-    print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]})", file=sys.stderr)
+    print(f"make_results: the sets read the shipped posterior (results/calibration/{SHIPPED_POSTERIOR[0]}"
+          + ("" if differ else ", already in place") + ")", file=sys.stderr)
     return True
 
 

@@ -208,14 +208,14 @@ def test_case_records_in_progress_are_shipped_merged_and_imported(tmp_path):
     assert not (progress / "cases" / "tube_c.json").exists()
 
     # The steady-stop set's second run keeps its records in full_length/cases/.
-    steady = tmp_path / "work" / "steady"
-    (steady / "full_length" / "cases").mkdir(parents=True)
-    (steady / "full_length" / "cases" / "angle_1.json").write_text("{}")
-    m.save_progress("validation/theta_new_level3_high_viscosity_steady", str(steady))
-    steady_progress = tmp_path / "repo" / "results" / "validation" / "theta_new_level3_high_viscosity_steady" / "progress"
-    assert (steady_progress / "full_length" / "cases" / "angle_1.json").exists()
-    steady_commands = m.SETS["validation/theta_new_level3_high_viscosity_steady"][1]
     steady = "validation/theta_new_level3_high_viscosity_steady"
+    steady_work = tmp_path / "work" / "steady"
+    (steady_work / "full_length" / "cases").mkdir(parents=True)
+    (steady_work / "full_length" / "cases" / "angle_1.json").write_text("{}")
+    m.save_progress(steady, str(steady_work))
+    steady_progress = tmp_path / "repo" / "results" / steady / "progress"
+    assert (steady_progress / "full_length" / "cases" / "angle_1.json").exists()
+    steady_commands = m.SETS[steady][1]
     assert m.with_import(steady, steady_commands[0]) == steady_commands[0]  # no cases/ shipped beside {out}
     assert f"--out {{out}}/full_length --import {steady_progress / 'full_length'} --jobs" in m.with_import(steady, steady_commands[1])
 
