@@ -1,0 +1,116 @@
+#include "analysis/flow_data_sets.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "analysis/validation_data.hpp"
+#include "core/error.hpp"
+
+namespace fs = std::filesystem;
+
+namespace trbc {
+
+namespace {
+
+/// The points of `column` of a set with their abscissae, blanks dropped.
+std::pair<std::vector<double>, std::vector<double>> columnPoints(const ValidationData& d, std::size_t column) {
+    std::vector<double> x, y;
+    for (std::size_t r = 0; r < d.points.x.size(); ++r)
+        if (std::isfinite(d.points.y[r][column])) x.push_back(d.points.x[r]), y.push_back(d.points.y[r][column]);
+    return {x, y};
+}
+
+Eigen::VectorXd vector(const std::vector<double>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())); }
+
+/// Critical stresses, one curve per viscosity in increasing order.
+FlowDataSet stressSet(const ValidationData& d, std::string name) {
+    FlowDataSet s;
+    s.name = std::move(name);
+    s.observable = FlowObservable::CriticalStress;
+    std::map<double, std::vector<double>> byViscosity;
+    for (std::size_t r = 0; r < d.points.x.size(); ++r)
+        if (std::isfinite(d.points.y[r][0])) byViscosity[d.points.x[r]].push_back(d.points.y[r][0]);
+    for (const auto& [eta, tau] : byViscosity) s.curves.push_back({eta, Eigen::VectorXd(), vector(tau)});
+    return s;
+}
+
+}  // namespace
+
+FlowNetworkErrors flowNetworkErrors(const fs::path& dir) {
+    const fs::path file = dir / "training.json";
+    std::ifstream in(file);
+    if (!in) throw InputError(fmt::format("{}: cannot be read (a `trbc flow train` directory holds it)", file.string()));
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+        throw InputError(fmt::format("{}: not JSON ({})", file.string(), e.what()));
+    }
+    const auto cv = j.find("cross_validation");
+    if (cv == j.end() || !cv->contains("pooled"))
+        throw InputError(fmt::format("{}: no cross_validation (train the networks with --folds K)", file.string()));
+    const nlohmann::json& p = (*cv)["pooled"];
+    try {
+        FlowNetworkErrors e;
+        e.inclinationDeg = p.at("inclination_rmse_deg").get<double>();
+        e.ttfRelative = p.at("ttf_relative_rmse").get<double>();
+        e.regimeErrorRate = p.at("far_misclassified").get<double>() / p.at("far_cases").get<double>();
+        e.criticalStressLog = std::log(j.at("boundary_factor").get<double>());
+        if (!(e.inclinationDeg >= 0.0 && e.ttfRelative >= 0.0 && e.regimeErrorRate >= 0.0 && e.regimeErrorRate <= 0.5 &&
+              e.criticalStressLog > 0.0))
+            throw InputError(fmt::format("{}: cross_validation gives errors out of range", file.string()));
+        return e;
+    } catch (const nlohmann::json::exception& e) {
+        throw InputError(fmt::format("{}: cross_validation.pooled: {}", file.string(), e.what()));
+    }
+}
+
+std::vector<FlowDataSet> flowDataSets(const fs::path& dir, const FlowNetworkErrors& errors, double etaIn) {
+    std::vector<ValidationData> inclination;
+    const ValidationData *ttf = nullptr, *fischer2013 = nullptr, *abkarian = nullptr;
+    const std::vector<ValidationData> all = readValidationDataSets(dir);
+    for (const ValidationData& d : all) {
+        if (d.set.observable == "inclination_deg") inclination.push_back(d);
+        else if (d.set.observable == "ttf_4pi_f_over_rate") ttf = &d;
+        else if (d.set.observable == "critical_stress_Pa")
+            (d.set.file.filename().string().starts_with("Abkarian") ? abkarian : fischer2013) = &d;
+    }
+    if (inclination.empty() || !ttf || !fischer2013 || !abkarian)
+        throw InputError(fmt::format("{}: the shear-flow data (inclination, TTF and both critical-stress files) are incomplete",
+                                     dir.string()));
+    std::vector<FlowDataSet> sets;
+    const std::size_t donors = inclination.front().set.yColumns.size();
+    for (std::size_t k = 0; k < donors; ++k) {
+        FlowDataSet s;
+        s.name = fmt::format("fischer_2015_donor{}", k + 1);
+        for (const ValidationData& d : inclination) {
+            const auto [rate, angle] = columnPoints(d, k);
+            if (!angle.empty()) s.curves.push_back({d.set.etaOutMPaS, vector(rate), vector(angle)});
+        }
+        if (!s.curves.empty()) sets.push_back(std::move(s));
+    }
+    for (FlowDataSet& s : sets) s.modelErrorSd = errors.inclinationDeg;
+
+    FlowDataSet t;
+    t.name = "fischer_ttf_donors12";
+    t.observable = FlowObservable::Ttf;
+    const auto [rate, value] = columnPoints(*ttf, 0);
+    t.curves.push_back({ttf->set.etaOutMPaS, vector(rate), vector(value)});
+    t.modelErrorSd = errors.ttfRelative;
+    sets.push_back(std::move(t));
+
+    sets.push_back(stressSet(*fischer2013, "fischer_2013_critical_stress"));
+    sets.push_back(stressSet(*abkarian, "abkarian_2007_critical_stress"));
+    for (FlowDataSet& s : sets) {
+        s.etaInMPaS = etaIn;
+        if (s.observable == FlowObservable::CriticalStress) s.modelErrorSd = errors.criticalStressLog;
+        else s.regimeErrorRate = errors.regimeErrorRate;
+    }
+    return sets;
+}
+
+}  // namespace trbc

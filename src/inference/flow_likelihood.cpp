@@ -1,0 +1,127 @@
+#include "inference/flow_likelihood.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <limits>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "inference/rbc_problem.hpp"
+#include "surrogate/flow_surrogate.hpp"
+
+namespace trbc {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+const double kLog2Pi = std::log(2.0 * std::numbers::pi);
+
+bool onLogScale(FlowObservable o) { return o != FlowObservable::Inclination; }
+
+/// The model's value of a point on the observable's scale (the logarithm for TTF and stresses).
+double scaled(FlowObservable o, double y) { return onLogScale(o) ? std::log(y) : y; }
+
+Eigen::Index countPoints(const FlowDataSet& d) {
+    Eigen::Index m = 0;
+    for (const FlowCurve& c : d.curves) {
+        const bool stresses = d.observable == FlowObservable::CriticalStress;
+        if (!stresses && c.rate.size() != c.value.size())
+            throw InputError(fmt::format("flow data set '{}': a curve at {} mPa s has {} rates and {} values", d.name,
+                                         c.etaOutMPaS, c.rate.size(), c.value.size()));
+        m += c.value.size();
+    }
+    if (m == 0) throw InputError(fmt::format("flow data set '{}' has no points", d.name));
+    return m;
+}
+
+}  // namespace
+
+const char* flowObservableName(FlowObservable o) {
+    switch (o) {
+        case FlowObservable::Inclination: return "inclination_deg";
+        case FlowObservable::Ttf: return "ttf_4pi_f_over_rate";
+        case FlowObservable::CriticalStress: return "critical_stress_Pa";
+    }
+    return "?";
+}
+
+FlowModel surrogateFlowModel(std::shared_ptr<const FlowSurrogate> s) {
+    FlowModel m;
+    m.tankTreading = [s](const Eigen::MatrixXd& x, const Eigen::VectorXd& etaIn) {
+        const FlowPrediction p = s->predict(x, etaIn);
+        Eigen::MatrixXd y(3, x.cols());
+        y.row(0) = p.pTankTreading.transpose();
+        y.row(1) = p.inclinationDeg.transpose();
+        y.row(2) = p.ttf.transpose();
+        return y;
+    };
+    m.criticalStressPa = [s](const Eigen::MatrixXd& x, const Eigen::VectorXd& etaIn) {
+        return s->criticalStressPa(x, etaIn, 0.5, true);
+    };
+    return m;
+}
+
+double offsetNormalLogPdf(const Eigen::Ref<const Eigen::VectorXd>& r, double sigma, double offsetSd) {
+    if (!(sigma > 0.0)) return -kInf;
+    const double n = static_cast<double>(r.size()), s2 = sigma * sigma, o2 = offsetSd * offsetSd;
+    const double c = s2 + n * o2, sum = r.sum();
+    const double quadratic = (r.squaredNorm() - o2 * sum * sum / c) / s2;
+    const double logDet = (n - 1.0) * std::log(s2) + std::log(c);
+    return -0.5 * (quadratic + logDet + n * kLog2Pi);
+}
+
+const std::vector<std::string>& flowParameterNames() {
+    static const std::vector<std::string> names{"v", "mu", "kb", "b2", "r", "sigma"};
+    return names;
+}
+
+Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, const Eigen::MatrixXd& cells) {
+    if (cells.rows() != 6)
+        throw InputError(fmt::format("flow data set '{}': {} cell variables, expected 6 ({})", d.name, cells.rows(),
+                                     fmt::join(flowParameterNames(), ", ")));
+    if (!(d.regimeErrorRate >= 0.0 && d.regimeErrorRate <= 0.5) || !(d.modelErrorSd >= 0.0))
+        throw InputError(fmt::format("flow data set '{}': the regime error rate must lie in [0, 0.5] and the model "
+                                     "error be >= 0 (got {}, {})", d.name, d.regimeErrorRate, d.modelErrorSd));
+    const Eigen::Index n = cells.cols(), m = countPoints(d);
+    const bool stresses = d.observable == FlowObservable::CriticalStress;
+    // Columns: point-major within each cell, cell i's points at i * m + k.
+    Eigen::MatrixXd x(7, n * m);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        const double v = cells(0, i), mu = cells(1, i), kb = cells(2, i), b2 = cells(3, i), r = cells(4, i);
+        Eigen::Index k = i * m;
+        for (const FlowCurve& c : d.curves)
+            for (Eigen::Index p = 0; p < c.value.size(); ++p, ++k) {
+                // eta_m = mu r; a critical stress's rate is not read by the model: the stress at 1 Pa.
+                const double rate = stresses ? 1e3 / c.etaOutMPaS : c.rate[p];
+                x.col(k) << v, mu, fvkFromModuli(mu, kb), b2, mu * r, c.etaOutMPaS, rate;
+            }
+    }
+    const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(n * m, d.etaInMPaS);
+    Eigen::MatrixXd tt;
+    Eigen::VectorXd tau;
+    if (stresses) tau = model.criticalStressPa(x, etaIn);
+    else tt = model.tankTreading(x, etaIn);
+    const Eigen::Index valueRow = d.observable == FlowObservable::Inclination ? 1 : 2;
+    const double e = d.regimeErrorRate;
+
+    Eigen::VectorXd ll(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        const double sigma = cells(5, i);
+        double s = 0.0;
+        Eigen::Index k = i * m;
+        for (const FlowCurve& c : d.curves) {
+            Eigen::VectorXd residual(c.value.size());
+            for (Eigen::Index p = 0; p < c.value.size(); ++p, ++k) {
+                const double f = stresses ? tau[k] : tt(valueRow, k);
+                residual[p] = scaled(d.observable, c.value[p]) - scaled(d.observable, f);
+                if (!stresses) s += std::log(e + (1.0 - 2.0 * e) * std::clamp(tt(0, k), 0.0, 1.0));
+            }
+            s += offsetNormalLogPdf(residual, sigma, d.modelErrorSd);
+        }
+        ll[i] = std::isnan(s) ? -kInf : s;
+    }
+    return ll;
+}
+
+}  // namespace trbc

@@ -1,0 +1,91 @@
+// The shear-flow data as data sets of the red-cell model: one per donor, the TTF and the critical
+// stresses, with the networks' errors from their training.json.
+#include "analysis/flow_data_sets.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "test_support.hpp"
+
+namespace trbc {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kValidationData = test::experimentsDir() / "validation";
+const FlowNetworkErrors kErrors{0.99, 0.062, std::log(1.5), 0.095};
+
+TEST(FlowDataSets, ADonorIsOneColumnOfEveryViscositysFile) {
+    const std::vector<FlowDataSet> sets = flowDataSets(kValidationData, kErrors, 12.0);
+    ASSERT_EQ(sets.size(), 10u);
+    for (int k = 0; k < 7; ++k) EXPECT_EQ(sets[k].name, "fischer_2015_donor" + std::to_string(k + 1));
+    EXPECT_EQ(sets[7].name, "fischer_ttf_donors12");
+    EXPECT_EQ(sets[8].name, "fischer_2013_critical_stress");
+    EXPECT_EQ(sets[9].name, "abkarian_2007_critical_stress");
+    // Donor 3 ("angle3"): at 10.7 mPa s three points (82.824: 8.6066, 122.01: 8.0164, 179.77: 7.7213),
+    // at 23.9 its first point is 2.5942: 12.053; it has points at all four viscosities.
+    const FlowDataSet& d3 = sets[2];
+    ASSERT_EQ(d3.curves.size(), 4u);
+    EXPECT_DOUBLE_EQ(d3.curves[0].etaOutMPaS, 10.7);
+    ASSERT_EQ(d3.curves[0].value.size(), 3);
+    EXPECT_DOUBLE_EQ(d3.curves[0].rate[0], 82.824);
+    EXPECT_DOUBLE_EQ(d3.curves[0].value[2], 7.7213);
+    EXPECT_DOUBLE_EQ(d3.curves[1].etaOutMPaS, 23.9);
+    EXPECT_DOUBLE_EQ(d3.curves[1].rate[0], 2.5942);
+    EXPECT_DOUBLE_EQ(d3.curves[1].value[0], 12.053);
+    EXPECT_EQ(d3.observable, FlowObservable::Inclination);
+    EXPECT_DOUBLE_EQ(d3.modelErrorSd, 0.99);
+    EXPECT_DOUBLE_EQ(d3.regimeErrorRate, 0.095);
+    EXPECT_DOUBLE_EQ(d3.etaInMPaS, 12.0);
+    // Every donor's points: the files' non-blank cells of its column.
+    long points = 0;
+    for (int k = 0; k < 7; ++k)
+        for (const FlowCurve& c : sets[k].curves) points += c.value.size();
+    EXPECT_EQ(points, 272);
+
+    const FlowDataSet& ttf = sets[7];
+    ASSERT_EQ(ttf.curves.size(), 1u);
+    EXPECT_DOUBLE_EQ(ttf.curves[0].etaOutMPaS, 28.9);
+    EXPECT_EQ(ttf.curves[0].value.size(), 225);
+    EXPECT_NEAR(ttf.curves[0].value[0], 4.0 * std::numbers::pi * 0.062906, 1e-12);  // f / rate to 4 pi f / rate
+    EXPECT_DOUBLE_EQ(ttf.modelErrorSd, 0.062);
+
+    const FlowDataSet& f13 = sets[8];
+    EXPECT_EQ(f13.observable, FlowObservable::CriticalStress);
+    EXPECT_DOUBLE_EQ(f13.curves.front().etaOutMPaS, 10.7);
+    EXPECT_EQ(f13.curves.front().value.size(), 3);  // 0.92060, 0.79105, 0.58407
+    EXPECT_EQ(f13.curves.front().rate.size(), 0);
+    EXPECT_DOUBLE_EQ(f13.modelErrorSd, std::log(1.5));
+    EXPECT_DOUBLE_EQ(f13.regimeErrorRate, 0.0);
+    EXPECT_DOUBLE_EQ(sets[9].curves.front().etaOutMPaS, 31.0);
+}
+
+TEST(FlowDataSets, TheErrorsComeFromTheShippedNetworksCrossValidation) {
+    const FlowNetworkErrors e = flowNetworkErrors(fs::path(TRBC_SOURCE_DIR) / "data/surrogates/flow");
+    EXPECT_NEAR(e.inclinationDeg, 0.99, 0.005);
+    EXPECT_NEAR(e.ttfRelative, 0.0615, 0.0005);
+    EXPECT_NEAR(e.regimeErrorRate, 25.0 / 262.0, 1e-12);
+    EXPECT_NEAR(e.criticalStressLog, std::log(1.5), 1e-12);
+}
+
+TEST(FlowDataSets, ANetworkDirectoryWithoutCrossValidationIsNamed) {
+    test::TempDir dir;
+    test::writeText(dir.path() / "training.json", R"({"boundary_factor": 1.5, "test": {}})");
+    try {
+        flowNetworkErrors(dir.path());
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("training.json"), std::string::npos);
+        EXPECT_NE(std::string(e.what()).find("--folds"), std::string::npos);
+    }
+    EXPECT_THROW(flowNetworkErrors(dir.path() / "absent"), InputError);
+    test::writeText(dir.path() / "training.json", "{not json");
+    EXPECT_THROW(flowNetworkErrors(dir.path()), InputError);
+}
+
+}  // namespace
+}  // namespace trbc
