@@ -1,7 +1,9 @@
 #include "analysis/flow_data_sets.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -111,6 +113,49 @@ std::vector<FlowDataSet> flowDataSets(const fs::path& dir, const FlowNetworkErro
         else s.regimeErrorRate = errors.regimeErrorRate;
     }
     return sets;
+}
+
+std::string dataSetSummary(const RbcDataSet& d) {
+    switch (d.experiment) {
+        case RbcExperiment::Equilibrium: return fmt::format("{:<32} equilibrium: resting D, hmin, hmax", d.name);
+        case RbcExperiment::Stretching:
+            return fmt::format("{:<32} stretching: D0, D1 at {} bead forces up to {:g} pN", d.name, d.force.size(),
+                               d.force.size() ? d.force.maxCoeff() : 0.0);
+        case RbcExperiment::Relaxation: return fmt::format("{:<32} relaxation: L/W at {} times", d.name, d.time.size());
+        case RbcExperiment::Flow: {
+            std::vector<std::string> curves;
+            long points = 0;
+            for (const FlowCurve& c : d.flow->curves) curves.push_back(fmt::format("{:g}", c.etaOutMPaS)), points += c.value.size();
+            return fmt::format("{:<32} flow: {}, {} points at eta_out {} mPa s", d.name, flowObservableName(d.flow->observable), points,
+                               fmt::join(curves, ", "));
+        }
+    }
+    return d.name;
+}
+
+std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell,
+                                       const std::vector<RbcDataSet>& flow) {
+    if (spec == "paper") return singleCell;
+    std::vector<RbcDataSet> all = singleCell;
+    all.insert(all.end(), flow.begin(), flow.end());
+    if (spec == "all") return all;
+    std::vector<std::string> names;
+    for (const RbcDataSet& d : all) names.push_back(d.name);
+    std::vector<RbcDataSet> chosen;
+    std::size_t start = 0;
+    while (start <= spec.size()) {
+        const std::size_t comma = std::min(spec.find(',', start), spec.size());
+        const std::string name = spec.substr(start, comma - start);
+        const auto it = std::find(names.begin(), names.end(), name);
+        if (it == names.end())
+            throw InputError(fmt::format("--datasets: '{}' is not a data set; give paper, all, list or names from: {}", name,
+                                         fmt::join(names, ", ")));
+        for (const RbcDataSet& c : chosen)
+            if (c.name == name) throw InputError(fmt::format("--datasets: '{}' is given twice", name));
+        chosen.push_back(all[static_cast<std::size_t>(it - names.begin())]);
+        start = comma + 1;
+    }
+    return chosen;
 }
 
 }  // namespace trbc

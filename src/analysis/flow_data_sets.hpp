@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "inference/flow_likelihood.hpp"
+#include "inference/rbc_problem.hpp"
 
 namespace trbc {
 
@@ -35,5 +36,14 @@ FlowNetworkErrors flowNetworkErrors(const std::filesystem::path& surrogateDir);
 /// per viscosity), in that order; the experiments' cytosol at etaInMPaS.
 std::vector<FlowDataSet> flowDataSets(const std::filesystem::path& validationDataDir, const FlowNetworkErrors& errors,
                                       double etaInMPaS = 10.0);
+
+/// One line describing a data set for `trbc infer --datasets list`: its name, experiment and points.
+std::string dataSetSummary(const RbcDataSet& d);
+
+/// The data sets a calibration takes: "paper" the single-cell sets (the paper's seven, or those of
+/// the data directory's datasets.json), "all" those and the flow sets, or a comma-separated list of
+/// names from both. InputError naming an unknown or repeated name and the valid ones.
+std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell,
+                                       const std::vector<RbcDataSet>& flow);
 
 }  // namespace trbc

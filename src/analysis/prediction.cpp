@@ -340,6 +340,8 @@ PosteriorPrediction predictPosterior(const PosteriorSamples& s, const Prediction
                 }
             break;
         }
+        case RbcExperiment::Flow:  // readPosteriorSamples takes the three single-cell experiments only
+            throw InputError(fmt::format("{}: a flow data set's posterior is predicted by `trbc validate`, not here", s.label));
         case RbcExperiment::Relaxation: {
             r.xName = "t_s";
             const Eigen::VectorXd sigmaZ = s.values.row(5).transpose();
@@ -581,6 +583,8 @@ std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& pos
             });
             break;
         }
+        case RbcExperiment::Flow:  // readPosteriorSamples takes the three single-cell experiments only
+            throw InputError(fmt::format("{}: a flow data set's posterior is predicted by `trbc validate`, not here", s.label));
         case RbcExperiment::Relaxation: {
             rows.push_back({s.label, "tc_s", {}, {}, 0});
             if (!model.relaxationTime) break;

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -14,7 +15,9 @@
 #include "core/error.hpp"
 #include "core/file_io.hpp"
 #include "core/version.hpp"
+#include "analysis/flow_data_sets.hpp"
 #include "inference/rbc_pipeline.hpp"
+#include "surrogate/flow_surrogate.hpp"
 #include "surrogate/surrogate.hpp"
 
 namespace trbc::cli {
@@ -44,6 +47,7 @@ RbcPriorBox parsePriorBox(const std::vector<std::string>& specs) {
     return box;
 }
 struct InferCommandOptions {
+    std::string datasets = "paper", flowModel;
     std::string phase = "all", out, model, dataDir, fvk = "closed", prior3b = "support", fvk3b = "all", method = "joint";
     int chains = 16, warmup = 1000, draws = 2500, thin = 4;
     double hyperSdScale = 1.0;
@@ -102,7 +106,7 @@ void addRunOptions(CLI::App* cmd, InferCommandOptions& o) {
         ->capture_default_str();
     addNumber(cmd, "--seed", o.seed, "run seed (each run derives its own from it and its name)", NumberRange::nonNegative())
         ->capture_default_str();
-    addOutOption(cmd, o.out, "output directory DIR");
+    addOutOption(cmd, o.out, "output directory DIR (required unless --datasets list)", false);
     addSurrogateModelOption(cmd, o.model);
     addDataDirOption(cmd, o.dataDir);
     addThreadsOption(cmd, o.threads, "OpenMP threads (results do not depend on it)");
@@ -126,6 +130,14 @@ void addRunOptions(CLI::App* cmd, InferCommandOptions& o) {
                     "mu_uN_per_m, kb_J, b2, etam_Pa_s_um; default and widest: the surrogates' training box v [0.65, 1], "
                     "mu [1, 10] uN/m, kb [1.074e-19, 1.074e-18] J, b2 [0, 4], etam [0.1, 1] Pa s um). Give the same "
                     "--prior to every phase");
+    cmd->add_option("--datasets", o.datasets,
+                    "data sets to calibrate on: paper (the single-cell sets), all (those and the shear-flow sets of "
+                    "DATA_DIR/validation, seen through the flow networks; --method joint), list (print them and exit) or "
+                    "comma-separated names")
+        ->capture_default_str();
+    cmd->add_option("--flow-model", o.flowModel,
+                    "flow-network directory for the flow data sets (default: the shipped data/surrogates/flow); its "
+                    "training.json's cross-validation gives the networks' error in the likelihood");
     cmd->add_flag("--quiet", o.quiet, "no progress lines on stderr");
 }
 
@@ -201,8 +213,27 @@ void runInfer(const InferCommandOptions& o) {
     auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
     surrogate->precision = o.single ? Precision::Single : Precision::Double;
     const std::filesystem::path dataDir = experimentDirectory(o.dataDir);
-    std::vector<RbcDataSet> data = loadRbcDataSets(dataDir);
+    const std::vector<RbcDataSet> singleCell = loadRbcDataSets(dataDir);
+    // The flow sets and networks are read only when a flow set may be chosen.
+    const bool flowWanted = o.datasets != "paper";
+    const std::filesystem::path flowDir = o.flowModel.empty() ? defaultSurrogateDirectory() / "flow" : std::filesystem::path(o.flowModel);
+    std::vector<RbcDataSet> flow;
+    if (flowWanted)
+        for (FlowDataSet& f : flowDataSets(dataDir / "validation", flowNetworkErrors(flowDir))) flow.push_back(flowRbcDataSet(std::move(f)));
+    if (o.datasets != "list" && o.out.empty()) throw InputError("infer: --out is required");
+    if (o.datasets == "list") {
+        for (const RbcDataSet& d : singleCell) std::cout << dataSetSummary(d) << '\n';
+        for (const RbcDataSet& d : flow) std::cout << dataSetSummary(d) << '\n';
+        return;
+    }
+    std::vector<RbcDataSet> data = selectDataSets(o.datasets, singleCell, flow);
     for (RbcDataSet& d : data) d.prior = box;
+    const bool anyFlow = std::any_of(data.begin(), data.end(), [](const RbcDataSet& d) { return d.experiment == RbcExperiment::Flow; });
+    std::shared_ptr<const FlowSurrogate> flowNetworks;
+    if (anyFlow) flowNetworks = std::make_shared<const FlowSurrogate>(FlowSurrogate::load(flowDir));
+    RbcModel model = surrogateRbcModel(surrogate);
+    if (flowNetworks) model.flow = surrogateFlowModel(flowNetworks);
+    validateRbcInference(model, data, opt);
     const OutputDirectory outDir(o.out, "infer", "--out", {"infer.json", kPhase1PriorBoxFile});
     ensureWritableDirectory(o.out);
     const nlohmann::json boxJson = priorBoxJson(box);
@@ -212,10 +243,12 @@ void runInfer(const InferCommandOptions& o) {
                                  {"precision", o.single ? "single" : "double"},
                                  {"networks", surrogateNetworksJson(*surrogate)}}},
                       {"data_dir", std::filesystem::absolute(dataDir).lexically_normal().string()},
-                      {"phase1_prior_box", boxJson}};
+                      {"phase1_prior_box", boxJson},
+                      {"datasets", o.datasets}};
+    if (anyFlow) opt.provenance["flow_model"] = std::filesystem::absolute(flowDir).lexically_normal().string();
     if (!o.quiet) opt.progress = [](const std::string& line) { std::cerr << line << '\n'; };
     omp_set_num_threads(o.threads);
-    printInferSummary(o, runRbcInference(surrogateRbcModel(surrogate), data, opt));
+    printInferSummary(o, runRbcInference(model, data, opt));
 }
 
 }  // namespace

@@ -85,19 +85,22 @@ Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, 
                                      "error be >= 0 (got {}, {})", d.name, d.regimeErrorRate, d.modelErrorSd));
     const Eigen::Index n = cells.cols(), m = countPoints(d);
     const bool stresses = d.observable == FlowObservable::CriticalStress;
-    // Columns: point-major within each cell, cell i's points at i * m + k.
-    Eigen::MatrixXd x(7, n * m);
+    // A critical stress depends on the cell and eta_out only: one column per curve, not per point.
+    const Eigen::Index columns = stresses ? static_cast<Eigen::Index>(d.curves.size()) : m;
+    // Cell i's columns at i * columns + k.
+    Eigen::MatrixXd x(7, n * columns);
     for (Eigen::Index i = 0; i < n; ++i) {
         const double v = cells(0, i), mu = cells(1, i), kb = cells(2, i), b2 = cells(3, i), r = cells(4, i);
-        Eigen::Index k = i * m;
-        for (const FlowCurve& c : d.curves)
-            for (Eigen::Index p = 0; p < c.value.size(); ++p, ++k) {
-                // eta_m = mu r; a critical stress's rate is not read by the model: the stress at 1 Pa.
-                const double rate = stresses ? 1e3 / c.etaOutMPaS : c.rate[p];
-                x.col(k) << v, mu, fvkFromModuli(mu, kb), b2, mu * r, c.etaOutMPaS, rate;
-            }
+        Eigen::Index k = i * columns;
+        for (const FlowCurve& c : d.curves) {
+            // eta_m = mu r; a critical stress's rate is not read by the model: the rate of 1 Pa.
+            if (stresses) x.col(k++) << v, mu, fvkFromModuli(mu, kb), b2, mu * r, c.etaOutMPaS, 1e3 / c.etaOutMPaS;
+            else
+                for (Eigen::Index p = 0; p < c.value.size(); ++p)
+                    x.col(k++) << v, mu, fvkFromModuli(mu, kb), b2, mu * r, c.etaOutMPaS, c.rate[p];
+        }
     }
-    const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(n * m, d.etaInMPaS);
+    const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(n * columns, d.etaInMPaS);
     Eigen::MatrixXd tt;
     Eigen::VectorXd tau;
     if (stresses) tau = model.criticalStressPa(x, etaIn);
@@ -109,13 +112,16 @@ Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, 
     for (Eigen::Index i = 0; i < n; ++i) {
         const double sigma = cells(5, i);
         double s = 0.0;
-        Eigen::Index k = i * m;
+        Eigen::Index k = i * columns;
         for (const FlowCurve& c : d.curves) {
             Eigen::VectorXd residual(c.value.size());
-            for (Eigen::Index p = 0; p < c.value.size(); ++p, ++k) {
-                const double f = stresses ? tau[k] : tt(valueRow, k);
-                residual[p] = scaled(d.observable, c.value[p]) - scaled(d.observable, f);
-                if (!stresses) s += std::log(e + (1.0 - 2.0 * e) * std::clamp(tt(0, k), 0.0, 1.0));
+            if (stresses) {
+                residual = c.value.array().log() - std::log(tau[k++]);
+            } else {
+                for (Eigen::Index p = 0; p < c.value.size(); ++p, ++k) {
+                    residual[p] = scaled(d.observable, c.value[p]) - scaled(d.observable, tt(valueRow, k));
+                    s += std::log(e + (1.0 - 2.0 * e) * std::clamp(tt(0, k), 0.0, 1.0));
+                }
             }
             s += offsetNormalLogPdf(residual, sigma, d.modelErrorSd);
         }

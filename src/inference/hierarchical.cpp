@@ -109,8 +109,9 @@ std::vector<int> gaussianCoordinates(RbcExperiment e) {
         case RbcExperiment::Equilibrium: return {kPooledV};
         case RbcExperiment::Stretching: return {kPooledV, kPooledMu, kPooledKb, kPooledB2};
         case RbcExperiment::Relaxation: return {kPooledR};
+        case RbcExperiment::Flow: break;  // the re-weighting route takes no flow data (validateInferenceOptions)
     }
-    return {};
+    throw InputError("the re-weighting route has no population layout for flow data sets; use the joint method");
 }
 
 }  // namespace
@@ -150,7 +151,7 @@ DistinctColumns distinctColumns(const Eigen::MatrixXd& x) {
 }
 
 int pooledCoordinateCount(RbcExperiment e) {
-    return e == RbcExperiment::Equilibrium ? 2 : e == RbcExperiment::Stretching ? 4 : 1;
+    return e == RbcExperiment::Equilibrium ? 2 : e == RbcExperiment::Stretching ? 4 : e == RbcExperiment::Flow ? 5 : 1;
 }
 
 // ------------------------------------------------------------------------------------------------

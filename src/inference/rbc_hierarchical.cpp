@@ -159,6 +159,14 @@ HierarchicalModel rbcHierarchicalModel(const RbcModel& model, const std::vector<
                 g.batchLogLikelihood = [model, d](const Eigen::MatrixXd& y) { return relaxationLogLikelihood(model, d, y); };
                 g.start = s;
                 break;
+            case RbcExperiment::Flow:
+                g.pooled = {kPooledV, kPooledMu, kPooledKb, kPooledB2, kPooledR};
+                g.names = phase1ParameterNames(d.experiment);
+                g.logVariables = {1, 2, 4, 5};
+                g.logSupport = [prior](const Eigen::VectorXd& y) { return boxAndPrior(*prior, y, 5); };
+                g.batchLogLikelihood = [model, d](const Eigen::MatrixXd& y) { return rbcLogLikelihood(model, d, y); };
+                g.start = s;
+                break;
         }
         h.groups.push_back(std::move(g));
     }

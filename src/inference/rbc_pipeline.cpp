@@ -43,7 +43,7 @@ struct Context {
 
     TmcmcOptions runOptions(const Posterior& p, RbcSamplerSettings st) const {
         TmcmcOptions opt;
-        opt.populationSize = o.populationSize;
+        opt.populationSize = st.populationCap > 0 ? std::min(o.populationSize, st.populationCap) : o.populationSize;
         opt.targetCoV = st.targetCoV;
         opt.covarianceScaling = st.covarianceScaling;
         opt.maxChainLength = 1;  // BASIS
@@ -189,16 +189,6 @@ HierarchicalMcmcOptions jointOptions(const RbcInferenceOptions& o) {
     return mo;
 }
 
-void validateInferenceOptions(const RbcInferenceOptions& o, const std::vector<RbcDataSet>& data) {
-    if (o.firstPhase < 1 || o.lastPhase > 3 || o.firstPhase > o.lastPhase)
-        throw InputError(fmt::format("infer: phases {}..{} are invalid: the phases are 1, 2, 3", o.firstPhase, o.lastPhase));
-    if (o.method == HierarchicalMethod::Reweighting && (o.population.sdUpperScale != 1.0 || !o.population.truncate))
-        throw InputError("infer: --hyper-sd-scale and --population-truncation off need --method joint (the re-weighting route's population is fixed)");
-    if (o.method == HierarchicalMethod::Joint) validateHierarchicalMcmcOptions(jointOptions(o));  // before phase 1 runs
-    if (o.populationSize < 2) throw InputError(fmt::format("infer: --samples = {} is invalid: must be >= 2", o.populationSize));
-    if (data.empty()) throw InputError("infer: no data sets");
-    if (o.outputDirectory.empty()) throw InputError("infer: no output directory");
-}
 
 /// Phase 1: the seven independent posteriors, run, or loaded when the run starts at a later phase.
 void runPhase1(Context& ctx, const std::vector<RbcDataSet>& data, RbcInferenceResult& res) {
@@ -524,8 +514,26 @@ std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, 
     return rows;
 }
 
+void validateRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& o) {
+    if (o.firstPhase < 1 || o.lastPhase > 3 || o.firstPhase > o.lastPhase)
+        throw InputError(fmt::format("infer: phases {}..{} are invalid: the phases are 1, 2, 3", o.firstPhase, o.lastPhase));
+    if (o.method == HierarchicalMethod::Reweighting && (o.population.sdUpperScale != 1.0 || !o.population.truncate))
+        throw InputError("infer: --hyper-sd-scale and --population-truncation off need --method joint (the re-weighting route's population is fixed)");
+    if (o.method == HierarchicalMethod::Joint) validateHierarchicalMcmcOptions(jointOptions(o));  // before phase 1 runs
+    if (o.populationSize < 2) throw InputError(fmt::format("infer: --samples = {} is invalid: must be >= 2", o.populationSize));
+    if (data.empty()) throw InputError("infer: no data sets");
+    if (o.method == HierarchicalMethod::Reweighting)
+        for (const RbcDataSet& d : data)
+            if (d.experiment == RbcExperiment::Flow)
+                throw InputError(fmt::format("infer: data set {} is a flow data set, which only --method joint takes", d.name));
+    if (o.outputDirectory.empty()) throw InputError("infer: no output directory");
+    for (const RbcDataSet& d : data)
+        if (d.experiment == RbcExperiment::Flow && (!d.flow || !model.flow.tankTreading || !model.flow.criticalStressPa))
+            throw InputError(fmt::format("infer: flow data set {} needs {}", d.name, d.flow ? "the flow networks in the model" : "its observations"));
+}
+
 RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& o) {
-    validateInferenceOptions(o, data);
+    validateRbcInference(model, data, o);
     fs::create_directories(o.outputDirectory);
 
     const auto tStart = SteadyClock::now();

@@ -99,6 +99,10 @@ struct RbcInferenceResult {
     std::vector<PosteriorStatsRow> stats;  ///< the rows of DIR/posterior_stats.csv (after phase 3)
 };
 
+/// InputError for options, data sets or a model that runRbcInference would refuse (a flow data set
+/// under the re-weighting method or without flow networks, phases, sizes), before anything is written.
+void validateRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& options);
+
 /// Runs phases firstPhase..lastPhase. Throws InputError for bad options, missing earlier phases or
 /// unwritable outputs.
 RbcInferenceResult runRbcInference(const RbcModel& model, const std::vector<RbcDataSet>& data, const RbcInferenceOptions& options);

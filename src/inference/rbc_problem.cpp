@@ -64,6 +64,7 @@ const char* experimentName(RbcExperiment e) {
         case RbcExperiment::Equilibrium: return "equilibrium";
         case RbcExperiment::Stretching: return "stretching";
         case RbcExperiment::Relaxation: return "relaxation";
+        case RbcExperiment::Flow: return "flow";
     }
     return "?";
 }
@@ -155,6 +156,14 @@ RbcDataSet readRelaxationData(const fs::path& file, std::string name) {
         if (!(d.time[r] >= 0.0)) outOfRange(t, r, "t", d.time[r], "the time must be >= 0 s");
         if (!(d.aspect[r] > 0.0)) outOfRange(t, r, "L_W", d.aspect[r], "L/W must be > 0");
     }
+    return d;
+}
+
+RbcDataSet flowRbcDataSet(FlowDataSet flow) {
+    RbcDataSet d;
+    d.name = flow.name;
+    d.experiment = RbcExperiment::Flow;
+    d.flow = std::make_shared<const FlowDataSet>(std::move(flow));
     return d;
 }
 
@@ -260,6 +269,18 @@ RbcModel timedModel(RbcModel model, std::shared_ptr<ModelTimer> timer) {
     m.equilibrium = timed(model.equilibrium);
     m.stretching = timed(model.stretching);
     m.relaxationTime = timed(model.relaxationTime);
+    auto timedFlow = [timer](auto f) -> decltype(f) {
+        if (!f) return f;
+        return [timer, f](const Eigen::MatrixXd& x, const Eigen::VectorXd& etaIn) {
+            const auto t0 = Clock::now();
+            auto y = f(x, etaIn);
+            timer->seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+            timer->evaluations += x.cols();
+            return y;
+        };
+    };
+    m.flow.tankTreading = timedFlow(model.flow.tankTreading);
+    m.flow.criticalStressPa = timedFlow(model.flow.criticalStressPa);
     return m;
 }
 
@@ -307,6 +328,7 @@ const std::vector<std::string>& phase1ParameterNames(RbcExperiment e) {
     static const std::vector<std::string> eq = {"v", "FvK", "sigma"};
     static const std::vector<std::string> st = {"v", "mu", "kb", "b2", "sigma0", "sigma1"};
     static const std::vector<std::string> re = {"r", "sigma_tc", "tc", "z0", "zinf", "sigma_z"};
+    if (e == RbcExperiment::Flow) return flowParameterNames();
     return e == RbcExperiment::Equilibrium ? eq : e == RbcExperiment::Stretching ? st : re;
 }
 
@@ -314,12 +336,15 @@ const std::vector<std::string>& phase1OutputNames(RbcExperiment e) {
     static const std::vector<std::string> eq = {"v", "FvK", "sigma_rel"};
     static const std::vector<std::string> st = {"v", "mu_uN_per_m", "kb_J", "b2", "sigma0_um", "sigma1_um"};
     static const std::vector<std::string> re = {"etam_over_mu_s", "sigma_tc_rel", "tc_s", "z0", "zinf", "sigma_z"};
+    // sigma in the observable's unit: degrees for an inclination set, relative otherwise.
+    static const std::vector<std::string> fl = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_over_mu_s", "sigma"};
+    if (e == RbcExperiment::Flow) return fl;
     return e == RbcExperiment::Equilibrium ? eq : e == RbcExperiment::Stretching ? st : re;
 }
 
 Eigen::VectorXd phase1OutputScale(RbcExperiment e) {
     Eigen::VectorXd s = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(phase1ParameterNames(e).size()));
-    if (e == RbcExperiment::Stretching) s[2] = kJoulePerKbUnit;
+    if (e == RbcExperiment::Stretching || e == RbcExperiment::Flow) s[2] = kJoulePerKbUnit;
     return s;
 }
 
@@ -340,6 +365,13 @@ std::shared_ptr<const ProductPrior> phase1Prior(const RbcDataSet& d) {
             return std::make_shared<ProductPrior>(std::vector<ScalarPriorPtr>{
                 ratioUniformPrior(b.etamLo, b.etamHi, b.muLo, b.muHi), uniformPrior(0.0, 0.05), uniformPrior(0.05, 0.5),
                 uniformPrior(y1 - 0.2, y1 + 0.2), uniformPrior(0.8, 1.5), uniformPrior(0.0, 0.5)});
+        }
+        case RbcExperiment::Flow: {
+            if (!d.flow) throw InputError(fmt::format("flow data set {} has no observations", d.name));
+            const double sigmaHi = d.flow->observable == FlowObservable::Inclination ? 5.0 : 2.0;
+            return std::make_shared<ProductPrior>(std::vector<ScalarPriorPtr>{
+                uniformPrior(b.vLo, b.vHi), uniformPrior(b.muLo, b.muHi), uniformPrior(b.kbLo, b.kbHi), uniformPrior(b.b2Lo, b.b2Hi),
+                uniformPrior(b.etamLo / b.muHi, b.etamHi / b.muLo), uniformPrior(0.0, sigmaHi)});
         }
     }
     throw InputError("phase1Prior: unknown experiment");
@@ -436,6 +468,10 @@ Eigen::VectorXd rbcLogLikelihood(const RbcModel& model, const RbcDataSet& d, con
         case RbcExperiment::Equilibrium: return equilibriumLogLikelihood(model, d, theta);
         case RbcExperiment::Stretching: return stretchingLogLikelihood(model, d, theta);
         case RbcExperiment::Relaxation: return relaxationLogLikelihood(model, d, theta);
+        case RbcExperiment::Flow:
+            if (!d.flow || !model.flow.tankTreading || !model.flow.criticalStressPa)
+                throw InputError(fmt::format("flow data set {}: no {}", d.name, d.flow ? "flow networks in the model" : "observations"));
+            return flowLogLikelihood(model.flow, *d.flow, theta);
     }
     throw InputError("rbcLogLikelihood: unknown experiment");
 }
@@ -450,6 +486,7 @@ TmcmcProblem phase1Problem(const RbcModel& model, const RbcDataSet& data) {
 RbcSamplerSettings rbcSamplerSettings(RbcRun run, RbcExperiment e) {
     switch (run) {
         case RbcRun::Phase1:
+            if (e == RbcExperiment::Flow) return RbcSamplerSettings{0.4, 0.06, 4000};
             return e == RbcExperiment::Equilibrium ? RbcSamplerSettings{0.3, 0.08} : RbcSamplerSettings{0.4, 0.06};
         case RbcRun::Phase2:
         case RbcRun::Phase3a: return {0.4, 0.06};

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "experiments/parameters.hpp"
+#include "inference/flow_likelihood.hpp"
 #include "inference/priors.hpp"
 #include "inference/tmcmc.hpp"
 
@@ -38,8 +39,10 @@ inline double fvkFromModuli(double mu, double kb) { return mu * kRbcAreaRadius2 
 // ------------------------------------------------------------------------------------------------
 // Data (docs/BAYESIAN_INFERENCE.md, data)
 
-enum class RbcExperiment { Equilibrium, Stretching, Relaxation };
-const char* experimentName(RbcExperiment e);  ///< "equilibrium", "stretching", "relaxation"
+/// Flow: a shear-flow data set (inference/flow_likelihood.hpp) seen through the flow networks; its
+/// cell is the whole (v, mu, kb, b2, r). Taken by the joint method only.
+enum class RbcExperiment { Equilibrium, Stretching, Relaxation, Flow };
+const char* experimentName(RbcExperiment e);  ///< "equilibrium", "stretching", "relaxation", "flow"
 
 /// Phase-1 prior box of the physical parameters (docs/BAYESIAN_INFERENCE.md), in inference units (kb in
 /// 1e-18 J). The default is the spec's box, which is also the surrogates' training box
@@ -76,7 +79,11 @@ struct RbcDataSet {
     Eigen::VectorXd force, d0, d1;  ///< stretching: bead force F_j (pN), transverse D0_j, axial D1_j (um)
     Eigen::VectorXd time, aspect;   ///< relaxation: t_k (s), z_k = L/W
     RbcPriorBox prior;              ///< phase-1 prior box of the physical parameters
+    std::shared_ptr<const FlowDataSet> flow;  ///< flow: the observations and their error model
 };
+
+/// A flow data set as a data set of the model.
+RbcDataSet flowRbcDataSet(FlowDataSet flow);
 
 /// Readers; every problem is an InputError naming the file, the line and the column.
 /// Equilibrium: columns quantity (D, hmin, hmax), mean_um (> 0), optional sd_um (>= 0 or blank).
@@ -107,6 +114,8 @@ struct RbcModel {
     std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)> stretching;
     /// (v, mu, FvK, b2, etam) 5 x n -> relaxation time tc in s, n.
     std::function<Eigen::VectorXd(const Eigen::MatrixXd&)> relaxationTime;
+    /// The flow networks, for flow data sets (empty without them).
+    FlowModel flow;
 };
 
 /// Time and evaluations spent in the forward model (accumulated by timedModel).
@@ -125,7 +134,7 @@ RbcModel timedModel(RbcModel model, std::shared_ptr<ModelTimer> timer);
 
 /// Sampled variables of each experiment, in inference units:
 ///   equilibrium (v, FvK, sigma); stretching (v, mu, kb, b2, sigma0, sigma1);
-///   relaxation (r, sigma_tc, tc, z0, zinf, sigma_z).
+///   relaxation (r, sigma_tc, tc, z0, zinf, sigma_z); flow (v, mu, kb, b2, r, sigma).
 const std::vector<std::string>& phase1ParameterNames(RbcExperiment e);
 /// The same as written to files, physical units (kb in J): e.g. v, mu_uN_per_m, kb_J, b2, sigma0_um, ...
 const std::vector<std::string>& phase1OutputNames(RbcExperiment e);
@@ -136,6 +145,8 @@ Eigen::VectorXd phase1OutputScale(RbcExperiment e);
 /// Y = kb / R_A^2 in [0.01, 0.1]) and ratio-uniform r in [0.01, 1] s (X = etam in [0.1, 1],
 /// Y = mu in [1, 10]); relaxation z0 ~ U[y_1 - 0.2, y_1 + 0.2] with y_1 the first L/W of the cell.
 /// The bounds of v, mu, kb, b2, etam are those of data.prior (the spec's box by default).
+/// Flow: v, mu, kb, b2 uniform on the box, r uniform on [etamLo / muHi, etamHi / muLo], sigma
+/// uniform on [0, 5] deg (inclination) or [0, 2] (relative, TTF and critical stress).
 std::shared_ptr<const ProductPrior> phase1Prior(const RbcDataSet& data);
 
 // ------------------------------------------------------------------------------------------------
@@ -178,6 +189,10 @@ enum class RbcRun { Phase1, Phase2, Phase3a, Phase3b };
 struct RbcSamplerSettings {
     double targetCoV = 0.4;
     double covarianceScaling = 0.06;
+    /// Largest population of the run (0: the run's --samples). A flow data set's phase-1 run only
+    /// starts the joint MCMC (its starting points and first proposal covariance), and each of its
+    /// samples costs tens of network rows, so it is capped.
+    int populationCap = 0;
 };
 RbcSamplerSettings rbcSamplerSettings(RbcRun run, RbcExperiment experiment = RbcExperiment::Equilibrium);
 

@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -67,6 +69,29 @@ TEST(BadInput, AnUnknownSimdPathInTheEnvironmentIsRefusedBeforeAnyWork) {
     EXPECT_TRUE(r.out.empty()) << r.out;
     const CliRun ok = runShell("TRBC_SIMD=portable " + shellQuote(TRBC_CLI) + " simulate --level 2 --no-cache", tmp.path());
     EXPECT_EQ(ok.status, 0) << ok.err;
+}
+
+TEST(BadInput, InferListsItsDataSetsAndNamesAnUnknownOne) {
+    TempDir tmp;
+    const CliRun list = runTrbc("infer --datasets list", tmp.path());
+    ASSERT_EQ(list.status, 0) << list.err;
+    for (const char* name : {"evans_fung_1972", "hochmuth_1979_cell4", "fischer_2015_donor1", "fischer_2015_donor7",
+                             "fischer_ttf_donors12", "fischer_2013_critical_stress", "abkarian_2007_critical_stress"})
+        EXPECT_TRUE(contains(list.out, name)) << name << "\n" << list.out;
+    EXPECT_EQ(std::count(list.out.begin(), list.out.end(), '\n'), 17);
+    const std::string out = " --out " + (tmp.path() / "i").string();
+    CliRun r = runTrbc("infer --datasets mills_2004,fischer_2015_donor9" + out, tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, "'fischer_2015_donor9' is not a data set")) << r.err;
+    EXPECT_TRUE(contains(r.err, "fischer_2015_donor7")) << r.err;
+    // Refused before --out is made.
+    r = runTrbc("infer --datasets mills_2004,fischer_2015_donor1 --method reweighting" + out, tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, "fischer_2015_donor1 is a flow data set, which only --method joint takes")) << r.err;
+    r = runTrbc("infer --datasets all", tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, "--out is required")) << r.err;
+    EXPECT_FALSE(fs::exists(tmp.path() / "i"));
 }
 
 TEST(BadInput, UnknownCommandsAreNamedWithASuggestion) {

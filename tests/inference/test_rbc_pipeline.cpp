@@ -748,6 +748,54 @@ TEST(RbcInference, JointMethodEndToEndOnAnalyticModelWithDiagnostics) {
     }
 }
 
+TEST(RbcInference, TheJointMethodTakesAFlowDataSetAndTheReweightingRouteRefusesIt) {
+    // A flow set whose inclination is 20 - 8 eta_m deg at every rate, made by a cell with
+    // eta_m = 0.5 Pa s um: its block of the joint draws must put mu r near 0.5, with the networks'
+    // error of 0.3 deg as a common offset of each of its three curves.
+    test::TempDir tmp;
+    std::vector<RbcDataSet> data = loadRbcDataSets(writeSyntheticData(tmp.path() / "experiments"));
+    FlowDataSet f;
+    f.name = "donor";
+    f.modelErrorSd = 0.3;
+    f.regimeErrorRate = 0.1;
+    for (double eta : {23.9, 55.9, 104.0}) {
+        FlowCurve c{eta, Eigen::VectorXd(5), Eigen::VectorXd(5)};
+        for (int k = 0; k < 5; ++k) c.rate[k] = 10.0 * (k + 1), c.value[k] = 20.0 - 8.0 * 0.5 + 0.1 * std::sin(3.0 * k + eta);
+        f.curves.push_back(c);
+    }
+    data.push_back(flowRbcDataSet(f));
+    RbcModel model = analyticModel();
+    model.flow.tankTreading = [](const Eigen::MatrixXd& x, const Eigen::VectorXd&) {
+        Eigen::MatrixXd y(3, x.cols());
+        for (Eigen::Index k = 0; k < x.cols(); ++k) y.col(k) << 0.95, 20.0 - 8.0 * x(4, k), 0.4;
+        return y;
+    };
+    model.flow.criticalStressPa = [](const Eigen::MatrixXd& x, const Eigen::VectorXd&) { return Eigen::VectorXd::Constant(x.cols(), 0.1); };
+    const fs::path out = tmp.path() / "out";
+    RbcInferenceOptions o = smallRun(out, 1000);
+    o.chains = 4, o.warmup = 300, o.draws = 300, o.thin = 2;
+    const RbcInferenceResult r = runRbcInference(model, data, o);
+    ASSERT_EQ(r.phase3b.size(), 8u);
+    const Eigen::MatrixXd& y = r.phase3b[7].samples;  // v, mu, kb, b2, r, sigma
+    ASSERT_EQ(y.rows(), 6);
+    const double etam = (y.row(1).array() * y.row(4).array()).mean();
+    EXPECT_NEAR(etam, 0.5, 0.06);
+    std::ifstream samples(out / "phase3" / "donor" / "samples.csv");
+    std::string header;
+    while (std::getline(samples, header) && header.starts_with("#")) {}
+    EXPECT_TRUE(header.starts_with("v,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma")) << header;
+    // Phase 1 of a flow set is capped: it only starts the joint chains.
+    EXPECT_EQ(rbcSamplerSettings(RbcRun::Phase1, RbcExperiment::Flow).populationCap, 4000);
+    EXPECT_EQ(r.phase1[7].samples.cols(), 1000);
+
+    RbcInferenceOptions rw = smallRun(tmp.path() / "rw", 500);
+    rw.method = HierarchicalMethod::Reweighting;
+    expectInputError([&] { runRbcInference(model, data, rw); }, {"donor", "--method joint"});
+    // Without flow networks in the model the flow set is named, before anything is written.
+    expectInputError([&] { runRbcInference(analyticModel(), data, smallRun(tmp.path() / "none", 500)); }, {"donor", "flow networks"});
+    EXPECT_FALSE(fs::exists(tmp.path() / "none"));
+}
+
 TEST(RbcInference, ResultsDoNotDependOnThreadsOrOnPhaseByPhaseRuns) {
     test::TempDir tmp;
     const auto data = loadRbcDataSets(writeSyntheticData(tmp.path() / "experiments"));
