@@ -783,7 +783,14 @@ TEST(RbcInference, TheJointMethodTakesAFlowDataSetAndTheReweightingRouteRefusesI
     std::ifstream samples(out / "phase3" / "donor" / "samples.csv");
     std::string header;
     while (std::getline(samples, header) && header.starts_with("#")) {}
-    EXPECT_TRUE(header.starts_with("v,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma")) << header;
+    EXPECT_TRUE(header.starts_with("v,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma,etam_Pa_s_um,")) << header;
+    bool etamRow = false;  // the flow set's eta_m = mu r in posterior_stats.csv, as theta_new's
+    for (const PosteriorStatsRow& row : r.stats)
+        if (row.posterior == "donor" && row.parameter == "etam_Pa_s_um") {
+            etamRow = true;
+            EXPECT_NEAR(row.mean, etam, 1e-9);
+        }
+    EXPECT_TRUE(etamRow);
     // Phase 1 of a flow set is capped: it only starts the joint chains.
     EXPECT_EQ(rbcSamplerSettings(RbcRun::Phase1, RbcExperiment::Flow).populationCap, 4000);
     EXPECT_EQ(r.phase1[7].samples.cols(), 1000);
