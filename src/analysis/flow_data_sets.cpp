@@ -37,6 +37,7 @@ FlowDataSet stressSet(const ValidationData& d, std::string name) {
     for (std::size_t r = 0; r < d.points.x.size(); ++r)
         if (std::isfinite(d.points.y[r][0])) byViscosity[d.points.x[r]].push_back(d.points.y[r][0]);
     for (const auto& [eta, tau] : byViscosity) s.curves.push_back({eta, Eigen::VectorXd(), vector(tau)});
+    s.files = {d.set.file};
     return s;
 }
 
@@ -91,7 +92,10 @@ std::vector<FlowDataSet> flowDataSets(const fs::path& dir, const FlowNetworkErro
         s.name = fmt::format("fischer_2015_donor{}", k + 1);
         for (const ValidationData& d : inclination) {
             const auto [rate, angle] = columnPoints(d, k);
-            if (!angle.empty()) s.curves.push_back({d.set.etaOutMPaS, vector(rate), vector(angle)});
+            if (!angle.empty()) {
+                s.curves.push_back({d.set.etaOutMPaS, vector(rate), vector(angle)});
+                s.files.push_back(d.set.file);
+            }
         }
         if (!s.curves.empty()) sets.push_back(std::move(s));
     }
@@ -103,6 +107,7 @@ std::vector<FlowDataSet> flowDataSets(const fs::path& dir, const FlowNetworkErro
     const auto [rate, value] = columnPoints(*ttf, 0);
     t.curves.push_back({ttf->set.etaOutMPaS, vector(rate), vector(value)});
     t.modelErrorSd = errors.ttfRelative;
+    t.files = {ttf->set.file};
     sets.push_back(std::move(t));
 
     sets.push_back(stressSet(*fischer2013, "fischer_2013_critical_stress"));

@@ -21,6 +21,7 @@
 // tumbling is penalised, but never excluded by a classifier that is wrong one time in 1/e.
 #include <Eigen/Core>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
@@ -53,6 +54,7 @@ struct FlowDataSet {
     double modelErrorSd = 0.0;
     /// e: the classifier's error rate in the regime term of inclination and TTF points, in [0, 1/2].
     double regimeErrorRate = 0.0;
+    std::vector<std::filesystem::path> files;  ///< the files its points were read from (provenance)
 };
 
 /// The flow networks as batched callbacks; tests inject analytic models. x: 7 x n physical

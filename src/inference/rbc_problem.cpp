@@ -163,6 +163,13 @@ RbcDataSet flowRbcDataSet(FlowDataSet flow) {
     RbcDataSet d;
     d.name = flow.name;
     d.experiment = RbcExperiment::Flow;
+    // One file: that file; several (a donor's four viscosities): their folder, and the fingerprint of all.
+    if (!flow.files.empty()) {
+        d.file = flow.files.size() == 1 ? flow.files.front() : flow.files.front().parent_path();
+        std::vector<std::string> prints;
+        for (const fs::path& f : flow.files) prints.push_back(fileHash(f));
+        d.contentHash = prints.size() == 1 ? prints.front() : fingerprintOf(prints);
+    }
     d.flow = std::make_shared<const FlowDataSet>(std::move(flow));
     return d;
 }

@@ -41,6 +41,13 @@ TEST(FlowDataSets, ADonorIsOneColumnOfEveryViscositysFile) {
     EXPECT_DOUBLE_EQ(d3.modelErrorSd, 0.99);
     EXPECT_DOUBLE_EQ(d3.regimeErrorRate, 0.095);
     EXPECT_DOUBLE_EQ(d3.etaInMPaS, 12.0);
+    ASSERT_EQ(d3.files.size(), 4u);  // provenance: the four viscosities' files
+    EXPECT_EQ(d3.files[1].filename(), "Fisher2015_eta_23.9_mPa_s.csv");
+    EXPECT_EQ(sets[5].files.size(), 3u);  // donor 6: no point at 10.7 mPa s
+    const RbcDataSet r3 = flowRbcDataSet(d3);
+    EXPECT_EQ(r3.file.filename(), "inclination_angle");
+    EXPECT_EQ(r3.contentHash.size(), 16u);
+    EXPECT_EQ(flowRbcDataSet(sets[8]).file.filename(), "Fischer2013.csv");
     // Every donor's points: the files' non-blank cells of its column.
     long points = 0;
     for (int k = 0; k < 7; ++k)
