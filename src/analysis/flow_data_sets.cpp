@@ -11,6 +11,7 @@
 
 #include "analysis/validation_data.hpp"
 #include "core/error.hpp"
+#include "sampling/shear_campaign_table.hpp"
 
 namespace fs = std::filesystem;
 
@@ -24,6 +25,17 @@ std::pair<std::vector<double>, std::vector<double>> columnPoints(const Validatio
     for (std::size_t r = 0; r < d.points.x.size(); ++r)
         if (std::isfinite(d.points.y[r][column])) x.push_back(d.points.x[r]), y.push_back(d.points.y[r][column]);
     return {x, y};
+}
+
+std::vector<std::string> commaSeparated(const std::string& text) {
+    std::vector<std::string> parts;
+    std::size_t start = 0;
+    while (start <= text.size()) {
+        const std::size_t comma = std::min(text.find(',', start), text.size());
+        parts.push_back(text.substr(start, comma - start));
+        start = comma + 1;
+    }
+    return parts;
 }
 
 Eigen::VectorXd vector(const std::vector<double>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())); }
@@ -65,7 +77,10 @@ FlowNetworkErrors flowNetworkErrors(const fs::path& dir) {
         e.criticalStressLog = std::log(j.at("boundary_factor").get<double>());
         if (!(e.inclinationDeg >= 0.0 && e.ttfRelative >= 0.0 && e.regimeErrorRate >= 0.0 && e.regimeErrorRate <= 0.5 &&
               e.criticalStressLog > 0.0))
-            throw InputError(fmt::format("{}: cross_validation gives errors out of range", file.string()));
+            throw InputError(fmt::format("{}: cross_validation.pooled gives an angle error {}, a TTF error {}, a far "
+                                         "misclassified share {} (must lie in [0, 0.5]) or a boundary factor <= 1",
+                                         file.string(), e.inclinationDeg, e.ttfRelative, e.regimeErrorRate,
+                                         std::exp(e.criticalStressLog)));
         return e;
     } catch (const nlohmann::json::exception& e) {
         throw InputError(fmt::format("{}: cross_validation.pooled: {}", file.string(), e.what()));
@@ -80,7 +95,7 @@ std::vector<FlowDataSet> flowDataSets(const fs::path& dir, const FlowNetworkErro
         if (d.set.observable == "inclination_deg") inclination.push_back(d);
         else if (d.set.observable == "ttf_4pi_f_over_rate") ttf = &d;
         else if (d.set.observable == "critical_stress_Pa")
-            (d.set.file.filename().string().starts_with("Abkarian") ? abkarian : fischer2013) = &d;
+            (d.set.source.starts_with("Abkarian") ? abkarian : fischer2013) = &d;
     }
     if (inclination.empty() || !ttf || !fischer2013 || !abkarian)
         throw InputError(fmt::format("{}: the shear-flow data (inclination, TTF and both critical-stress files) are incomplete",
@@ -112,8 +127,10 @@ std::vector<FlowDataSet> flowDataSets(const fs::path& dir, const FlowNetworkErro
 
     sets.push_back(stressSet(*fischer2013, "fischer_2013_critical_stress"));
     sets.push_back(stressSet(*abkarian, "abkarian_2007_critical_stress"));
+    const DesignAxis& etam = kShearCampaignAxes[4];
     for (FlowDataSet& s : sets) {
         s.etaInMPaS = etaIn;
+        s.etamRange = {etam.lo, etam.hi};
         if (s.observable == FlowObservable::CriticalStress) s.modelErrorSd = errors.criticalStressLog;
         else s.regimeErrorRate = errors.regimeErrorRate;
     }
@@ -147,10 +164,7 @@ std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vecto
     std::vector<std::string> names;
     for (const RbcDataSet& d : all) names.push_back(d.name);
     std::vector<RbcDataSet> chosen;
-    std::size_t start = 0;
-    while (start <= spec.size()) {
-        const std::size_t comma = std::min(spec.find(',', start), spec.size());
-        const std::string name = spec.substr(start, comma - start);
+    for (const std::string& name : commaSeparated(spec)) {
         const auto it = std::find(names.begin(), names.end(), name);
         if (it == names.end())
             throw InputError(fmt::format("--datasets: '{}' is not a data set; give paper, all, list or names from: {}", name,
@@ -158,9 +172,16 @@ std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vecto
         for (const RbcDataSet& c : chosen)
             if (c.name == name) throw InputError(fmt::format("--datasets: '{}' is given twice", name));
         chosen.push_back(all[static_cast<std::size_t>(it - names.begin())]);
-        start = comma + 1;
     }
     return chosen;
+}
+
+bool selectsFlowDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell) {
+    if (spec == "paper") return false;
+    if (spec == "all" || spec == "list") return true;
+    for (const std::string& name : commaSeparated(spec))
+        if (std::none_of(singleCell.begin(), singleCell.end(), [&](const RbcDataSet& d) { return d.name == name; })) return true;
+    return false;
 }
 
 }  // namespace trbc

@@ -46,4 +46,8 @@ std::string dataSetSummary(const RbcDataSet& d);
 std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell,
                                        const std::vector<RbcDataSet>& flow);
 
+/// Whether `spec` may choose a flow set ("all", "list", or a name that is not a single-cell set's),
+/// so that the flow data and networks are read only then.
+bool selectsFlowDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell);
+
 }  // namespace trbc

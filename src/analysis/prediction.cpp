@@ -178,6 +178,29 @@ PredictiveSummary summarizeMixture(const Eigen::VectorXd& m, const Eigen::Vector
 // ------------------------------------------------------------------------------------------------
 // Samples
 
+namespace {
+
+/// The header line of a samples.csv (after its # provenance lines), split at the commas.
+std::vector<std::string> samplesHeader(const fs::path& file) {
+    std::ifstream in(file);
+    if (!in) throw InputError(fmt::format("{}: cannot open", file.string()));
+    std::string header;
+    while (std::getline(in, header))
+        if (!header.empty() && header[0] != '#') break;
+    return splitHeader(header);
+}
+
+/// A flow data set's samples (trbc infer --datasets all): every column of its layout, which no
+/// single-cell layout has (sigma and etam_over_mu_s together).
+bool isFlowPosterior(const fs::path& file) {
+    const std::vector<std::string> cols = samplesHeader(file);
+    for (const std::string& c : phase1OutputNames(RbcExperiment::Flow))
+        if (std::find(cols.begin(), cols.end(), c) == cols.end()) return false;
+    return true;
+}
+
+}  // namespace
+
 std::vector<fs::path> inferencePosteriorDirectories(const fs::path& base, bool withPhase1, const std::string& option) {
     if (!fs::is_directory(base)) throw InputError(fmt::format("{} {}: not a directory", option, base.string()));
     std::vector<std::string> phases = {"phase3"};
@@ -189,7 +212,9 @@ std::vector<fs::path> inferencePosteriorDirectories(const fs::path& base, bool w
             throw InputError(fmt::format("{} {}: no {} directory (run `trbc infer --phase all` first)", option, base.string(), ph));
         std::vector<fs::path> found;
         for (const auto& e : fs::directory_iterator(d))
-            if (e.is_directory() && e.path().filename() != "theta_new" && fs::exists(e.path() / "samples.csv")) found.push_back(e.path());
+            if (e.is_directory() && e.path().filename() != "theta_new" && fs::exists(e.path() / "samples.csv") &&
+                !isFlowPosterior(e.path() / "samples.csv"))
+                found.push_back(e.path());
         std::sort(found.begin(), found.end());
         if (found.empty()) throw InputError(fmt::format("{} {}: no posterior samples in {}", option, base.string(), d.string()));
         dirs.insert(dirs.end(), found.begin(), found.end());
@@ -205,17 +230,11 @@ PosteriorSamples readPosteriorSamples(const fs::path& dirOrFile) {
     if (!fs::is_regular_file(p.file))
         throw InputError(fmt::format("{}: posterior samples not found (run `trbc infer` first; --posterior takes a posterior "
                                      "directory such as DIR/phase3/mills_2004)", p.file.string()));
-    std::string header;
-    {
-        std::ifstream in(p.file);
-        if (!in) throw InputError(fmt::format("{}: cannot open", p.file.string()));
-        while (std::getline(in, header))
-            if (!header.empty() && header[0] != '#') break;
-    }
-    const std::vector<std::string> cols = splitHeader(header);
+    const std::vector<std::string> cols = samplesHeader(p.file);
+    const std::string header = fmt::format("{}", fmt::join(cols, ","));
     auto has = [&](const std::string& c) { return std::find(cols.begin(), cols.end(), c) != cols.end(); };
     int best = -1, bestCount = 0;
-    for (int e = 0; e < 3; ++e) {
+    for (int e = 0; e <= static_cast<int>(RbcExperiment::Flow); ++e) {
         int count = 0;
         for (const std::string& c : phase1OutputNames(static_cast<RbcExperiment>(e))) count += has(c) ? 1 : 0;
         if (count > bestCount) best = e, bestCount = count;
@@ -225,6 +244,9 @@ PosteriorSamples readPosteriorSamples(const fs::path& dirOrFile) {
                                      "v,mu_uN_per_m,kb_J,b2,sigma0_um,sigma1_um (stretching); got {}",
                                      p.file.string(), header));
     p.experiment = static_cast<RbcExperiment>(best);
+    if (p.experiment == RbcExperiment::Flow)
+        throw InputError(fmt::format("{}: a flow data set's posterior (trbc infer --datasets); trbc predict predicts the "
+                                     "single-cell experiments", p.file.string()));
     p.columns = phase1OutputNames(p.experiment);
     for (const std::string& c : p.columns)
         if (!has(c))
@@ -340,8 +362,8 @@ PosteriorPrediction predictPosterior(const PosteriorSamples& s, const Prediction
                 }
             break;
         }
-        case RbcExperiment::Flow:  // readPosteriorSamples takes the three single-cell experiments only
-            throw InputError(fmt::format("{}: a flow data set's posterior is predicted by `trbc validate`, not here", s.label));
+        case RbcExperiment::Flow:  // readPosteriorSamples refuses a flow posterior
+            throw InputError(fmt::format("{}: trbc predict predicts the single-cell experiments, not a flow data set", s.label));
         case RbcExperiment::Relaxation: {
             r.xName = "t_s";
             const Eigen::VectorXd sigmaZ = s.values.row(5).transpose();
@@ -583,8 +605,8 @@ std::vector<DirectComparison> compareWithDirectModel(const PosteriorSamples& pos
             });
             break;
         }
-        case RbcExperiment::Flow:  // readPosteriorSamples takes the three single-cell experiments only
-            throw InputError(fmt::format("{}: a flow data set's posterior is predicted by `trbc validate`, not here", s.label));
+        case RbcExperiment::Flow:  // readPosteriorSamples refuses a flow posterior
+            throw InputError(fmt::format("{}: trbc predict predicts the single-cell experiments, not a flow data set", s.label));
         case RbcExperiment::Relaxation: {
             rows.push_back({s.label, "tc_s", {}, {}, 0});
             if (!model.relaxationTime) break;

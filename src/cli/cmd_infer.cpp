@@ -214,12 +214,17 @@ void runInfer(const InferCommandOptions& o) {
     surrogate->precision = o.single ? Precision::Single : Precision::Double;
     const std::filesystem::path dataDir = experimentDirectory(o.dataDir);
     const std::vector<RbcDataSet> singleCell = loadRbcDataSets(dataDir);
-    // The flow sets and networks are read only when a flow set may be chosen.
-    const bool flowWanted = o.datasets != "paper";
+    const bool flowWanted = selectsFlowDataSets(o.datasets, singleCell);
     const std::filesystem::path flowDir = o.flowModel.empty() ? defaultSurrogateDirectory() / "flow" : std::filesystem::path(o.flowModel);
     std::vector<RbcDataSet> flow;
-    if (flowWanted)
-        for (FlowDataSet& f : flowDataSets(dataDir / "validation", flowNetworkErrors(flowDir))) flow.push_back(flowRbcDataSet(std::move(f)));
+    if (flowWanted) {
+        try {
+            for (FlowDataSet& f : flowDataSets(dataDir / "validation", flowNetworkErrors(flowDir))) flow.push_back(flowRbcDataSet(std::move(f)));
+        } catch (const InputError& e) {
+            throw InputError(fmt::format("--datasets {}: the flow data sets need DATA_DIR/validation (--data-dir) and the flow "
+                                         "networks (--flow-model): {}", o.datasets, e.what()));
+        }
+    }
     if (o.datasets != "list" && o.out.empty()) throw InputError("infer: --out is required");
     if (o.datasets == "list") {
         for (const RbcDataSet& d : singleCell) std::cout << dataSetSummary(d) << '\n';
@@ -256,7 +261,8 @@ void runInfer(const InferCommandOptions& o) {
 void registerInfer(CLI::App& app) {
     auto o = std::make_shared<InferCommandOptions>();
     CLI::App* cmd = app.add_subcommand(
-        "infer", "Hierarchical Bayesian inference of (v, mu, kb, b2, etam) from the seven data sets on the surrogates "
+        "infer", "Hierarchical Bayesian inference of (v, mu, kb, b2, etam) from the paper's seven data sets (and, with --datasets, the "
+                 "shear-flow sets) on the surrogates "
                  "(docs/BAYESIAN_INFERENCE.md): phase 1 each data set's posterior (TMCMC/BASIS), phases 2-3 the population "
                  "hyper-parameters, each data set given all data and theta_new (a new cell), by default from one joint "
                  "multi-chain MCMC; writes DIR/posterior_stats.csv (with MCSE, R-hat and ESS), DIR/posterior_table.md, "

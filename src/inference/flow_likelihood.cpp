@@ -29,6 +29,9 @@ Eigen::Index countPoints(const FlowDataSet& d) {
         if (!stresses && c.rate.size() != c.value.size())
             throw InputError(fmt::format("flow data set '{}': a curve at {} mPa s has {} rates and {} values", d.name,
                                          c.etaOutMPaS, c.rate.size(), c.value.size()));
+        if (onLogScale(d.observable) && !(c.value.array() > 0.0).all())
+            throw InputError(fmt::format("flow data set '{}': a {} at {} mPa s is not > 0 (compared on the log scale)", d.name,
+                                         flowObservableName(d.observable), c.etaOutMPaS));
         m += c.value.size();
     }
     if (m == 0) throw InputError(fmt::format("flow data set '{}' has no points", d.name));
@@ -65,8 +68,10 @@ FlowModel surrogateFlowModel(std::shared_ptr<const FlowSurrogate> s) {
 double offsetNormalLogPdf(const Eigen::Ref<const Eigen::VectorXd>& r, double sigma, double offsetSd) {
     if (!(sigma > 0.0)) return -kInf;
     const double n = static_cast<double>(r.size()), s2 = sigma * sigma, o2 = offsetSd * offsetSd;
-    const double c = s2 + n * o2, sum = r.sum();
-    const double quadratic = (r.squaredNorm() - o2 * sum * sum / c) / s2;
+    // Sum r^2 - s^2 (sum r)^2 / c = sum (r - rbar)^2 + n rbar^2 sigma^2 / c: the centred form does not
+    // cancel when n s^2 >> sigma^2.
+    const double c = s2 + n * o2, mean = r.mean();
+    const double quadratic = (r.array() - mean).square().sum() / s2 + n * mean * mean / c;
     const double logDet = (n - 1.0) * std::log(s2) + std::log(c);
     return -0.5 * (quadratic + logDet + n * kLog2Pi);
 }
@@ -110,7 +115,11 @@ Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, 
 
     Eigen::VectorXd ll(n);
     for (Eigen::Index i = 0; i < n; ++i) {
-        const double sigma = cells(5, i);
+        const double sigma = cells(5, i), etam = cells(1, i) * cells(4, i);
+        if (!(etam >= d.etamRange[0] && etam <= d.etamRange[1])) {
+            ll[i] = -kInf;
+            continue;
+        }
         double s = 0.0;
         Eigen::Index k = i * columns;
         for (const FlowCurve& c : d.curves) {
@@ -118,10 +127,12 @@ Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, 
             if (stresses) {
                 residual = c.value.array().log() - std::log(tau[k++]);
             } else {
+                double pLeast = 1.0;  // the curve's point the classifier finds least likely to tank-tread
                 for (Eigen::Index p = 0; p < c.value.size(); ++p, ++k) {
                     residual[p] = scaled(d.observable, c.value[p]) - scaled(d.observable, tt(valueRow, k));
-                    s += std::log(e + (1.0 - 2.0 * e) * std::clamp(tt(0, k), 0.0, 1.0));
+                    pLeast = std::min(pLeast, std::clamp(tt(0, k), 0.0, 1.0));
                 }
+                s += std::log(e + (1.0 - 2.0 * e) * pLeast);
             }
             s += offsetNormalLogPdf(residual, sigma, d.modelErrorSd);
         }

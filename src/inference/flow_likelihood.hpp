@@ -15,12 +15,19 @@
 // delta_j is integrated out: the residuals of a curve are N(0, sigma^2 I + s^2 1 1^T)
 // (offsetNormalLogPdf).
 //
-// An inclination or TTF point is also an observation that the cell tank-treads there. With the
-// classifier's probability p and its error rate e (the share of cases it misclassifies away from
-// the boundary), P(tank-treads observed | theta) = e + (1 - 2e) p: a cell the classifier calls
-// tumbling is penalised, but never excluded by a classifier that is wrong one time in 1/e.
+// A curve of inclinations or TTFs is also an observation that the cell tank-treads at each of its
+// rates. The classifier's error is as smooth along a curve as the regressors', so the curve counts
+// once, at the point the classifier finds least likely: with that probability p and the
+// classifier's error rate e (the share of cases it misclassifies away from the boundary),
+// P(tank-treading observed | theta) = e + (1 - 2e) p. A cell the classifier calls tumbling is
+// penalised by at most log e per curve, never excluded by a classifier that is wrong one time in 1/e.
+//
+// The networks answer inside their training box; a cell whose eta_m = mu r lies outside the
+// box's eta_m range has likelihood 0 (etamRange), so that no posterior rests on extrapolation.
 #include <Eigen/Core>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -55,6 +62,8 @@ struct FlowDataSet {
     /// e: the classifier's error rate in the regime term of inclination and TTF points, in [0, 1/2].
     double regimeErrorRate = 0.0;
     std::vector<std::filesystem::path> files;  ///< the files its points were read from (provenance)
+    /// eta_m (Pa s um) where the networks answer: their campaign's range; outside it the likelihood is 0.
+    std::array<double, 2> etamRange{0.0, std::numeric_limits<double>::infinity()};
 };
 
 /// The flow networks as batched callbacks; tests inject analytic models. x: 7 x n physical
@@ -82,7 +91,8 @@ double offsetNormalLogPdf(const Eigen::Ref<const Eigen::VectorXd>& r, double sig
 const std::vector<std::string>& flowParameterNames();
 
 /// The batched log-likelihood: cells is 6 x n (flowParameterNames), one network call for all
-/// cells and points. InputError for a data set without points or a cell matrix of other rows.
+/// cells and points. InputError for a data set without points, a value <= 0 on the log scale or a
+/// cell matrix of other rows.
 Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& data, const Eigen::MatrixXd& cells);
 
 }  // namespace trbc

@@ -109,7 +109,7 @@ std::vector<int> gaussianCoordinates(RbcExperiment e) {
         case RbcExperiment::Equilibrium: return {kPooledV};
         case RbcExperiment::Stretching: return {kPooledV, kPooledMu, kPooledKb, kPooledB2};
         case RbcExperiment::Relaxation: return {kPooledR};
-        case RbcExperiment::Flow: break;  // the re-weighting route takes no flow data (validateInferenceOptions)
+        case RbcExperiment::Flow: break;  // the re-weighting route takes no flow data (validateRbcInference)
     }
     throw InputError("the re-weighting route has no population layout for flow data sets; use the joint method");
 }

@@ -191,7 +191,7 @@ HierarchicalMcmcOptions jointOptions(const RbcInferenceOptions& o) {
 }
 
 
-/// Phase 1: the seven independent posteriors, run, or loaded when the run starts at a later phase.
+/// Phase 1: every data set's own posterior, run, or loaded when the run starts at a later phase.
 void runPhase1(Context& ctx, const std::vector<RbcDataSet>& data, RbcInferenceResult& res) {
     const RbcInferenceOptions& o = ctx.o;
     std::vector<PosteriorStatsRow> rows1;
@@ -337,10 +337,17 @@ std::vector<PosteriorStatsRow> writeJointPosterior(Context& ctx, const Posterior
 }
 
 /// The settings the joint draws are made with: draws saved with other settings are not reused.
-nlohmann::json jointSettings(const RbcInferenceOptions& o, std::uint64_t seed) {
-    return {{"method", "joint MCMC"}, {"chains", o.chains}, {"warmup", o.warmup}, {"draws", o.draws}, {"thin", o.thin},
-            {"seed", seed}, {"phase1_samples", o.populationSize}, {"phase1_burn_in", o.phase1BurnIn},
-            {"hyper_sd_scale", o.population.sdUpperScale}, {"population_truncation", o.population.truncate}};
+/// The data sets (names and content fingerprints) are part of them: draws of other groups are never
+/// taken for these.
+nlohmann::json jointSettings(const RbcInferenceOptions& o, const std::vector<RbcDataSet>& data, std::uint64_t seed) {
+    nlohmann::json sets = nlohmann::json::array();
+    for (const RbcDataSet& d : data) sets.push_back({d.name, d.contentHash});
+    nlohmann::json s = {{"method", "joint MCMC"}, {"chains", o.chains}, {"warmup", o.warmup}, {"draws", o.draws}, {"thin", o.thin},
+                        {"seed", seed}, {"phase1_samples", o.populationSize}, {"phase1_burn_in", o.phase1BurnIn},
+                        {"hyper_sd_scale", o.population.sdUpperScale}, {"population_truncation", o.population.truncate},
+                        {"data_sets", sets}};
+    if (o.provenance.contains("flow_model")) s["flow_model"] = o.provenance["flow_model"];
+    return s;
 }
 
 /// The joint draws in res.joint: run (or, with resume, reused) when phase 2 runs now, else loaded.
@@ -366,7 +373,7 @@ void runJointPhase2(Context& ctx, const std::vector<RbcDataSet>& data, RbcInfere
     const RbcInferenceOptions& o = ctx.o;
     const fs::path jointDir = o.outputDirectory / "phase2" / "joint";
     const std::uint64_t seed = rbcRunSeed(o.seed, "phase2/joint");
-    const nlohmann::json settings = jointSettings(o, seed);
+    const nlohmann::json settings = jointSettings(o, data, seed);
     const PhaseStart begin = phaseStart(ctx);
     const bool run = o.firstPhase <= 2;
     obtainJointDraws(ctx, data, res, jointDir, settings, seed, run);

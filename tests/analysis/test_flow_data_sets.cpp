@@ -41,6 +41,8 @@ TEST(FlowDataSets, ADonorIsOneColumnOfEveryViscositysFile) {
     EXPECT_DOUBLE_EQ(d3.modelErrorSd, 0.99);
     EXPECT_DOUBLE_EQ(d3.regimeErrorRate, 0.095);
     EXPECT_DOUBLE_EQ(d3.etaInMPaS, 12.0);
+    EXPECT_DOUBLE_EQ(d3.etamRange[0], 0.03);  // the flow campaign's eta_m range
+    EXPECT_DOUBLE_EQ(d3.etamRange[1], 3.0);
     ASSERT_EQ(d3.files.size(), 4u);  // provenance: the four viscosities' files
     EXPECT_EQ(d3.files[1].filename(), "Fisher2015_eta_23.9_mPa_s.csv");
     EXPECT_EQ(sets[5].files.size(), 3u);  // donor 6: no point at 10.7 mPa s
@@ -89,9 +91,16 @@ TEST(FlowDataSets, ANetworkDirectoryWithoutCrossValidationIsNamed) {
         EXPECT_NE(std::string(e.what()).find("training.json"), std::string::npos);
         EXPECT_NE(std::string(e.what()).find("--folds"), std::string::npos);
     }
-    EXPECT_THROW(flowNetworkErrors(dir.path() / "absent"), InputError);
-    test::writeText(dir.path() / "training.json", "{not json");
-    EXPECT_THROW(flowNetworkErrors(dir.path()), InputError);
+    for (const bool absent : {true, false}) {
+        if (!absent) test::writeText(dir.path() / "training.json", "{not json");
+        const fs::path where = absent ? dir.path() / "absent" : dir.path();
+        try {
+            flowNetworkErrors(where);
+            FAIL() << "no error";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find((where / "training.json").string()), std::string::npos) << e.what();
+        }
+    }
 }
 
 }  // namespace

@@ -226,6 +226,26 @@ TEST(PredictionInput, ReadsSamplesAndRejectsBadInput) {
     fs::remove_all(root);
 }
 
+TEST(PosteriorSamples, AFlowDataSetsPosteriorIsNamedAndLeftOutOfAnInferenceDirectory) {
+    // trbc infer --datasets all writes flow posteriors beside the single-cell ones; predict takes the
+    // single-cell ones and names a flow posterior given to it.
+    const fs::path root = scratch("flow");
+    writeFile(root / "phase3" / "mills_2004" / "samples.csv",
+              "# trbc\nv,mu_uN_per_m,kb_J,b2,sigma0_um,sigma1_um,log_likelihood,log_prior\n0.9,4,2e-19,2,0.2,0.2,-1,-1\n");
+    writeFile(root / "phase3" / "fischer_2015_donor1" / "samples.csv",
+              "# trbc\nv,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma,etam_Pa_s_um,log_likelihood,log_prior\n0.9,1.2,9e-19,3.6,0.17,1.3,0.2,-1,-1\n");
+    const std::vector<fs::path> dirs = inferencePosteriorDirectories(root, false);
+    ASSERT_EQ(dirs.size(), 1u);
+    EXPECT_EQ(dirs[0], root / "phase3" / "mills_2004");
+    try {
+        readPosteriorSamples(root / "phase3" / "fischer_2015_donor1");
+        ADD_FAILURE() << "no InputError";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("a flow data set's posterior"), std::string::npos) << e.what();
+    }
+    fs::remove_all(root);
+}
+
 TEST(PosteriorSamples, InferenceDirectoriesArePhase3ThenPhase1SortedWithoutThetaNew) {
     const fs::path root = scratch("dirs");
     for (const char* d : {"phase3/suresh_2005", "phase3/mills_2004", "phase3/theta_new", "phase1/mills_2004"})

@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -132,25 +133,25 @@ TEST(FlowLikelihood, InclinationIsTheOffsetNormalOfEachCurvePlusTheRegime) {
     double expected = 0.0;
     for (const FlowCurve& curve : d.curves) {
         Eigen::VectorXd r(curve.value.size());
+        double pLeast = 1.0;
         for (Eigen::Index k = 0; k < r.size(); ++k) {
             Eigen::VectorXd x(7);
             x << c(0), c(1), 0.0, c(3), c(1) * c(4), curve.etaOutMPaS, curve.rate[k];
             r[k] = curve.value[k] - AnalyticFlow::angle(x);
             const double stress = curve.etaOutMPaS * 1e-3 * curve.rate[k];
-            const double p = 1.0 / (1.0 + std::pow(0.1 / stress, 4.0));
-            expected += std::log(0.1 + 0.8 * p);
+            pLeast = std::min(pLeast, 1.0 / (1.0 + std::pow(0.1 / stress, 4.0)));
         }
-        expected += offsetNormalLogPdf(r, 0.4, 1.0);
+        expected += offsetNormalLogPdf(r, 0.4, 1.0) + std::log(0.1 + 0.8 * pLeast);  // one regime term a curve
     }
     EXPECT_NEAR(flowLogLikelihood(a.model(), d, c)[0], expected, 1e-9);
     // The regime term: the point at 23.9 mPa s and 1 1/s (0.024 Pa, p 0.0033) is one the cell
-    // tumbles at. Without the classifier's error rate it costs log p = -5.7; with e = 0.1 at most
-    // log e = -2.3, and each point it tank-treads at costs log(1 - e) at least.
+    // tumbles at. Without the classifier's error rate its curve costs log p = -5.7; with e = 0.1 at
+    // most log e = -2.3, and the other curve, which tank-treads, costs log(1 - e) at least.
     FlowDataSet exact = d;
     exact.regimeErrorRate = 0.0;
     const double p = 1.0 / (1.0 + std::pow(0.1 / 0.0239, 4.0));
     const double withE = flowLogLikelihood(a.model(), d, c)[0], withoutE = flowLogLikelihood(a.model(), exact, c)[0];
-    EXPECT_GT(withE - withoutE, std::log(0.1 / p) + 4.0 * std::log(0.9));
+    EXPECT_GT(withE - withoutE, std::log(0.1 / p) + std::log(0.9));
     EXPECT_LT(withE - withoutE, std::log((0.1 + 0.8 * p) / p));
     // sigma <= 0: -inf.
     EXPECT_EQ(flowLogLikelihood(a.model(), d, donorCell(0.15, 0.0))[0], -std::numeric_limits<double>::infinity());
@@ -165,8 +166,9 @@ TEST(FlowLikelihood, TtfAndCriticalStressAreRelativeOnTheLogScale) {
     ttf.curves = {{28.9, Eigen::Vector2d(10.0, 50.0), Eigen::Vector2d(0.45, 0.40)}};
     const Eigen::VectorXd c = donorCell(0.15, 0.05);
     const double f = 0.5 / (1.0 + 4.66 * 0.15);
-    double expected = offsetNormalLogPdf(Eigen::Vector2d(std::log(0.45 / f), std::log(0.40 / f)), 0.05, 0.06);
-    for (double rate : {10.0, 50.0}) expected += std::log(1.0 / (1.0 + std::pow(0.1 / (28.9e-3 * rate), 4.0)));
+    // The curve's regime term at its least likely point, the lower rate.
+    const double expected = offsetNormalLogPdf(Eigen::Vector2d(std::log(0.45 / f), std::log(0.40 / f)), 0.05, 0.06) +
+                            std::log(1.0 / (1.0 + std::pow(0.1 / (28.9e-3 * 10.0), 4.0)));
     EXPECT_NEAR(flowLogLikelihood(a.model(), ttf, c)[0], expected, 1e-9);
 
     FlowDataSet tau;
@@ -182,6 +184,49 @@ TEST(FlowLikelihood, TtfAndCriticalStressAreRelativeOnTheLogScale) {
     ASSERT_EQ(a.lastX.cols(), 2);
     EXPECT_DOUBLE_EQ(a.lastX(5, 0), 10.7);
     EXPECT_DOUBLE_EQ(a.lastX(5, 1), 31.0);
+}
+
+TEST(FlowLikelihood, ABatchOfCellsIsEachCellAlone) {
+    // The column layout of a batch (cell-major, one column a point or, for stresses, a curve)
+    // against one call per cell, for the three observables.
+    AnalyticFlow a;
+    FlowDataSet angle;
+    angle.name = "angle";
+    angle.regimeErrorRate = 0.05;
+    angle.modelErrorSd = 0.8;
+    angle.curves = {{23.9, Eigen::Vector3d(5.0, 20.0, 80.0), Eigen::Vector3d(14.0, 13.0, 12.0)},
+                    {104.0, Eigen::Vector2d(2.0, 30.0), Eigen::Vector2d(19.0, 16.0)}};
+    FlowDataSet ttf = angle;
+    ttf.name = "ttf";
+    ttf.observable = FlowObservable::Ttf;
+    ttf.curves = {{28.9, Eigen::Vector3d(8.0, 30.0, 100.0), Eigen::Vector3d(0.5, 0.45, 0.4)}};
+    FlowDataSet tau = angle;
+    tau.name = "tau";
+    tau.observable = FlowObservable::CriticalStress;
+    tau.curves = {{10.7, {}, Eigen::Vector2d(0.8, 0.6)}, {23.9, {}, Eigen::Vector3d(0.2, 0.1, 0.15)}, {31.0, {}, Eigen::VectorXd::Constant(1, 0.05)}};
+    Eigen::MatrixXd cells(6, 4);
+    for (int i = 0; i < 4; ++i) cells.col(i) = donorCell(0.03 + 0.04 * i, 0.3 + 0.1 * i);
+    for (const FlowDataSet* d : {&angle, &ttf, &tau}) {
+        const Eigen::VectorXd batch = flowLogLikelihood(a.model(), *d, cells);
+        for (int i = 0; i < 4; ++i) EXPECT_DOUBLE_EQ(batch[i], flowLogLikelihood(a.model(), *d, cells.col(i))[0]) << d->name << " cell " << i;
+        EXPECT_NE(batch[0], batch[3]) << d->name;
+    }
+}
+
+TEST(FlowLikelihood, OutsideTheNetworksEtamRangeTheLikelihoodIsZero) {
+    AnalyticFlow a;
+    FlowDataSet d;
+    d.name = "donor";
+    d.etamRange = {0.03, 3.0};
+    d.curves = {{23.9, Eigen::Vector2d(10.0, 100.0), Eigen::Vector2d(14.0, 12.0)}};
+    Eigen::MatrixXd cells(6, 3);
+    cells.col(0) = donorCell(0.15, 0.5);          // eta_m 0.70
+    cells.col(1) = donorCell(3.1 / 4.66, 0.5);    // 3.1
+    cells.col(2) = donorCell(0.02 / 4.66, 0.5);   // 0.02
+    const Eigen::VectorXd ll = flowLogLikelihood(a.model(), d, cells);
+    EXPECT_TRUE(std::isfinite(ll[0]));
+    EXPECT_EQ(ll[1], -std::numeric_limits<double>::infinity());
+    EXPECT_EQ(ll[2], -std::numeric_limits<double>::infinity());
 }
 
 TEST(FlowLikelihood, PeaksAtTheMembraneViscosityThatMadeTheData) {
@@ -244,6 +289,17 @@ TEST(FlowLikelihood, BadDataSetsAndCellsAreRefusedByName) {
     EXPECT_THROW(flowLogLikelihood(a.model(), d, Eigen::MatrixXd::Ones(5, 2)), InputError);
     d.regimeErrorRate = 0.6;
     EXPECT_THROW(flowLogLikelihood(a.model(), d, donorCell(0.1, 0.3)), InputError);
+    // A TTF or critical stress is compared on the log scale: a value <= 0 is named, not a silent -inf.
+    FlowDataSet tau;
+    tau.name = "stresses";
+    tau.observable = FlowObservable::CriticalStress;
+    tau.curves = {{10.7, {}, Eigen::Vector2d(0.8, 0.0)}};
+    try {
+        flowLogLikelihood(a.model(), tau, donorCell(0.1, 0.3));
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("'stresses': a critical_stress_Pa at 10.7 mPa s is not > 0"), std::string::npos) << e.what();
+    }
 }
 
 TEST(FlowLikelihood, TheShippedNetworksAsAFlowModelAreTheirPredictions) {

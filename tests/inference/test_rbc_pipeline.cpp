@@ -792,8 +792,19 @@ TEST(RbcInference, TheJointMethodTakesAFlowDataSetAndTheReweightingRouteRefusesI
         }
     EXPECT_TRUE(etamRow);
     // Phase 1 of a flow set is capped: it only starts the joint chains.
-    EXPECT_EQ(rbcSamplerSettings(RbcRun::Phase1, RbcExperiment::Flow).populationCap, 4000);
     EXPECT_EQ(r.phase1[7].samples.cols(), 1000);
+    RbcInferenceOptions capped = smallRun(tmp.path() / "capped", 5000);
+    capped.lastPhase = 1;
+    const RbcInferenceResult c = runRbcInference(model, {data[1], data[7]}, capped);
+    EXPECT_EQ(c.phase1[0].samples.cols(), 5000);
+    EXPECT_EQ(c.phase1[1].samples.cols(), 4000);
+
+    // The joint draws belong to their data sets: phase 3 of the seven single-cell sets does not take
+    // the draws of eight.
+    RbcInferenceOptions phase3 = o;
+    phase3.firstPhase = 3;
+    const std::vector<RbcDataSet> seven(data.begin(), data.begin() + 7);
+    expectInputError([&] { runRbcInference(model, seven, phase3); }, {"no joint-MCMC draws made with these settings"});
 
     RbcInferenceOptions rw = smallRun(tmp.path() / "rw", 500);
     rw.method = HierarchicalMethod::Reweighting;
