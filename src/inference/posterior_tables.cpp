@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/version.hpp"
@@ -65,8 +66,11 @@ std::vector<TableRow> tableLayout(const std::vector<PosteriorStatsRow>& rows, co
 std::string posteriorTableMarkdown(const RbcInferenceOptions& o, const std::vector<PosteriorStatsRow>& rows, const std::vector<RbcDataSet>& data,
                                    const nlohmann::json& extrapolation, const nlohmann::json& check) {
     std::string s = "# Posterior statistics of the t-RBC parameters\n\n";
-    s += fmt::format("Made by `{}` (trbc {}), seed {}, {} samples per TMCMC/BASIS run (docs/BAYESIAN_INFERENCE.md).\n",
-                     o.provenance.value("command", std::string("trbc infer")), kVersion, o.seed, o.populationSize);
+    const bool flow = std::any_of(data.begin(), data.end(), [](const RbcDataSet& d) { return d.experiment == RbcExperiment::Flow; });
+    const int flowCap = rbcSamplerSettings(RbcRun::Phase1, RbcExperiment::Flow).populationCap;
+    s += fmt::format("Made by `{}` (trbc {}), seed {}, {} samples per TMCMC/BASIS run{} (docs/BAYESIAN_INFERENCE.md).\n",
+                     o.provenance.value("command", std::string("trbc infer")), kVersion, o.seed, o.populationSize,
+                     flow ? fmt::format(", {} in a flow data set's phase 1", std::min(o.populationSize, flowCap)) : std::string());
     if (o.provenance.contains("model")) s += fmt::format("Model: `{}`.\n", o.provenance["model"].value("dir", std::string("?")));
     s += "\n## $\\theta^{\\rm new}$: a new cell given all data (phase 3a) — the layout of the paper's Table 1\n\n";
     s += "$\\mu$ in µN/m, $\\kappa_b$ in $10^{-19}$ J, $\\eta_m$ in Pa·s·µm. MAP = ML here (uniform box prior, docs/BAYESIAN_INFERENCE.md).\n\n";

@@ -791,6 +791,9 @@ TEST(RbcInference, TheJointMethodTakesAFlowDataSetAndTheReweightingRouteRefusesI
             EXPECT_NEAR(row.mean, etam, 1e-9);
         }
     EXPECT_TRUE(etamRow);
+    std::ifstream table(out / "posterior_table.md");
+    const std::string text((std::istreambuf_iterator<char>(table)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("1000 samples per TMCMC/BASIS run, 1000 in a flow data set's phase 1"), std::string::npos);
     // Phase 1 of a flow set is capped: it only starts the joint chains.
     EXPECT_EQ(r.phase1[7].samples.cols(), 1000);
     RbcInferenceOptions capped = smallRun(tmp.path() / "capped", 5000);
