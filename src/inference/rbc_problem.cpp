@@ -263,10 +263,13 @@ RbcModel surrogateRbcModel(std::shared_ptr<const Surrogate> s) {
 
 RbcModel timedModel(RbcModel model, std::shared_ptr<ModelTimer> timer) {
     using Clock = std::chrono::steady_clock;
-    auto timed = [timer](auto f) {
-        return [timer, f](const Eigen::MatrixXd& x) {
+    // One wrapper for every callback (the flow ones take the cytosol too); an empty one stays empty,
+    // so that a model without flow networks is still seen to lack them.
+    auto timed = [timer](auto f) -> decltype(f) {
+        if (!f) return f;
+        return [timer, f](const Eigen::MatrixXd& x, const auto&... rest) {
             const auto t0 = Clock::now();
-            auto y = f(x);
+            auto y = f(x, rest...);
             timer->seconds += std::chrono::duration<double>(Clock::now() - t0).count();
             timer->evaluations += x.cols();
             return y;
@@ -276,18 +279,8 @@ RbcModel timedModel(RbcModel model, std::shared_ptr<ModelTimer> timer) {
     m.equilibrium = timed(model.equilibrium);
     m.stretching = timed(model.stretching);
     m.relaxationTime = timed(model.relaxationTime);
-    auto timedFlow = [timer](auto f) -> decltype(f) {
-        if (!f) return f;
-        return [timer, f](const Eigen::MatrixXd& x, const Eigen::VectorXd& etaIn) {
-            const auto t0 = Clock::now();
-            auto y = f(x, etaIn);
-            timer->seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-            timer->evaluations += x.cols();
-            return y;
-        };
-    };
-    m.flow.tankTreading = timedFlow(model.flow.tankTreading);
-    m.flow.criticalStressPa = timedFlow(model.flow.criticalStressPa);
+    m.flow.tankTreading = timed(model.flow.tankTreading);
+    m.flow.criticalStressPa = timed(model.flow.criticalStressPa);
     return m;
 }
 
