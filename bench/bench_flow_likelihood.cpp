@@ -1,6 +1,8 @@
 // The flow data's likelihood (inference/flow_likelihood.hpp) through the shipped flow networks, as
 // the joint MCMC calls it: one batch of 16 cells (one candidate per chain) per call, for each
-// flow data set of `trbc infer --datasets all`. items/s = cells per second.
+// flow data set of `trbc infer --datasets all`. items/s = cells per second. Second argument: the
+// networks, 0 the 16-member ensembles (data/surrogates/flow), 1 the distilled ones that `trbc
+// infer` uses (data/surrogates/flow_distilled), side by side in one run.
 #include <benchmark/benchmark.h>
 
 #include <memory>
@@ -16,22 +18,23 @@ struct Shipped {
     std::shared_ptr<const FlowSurrogate> networks;
     FlowModel model;
     std::vector<FlowDataSet> sets;
-    Shipped() {
-        const std::filesystem::path dir = std::filesystem::path(TRBC_BENCH_DATA_DIR) / "surrogates/flow";
+    explicit Shipped(const char* name) {
+        const std::filesystem::path dir = std::filesystem::path(TRBC_BENCH_DATA_DIR) / "surrogates" / name;
         networks = std::make_shared<const FlowSurrogate>(FlowSurrogate::load(dir));
         model = surrogateFlowModel(networks);
         sets = flowDataSets(std::filesystem::path(TRBC_BENCH_DATA_DIR) / "experiments/validation", flowNetworkErrors(dir));
     }
 };
 
-const Shipped& shipped() {
-    static const Shipped s;
-    return s;
+const Shipped& shipped(std::int64_t which) {
+    static const Shipped ensemble("flow"), distilled("flow_distilled");
+    return which == 0 ? ensemble : distilled;
 }
+const char* modelName(std::int64_t which) { return which == 0 ? "ensemble" : "distilled"; }
 
 // Argument: the data set's index in flowDataSets (0-6 donors, 7 TTF, 8-9 critical stresses).
 void BM_FlowLogLikelihood(benchmark::State& state) {
-    const Shipped& s = shipped();
+    const Shipped& s = shipped(state.range(1));
     const FlowModel& model = s.model;
     const FlowDataSet& d = s.sets[static_cast<std::size_t>(state.range(0))];
     Eigen::MatrixXd cells(6, 16);
@@ -43,13 +46,13 @@ void BM_FlowLogLikelihood(benchmark::State& state) {
         benchmark::DoNotOptimize(ll.data());
     }
     state.SetItemsProcessed(state.iterations() * cells.cols());
-    state.SetLabel(d.name + " (" + std::to_string(points) + " points)");
+    state.SetLabel(d.name + " (" + std::to_string(points) + " points), " + modelName(state.range(1)));
 }
-BENCHMARK(BM_FlowLogLikelihood)->DenseRange(0, 9)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FlowLogLikelihood)->ArgsProduct({benchmark::CreateDenseRange(0, 9, 1), {0, 1}})->Unit(benchmark::kMicrosecond);
 
 // FlowSurrogate::predict of N columns (both networks).
 void BM_FlowPredict(benchmark::State& state) {
-    const Shipped& s = shipped();
+    const Shipped& s = shipped(state.range(1));
     const Eigen::Index n = state.range(0);
     Eigen::MatrixXd x(7, n);
     for (Eigen::Index k = 0; k < n; ++k) x.col(k) << 0.93, 4.66, 221.0, 2.0, 0.7, 23.9, 1.0 + k;
@@ -58,8 +61,9 @@ void BM_FlowPredict(benchmark::State& state) {
         benchmark::DoNotOptimize(p.inclinationDeg.data());
     }
     state.SetItemsProcessed(state.iterations() * n);
+    state.SetLabel(modelName(state.range(1)));
 }
-BENCHMARK(BM_FlowPredict)->Arg(16)->Arg(640)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FlowPredict)->ArgsProduct({{16, 640}, {0, 1}})->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -75,6 +75,12 @@ FlowNetworkErrors flowNetworkErrors(const fs::path& dir) {
         e.ttfRelative = p.at("ttf_relative_rmse").get<double>();
         e.regimeErrorRate = p.at("far_misclassified").get<double>() / p.at("far_cases").get<double>();
         e.criticalStressLog = std::log(j.at("boundary_factor").get<double>());
+        if (j.contains("distillation")) {
+            const nlohmann::json& c = j.at("distillation").at("check");
+            e.inclinationDeg = std::hypot(e.inclinationDeg, c.at("inclination_rmse_deg").get<double>());
+            e.ttfRelative = std::hypot(e.ttfRelative, c.at("ttf_relative_rmse").get<double>());
+            e.regimeErrorRate += c.at("regime_disagreement").get<double>();
+        }
         if (!(e.inclinationDeg >= 0.0 && e.ttfRelative >= 0.0 && e.regimeErrorRate >= 0.0 && e.regimeErrorRate <= 0.5 &&
               e.criticalStressLog > 0.0))
             throw InputError(fmt::format("{}: cross_validation.pooled gives an angle error {}, a TTF error {}, a far "
@@ -83,7 +89,7 @@ FlowNetworkErrors flowNetworkErrors(const fs::path& dir) {
                                          std::exp(e.criticalStressLog)));
         return e;
     } catch (const nlohmann::json::exception& e) {
-        throw InputError(fmt::format("{}: cross_validation.pooled: {}", file.string(), e.what()));
+        throw InputError(fmt::format("{}: cross_validation.pooled or distillation.check: {}", file.string(), e.what()));
     }
 }
 

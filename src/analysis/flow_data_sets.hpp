@@ -28,6 +28,9 @@ struct FlowNetworkErrors {
 
 /// From a flow-network directory's training.json (`trbc flow train --folds K`): its pooled
 /// cross-validation. InputError naming the file when it has none (a training without --folds).
+/// For networks distilled from an ensemble (`trbc flow distill`, a `distillation` block) the
+/// student's error against the ensemble adds: in quadrature to the angle and TTF errors, and its
+/// regime disagreement to the misclassified share (an upper bound: the two can cancel).
 FlowNetworkErrors flowNetworkErrors(const std::filesystem::path& surrogateDir);
 
 /// The flow data sets of the validation data directory (shear_flow/): fischer_2015_donor1..7 (each

@@ -482,6 +482,7 @@ void registerFlow(CLI::App& app) {
     registerFlowCampaign(flow);
     registerFlowTrain(flow);
     registerFlowSobol(flow);
+    registerFlowDistill(flow);
 }
 
 }  // namespace trbc::cli

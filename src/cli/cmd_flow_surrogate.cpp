@@ -68,6 +68,41 @@ void runFlowTrain(FlowTrainCli& o) {
     std::cout << writeFlowTrainingReport(o.out, s);
 }
 
+struct FlowDistillCli {
+    std::string model, out, hidden;
+    FlowDistillationOptions d;
+    int threads = 2;
+};
+
+void runFlowDistill(FlowDistillCli& o) {
+    if (o.threads > 0) omp_set_num_threads(o.threads);
+    if (!o.hidden.empty()) {
+        o.d.hiddenLayers.clear();
+        for (long w : parseIntegerList(o.hidden, "--hidden", "a layer width", 1)) {
+            if (w > 4096) throw InputError(fmt::format("--hidden: layer width {} is outside [1, 4096]", w));
+            o.d.hiddenLayers.push_back(int(w));
+        }
+    }
+    const FlowSurrogate teacher = FlowSurrogate::load(o.model);
+    const std::filesystem::path trainingFile = std::filesystem::path(o.model) / "training.json";
+    nlohmann::json training;
+    try {
+        training = nlohmann::json::parse(readFileBytes(trainingFile));
+    } catch (const nlohmann::json::exception& e) {
+        throw InputError(fmt::format("{}: not JSON ({})", trainingFile.string(), e.what()));
+    }
+    const FlowDistillation d = distillFlowSurrogate(teacher, o.d);
+    d.model.save(o.out);
+    writeFileAtomically(std::filesystem::path(o.out) / "training.json",
+                        withBuild(flowDistillationJson(training, o.d, d, o.model, commandLine())).dump(2) + "\n");
+    const FlowDistillationCheck& c = d.check;
+    std::cout << fmt::format(
+        "flow distill: {} samples, hidden {}, {:.1f} s; against the ensemble at {} other points ({} tank-treading): probability "
+        "RMS {:.4f}, regime disagreement {:.2f} %, angle RMS {:.3f} deg, swing RMS {:.3f} deg, TTF RMS {:.2f} %\n",
+        o.d.samples, fmt::join(o.d.hiddenLayers, ","), d.wallSeconds, c.points, c.tankTreading, c.probabilityRmse,
+        100.0 * c.regimeDisagreement, c.inclinationRmseDeg, c.swingRmseDeg, 100.0 * c.ttfRelativeRmse);
+}
+
 struct FlowSobolCli {
     std::string surrogate, config, out;
     long samples = 4096;
@@ -134,6 +169,32 @@ void registerFlowSobol(CLI::App* flow) {
     addOutOption(cmd, o->out);
     addThreadsOption(cmd, o->threads);
     cmd->callback([o]() { runFlowSobol(*o); });
+}
+
+void registerFlowDistill(CLI::App* flow) {
+    auto o = std::make_shared<FlowDistillCli>();
+    CLI::App* cmd = flow->add_subcommand(
+        "distill",
+        "One network in place of each ensemble of flow networks (docs/FLOW_NETWORKS.md, distilled networks), trained on the "
+        "ensemble's mean at points of the campaign's box: one pass per evaluation instead of one per member, for the flow "
+        "likelihood of `trbc infer`. Writes the networks to OUT and OUT/training.json: the ensemble's cross-validated "
+        "accuracy and the student's error against the ensemble at points it did not see, which the likelihood adds");
+    cmd->add_option("--model", o->model, "the ensemble (a `trbc flow train` directory with its training.json)")
+        ->required()
+        ->check(CLI::ExistingDirectory);
+    addOutOption(cmd, o->out, "model directory");
+    addNumber(cmd, "--samples", o->d.samples, "training points (a Sobol' design over the campaign's box)",
+              NumberRange::closed(1000, 1e7))
+        ->capture_default_str();
+    addNumber(cmd, "--check-samples", o->d.checkSamples, "comparison points (a uniform design of seed + 1)", NumberRange::closed(100, 1e7))
+        ->capture_default_str();
+    addNumber(cmd, "--seed", o->d.seed, "seed of the training design", NumberRange::nonNegative())->capture_default_str();
+    addNumber(cmd, "--training-seed", o->d.trainingSeed, "seed of the initial weights and mini-batch order", NumberRange::nonNegative())
+        ->capture_default_str();
+    cmd->add_option("--hidden", o->hidden, "comma-separated widths of the student's hidden layers (tanh)")
+        ->default_str(fmt::format("{}", fmt::join(FlowDistillationOptions{}.hiddenLayers, ",")));
+    addThreadsOption(cmd, o->threads, "threads (the two networks train side by side)");
+    cmd->callback([o]() { runFlowDistill(*o); });
 }
 
 void registerFlowTrain(CLI::App* flow) {

@@ -136,8 +136,9 @@ void addRunOptions(CLI::App* cmd, InferCommandOptions& o) {
                     "comma-separated names")
         ->capture_default_str();
     cmd->add_option("--flow-model", o.flowModel,
-                    "flow-network directory for the flow data sets (default: the shipped data/surrogates/flow); its "
-                    "training.json's cross-validation gives the networks' error in the likelihood");
+                    "flow-network directory for the flow data sets (default: the shipped data/surrogates/flow_distilled, "
+                    "one network distilled from each ensemble of data/surrogates/flow, five times faster); its "
+                    "training.json's cross-validation (and distillation check) gives the networks' error in the likelihood");
     cmd->add_flag("--quiet", o.quiet, "no progress lines on stderr");
 }
 
@@ -215,7 +216,7 @@ void runInfer(const InferCommandOptions& o) {
     const std::filesystem::path dataDir = experimentDirectory(o.dataDir);
     const std::vector<RbcDataSet> singleCell = loadRbcDataSets(dataDir);
     const bool flowWanted = selectsFlowDataSets(o.datasets, singleCell);
-    const std::filesystem::path flowDir = o.flowModel.empty() ? defaultSurrogateDirectory() / "flow" : std::filesystem::path(o.flowModel);
+    const std::filesystem::path flowDir = o.flowModel.empty() ? defaultSurrogateDirectory() / "flow_distilled" : std::filesystem::path(o.flowModel);
     std::vector<RbcDataSet> flow;
     if (flowWanted) {
         try {

@@ -157,6 +157,7 @@ void registerFlowCapsule(CLI::App* flow);
 void registerFlowCampaign(CLI::App* flow);
 void registerFlowTrain(CLI::App* flow);
 void registerFlowSobol(CLI::App* flow);
+void registerFlowDistill(CLI::App* flow);
 void registerForces(CLI::App& app);
 void registerCampaign(CLI::App& app);
 void registerSurrogate(CLI::App& app);

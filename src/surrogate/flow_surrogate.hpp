@@ -212,6 +212,52 @@ struct FlowCrossValidation {
 };
 FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRow>& rows, FlowSurrogateTrainingOptions opt, int folds);
 
+/// One network in place of each ensemble, for callers that evaluate the networks millions of times
+/// (the flow likelihood of `trbc infer`): one pass instead of one per member. The student learns
+/// the ensemble's mean at points of the campaign's box (kShearCampaignAxes, where the ensemble was
+/// trained and is defined), so its error against the data is the ensemble's plus its own, which
+/// compareFlowSurrogates measures on points it never saw.
+struct FlowDistillationOptions {
+    long samples = 200000;                ///< training points: the first of a Sobol' design of seed `seed`
+    std::uint64_t seed = 20261201;
+    std::vector<int> hiddenLayers = {64};
+    long checkSamples = 20000;            ///< comparison points: a uniform design of seed `seed` + 1
+    std::uint64_t trainingSeed = 1;       ///< initial weights and mini-batch order
+};
+
+/// Student against teacher at the same points.
+struct FlowDistillationCheck {
+    long points = 0;
+    long tankTreading = 0;          ///< points where the teacher's probability of tank-treading is >= 1/2
+    double probabilityRmse = NAN;   ///< of the probability of tank-treading, every point
+    double regimeDisagreement = NAN;  ///< share of points on different sides of probability 1/2
+    /// Where the teacher tank-treads: RMS of student - teacher, and of student / teacher - 1 for the TTF.
+    double inclinationRmseDeg = NAN, swingRmseDeg = NAN, ttfRelativeRmse = NAN;
+};
+
+/// x7: 7 x n physical inputs (flowSurrogateInputNames) at the models' cytosol viscosity.
+FlowDistillationCheck compareFlowSurrogates(const FlowSurrogate& student, const FlowSurrogate& teacher,
+                                            const Eigen::Ref<const Eigen::MatrixXd>& x7);
+
+/// n points of a design over kShearCampaignAxes as physical inputs (7 x n), the cytosol at etaIn.
+Eigen::MatrixXd flowDesignInputs(DesignKind kind, long n, std::uint64_t seed, double etaIn);
+
+struct FlowDistillation {
+    FlowSurrogate model;
+    FlowDistillationCheck check;
+    double wallSeconds = 0.0;
+};
+
+/// Both networks of `teacher` distilled (the two trainings run concurrently). InputError for a
+/// multi-level teacher (its level input would be a constant), fewer than 1,000 samples or 100
+/// check samples, or an empty hidden layer list.
+FlowDistillation distillFlowSurrogate(const FlowSurrogate& teacher, const FlowDistillationOptions& opt);
+
+/// training.json of a distilled model: the teacher's (its cross-validated accuracy stays the
+/// ensemble's) with a `distillation` block: the options, the check and `command`.
+nlohmann::json flowDistillationJson(const nlohmann::json& teacherTraining, const FlowDistillationOptions& opt,
+                                    const FlowDistillation& d, const std::string& teacherDir, const std::string& command);
+
 /// FNV-1a of the formatted rows.
 std::string flowCampaignDataHash(const std::vector<ShearCampaignRow>& rows);
 

@@ -61,25 +61,17 @@ Eigen::MatrixXd uniformBoxPoints(const std::vector<PriorRange>& box, long n, std
     return X;
 }
 
-/// One network trained to reproduce an ensemble's predictions (the ensemble's mean in its
-/// transformed output space) on uniform points of the box, with the teacher's transforms and the
-/// training schedule `o` (its batch size and patience re-derived for the larger table).
-/// With a branch classifier the points carry its branch as the last input (the teacher's branch input).
+/// The ensemble's student on uniform points of the box (distilledNetwork). With a branch classifier
+/// the points carry its branch as the last input (the teacher's branch input).
 TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const std::vector<PriorRange>& box, long samples,
-                                std::uint64_t seed, TrainingOptions o, const TrainedNetwork* classifier) {
+                                std::uint64_t seed, const TrainingOptions& o, const TrainedNetwork* classifier) {
     if (samples < 1000) throw InputError(fmt::format("surrogate distillation: {} box samples; at least 1000 are needed", samples));
     Eigen::MatrixXd X = uniformBoxPoints(box, samples, seed);
     if (classifier) {
         const Eigen::MatrixXd vFvK = vFvKOf(X);
         X = withBranchRow(X, classifyBranch(*classifier, vFvK, Precision::Double));
     }
-    const Eigen::MatrixXd Y = teacher.evaluate(X);
-    o.batchSize = 128;
-    o.patience = std::max(10, int(std::ceil(3000.0 / (0.8 * double(samples) / o.batchSize))));
-    o.progress = nullptr;
-    TrainedNetwork student = trainNetwork(X, Y, o, teacher.inputNames, teacher.outputNames).network;
-    student.distillation = {1 + int(teacher.ensemble.size()), samples, seed, teacher.history.bestValidationLoss};
-    return student;
+    return distilledNetwork(teacher, X, seed, o);
 }
 
 void checkSplitOptions(const SurrogateTrainingOptions& opt) {

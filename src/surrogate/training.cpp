@@ -352,4 +352,15 @@ Eigen::MatrixXd TrainedNetwork::inputGradient(const Eigen::Ref<const Eigen::Matr
     return g;
 }
 
+TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const Eigen::Ref<const Eigen::MatrixXd>& X, std::uint64_t designSeed,
+                                TrainingOptions o) {
+    const Eigen::MatrixXd Y = teacher.evaluate(X);
+    o.batchSize = 128;
+    o.patience = std::max(10, int(std::ceil(3000.0 / (0.8 * double(X.cols()) / o.batchSize))));
+    o.progress = nullptr;
+    TrainedNetwork student = trainNetwork(X, Y, o, teacher.inputNames, teacher.outputNames).network;
+    student.distillation = {1 + int(teacher.ensemble.size()), long(X.cols()), designSeed, teacher.history.bestValidationLoss};
+    return student;
+}
+
 }  // namespace trbc

@@ -191,4 +191,11 @@ TrainingResult trainNetwork(const Eigen::Ref<const Eigen::MatrixXd>& X, const Ei
                             const TrainingOptions& options, std::vector<std::string> inputNames = {},
                             std::vector<std::string> outputNames = {});
 
+/// One network trained to reproduce an ensemble's predictions at the points X (physical inputs, one
+/// per column): the ensemble's mean is the target, with the teacher's transforms and the schedule
+/// `o` (its layers; batch 128 and the patience re-derived for the larger table, at least ~3000
+/// steps). `designSeed` (the seed of the points) is recorded in `distillation`.
+TrainedNetwork distilledNetwork(const TrainedNetwork& teacher, const Eigen::Ref<const Eigen::MatrixXd>& X, std::uint64_t designSeed,
+                                TrainingOptions o);
+
 }  // namespace trbc

@@ -81,6 +81,36 @@ TEST(FlowDataSets, TheErrorsComeFromTheShippedNetworksCrossValidation) {
     EXPECT_NEAR(e.criticalStressLog, std::log(1.5), 1e-12);
 }
 
+// The distilled networks that `trbc infer` uses by default carry the ensemble's cross-validation and
+// their own error against it, which adds: in quadrature to the angle and TTF, to the regime's rate.
+TEST(FlowDataSets, ADistilledNetworksErrorAddsToTheEnsembles) {
+    test::TempDir dir;
+    test::writeText(dir.path() / "training.json", R"({"boundary_factor": 1.5,
+        "cross_validation": {"pooled": {"inclination_rmse_deg": 0.8, "ttf_relative_rmse": 0.05, "far_misclassified": 10, "far_cases": 200}},
+        "distillation": {"check": {"inclination_rmse_deg": 0.6, "ttf_relative_rmse": 0.12, "regime_disagreement": 0.01}}})");
+    const FlowNetworkErrors e = flowNetworkErrors(dir.path());
+    EXPECT_NEAR(e.inclinationDeg, 1.0, 1e-12);
+    EXPECT_NEAR(e.ttfRelative, 0.13, 1e-12);
+    EXPECT_NEAR(e.regimeErrorRate, 0.06, 1e-12);
+    EXPECT_NEAR(e.criticalStressLog, std::log(1.5), 1e-12);
+
+    const FlowNetworkErrors shipped = flowNetworkErrors(fs::path(TRBC_SOURCE_DIR) / "data/surrogates/flow_distilled");
+    const FlowNetworkErrors ensemble = flowNetworkErrors(fs::path(TRBC_SOURCE_DIR) / "data/surrogates/flow");
+    EXPECT_GT(shipped.inclinationDeg, ensemble.inclinationDeg);
+    EXPECT_LT(shipped.inclinationDeg, 1.01 * ensemble.inclinationDeg) << "the student adds little to the ensemble's error";
+    EXPECT_LT(shipped.ttfRelative, 1.01 * ensemble.ttfRelative);
+
+    test::writeText(dir.path() / "training.json", R"({"boundary_factor": 1.5,
+        "cross_validation": {"pooled": {"inclination_rmse_deg": 0.8, "ttf_relative_rmse": 0.05, "far_misclassified": 10, "far_cases": 200}},
+        "distillation": {"check": {"inclination_rmse_deg": 0.6}}})");
+    try {
+        flowNetworkErrors(dir.path());
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("distillation"), std::string::npos) << e.what();
+    }
+}
+
 TEST(FlowDataSets, ANetworkDirectoryWithoutCrossValidationIsNamed) {
     test::TempDir dir;
     test::writeText(dir.path() / "training.json", R"({"boundary_factor": 1.5, "test": {}})");

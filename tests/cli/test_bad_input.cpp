@@ -46,6 +46,8 @@ TEST(BadInput, NonFiniteAndOutOfRangeNumbersNameTheOptionAndItsUnit) {
         {"infer --samples 2 --out i", "--samples: 2 is out of range (valid: [100, 1e6])"},
         {"export --posterior p --quantile 1 --out x", "--quantile: 1 is out of range (valid: (0, 1))"},
         {"campaign --samples 1 --level 1 --out c", "--level: 1 is out of range (valid: [2, 6])"},
+        {"flow distill --model . --samples 10 --out d", "--samples: 10 is out of range (valid: [1000, 1e7])"},
+        {"flow distill --model . --hidden 8,0 --out d", "--hidden: '0' is not a layer width (integer >= 1)"},
     };
     for (const auto& c : cases) {
         const CliRun r = runTrbc(c.args, tmp.path());

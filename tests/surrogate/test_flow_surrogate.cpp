@@ -310,6 +310,77 @@ TEST(FlowSurrogate, CrossValidationPoolsEveryCaseOnceAndRefusesTooFewCases) {
     EXPECT_NE(unknown.find("the starts 'not recorded (a table without campaign.json)' and 'random'"), std::string::npos) << unknown;
 }
 
+// compareFlowSurrogates against known differences: a model against itself is exact, and a student
+// whose angle output is shifted by a constant is off by that constant wherever the teacher
+// tank-treads, and nowhere else.
+TEST(FlowDistillation, ComparisonMeasuresKnownDifferences) {
+    const FlowSurrogateTrainingReport rep = trainFlowSurrogate(syntheticCampaign(300), quickOptions(60));
+    const Eigen::MatrixXd x = flowDesignInputs(DesignKind::Uniform, 2000, 5, 10.0);
+    const FlowDistillationCheck same = compareFlowSurrogates(rep.model, rep.model, x);
+    EXPECT_EQ(same.points, 2000);
+    EXPECT_GT(same.tankTreading, 200);
+    EXPECT_LT(same.tankTreading, 1800);
+    EXPECT_EQ(same.probabilityRmse, 0.0);
+    EXPECT_EQ(same.regimeDisagreement, 0.0);
+    EXPECT_EQ(same.inclinationRmseDeg, 0.0);
+    EXPECT_EQ(same.ttfRelativeRmse, 0.0);
+
+    FlowSurrogate shifted = rep.model;
+    ASSERT_TRUE(shifted.tankTreading.outputTransforms.empty() ||
+                shifted.tankTreading.outputTransforms[0] == VariableTransform::Identity);
+    shifted.tankTreading.outputScaling.mean(0) += 0.7;  // y = m + s y': the angle moves by 0.7 deg
+    const FlowDistillationCheck d = compareFlowSurrogates(shifted, rep.model, x);
+    EXPECT_NEAR(d.inclinationRmseDeg, 0.7, 1e-9);
+    EXPECT_EQ(d.swingRmseDeg, 0.0);
+    EXPECT_EQ(d.regimeDisagreement, 0.0);
+    EXPECT_EQ(d.tankTreading, same.tankTreading);
+}
+
+// A student distilled from an ensemble: one network per output, recorded as distilled from it,
+// close to the teacher at points it never saw (an untrained network is tens of degrees off), its
+// check reproducible from the design of seed + 1; the JSON record keeps the teacher's accuracy.
+TEST(FlowDistillation, OneNetworkLearnsTheEnsemblesMean) {
+    FlowSurrogateTrainingOptions o = quickOptions(150);
+    o.restarts = 3;
+    o.ensemble = true;
+    const FlowSurrogateTrainingReport rep = trainFlowSurrogate(syntheticCampaign(400), o);
+    ASSERT_EQ(rep.model.tankTreading.ensemble.size(), 2u);
+    FlowDistillationOptions opt;
+    opt.samples = 20000;
+    opt.checkSamples = 3000;
+    opt.hiddenLayers = {16};
+    const FlowDistillation d = distillFlowSurrogate(rep.model, opt);
+    EXPECT_TRUE(d.model.tankTreading.ensemble.empty());
+    EXPECT_TRUE(d.model.regime.ensemble.empty());
+    EXPECT_EQ(d.model.tankTreading.distillation.members, 3);
+    EXPECT_EQ(d.model.tankTreading.distillation.samples, 20000);
+    EXPECT_EQ(d.model.tankTreading.net.layerSizes(), (std::vector<int>{6, 16, 3}));
+    EXPECT_EQ(d.model.start, rep.model.start);
+    EXPECT_EQ(d.check.points, 3000);
+    EXPECT_LT(d.check.inclinationRmseDeg, 1.0);
+    EXPECT_LT(d.check.ttfRelativeRmse, 0.03);
+    EXPECT_LT(d.check.regimeDisagreement, 0.05);
+    const FlowDistillationCheck again =
+        compareFlowSurrogates(d.model, rep.model, flowDesignInputs(DesignKind::Uniform, 3000, opt.seed + 1, 10.0));
+    EXPECT_EQ(again.inclinationRmseDeg, d.check.inclinationRmseDeg);
+
+    const nlohmann::json teacher = {{"cross_validation", {{"pooled", {{"inclination_rmse_deg", 0.99}}}}}};
+    const nlohmann::json j = flowDistillationJson(teacher, opt, d, "TEACHER", "trbc flow distill");
+    EXPECT_EQ(j["cross_validation"], teacher["cross_validation"]);
+    EXPECT_EQ(j["distillation"]["teacher"], "TEACHER");
+    EXPECT_EQ(j["distillation"]["check"]["inclination_rmse_deg"].get<double>(), d.check.inclinationRmseDeg);
+
+    FlowDistillationOptions bad = opt;
+    bad.samples = 999;
+    EXPECT_THROW(distillFlowSurrogate(rep.model, bad), InputError);
+    bad = opt;
+    bad.hiddenLayers.clear();
+    EXPECT_THROW(distillFlowSurrogate(rep.model, bad), InputError);
+    FlowSurrogate multi = rep.model;
+    multi.levels = {2, 3};
+    EXPECT_THROW(distillFlowSurrogate(multi, opt), InputError);
+}
+
 // The same design from random and from in-plane starts: the random rows tumble below a critical Ca
 // twice the in-plane rows' and carry an angle 3 deg high. The regime network must follow the random
 // rows, the regressors the in-plane ones; a held-out case is out of both; the starts read back.
