@@ -94,7 +94,7 @@ void runFlowDistill(FlowDistillCli& o) {
     const FlowDistillation d = distillFlowSurrogate(teacher, o.d);
     d.model.save(o.out);
     writeFileAtomically(std::filesystem::path(o.out) / "training.json",
-                        withBuild(flowDistillationJson(training, o.d, d, o.model, commandLine())).dump(2) + "\n");
+                        flowDistillationJson(training, o.d, d, o.model, commandLine()).dump(2) + "\n");
     const FlowDistillationCheck& c = d.check;
     std::cout << fmt::format(
         "flow distill: {} samples, hidden {}, {:.1f} s; against the ensemble at {} other points ({} tank-treading): probability "

@@ -5,6 +5,7 @@
 #include <exception>
 
 #include "core/error.hpp"
+#include "core/version.hpp"
 #include "surrogate/flow_surrogate.hpp"
 
 namespace trbc {
@@ -88,7 +89,7 @@ nlohmann::json flowDistillationJson(const nlohmann::json& teacherTraining, const
                                     const FlowDistillation& d, const std::string& teacherDir, const std::string& command) {
     auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
     nlohmann::json j = teacherTraining;
-    j["distillation"] = {{"command", command},
+    j["distillation"] = withBuild({{"command", command},
                          {"teacher", teacherDir},
                          {"samples", opt.samples},
                          {"seed", opt.seed},
@@ -104,7 +105,7 @@ nlohmann::json flowDistillationJson(const nlohmann::json& teacherTraining, const
                            {"regime_disagreement", num(d.check.regimeDisagreement)},
                            {"inclination_rmse_deg", num(d.check.inclinationRmseDeg)},
                            {"swing_rmse_deg", num(d.check.swingRmseDeg)},
-                           {"ttf_relative_rmse", num(d.check.ttfRelativeRmse)}}}};
+                           {"ttf_relative_rmse", num(d.check.ttfRelativeRmse)}}}});
     return j;
 }
 
