@@ -175,7 +175,7 @@ void registerFlowDistill(CLI::App* flow) {
     auto o = std::make_shared<FlowDistillCli>();
     CLI::App* cmd = flow->add_subcommand(
         "distill",
-        "One network in place of each ensemble of flow networks (docs/FLOW_NETWORKS.md, distilled networks), trained on the "
+        "One network in place of each ensemble of flow networks (docs/CALIBRATION_WITH_FLOWS.md, the distilled networks), trained on the "
         "ensemble's mean at points of the campaign's box: one pass per evaluation instead of one per member, for the flow "
         "likelihood of `trbc infer`. Writes the networks to OUT and OUT/training.json: the ensemble's cross-validated "
         "accuracy and the student's error against the ensemble at points it did not see, which the likelihood adds");

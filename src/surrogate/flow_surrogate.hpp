@@ -220,7 +220,7 @@ FlowCrossValidation crossValidateFlowSurrogate(const std::vector<ShearCampaignRo
 /// The defaults make the shipped data/surrogates/flow_distilled: against the ensemble, 32-32 is off
 /// by 0.10 deg in the angle and 0.5 % in the TTF at 5x the speed; one layer of 64 by 0.12 deg and
 /// 0.6 %, 64-64 by 0.06 deg at the ensemble's cost; 100,000 points learn as well as 400,000
-/// (docs/FLOW_NETWORKS.md).
+/// (docs/CALIBRATION_WITH_FLOWS.md).
 struct FlowDistillationOptions {
     long samples = 100000;                ///< training points: the first of a Sobol' design of seed `seed`
     std::uint64_t seed = 20261201;
