@@ -190,13 +190,15 @@ std::vector<std::string> samplesHeader(const fs::path& file) {
     return splitHeader(header);
 }
 
-/// A flow data set's samples (trbc infer --datasets all): every column of its layout, which no
-/// single-cell layout has (sigma and etam_over_mu_s together).
+/// A flow data set's samples (trbc infer --datasets all): the whole cell and its noise in degrees or
+/// relative, which no single-cell layout has (kb_J and etam_over_mu_s together).
 bool isFlowPosterior(const fs::path& file) {
     const std::vector<std::string> cols = samplesHeader(file);
-    for (const std::string& c : phase1OutputNames(RbcExperiment::Flow))
-        if (std::find(cols.begin(), cols.end(), c) == cols.end()) return false;
-    return true;
+    auto has = [&](const std::string& c) { return std::find(cols.begin(), cols.end(), c) != cols.end(); };
+    const std::vector<std::string>& flow = phase1OutputNames(RbcExperiment::Flow);
+    for (std::size_t k = 0; k + 1 < flow.size(); ++k)
+        if (!has(flow[k])) return false;
+    return has("sigma_deg") || has("sigma_rel");
 }
 
 }  // namespace

@@ -110,7 +110,7 @@ TmcmcProblem loadOnlyProblem(PriorPtr prior) {
 
 Posterior phase1Posterior(const RbcDataSet& d, const std::string& phase) {
     // A flow set's variables are the pooled ones in their order: its eta_m = mu r is derived as theta_new's.
-    return {phase, d.name, phase1OutputNames(d.experiment), phase1OutputScale(d.experiment), d.experiment == RbcExperiment::Flow};
+    return {phase, d.name, phase1OutputNames(d), phase1OutputScale(d.experiment), d.experiment == RbcExperiment::Flow};
 }
 
 double massOutside(const Eigen::VectorXd& r, double lo, double hi) {

@@ -9,7 +9,6 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
-#include <sstream>
 
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -24,13 +23,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const double kHalfLog2Pi = 0.5 * std::log(2.0 * std::numbers::pi);
-
-std::string fileHash(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return fmt::format("{:016x}", fnv1a(s.str()));
-}
 
 /// InputError "<file>:<line>: column '<c>' = <value> is out of range: <range>".
 [[noreturn]] void outOfRange(const NumericTable& t, Eigen::Index row, const std::string& column, double value,
@@ -91,7 +83,7 @@ RbcDataSet readEquilibriumData(const fs::path& file, std::string name) {
     d.name = std::move(name);
     d.experiment = RbcExperiment::Equilibrium;
     d.file = file;
-    d.contentHash = fileHash(file);
+    d.contentHash = fileFingerprint(file);
     const char* names[3] = {"D", "hmin", "hmax"};
     bool found[3] = {false, false, false};
     for (Eigen::Index r = 0; r < mean.size(); ++r) {
@@ -121,7 +113,7 @@ RbcDataSet readStretchingData(const fs::path& file, std::string name) {
     d.name = std::move(name);
     d.experiment = RbcExperiment::Stretching;
     d.file = file;
-    d.contentHash = fileHash(file);
+    d.contentHash = fileFingerprint(file);
     d.force = t.column("Fext", "bead force in pN");
     d.d0 = t.column("D0", "transverse diameter in um");
     d.d1 = t.column("D1", "axial diameter in um");
@@ -148,7 +140,7 @@ RbcDataSet readRelaxationData(const fs::path& file, std::string name) {
     d.name = std::move(name);
     d.experiment = RbcExperiment::Relaxation;
     d.file = file;
-    d.contentHash = fileHash(file);
+    d.contentHash = fileFingerprint(file);
     d.time = t.column("t", "time since release in s");
     d.aspect = t.column("L_W", "length over width");
     requireRows(t, 2, "a relaxation curve");
@@ -167,7 +159,7 @@ RbcDataSet flowRbcDataSet(FlowDataSet flow) {
     if (!flow.files.empty()) {
         d.file = flow.files.size() == 1 ? flow.files.front() : flow.files.front().parent_path();
         std::vector<std::string> prints;
-        for (const fs::path& f : flow.files) prints.push_back(fileHash(f));
+        for (const fs::path& f : flow.files) prints.push_back(fileFingerprint(f));
         d.contentHash = prints.size() == 1 ? prints.front() : fingerprintOf(prints);
     }
     d.flow = std::make_shared<const FlowDataSet>(std::move(flow));
@@ -336,10 +328,16 @@ const std::vector<std::string>& phase1OutputNames(RbcExperiment e) {
     static const std::vector<std::string> eq = {"v", "FvK", "sigma_rel"};
     static const std::vector<std::string> st = {"v", "mu_uN_per_m", "kb_J", "b2", "sigma0_um", "sigma1_um"};
     static const std::vector<std::string> re = {"etam_over_mu_s", "sigma_tc_rel", "tc_s", "z0", "zinf", "sigma_z"};
-    // sigma in the observable's unit: degrees for an inclination set, relative otherwise.
-    static const std::vector<std::string> fl = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_over_mu_s", "sigma"};
+    // An inclination set's; a set of a relative observable names its noise sigma_rel (below).
+    static const std::vector<std::string> fl = {"v", "mu_uN_per_m", "kb_J", "b2", "etam_over_mu_s", "sigma_deg"};
     if (e == RbcExperiment::Flow) return fl;
     return e == RbcExperiment::Equilibrium ? eq : e == RbcExperiment::Stretching ? st : re;
+}
+
+std::vector<std::string> phase1OutputNames(const RbcDataSet& d) {
+    std::vector<std::string> names = phase1OutputNames(d.experiment);
+    if (d.experiment == RbcExperiment::Flow && d.flow && d.flow->observable != FlowObservable::Inclination) names.back() = "sigma_rel";
+    return names;
 }
 
 Eigen::VectorXd phase1OutputScale(RbcExperiment e) {

@@ -138,6 +138,9 @@ RbcModel timedModel(RbcModel model, std::shared_ptr<ModelTimer> timer);
 const std::vector<std::string>& phase1ParameterNames(RbcExperiment e);
 /// The same as written to files, physical units (kb in J): e.g. v, mu_uN_per_m, kb_J, b2, sigma0_um, ...
 const std::vector<std::string>& phase1OutputNames(RbcExperiment e);
+/// The columns of a data set's samples: phase1OutputNames(d.experiment), with a flow set's noise
+/// named by its unit: sigma_deg for an inclination set, sigma_rel for a TTF or critical-stress set.
+std::vector<std::string> phase1OutputNames(const RbcDataSet& d);
 /// Factor from inference to output units per parameter (1, or 1e-18 for kb).
 Eigen::VectorXd phase1OutputScale(RbcExperiment e);
 

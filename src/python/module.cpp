@@ -462,7 +462,7 @@ public:
           scale_(phase1OutputScale(data_.experiment)) {}
 
     const RbcDataSet& data() const { return data_; }
-    std::vector<std::string> names() const { return phase1OutputNames(data_.experiment); }
+    std::vector<std::string> names() const { return phase1OutputNames(data_); }
     int dimension() const { return int(scale_.size()); }
     py::array lower() const { return ownedVector(prior_->lowerBounds().cwiseProduct(scale_)); }
     py::array upper() const { return ownedVector(prior_->upperBounds().cwiseProduct(scale_)); }

@@ -233,15 +233,19 @@ TEST(PosteriorSamples, AFlowDataSetsPosteriorIsNamedAndLeftOutOfAnInferenceDirec
     writeFile(root / "phase3" / "mills_2004" / "samples.csv",
               "# trbc\nv,mu_uN_per_m,kb_J,b2,sigma0_um,sigma1_um,log_likelihood,log_prior\n0.9,4,2e-19,2,0.2,0.2,-1,-1\n");
     writeFile(root / "phase3" / "fischer_2015_donor1" / "samples.csv",
-              "# trbc\nv,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma,etam_Pa_s_um,log_likelihood,log_prior\n0.9,1.2,9e-19,3.6,0.17,1.3,0.2,-1,-1\n");
+              "# trbc\nv,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma_deg,etam_Pa_s_um,log_likelihood,log_prior\n0.9,1.2,9e-19,3.6,0.17,1.3,0.2,-1,-1\n");
+    writeFile(root / "phase3" / "fischer_ttf_donors12" / "samples.csv",
+              "# trbc\nv,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma_rel,etam_Pa_s_um,log_likelihood,log_prior\n0.9,2.6,9e-19,3.0,0.16,0.16,0.4,-1,-1\n");
     const std::vector<fs::path> dirs = inferencePosteriorDirectories(root, false);
     ASSERT_EQ(dirs.size(), 1u);
     EXPECT_EQ(dirs[0], root / "phase3" / "mills_2004");
-    try {
-        readPosteriorSamples(root / "phase3" / "fischer_2015_donor1");
-        ADD_FAILURE() << "no InputError";
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("a flow data set's posterior"), std::string::npos) << e.what();
+    for (const char* set : {"fischer_2015_donor1", "fischer_ttf_donors12"}) {
+        try {
+            readPosteriorSamples(root / "phase3" / set);
+            ADD_FAILURE() << "no InputError for " << set;
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("a flow data set's posterior"), std::string::npos) << e.what();
+        }
     }
     fs::remove_all(root);
 }

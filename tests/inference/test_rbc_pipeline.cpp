@@ -783,7 +783,7 @@ TEST(RbcInference, TheJointMethodTakesAFlowDataSetAndTheReweightingRouteRefusesI
     std::ifstream samples(out / "phase3" / "donor" / "samples.csv");
     std::string header;
     while (std::getline(samples, header) && header.starts_with("#")) {}
-    EXPECT_TRUE(header.starts_with("v,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma,etam_Pa_s_um,")) << header;
+    EXPECT_TRUE(header.starts_with("v,mu_uN_per_m,kb_J,b2,etam_over_mu_s,sigma_deg,etam_Pa_s_um,")) << header;
     bool etamRow = false;  // the flow set's eta_m = mu r in posterior_stats.csv, as theta_new's
     for (const PosteriorStatsRow& row : r.stats)
         if (row.posterior == "donor" && row.parameter == "etam_Pa_s_um") {
