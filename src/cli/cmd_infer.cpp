@@ -14,6 +14,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
+#include "core/hash.hpp"
 #include "core/version.hpp"
 #include "analysis/flow_data_sets.hpp"
 #include "inference/rbc_pipeline.hpp"
@@ -171,16 +172,23 @@ RbcInferenceOptions inferenceOptions(const InferCommandOptions& o) {
     return opt;
 }
 
-/// Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box.
-/// Phase 1 records it.
+/// The flow networks as the likelihood sees them: their two networks and the errors of training.json.
+std::string flowModelFingerprint(const std::filesystem::path& dir) {
+    return fingerprintOf({fileFingerprint(dir / "flow_regime.json"), fileFingerprint(dir / "flow_tank_treading.json"),
+                          fileFingerprint(dir / "training.json")});
+}
+
+/// Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box, and a
+/// flow set's with these flow networks (`flow_model`, present only when flow sets are chosen, so
+/// that single-cell runs keep their record). Phase 1 records it.
 void checkPhase1PriorBox(const InferCommandOptions& o, const RbcInferenceOptions& opt, const nlohmann::json& box) {
     const std::filesystem::path file = std::filesystem::path(o.out) / kPhase1PriorBoxFile;
     if ((o.resume || opt.firstPhase > 1) && std::filesystem::exists(file)) {
         std::ifstream in(file);
         const nlohmann::json previous = nlohmann::json::parse(in, nullptr, false);
         if (previous != box)
-            throw InputError(fmt::format("{}: the phase-1 posteriors in {} were made with the prior box {}, not {}; give the same "
-                                         "--prior or use another --out",
+            throw InputError(fmt::format("{}: the phase-1 posteriors in {} were made with the prior box (and flow networks) {}, "
+                                         "not {}; give the same --prior (and --datasets, --flow-model) or use another --out",
                                          file.string(), o.out, previous.dump(), box.dump()));
     }
     if (opt.firstPhase == 1) writeFileAtomically(file, box.dump(1) + "\n");
@@ -243,7 +251,9 @@ void runInfer(const InferCommandOptions& o) {
     const OutputDirectory outDir(o.out, "infer", "--out", {"infer.json", kPhase1PriorBoxFile});
     ensureWritableDirectory(o.out);
     const nlohmann::json boxJson = priorBoxJson(box);
-    checkPhase1PriorBox(o, opt, boxJson);
+    nlohmann::json phase1Record = boxJson;
+    if (anyFlow) phase1Record["flow_model"] = flowModelFingerprint(flowDir);
+    checkPhase1PriorBox(o, opt, phase1Record);
     opt.provenance = {{"command", commandLine()},
                       {"model", {{"dir", std::filesystem::absolute(modelDir).lexically_normal().string()},
                                  {"precision", o.single ? "single" : "double"},
@@ -251,7 +261,9 @@ void runInfer(const InferCommandOptions& o) {
                       {"data_dir", std::filesystem::absolute(dataDir).lexically_normal().string()},
                       {"phase1_prior_box", boxJson},
                       {"datasets", o.datasets}};
-    if (anyFlow) opt.provenance["flow_model"] = std::filesystem::absolute(flowDir).lexically_normal().string();
+    if (anyFlow)
+        opt.provenance["flow_model"] = {{"dir", std::filesystem::absolute(flowDir).lexically_normal().string()},
+                                        {"fingerprint", phase1Record["flow_model"]}};
     if (!o.quiet) opt.progress = [](const std::string& line) { std::cerr << line << '\n'; };
     omp_set_num_threads(o.threads);
     printInferSummary(o, runRbcInference(model, data, opt));

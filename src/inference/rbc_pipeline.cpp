@@ -346,7 +346,8 @@ nlohmann::json jointSettings(const RbcInferenceOptions& o, const std::vector<Rbc
                         {"seed", seed}, {"phase1_samples", o.populationSize}, {"phase1_burn_in", o.phase1BurnIn},
                         {"hyper_sd_scale", o.population.sdUpperScale}, {"population_truncation", o.population.truncate},
                         {"data_sets", sets}};
-    if (o.provenance.contains("flow_model")) s["flow_model"] = o.provenance["flow_model"];
+    // The networks' content, not where they lie: a moved copy gives the same draws.
+    if (o.provenance.contains("flow_model")) s["flow_model"] = o.provenance["flow_model"].value("fingerprint", nlohmann::json());
     return s;
 }
 

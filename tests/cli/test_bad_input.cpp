@@ -96,6 +96,21 @@ TEST(BadInput, InferListsItsDataSetsAndNamesAnUnknownOne) {
     EXPECT_FALSE(fs::exists(tmp.path() / "i"));
 }
 
+// A flow set's phase-1 posterior belongs to the flow networks it was made with: --resume with other
+// networks is refused, naming them, instead of reusing it.
+TEST(BadInput, InferResumeRefusesAFlowSetsPhase1OfOtherNetworks) {
+    TempDir tmp;
+    const std::string run = "infer --datasets abkarian_2007_critical_stress --phase 1 --samples 100 --quiet --out i";
+    CliRun r = runTrbc(run, tmp.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = runTrbc(run + " --resume", tmp.path());
+    EXPECT_EQ(r.status, 0) << r.err;
+    r = runTrbc(run + " --resume --flow-model " + (fs::path(TRBC_SOURCE_DIR) / "data/surrogates/flow").string(), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, "were made with the prior box (and flow networks)")) << r.err;
+    EXPECT_TRUE(contains(r.err, "--flow-model")) << r.err;
+}
+
 TEST(BadInput, UnknownCommandsAreNamedWithASuggestion) {
     TempDir tmp;
     CliRun r = runTrbc("simulat --level 2", tmp.path());
