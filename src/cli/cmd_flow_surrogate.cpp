@@ -24,6 +24,16 @@
 namespace trbc::cli {
 namespace {
 
+/// --hidden: comma-separated widths in [1, 4096].
+std::vector<int> hiddenLayerWidths(const std::string& text) {
+    std::vector<int> widths;
+    for (long w : parseIntegerList(text, "--hidden", "a layer width", 1)) {
+        if (w > 4096) throw InputError(fmt::format("--hidden: layer width {} is outside [1, 4096]", w));
+        widths.push_back(int(w));
+    }
+    return widths;
+}
+
 struct FlowTrainCli {
     std::vector<std::string> campaigns;
     std::string out, curve, hidden;
@@ -34,13 +44,7 @@ struct FlowTrainCli {
 void runFlowTrain(FlowTrainCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     const std::vector<long> sizes = o.curve.empty() ? std::vector<long>{} : parseIntegerList(o.curve, "--learning-curve", "a case count", 20);
-    if (!o.hidden.empty()) {
-        o.t.network.hiddenLayers.clear();
-        for (long w : parseIntegerList(o.hidden, "--hidden", "a layer width", 1)) {
-            if (w > 4096) throw InputError(fmt::format("--hidden: layer width {} is outside [1, 4096]", w));
-            o.t.network.hiddenLayers.push_back(int(w));
-        }
-    }
+    if (!o.hidden.empty()) o.t.network.hiddenLayers = hiddenLayerWidths(o.hidden);
     std::vector<ShearCampaignRow> rows;
     FlowTrainingSummary s;
     checkShearCampaignsMatch(std::vector<std::filesystem::path>(o.campaigns.begin(), o.campaigns.end()));
@@ -76,13 +80,7 @@ struct FlowDistillCli {
 
 void runFlowDistill(FlowDistillCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
-    if (!o.hidden.empty()) {
-        o.d.hiddenLayers.clear();
-        for (long w : parseIntegerList(o.hidden, "--hidden", "a layer width", 1)) {
-            if (w > 4096) throw InputError(fmt::format("--hidden: layer width {} is outside [1, 4096]", w));
-            o.d.hiddenLayers.push_back(int(w));
-        }
-    }
+    if (!o.hidden.empty()) o.d.hiddenLayers = hiddenLayerWidths(o.hidden);
     const FlowSurrogate teacher = FlowSurrogate::load(o.model);
     const std::filesystem::path trainingFile = std::filesystem::path(o.model) / "training.json";
     nlohmann::json training;

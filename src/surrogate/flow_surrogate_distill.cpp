@@ -1,3 +1,6 @@
+// One network in place of each flow ensemble (distillFlowSurrogate, flow_surrogate.hpp): the
+// student learns the ensemble's mean where the ensemble is defined, the campaign's box, and is
+// compared with it at points of another design, so its own error can be added to the ensemble's.
 #include <fmt/format.h>
 
 #include <chrono>
