@@ -92,11 +92,19 @@ Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, 
     const bool stresses = d.observable == FlowObservable::CriticalStress;
     // A critical stress depends on the cell and eta_out only: one column per curve, not per point.
     const Eigen::Index columns = stresses ? static_cast<Eigen::Index>(d.curves.size()) : m;
-    // Cell i's columns at i * columns + k.
-    Eigen::MatrixXd x(7, n * columns);
+    // Cells outside the networks' eta_m range have likelihood 0 and are not evaluated: cell i's
+    // columns start at slot[i] * columns, slot -1 for those.
+    std::vector<Eigen::Index> slot(static_cast<std::size_t>(n), -1);
+    Eigen::Index evaluated = 0;
     for (Eigen::Index i = 0; i < n; ++i) {
+        const double etam = cells(1, i) * cells(4, i);
+        if (etam >= d.etamRange[0] && etam <= d.etamRange[1]) slot[static_cast<std::size_t>(i)] = evaluated++;
+    }
+    Eigen::MatrixXd x(7, evaluated * columns);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        if (slot[static_cast<std::size_t>(i)] < 0) continue;
         const double v = cells(0, i), mu = cells(1, i), kb = cells(2, i), b2 = cells(3, i), r = cells(4, i);
-        Eigen::Index k = i * columns;
+        Eigen::Index k = slot[static_cast<std::size_t>(i)] * columns;
         for (const FlowCurve& c : d.curves) {
             // eta_m = mu r; a critical stress's rate is not read by the model: the rate of 1 Pa.
             if (stresses) x.col(k++) << v, mu, fvkFromModuli(mu, kb), b2, mu * r, c.etaOutMPaS, 1e3 / c.etaOutMPaS;
@@ -105,23 +113,25 @@ Eigen::VectorXd flowLogLikelihood(const FlowModel& model, const FlowDataSet& d, 
                     x.col(k++) << v, mu, fvkFromModuli(mu, kb), b2, mu * r, c.etaOutMPaS, c.rate[p];
         }
     }
-    const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(n * columns, d.etaInMPaS);
+    const Eigen::VectorXd etaIn = Eigen::VectorXd::Constant(x.cols(), d.etaInMPaS);
     Eigen::MatrixXd tt;
     Eigen::VectorXd tau;
-    if (stresses) tau = model.criticalStressPa(x, etaIn);
-    else tt = model.tankTreading(x, etaIn);
+    if (x.cols() > 0) {
+        if (stresses) tau = model.criticalStressPa(x, etaIn);
+        else tt = model.tankTreading(x, etaIn);
+    }
     const Eigen::Index valueRow = d.observable == FlowObservable::Inclination ? 1 : 2;
     const double e = d.regimeErrorRate;
 
     Eigen::VectorXd ll(n);
     for (Eigen::Index i = 0; i < n; ++i) {
-        const double sigma = cells(5, i), etam = cells(1, i) * cells(4, i);
-        if (!(etam >= d.etamRange[0] && etam <= d.etamRange[1])) {
+        if (slot[static_cast<std::size_t>(i)] < 0) {
             ll[i] = -kInf;
             continue;
         }
+        const double sigma = cells(5, i);
         double s = 0.0;
-        Eigen::Index k = i * columns;
+        Eigen::Index k = slot[static_cast<std::size_t>(i)] * columns;
         for (const FlowCurve& c : d.curves) {
             Eigen::VectorXd residual(c.value.size());
             if (stresses) {

@@ -227,6 +227,17 @@ TEST(FlowLikelihood, OutsideTheNetworksEtamRangeTheLikelihoodIsZero) {
     EXPECT_TRUE(std::isfinite(ll[0]));
     EXPECT_EQ(ll[1], -std::numeric_limits<double>::infinity());
     EXPECT_EQ(ll[2], -std::numeric_limits<double>::infinity());
+    EXPECT_EQ(a.lastX.cols(), 2) << "only the cell inside the range is evaluated";
+
+    // An in-range cell between two outside it keeps its value; a batch of cells all outside the
+    // range never calls the networks.
+    Eigen::MatrixXd mixed(6, 3);
+    mixed << cells.col(1), cells.col(0), cells.col(2);
+    EXPECT_EQ(flowLogLikelihood(a.model(), d, mixed)[1], ll[0]);
+    a.lastX.resize(0, 0);
+    const Eigen::VectorXd none = flowLogLikelihood(a.model(), d, cells.rightCols(2));
+    EXPECT_EQ(none[0], -std::numeric_limits<double>::infinity());
+    EXPECT_EQ(a.lastX.size(), 0);
 }
 
 TEST(FlowLikelihood, PeaksAtTheMembraneViscosityThatMadeTheData) {
