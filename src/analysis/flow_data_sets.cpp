@@ -53,6 +53,27 @@ FlowDataSet stressSet(const ValidationData& d, std::string name) {
     return s;
 }
 
+/// A distilled student's error against its ensemble (training.json's `distillation.check`), added
+/// in quadrature to the angle and TTF errors and to the regime's error rate.
+void addDistillationError(const nlohmann::json& distillation, const fs::path& file, FlowNetworkErrors& e) {
+    double angle = NAN, ttf = NAN, regime = NAN;
+    try {
+        const nlohmann::json& c = distillation.at("check");
+        angle = c.at("inclination_rmse_deg").get<double>();
+        ttf = c.at("ttf_relative_rmse").get<double>();
+        regime = c.at("regime_disagreement").get<double>();
+    } catch (const nlohmann::json::exception& x) {
+        throw InputError(fmt::format("{}: distillation.check: {}", file.string(), x.what()));
+    }
+    if (!(angle >= 0.0 && ttf >= 0.0 && regime >= 0.0 && regime <= 0.5))
+        throw InputError(fmt::format("{}: distillation.check gives an angle error {}, a TTF error {} (must be >= 0) or a regime "
+                                     "disagreement {} (must lie in [0, 0.5])",
+                                     file.string(), angle, ttf, regime));
+    e.inclinationDeg = std::hypot(e.inclinationDeg, angle);
+    e.ttfRelative = std::hypot(e.ttfRelative, ttf);
+    e.regimeErrorRate = std::min(0.5, e.regimeErrorRate + regime);
+}
+
 }  // namespace
 
 FlowNetworkErrors flowNetworkErrors(const fs::path& dir) {
@@ -75,21 +96,16 @@ FlowNetworkErrors flowNetworkErrors(const fs::path& dir) {
         e.ttfRelative = p.at("ttf_relative_rmse").get<double>();
         e.regimeErrorRate = p.at("far_misclassified").get<double>() / p.at("far_cases").get<double>();
         e.criticalStressLog = std::log(j.at("boundary_factor").get<double>());
-        if (j.contains("distillation")) {
-            const nlohmann::json& c = j.at("distillation").at("check");
-            e.inclinationDeg = std::hypot(e.inclinationDeg, c.at("inclination_rmse_deg").get<double>());
-            e.ttfRelative = std::hypot(e.ttfRelative, c.at("ttf_relative_rmse").get<double>());
-            e.regimeErrorRate += c.at("regime_disagreement").get<double>();
-        }
         if (!(e.inclinationDeg >= 0.0 && e.ttfRelative >= 0.0 && e.regimeErrorRate >= 0.0 && e.regimeErrorRate <= 0.5 &&
               e.criticalStressLog > 0.0))
             throw InputError(fmt::format("{}: cross_validation.pooled gives an angle error {}, a TTF error {}, a far "
                                          "misclassified share {} (must lie in [0, 0.5]) or a boundary factor <= 1",
                                          file.string(), e.inclinationDeg, e.ttfRelative, e.regimeErrorRate,
                                          std::exp(e.criticalStressLog)));
+        if (j.contains("distillation")) addDistillationError(j.at("distillation"), file, e);
         return e;
     } catch (const nlohmann::json::exception& e) {
-        throw InputError(fmt::format("{}: cross_validation.pooled or distillation.check: {}", file.string(), e.what()));
+        throw InputError(fmt::format("{}: cross_validation.pooled: {}", file.string(), e.what()));
     }
 }
 

@@ -81,18 +81,24 @@ struct FlowDistillCli {
 void runFlowDistill(FlowDistillCli& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     if (!o.hidden.empty()) o.d.hiddenLayers = hiddenLayerWidths(o.hidden);
+    std::error_code ec;
+    if (std::filesystem::exists(o.out, ec) && std::filesystem::equivalent(o.out, o.model, ec))
+        throw InputError(fmt::format("--out {} is the --model directory; the student would overwrite its ensemble", o.out));
     const FlowSurrogate teacher = FlowSurrogate::load(o.model);
     const std::filesystem::path trainingFile = std::filesystem::path(o.model) / "training.json";
+    if (!std::filesystem::is_regular_file(trainingFile, ec))
+        throw InputError(fmt::format("{}: missing (--model must be a `trbc flow train` directory)", trainingFile.string()));
     nlohmann::json training;
     try {
         training = nlohmann::json::parse(readFileBytes(trainingFile));
     } catch (const nlohmann::json::exception& e) {
         throw InputError(fmt::format("{}: not JSON ({})", trainingFile.string(), e.what()));
     }
+    o.d.command = commandLine();
     const FlowDistillation d = distillFlowSurrogate(teacher, o.d);
     d.model.save(o.out);
     writeFileAtomically(std::filesystem::path(o.out) / "training.json",
-                        flowDistillationJson(training, o.d, d, o.model, commandLine()).dump(2) + "\n");
+                        flowDistillationJson(training, o.d, d, o.model, o.d.command).dump(2) + "\n");
     const FlowDistillationCheck& c = d.check;
     std::cout << fmt::format(
         "flow distill: {} samples, hidden {}, {:.1f} s; against the ensemble at {} other points ({} tank-treading): probability "

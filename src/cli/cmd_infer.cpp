@@ -138,7 +138,7 @@ void addRunOptions(CLI::App* cmd, InferCommandOptions& o) {
         ->capture_default_str();
     cmd->add_option("--flow-model", o.flowModel,
                     "flow-network directory for the flow data sets (default: the shipped data/surrogates/flow_distilled, "
-                    "one network distilled from each ensemble of data/surrogates/flow, five times faster); its "
+                    "one network distilled from each ensemble of data/surrogates/flow, four to six times faster); its "
                     "training.json's cross-validation (and distillation check) gives the networks' error in the likelihood");
     cmd->add_flag("--quiet", o.quiet, "no progress lines on stderr");
 }
@@ -172,10 +172,11 @@ RbcInferenceOptions inferenceOptions(const InferCommandOptions& o) {
     return opt;
 }
 
-/// The flow networks as the likelihood sees them: their two networks and the errors of training.json.
+/// The flow networks as the likelihood sees them: their two networks, their cytosol and inputs
+/// (flow_surrogate.json) and the errors of training.json.
 std::string flowModelFingerprint(const std::filesystem::path& dir) {
     return fingerprintOf({fileFingerprint(dir / "flow_regime.json"), fileFingerprint(dir / "flow_tank_treading.json"),
-                          fileFingerprint(dir / "training.json")});
+                          fileFingerprint(dir / "flow_surrogate.json"), fileFingerprint(dir / "training.json")});
 }
 
 /// Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box, and a

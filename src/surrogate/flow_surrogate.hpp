@@ -227,6 +227,7 @@ struct FlowDistillationOptions {
     std::vector<int> hiddenLayers = {32, 32};
     long checkSamples = 20000;            ///< comparison points: a uniform design of seed `seed` + 1
     std::uint64_t trainingSeed = 1;       ///< initial weights and mini-batch order
+    std::string command;                  ///< recorded in the student networks' files
 };
 
 /// Student against teacher at the same points.
@@ -253,8 +254,8 @@ struct FlowDistillation {
 };
 
 /// Both networks of `teacher` distilled (the two trainings run concurrently). InputError for a
-/// multi-level teacher (its level input would be a constant), fewer than 1,000 samples or 100
-/// check samples, or an empty hidden layer list.
+/// multi-level teacher (its level input would be a constant), a teacher without ensemble members or
+/// distilled already, fewer than 1,000 samples or 100 check samples, or an empty hidden layer list.
 FlowDistillation distillFlowSurrogate(const FlowSurrogate& teacher, const FlowDistillationOptions& opt);
 
 /// training.json of a distilled model: the teacher's (its cross-validated accuracy, command and

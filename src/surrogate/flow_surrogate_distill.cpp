@@ -3,6 +3,9 @@
 // compared with it at points of another design, so its own error can be added to the ensemble's.
 #include <fmt/format.h>
 
+#include <omp.h>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <exception>
@@ -52,6 +55,14 @@ FlowDistillationCheck compareFlowSurrogates(const FlowSurrogate& student, const 
 FlowDistillation distillFlowSurrogate(const FlowSurrogate& teacher, const FlowDistillationOptions& opt) {
     if (teacher.multiLevel())
         throw InputError("flow distillation: the networks are multi-level; their level input would be one constant");
+    for (const TrainedNetwork* n : {&teacher.regime, &teacher.tankTreading}) {
+        if (n->distillation.members > 0)
+            throw InputError("flow distillation: the networks are distilled already; distil their ensemble instead, whose error "
+                             "against the data the student's adds to");
+        if (n->ensemble.empty())
+            throw InputError("flow distillation: the networks are single networks, not ensembles (trained with --restarts 1 or "
+                             "--no-ensemble); there is nothing to distil");
+    }
     if (opt.samples < 1000 || opt.samples > 10000000)
         throw InputError(fmt::format("flow distillation: {} samples (must lie in [1000, 1e7])", opt.samples));
     if (opt.checkSamples < 100 || opt.checkSamples > 10000000)
@@ -66,7 +77,7 @@ FlowDistillation distillFlowSurrogate(const FlowSurrogate& teacher, const FlowDi
     const TrainedNetwork* teachers[2] = {&teacher.regime, &teacher.tankTreading};
     TrainedNetwork* students[2] = {&d.model.regime, &d.model.tankTreading};
     std::exception_ptr errors[2];
-#pragma omp parallel for schedule(static, 1) num_threads(2)
+#pragma omp parallel for schedule(static, 1) num_threads(std::min(2, omp_get_max_threads()))
     for (int k = 0; k < 2; ++k) {
         try {
             TrainingOptions o = teachers[k]->options;
@@ -75,7 +86,7 @@ FlowDistillation distillFlowSurrogate(const FlowSurrogate& teacher, const FlowDi
             o.testFraction = 0.0;
             TrainedNetwork s = distilledNetwork(*teachers[k], zn, opt.seed, o);
             s.dataHash = teachers[k]->dataHash;
-            s.command = teachers[k]->command;
+            s.command = opt.command;
             *students[k] = std::move(s);
         } catch (...) {
             errors[k] = std::current_exception();

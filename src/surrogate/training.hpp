@@ -121,7 +121,8 @@ struct TrainedNetwork {
     TrainingOptions options;  ///< settings of the run (progress callback not kept)
     TrainingHistory history;
     /// Set (members > 0) when this single network was distilled from an ensemble: trained on the
-    /// ensemble's predictions at `samples` uniform points of the prior box (seed `seed`); history and
+    /// ensemble's predictions at `samples` points of a design of seed `seed` (uniform over the prior
+    /// box for the cell surrogates, Sobol' over the campaign's box for the flow networks); history and
     /// options are then the student's, `teacherValidationLoss` the best member's early-stopping loss.
     struct Distillation {
         int members = 0;

@@ -107,7 +107,17 @@ TEST(FlowDataSets, ADistilledNetworksErrorAddsToTheEnsembles) {
         flowNetworkErrors(dir.path());
         FAIL() << "no error";
     } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("distillation"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("distillation.check: "), std::string::npos) << e.what();
+    }
+    test::writeText(dir.path() / "training.json", R"({"boundary_factor": 1.5,
+        "cross_validation": {"pooled": {"inclination_rmse_deg": 0.8, "ttf_relative_rmse": 0.05, "far_misclassified": 10, "far_cases": 200}},
+        "distillation": {"check": {"inclination_rmse_deg": -0.6, "ttf_relative_rmse": 0.12, "regime_disagreement": 0.01}}})");
+    try {
+        flowNetworkErrors(dir.path());
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("an angle error -0.6"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("must be >= 0"), std::string::npos) << e.what();
     }
 }
 

@@ -100,7 +100,8 @@ TEST(BadInput, InferListsItsDataSetsAndNamesAnUnknownOne) {
 // networks is refused, naming them, instead of reusing it.
 TEST(BadInput, InferResumeRefusesAFlowSetsPhase1OfOtherNetworks) {
     TempDir tmp;
-    const std::string run = "infer --datasets abkarian_2007_critical_stress --phase 1 --samples 100 --quiet --out i";
+    const std::string run =
+        "infer --datasets abkarian_2007_critical_stress --phase 1 --samples 100 --quiet --out " + (tmp.path() / "i").string();
     CliRun r = runTrbc(run, tmp.path());
     ASSERT_EQ(r.status, 0) << r.err;
     r = runTrbc(run + " --resume", tmp.path());
@@ -109,6 +110,24 @@ TEST(BadInput, InferResumeRefusesAFlowSetsPhase1OfOtherNetworks) {
     EXPECT_EQ(r.status, 2);
     EXPECT_TRUE(contains(r.err, "were made with the prior box (and flow networks)")) << r.err;
     EXPECT_TRUE(contains(r.err, "--flow-model")) << r.err;
+}
+
+// flow distill refuses before training: --out over its own ensemble, a --model without the
+// training.json whose accuracy the student's record carries.
+TEST(BadInput, FlowDistillKeepsItsEnsembleAndNamesAMissingTrainingJson) {
+    TempDir tmp;
+    const fs::path model = tmp.path() / "m";
+    fs::create_directories(model);
+    for (const char* f : {"flow_regime.json", "flow_tank_treading.json", "flow_surrogate.json", "training.json"})
+        fs::copy_file(fs::path(TRBC_SOURCE_DIR) / "data/surrogates/flow" / f, model / f);
+    CliRun r = runTrbc("flow distill --model " + model.string() + " --out " + model.string(), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, "is the --model directory")) << r.err;
+    fs::remove(model / "training.json");
+    r = runTrbc("flow distill --model " + model.string() + " --out " + (tmp.path() / "d").string(), tmp.path());
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(contains(r.err, (model / "training.json").string() + ": missing")) << r.err;
+    EXPECT_FALSE(fs::exists(tmp.path() / "d"));
 }
 
 TEST(BadInput, UnknownCommandsAreNamedWithASuggestion) {

@@ -349,7 +349,10 @@ TEST(FlowDistillation, OneNetworkLearnsTheEnsemblesMean) {
     opt.samples = 20000;
     opt.checkSamples = 3000;
     opt.hiddenLayers = {16};
+    opt.command = "trbc flow distill --model M";
     const FlowDistillation d = distillFlowSurrogate(rep.model, opt);
+    EXPECT_EQ(d.model.regime.command, opt.command);
+    EXPECT_EQ(d.model.tankTreading.command, opt.command);
     EXPECT_TRUE(d.model.tankTreading.ensemble.empty());
     EXPECT_TRUE(d.model.regime.ensemble.empty());
     EXPECT_EQ(d.model.tankTreading.distillation.members, 3);
@@ -379,6 +382,12 @@ TEST(FlowDistillation, OneNetworkLearnsTheEnsemblesMean) {
     FlowSurrogate multi = rep.model;
     multi.levels = {2, 3};
     EXPECT_THROW(distillFlowSurrogate(multi, opt), InputError);
+    // A student is not distilled again (its error against the ensemble would be lost), and a single
+    // network has nothing to distil; either would write networks that do not load.
+    EXPECT_THROW(distillFlowSurrogate(d.model, opt), InputError);
+    FlowSurrogate single = rep.model;
+    single.tankTreading.ensemble.clear();
+    EXPECT_THROW(distillFlowSurrogate(single, opt), InputError);
 }
 
 // The same design from random and from in-plane starts: the random rows tumble below a critical Ca
