@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/validation_data.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "sampling/shear_campaign_table.hpp"
 
@@ -25,17 +26,6 @@ std::pair<std::vector<double>, std::vector<double>> columnPoints(const Validatio
     for (std::size_t r = 0; r < d.points.x.size(); ++r)
         if (std::isfinite(d.points.y[r][column])) x.push_back(d.points.x[r]), y.push_back(d.points.y[r][column]);
     return {x, y};
-}
-
-std::vector<std::string> commaSeparated(const std::string& text) {
-    std::vector<std::string> parts;
-    std::size_t start = 0;
-    while (start <= text.size()) {
-        const std::size_t comma = std::min(text.find(',', start), text.size());
-        parts.push_back(text.substr(start, comma - start));
-        start = comma + 1;
-    }
-    return parts;
 }
 
 Eigen::VectorXd vector(const std::vector<double>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())); }
@@ -186,7 +176,7 @@ std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vecto
     std::vector<std::string> names;
     for (const RbcDataSet& d : all) names.push_back(d.name);
     std::vector<RbcDataSet> chosen;
-    for (const std::string& name : commaSeparated(spec)) {
+    for (const std::string& name : splitList(spec)) {
         const auto it = std::find(names.begin(), names.end(), name);
         if (it == names.end())
             throw InputError(fmt::format("--datasets: '{}' is not a data set; give paper, all, list or names from: {}", name,
@@ -201,7 +191,7 @@ std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vecto
 bool selectsFlowDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell) {
     if (spec == "paper") return false;
     if (spec == "all" || spec == "list") return true;
-    for (const std::string& name : commaSeparated(spec))
+    for (const std::string& name : splitList(spec))
         if (std::none_of(singleCell.begin(), singleCell.end(), [&](const RbcDataSet& d) { return d.name == name; })) return true;
     return false;
 }

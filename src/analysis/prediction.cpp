@@ -23,18 +23,6 @@ namespace {
 
 double mixtureStdNormalCdf(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
 
-std::vector<std::string> splitHeader(const std::string& line) {
-    std::vector<std::string> out;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) {
-        while (!cell.empty() && (cell.back() == '\r' || cell.back() == ' ')) cell.pop_back();
-        while (!cell.empty() && cell.front() == ' ') cell.erase(cell.begin());
-        out.push_back(cell);
-    }
-    return out;
-}
-
 std::string fmtNum(double x) { return fmt::format("{:.8g}", x); }
 
 /// Stretching network inputs of the posterior samples at one force: (v, mu, FvK, b2, F).
@@ -187,7 +175,7 @@ std::vector<std::string> samplesHeader(const fs::path& file) {
     std::string header;
     while (std::getline(in, header))
         if (!header.empty() && header[0] != '#') break;
-    return splitHeader(header);
+    return splitList(header);
 }
 
 /// A flow data set's samples (trbc infer --datasets all): the whole cell and its noise in degrees or

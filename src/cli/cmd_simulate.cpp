@@ -29,11 +29,7 @@ std::vector<double> parseForceList(const std::string& text) {
 
 ExperimentSet parseExperiments(const std::string& text) {
     if (text.empty()) throw InputError("--experiments: the list is empty (valid: a comma-separated subset of eq, stretch, relax)");
-    std::vector<std::string> names;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) names.push_back(item);
-    return parseExperimentSet(names, "--experiments");
+    return parseExperimentSet(splitList(text), "--experiments");
 }
 
 void writeCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {

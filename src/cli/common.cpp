@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
-#include <sstream>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -268,8 +267,7 @@ namespace {
 template <class Value, class Convert, class Accept, class Bad>
 std::vector<Value> parseList(const std::string& text, Convert convert, Accept accept, Bad bad) {
     std::vector<Value> out;
-    std::stringstream ss(text);
-    for (std::string item; std::getline(ss, item, ',');) {
+    for (const std::string& item : splitList(text)) {
         std::size_t used = 0;
         Value x{};
         try {

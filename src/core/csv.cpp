@@ -165,6 +165,19 @@ int columnOf(const std::vector<std::string>& header, const std::string& name) {
     return it == header.end() ? -1 : static_cast<int>(it - header.begin());
 }
 
+std::vector<std::string> splitList(std::string_view text, char separator) {
+    std::vector<std::string> items;
+    for (std::size_t start = 0;;) {
+        const std::size_t end = std::min(text.find(separator, start), text.size());
+        std::string_view item = text.substr(start, end - start);
+        const std::size_t first = item.find_first_not_of(" \t\r");
+        item = first == std::string_view::npos ? std::string_view{} : item.substr(first, item.find_last_not_of(" \t\r") - first + 1);
+        items.emplace_back(item);
+        if (end == text.size()) return items;
+        start = end + 1;
+    }
+}
+
 std::string csvRow(std::initializer_list<std::string_view> fields) {
     std::string out;
     bool first = true;

@@ -48,6 +48,11 @@ std::vector<std::vector<std::string>> parseCsvRecords(std::string_view text);
 /// The index of the column `name` in a header record of readCsvRecords; -1 when absent.
 int columnOf(const std::vector<std::string>& header, const std::string& name);
 
+/// The items of a list separated by `separator` (no quoting), each with its blanks (space, tab,
+/// CR) trimmed: "a, b,,c," gives {"a", "b", "", "c", ""} and "" gives {""}, so that an empty item
+/// reaches the caller's check instead of vanishing.
+std::vector<std::string> splitList(std::string_view text, char separator = ',');
+
 /// The provenance line that opens every CSV table trbc writes, for example
 /// "# trbc 1.4.0 (v1.4.0-12-gabc1234) | command: trbc infer --seed 3 | seed: 3 | build: GCC 12.2.0,
 /// x86-64 (SSE2 baseline; dispatched kernels: avx2)\n": the version, the revision of the source it was

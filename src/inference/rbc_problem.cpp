@@ -36,19 +36,6 @@ void requireRows(const NumericTable& t, Eigen::Index minRows, const char* what) 
         throw InputError(fmt::format("{}: {} data row(s), need at least {} ({})", t.path.string(), t.values.rows(), minRows, what));
 }
 
-/// Splits a CSV line at commas and trims blanks (only used for the text column of Evans & Fung).
-std::vector<std::string> csvFields(const std::string& line) {
-    std::vector<std::string> out;
-    std::stringstream ss(line);
-    std::string f;
-    while (std::getline(ss, f, ',')) {
-        const auto b = f.find_first_not_of(" \t\r"), e = f.find_last_not_of(" \t\r");
-        out.push_back(b == std::string::npos ? std::string() : f.substr(b, e - b + 1));
-    }
-    if (!line.empty() && line.back() == ',') out.emplace_back();
-    return out;
-}
-
 }  // namespace
 
 const char* experimentName(RbcExperiment e) {
@@ -88,7 +75,7 @@ RbcDataSet readEquilibriumData(const fs::path& file, std::string name) {
     bool found[3] = {false, false, false};
     for (Eigen::Index r = 0; r < mean.size(); ++r) {
         const long lineNo = t.lines[static_cast<std::size_t>(r)];
-        const std::string quantity = csvFields(lines.at(static_cast<std::size_t>(lineNo - 1))).at(static_cast<std::size_t>(q));
+        const std::string quantity = splitList(lines.at(static_cast<std::size_t>(lineNo - 1))).at(static_cast<std::size_t>(q));
         int k = -1;
         for (int i = 0; i < 3; ++i)
             if (quantity == names[i]) k = i;

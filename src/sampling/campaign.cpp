@@ -621,9 +621,7 @@ std::map<long, int> readCampaignBranches(const fs::path& dirOrFile) {
         throw InputError(fmt::format("{}:{}: expected the header cell_id,v,FvK,branch,energy_gap_J,reused", path.string(), lineNo));
     while (std::getline(in, line)) {
         ++lineNo;
-        std::vector<std::string> f;
-        std::istringstream fields(line);
-        for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
+        const std::vector<std::string> f = splitList(line);
         long id = -1;
         try {
             std::size_t used = 0;

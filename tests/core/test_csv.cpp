@@ -43,5 +43,16 @@ TEST(NumericTable, BlankFieldsOnlyWhereAllowed) {
     }
 }
 
+// The list splitter of the CLI options, data-set lists and header lines.
+TEST(SplitList, ItemsTrimmedAndEmptyItemsKept) {
+    EXPECT_EQ(splitList("a, b,,c,"), (std::vector<std::string>{"a", "b", "", "c", ""}));
+    EXPECT_EQ(splitList(""), (std::vector<std::string>{""}));
+    EXPECT_EQ(splitList(" \t "), (std::vector<std::string>{""}));
+    EXPECT_EQ(splitList("x\r"), (std::vector<std::string>{"x"}));
+    EXPECT_EQ(splitList(" one item "), (std::vector<std::string>{"one item"}));
+    EXPECT_EQ(splitList("1;2", ';'), (std::vector<std::string>{"1", "2"}));
+    EXPECT_EQ(splitList("1;2"), (std::vector<std::string>{"1;2"}));
+}
+
 }  // namespace
 }  // namespace trbc
