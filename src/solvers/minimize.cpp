@@ -25,23 +25,65 @@ struct Pair {
     double yHy;  ///< y.H0 y (y.y without a preconditioner)
 };
 
+// The L-BFGS correction pairs (s, y), the newest `memory` of them, and the scale of H0.
+class PairMemory {
+public:
+    PairMemory(const MinimizeOptions& opt, const Preconditioner* pre) : opt_(opt), pre_(pre) {}
+    bool empty() const { return pairs_.empty(); }
+    void clear() {
+        pairs_.clear();
+        lastScale_ = 0.0;
+    }
+    void remember(Pair p);
+    Eigen::VectorXd direction(const Eigen::VectorXd& g) const;
+
+private:
+    const MinimizeOptions& opt_;
+    const Preconditioner* pre_;
+    std::deque<Pair> pairs_;
+    double lastScale_ = 0.0;  // y.H0 y / s.y of the last pair that applied the preconditioner
+    int pairsSinceScale_ = 0;
+};
+
+// Adds a pair if its curvature s.y is positive (keeps the L-BFGS matrix positive definite).
+void PairMemory::remember(Pair p) {
+    const double sy = p.s.dot(p.y);
+    if (!(sy > 1e-12 * p.s.norm() * p.y.norm())) return;
+    p.rho = 1.0 / sy;
+    if (pre_ && !opt_.scalePreconditioner) {
+        p.yHy = sy;  // unit scale: rho * yHy = 1 in the two-loop recursion
+    } else if (pre_ && lastScale_ > 0 && ++pairsSinceScale_ < opt_.preconditionerScaleInterval) {
+        p.yHy = sy * lastScale_;
+    } else if (pre_) {
+        Eigen::VectorXd hy = p.y;
+        (*pre_)(hy);
+        p.yHy = p.y.dot(hy);
+        lastScale_ = p.yHy / sy;
+        pairsSinceScale_ = 0;
+    } else {
+        p.yHy = p.y.squaredNorm();
+    }
+    pairs_.push_back(std::move(p));
+    if (static_cast<int>(pairs_.size()) > opt_.memory) pairs_.pop_front();
+}
+
 // Two-loop recursion: d = -H g, H0 = (s.y / y.H0 y) P from the newest pair (P = I without a
 // preconditioner).
-Eigen::VectorXd lbfgsDirection(const std::deque<Pair>& mem, const Eigen::VectorXd& g, const Preconditioner* pre) {
+Eigen::VectorXd PairMemory::direction(const Eigen::VectorXd& g) const {
     Eigen::VectorXd q = -g;
-    std::vector<double> alpha(mem.size());
-    for (int k = static_cast<int>(mem.size()) - 1; k >= 0; --k) {
-        alpha[k] = mem[k].rho * mem[k].s.dot(q);
-        q -= alpha[k] * mem[k].y;
+    std::vector<double> alpha(pairs_.size());
+    for (int k = static_cast<int>(pairs_.size()) - 1; k >= 0; --k) {
+        alpha[k] = pairs_[k].rho * pairs_[k].s.dot(q);
+        q -= alpha[k] * pairs_[k].y;
     }
-    if (pre) (*pre)(q);
-    if (!mem.empty()) {
-        const auto& last = mem.back();
+    if (pre_) (*pre_)(q);
+    if (!pairs_.empty()) {
+        const auto& last = pairs_.back();
         q *= 1.0 / (last.rho * last.yHy);
     }
-    for (std::size_t k = 0; k < mem.size(); ++k) {
-        const double beta = mem[k].rho * mem[k].y.dot(q);
-        q += (alpha[k] - beta) * mem[k].s;
+    for (std::size_t k = 0; k < pairs_.size(); ++k) {
+        const double beta = pairs_[k].rho * pairs_[k].y.dot(q);
+        q += (alpha[k] - beta) * pairs_[k].s;
     }
     return q;
 }
@@ -96,141 +138,111 @@ private:
     Eigen::LDLT<Eigen::MatrixXd> gram_;
 };
 
-}  // namespace
-
-MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& opt,
-                             const EqualityConstraints* constraints, const Preconditioner* pre) {
-    MinimizeResult res;
-    const Eigen::Index n = x.size();
-    Manifold manifold(constraints);
+// The starting point: projected onto the constraints, f and its gradient g evaluated there.
+// Sets the message of `res` and returns false when the point is unusable.
+bool startingPoint(const Objective& f, Manifold& manifold, Eigen::VectorXd& x, Eigen::VectorXd& g, double& fx,
+                   MinimizeResult& res) {
     if (manifold.active() && !manifold.retract(x)) {
         res.message = "the starting point cannot be projected onto the constraints";
-        return res;
+        return false;
     }
-    Eigen::VectorXd g(n), gNew(n), xNew(n), lambda;
-    double fx = f(x, g);
+    fx = f(x, g);
     ++res.evaluations;
     if (!std::isfinite(fx) || !g.allFinite()) {
         res.message = "objective is not finite at the starting point";
         res.energy = fx;
-        return res;
+        return false;
     }
-    // pg: gradient of the Lagrangian f - lambda.c, i.e. the tangent component of g.
-    Eigen::VectorXd pg = g;
-    Eigen::MatrixXd Jx;
-    if (manifold.active()) {
-        Jx = manifold.jacobian();
-        lambda = manifold.multipliers(g);
-        pg -= manifold.jacobian() * lambda;
+    return true;
+}
+
+// The L-BFGS direction projected onto the tangent space, or -pg where that is not a descent
+// direction (the curvature history is then dropped); writes the slope pg.d.
+Eigen::VectorXd descentDirection(PairMemory& mem, const Manifold& manifold, const Eigen::VectorXd& pg,
+                                 double& slope) {
+    Eigen::VectorXd d = mem.direction(pg);
+    if (manifold.active()) manifold.project(d);
+    slope = pg.dot(d);
+    if (!(slope < 0)) {  // not a descent direction: restart from steepest descent
+        mem.clear();
+        d = -pg;
+        slope = -pg.squaredNorm();
     }
-    std::deque<Pair> mem;
-    double lastScale = 0.0;  // y.H0 y / s.y of the last pair that applied the preconditioner
-    int pairsSinceScale = 0;
-    // Adds a pair if its curvature s.y is positive (keeps the L-BFGS matrix positive definite).
-    const auto remember = [&](Pair p) {
-        const double sy = p.s.dot(p.y);
-        if (!(sy > 1e-12 * p.s.norm() * p.y.norm())) return;
-        p.rho = 1.0 / sy;
-        if (pre && !opt.scalePreconditioner) {
-            p.yHy = sy;  // unit scale: rho * yHy = 1 in the two-loop recursion
-        } else if (pre && lastScale > 0 && ++pairsSinceScale < opt.preconditionerScaleInterval) {
-            p.yHy = sy * lastScale;
-        } else if (pre) {
-            Eigen::VectorXd hy = p.y;
-            (*pre)(hy);
-            p.yHy = p.y.dot(hy);
-            lastScale = p.yHy / sy;
-            pairsSinceScale = 0;
-        } else {
-            p.yHy = p.y.squaredNorm();
-        }
-        mem.push_back(std::move(p));
-        if (static_cast<int>(mem.size()) > opt.memory) mem.pop_front();
-    };
+    return d;
+}
+
+// t = 1, or min(1, 1 / |pg|) on the first step or after a restart without a preconditioner, cut to
+// t |d_i| <= maxVertexStep for every vertex i.
+double firstTrialStep(bool unscaled, const Eigen::VectorXd& pg, const Eigen::VectorXd& d, double maxVertexStep) {
+    double t = 1.0;
+    if (unscaled) t = std::min(1.0, 1.0 / pg.norm());
+    if (maxVertexStep > 0) {
+        const double dm = maxVertexNorm(d);
+        if (t * dm > maxVertexStep) t = maxVertexStep / dm;
+    }
+    return t;
+}
+
+struct LineSearchResult {
+    bool accepted = false;
+    double step = 0.0;    ///< t of the accepted trial point
+    double energy = 0.0;  ///< f at the last evaluated trial point (f(x) if none was evaluated)
+};
+
+// Backtracking with Armijo; where energy differences are at round-off level the
+// directional derivative decides (the gradient stays accurate when the energy does not).
+// Constrained: the trial point is retracted onto the manifold first (the manifold state
+// then belongs to the trial point). xNew and gNew hold the last trial point and its gradient.
+LineSearchResult armijoLineSearch(const Objective& f, Manifold& manifold, const Eigen::VectorXd& lambda,
+                                  const Eigen::VectorXd& x, double fx, const Eigen::VectorXd& d, double slope,
+                                  double t, Eigen::VectorXd& xNew, Eigen::VectorXd& gNew, int& evaluations) {
     constexpr double c1 = 1e-4;
     constexpr double eps = std::numeric_limits<double>::epsilon();
-
-    for (res.iterations = 0; res.iterations < opt.maxIterations; ++res.iterations) {
-        res.gradientNorm = maxVertexNorm(pg);
-        if (res.gradientNorm <= opt.gradientTolerance) {
-            res.converged = true;
-            break;
-        }
-        if (opt.interruptCheck) opt.interruptCheck();
-        if (deadlinePassed(opt.deadline)) {
-            res.message = fmt::format("time limit reached after {} iterations, gradient norm {:.3g} > {:.3g}",
-                                      res.iterations, res.gradientNorm, opt.gradientTolerance);
-            break;
-        }
-        Eigen::VectorXd d = lbfgsDirection(mem, pg, pre);
-        if (manifold.active()) manifold.project(d);
-        double slope = pg.dot(d);
-        if (!(slope < 0)) {  // not a descent direction: restart from steepest descent
-            mem.clear();
-            lastScale = 0.0;
-            d = -pg;
-            slope = -pg.squaredNorm();
-        }
-        double t = 1.0;
-        if (mem.empty() && !pre) t = std::min(1.0, 1.0 / pg.norm());  // first step or restart
-        if (opt.maxVertexStep > 0) {
-            const double dm = maxVertexNorm(d);
-            if (t * dm > opt.maxVertexStep) t = opt.maxVertexStep / dm;
-        }
-
-        // Backtracking with Armijo; where energy differences are at round-off level the
-        // directional derivative decides (the gradient stays accurate when the energy does not).
-        // Constrained: the trial point is retracted onto the manifold first (the manifold state
-        // then belongs to the trial point).
-        bool accepted = false;
-        double fNew = fx;
-        const double merit = manifold.active() ? fx - lambda.dot(manifold.values()) : fx;
-        for (int ls = 0; ls < 40; ++ls) {
-            xNew = x + t * d;
-            if (!manifold.active() || manifold.retract(xNew)) {
-                fNew = f(xNew, gNew);
-                ++res.evaluations;
-                // Merit: the Lagrangian f - lambda.c, blind to the retraction's residual c.
-                const double meritNew = manifold.active() ? fNew - lambda.dot(manifold.values()) : fNew;
-                if (std::isfinite(fNew) && gNew.allFinite()) {
-                    const double noise = 100.0 * eps * std::abs(fx);
-                    if (meritNew <= merit + c1 * t * slope)
-                        accepted = true;
-                    else if (std::abs(fNew - fx) <= noise && std::abs(gNew.dot(d)) <= 0.9 * std::abs(slope))
-                        accepted = true;
-                }
+    bool accepted = false;
+    double fNew = fx;
+    const double merit = manifold.active() ? fx - lambda.dot(manifold.values()) : fx;
+    for (int ls = 0; ls < 40; ++ls) {
+        xNew = x + t * d;
+        if (!manifold.active() || manifold.retract(xNew)) {
+            fNew = f(xNew, gNew);
+            ++evaluations;
+            // Merit: the Lagrangian f - lambda.c, blind to the retraction's residual c.
+            const double meritNew = manifold.active() ? fNew - lambda.dot(manifold.values()) : fNew;
+            if (std::isfinite(fNew) && gNew.allFinite()) {
+                const double noise = 100.0 * eps * std::abs(fx);
+                if (meritNew <= merit + c1 * t * slope)
+                    accepted = true;
+                else if (std::abs(fNew - fx) <= noise && std::abs(gNew.dot(d)) <= 0.9 * std::abs(slope))
+                    accepted = true;
             }
-            if (accepted) break;
-            t *= (ls < 2 ? 0.5 : 0.25);
         }
-        if (!accepted) {
-            if (manifold.active()) manifold.at(x);
-            if (!mem.empty()) {  // drop the curvature history and retry along the steepest descent
-                mem.clear();
-                lastScale = 0.0;
-                continue;
-            }
-            res.message = fmt::format("line search failed along the steepest-descent direction "
-                                      "(gradient norm {:.3g}, energy round-off reached)", res.gradientNorm);
-            break;
-        }
-        // y = grad L(xNew, lambdaNew) - grad L(x, lambdaNew): the Lagrangian's curvature.
-        Pair p{xNew - x, gNew - g, 0.0, 0.0};
-        Eigen::VectorXd pgNew = gNew;
-        if (manifold.active()) {
-            // The manifold state is at xNew (last retraction); Jx is J(x).
-            const Eigen::VectorXd lambdaNew = manifold.multipliers(gNew);
-            pgNew -= manifold.jacobian() * lambdaNew;
-            p.y += (Jx - manifold.jacobian()) * lambdaNew;
-            Jx = manifold.jacobian();
-            lambda = lambdaNew;
-        }
-        remember(std::move(p));
-        x.swap(xNew);
-        g.swap(gNew);
-        pg.swap(pgNew);
-        fx = fNew;
+        if (accepted) break;
+        t *= (ls < 2 ? 0.5 : 0.25);
     }
+    return {accepted, t, fNew};
+}
+
+// The pair (s, y) of an accepted step x -> xNew, with y = grad L(xNew, lambdaNew) - grad L(x, lambdaNew):
+// the Lagrangian's curvature. Writes pgNew, the tangent component of gNew; Jx and lambda move on to xNew.
+Pair curvaturePair(const Manifold& manifold, const Eigen::VectorXd& x, const Eigen::VectorXd& xNew,
+                   const Eigen::VectorXd& g, const Eigen::VectorXd& gNew, Eigen::MatrixXd& Jx,
+                   Eigen::VectorXd& lambda, Eigen::VectorXd& pgNew) {
+    Pair p{xNew - x, gNew - g, 0.0, 0.0};
+    pgNew = gNew;
+    if (manifold.active()) {
+        // The manifold state is at xNew (last retraction); Jx is J(x).
+        const Eigen::VectorXd lambdaNew = manifold.multipliers(gNew);
+        pgNew -= manifold.jacobian() * lambdaNew;
+        p.y += (Jx - manifold.jacobian()) * lambdaNew;
+        Jx = manifold.jacobian();
+        lambda = lambdaNew;
+    }
+    return p;
+}
+
+// Energy, gradient norm, multipliers, constraint error and message at the returned point.
+void finishResult(MinimizeResult& res, double fx, const Eigen::VectorXd& pg, const Manifold& manifold,
+                  const Eigen::VectorXd& lambda, const MinimizeOptions& opt) {
     res.energy = fx;
     res.gradientNorm = maxVertexNorm(pg);
     if (manifold.active()) {
@@ -243,6 +255,62 @@ MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const Minim
     else if (res.message.empty())
         res.message = fmt::format("reached the iteration limit ({}) with gradient norm {:.3g} > {:.3g}",
                                   opt.maxIterations, res.gradientNorm, opt.gradientTolerance);
+}
+
+}  // namespace
+
+MinimizeResult lbfgsMinimize(const Objective& f, Eigen::VectorXd& x, const MinimizeOptions& opt,
+                             const EqualityConstraints* constraints, const Preconditioner* pre) {
+    MinimizeResult res;
+    const Eigen::Index n = x.size();
+    Manifold manifold(constraints);
+    Eigen::VectorXd g(n), gNew(n), xNew(n), lambda;
+    double fx = 0.0;
+    if (!startingPoint(f, manifold, x, g, fx, res)) return res;
+    // pg: gradient of the Lagrangian f - lambda.c, i.e. the tangent component of g.
+    Eigen::VectorXd pg = g;
+    Eigen::MatrixXd Jx;
+    if (manifold.active()) {
+        Jx = manifold.jacobian();
+        lambda = manifold.multipliers(g);
+        pg -= manifold.jacobian() * lambda;
+    }
+    PairMemory mem(opt, pre);
+    for (res.iterations = 0; res.iterations < opt.maxIterations; ++res.iterations) {
+        res.gradientNorm = maxVertexNorm(pg);
+        if (res.gradientNorm <= opt.gradientTolerance) {
+            res.converged = true;
+            break;
+        }
+        if (opt.interruptCheck) opt.interruptCheck();
+        if (deadlinePassed(opt.deadline)) {
+            res.message = fmt::format("time limit reached after {} iterations, gradient norm {:.3g} > {:.3g}",
+                                      res.iterations, res.gradientNorm, opt.gradientTolerance);
+            break;
+        }
+        double slope = 0.0;
+        const Eigen::VectorXd d = descentDirection(mem, manifold, pg, slope);
+        const double t = firstTrialStep(mem.empty() && !pre, pg, d, opt.maxVertexStep);
+        const LineSearchResult step =
+            armijoLineSearch(f, manifold, lambda, x, fx, d, slope, t, xNew, gNew, res.evaluations);
+        if (!step.accepted) {
+            if (manifold.active()) manifold.at(x);
+            if (!mem.empty()) {  // drop the curvature history and retry along the steepest descent
+                mem.clear();
+                continue;
+            }
+            res.message = fmt::format("line search failed along the steepest-descent direction "
+                                      "(gradient norm {:.3g}, energy round-off reached)", res.gradientNorm);
+            break;
+        }
+        Eigen::VectorXd pgNew;
+        mem.remember(curvaturePair(manifold, x, xNew, g, gNew, Jx, lambda, pgNew));
+        x.swap(xNew);
+        g.swap(gNew);
+        pg.swap(pgNew);
+        fx = step.energy;
+    }
+    finishResult(res, fx, pg, manifold, lambda, opt);
     return res;
 }
 
