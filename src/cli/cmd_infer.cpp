@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
 #include <memory>
 
@@ -13,8 +12,6 @@
 #include "core/output_dir.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
-#include "core/file_io.hpp"
-#include "core/hash.hpp"
 #include "core/version.hpp"
 #include "analysis/flow_data_sets.hpp"
 #include "inference/rbc_pipeline.hpp"
@@ -172,29 +169,6 @@ RbcInferenceOptions inferenceOptions(const InferCommandOptions& o) {
     return opt;
 }
 
-/// The flow networks as the likelihood sees them: their two networks, their cytosol and inputs
-/// (flow_surrogate.json) and the errors of training.json.
-std::string flowModelFingerprint(const std::filesystem::path& dir) {
-    return fingerprintOf({fileFingerprint(dir / "flow_regime.json"), fileFingerprint(dir / "flow_tank_treading.json"),
-                          fileFingerprint(dir / "flow_surrogate.json"), fileFingerprint(dir / "training.json")});
-}
-
-/// Phases 2-3 and --resume reuse phase-1 posteriors: they must have been made with this box, and a
-/// flow set's with these flow networks (`flow_model`, present only when flow sets are chosen, so
-/// that single-cell runs keep their record). Phase 1 records it.
-void checkPhase1PriorBox(const InferCommandOptions& o, const RbcInferenceOptions& opt, const nlohmann::json& box) {
-    const std::filesystem::path file = std::filesystem::path(o.out) / kPhase1PriorBoxFile;
-    if ((o.resume || opt.firstPhase > 1) && std::filesystem::exists(file)) {
-        std::ifstream in(file);
-        const nlohmann::json previous = nlohmann::json::parse(in, nullptr, false);
-        if (previous != box)
-            throw InputError(fmt::format("{}: the phase-1 posteriors in {} were made with the prior box (and flow networks) {}, "
-                                         "not {}; give the same --prior (and --datasets, --flow-model) or use another --out",
-                                         file.string(), o.out, previous.dump(), box.dump()));
-    }
-    if (opt.firstPhase == 1) writeFileAtomically(file, box.dump(1) + "\n");
-}
-
 void printInferSummary(const InferCommandOptions& o, const RbcInferenceResult& r) {
     std::cout << fmt::format("trbc infer: phases {} in {:.1f} s with {} thread(s)\n", o.phase, r.wallSeconds, o.threads);
     for (int ph = 0; ph < 3; ++ph) {
@@ -253,8 +227,8 @@ void runInfer(const InferCommandOptions& o) {
     ensureWritableDirectory(o.out);
     const nlohmann::json boxJson = priorBoxJson(box);
     nlohmann::json phase1Record = boxJson;
-    if (anyFlow) phase1Record["flow_model"] = flowModelFingerprint(flowDir);
-    checkPhase1PriorBox(o, opt, phase1Record);
+    if (anyFlow) phase1Record["flow_model"] = FlowSurrogate::fingerprint(flowDir);
+    checkPhase1Record(o.out, phase1Record, o.resume || opt.firstPhase > 1, opt.firstPhase == 1);
     opt.provenance = {{"command", commandLine()},
                       {"model", {{"dir", std::filesystem::absolute(modelDir).lexically_normal().string()},
                                  {"precision", o.single ? "single" : "double"},

@@ -39,6 +39,19 @@ nlohmann::json priorBoxJson(const RbcPriorBox& box) {
     return j;
 }
 
+void checkPhase1Record(const std::filesystem::path& out, const nlohmann::json& record, bool reuses, bool writes) {
+    const std::filesystem::path file = out / kPhase1PriorBoxFile;
+    if (reuses && std::filesystem::exists(file)) {
+        std::ifstream in(file);
+        const nlohmann::json previous = nlohmann::json::parse(in, nullptr, false);
+        if (previous != record)
+            throw InputError(fmt::format("{}: the phase-1 posteriors in {} were made with the prior box (and flow networks) {}, "
+                                         "not {}; give the same --prior (and --datasets, --flow-model) or use another --out",
+                                         file.string(), out.string(), previous.dump(), record.dump()));
+    }
+    if (writes) writeFileAtomically(file, record.dump(1) + "\n");
+}
+
 namespace detail {
 
 Eigen::MatrixXd physicalSamples(const Posterior& p, const Eigen::MatrixXd& s, std::vector<std::string>& names) {

@@ -123,6 +123,11 @@ void writePosteriorStats(const std::filesystem::path& file, const std::vector<Po
 inline constexpr const char* kPhase1PriorBoxFile = "phase1_prior_box.json";
 /// {"<parameter>": [lo, hi]} in physical units, for every parameter of the box.
 nlohmann::json priorBoxJson(const RbcPriorBox& box);
+/// The phase-1 posteriors in `out` are reused (`reuses`: phases 2-3, or a resumed phase 1) only if
+/// they were made with the same `record` (priorBoxJson, with "flow_model", the flow networks'
+/// fingerprint, when flow sets are chosen): InputError naming both otherwise. `writes`: phase 1
+/// runs and records it in out/kPhase1PriorBoxFile.
+void checkPhase1Record(const std::filesystem::path& out, const nlohmann::json& record, bool reuses, bool writes);
 
 /// Seed of one run: splitmix64(seed ^ FNV-1a(name)).
 std::uint64_t rbcRunSeed(std::uint64_t seed, const std::string& runName);

@@ -340,6 +340,11 @@ std::string flowSurrogateProtocol(const FlowSurrogate& s) {
     return s.start == "random" ? "ensemble" : s.start == "in-plane" ? "in-plane" : "not recorded";
 }
 
+std::string FlowSurrogate::fingerprint(const fs::path& dir) {
+    return fingerprintOf({fileFingerprint(dir / "flow_regime.json"), fileFingerprint(dir / "flow_tank_treading.json"),
+                          fileFingerprint(dir / "flow_surrogate.json"), fileFingerprint(dir / "training.json")});
+}
+
 FlowSurrogate FlowSurrogate::load(const fs::path& dir) {
     FlowSurrogate s;
     s.regime = loadNetwork((dir / "flow_regime.json").string());

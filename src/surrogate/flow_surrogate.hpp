@@ -82,6 +82,9 @@ struct FlowSurrogate {
 
     /// Reads the files of `dir`; InputError naming the file when one is missing or bad.
     static FlowSurrogate load(const std::filesystem::path& dir);
+    /// The networks of `dir` as a likelihood sees them: fingerprintOf the two networks, their
+    /// cytosol and inputs (flow_surrogate.json) and the errors of training.json.
+    static std::string fingerprint(const std::filesystem::path& dir);
     void save(const std::filesystem::path& dir) const;
 
     /// x: 7 x n physical inputs (flowSurrogateInputNames), etaIn: the cytosol viscosity of each

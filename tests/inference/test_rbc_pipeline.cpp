@@ -879,5 +879,26 @@ TEST(RbcPriorBox, JsonNamesEveryParameterWithItsBounds) {
     EXPECT_EQ(j["b2"], nlohmann::json({lo, hi}));
 }
 
+// Reused phase-1 posteriors must have been made with the same record (prior box, flow networks);
+// phase 1 writes it.
+TEST(RbcPriorBox, PhaseOneRecordIsWrittenByPhaseOneAndCheckedOnReuse) {
+    test::TempDir tmp;
+    const nlohmann::json box = priorBoxJson(RbcPriorBox{});
+    nlohmann::json withFlow = box;
+    withFlow["flow_model"] = "0123abcd";
+    checkPhase1Record(tmp.path(), withFlow, false, false);
+    EXPECT_FALSE(std::filesystem::exists(tmp.path() / kPhase1PriorBoxFile));
+    checkPhase1Record(tmp.path(), box, true, false);  // nothing recorded yet: nothing to compare
+    checkPhase1Record(tmp.path(), withFlow, false, true);
+    ASSERT_TRUE(std::filesystem::exists(tmp.path() / kPhase1PriorBoxFile));
+    checkPhase1Record(tmp.path(), withFlow, true, false);
+    expectInputError([&] { checkPhase1Record(tmp.path(), box, true, false); },
+                     {kPhase1PriorBoxFile, "0123abcd", "--flow-model"});
+    nlohmann::json otherNetworks = withFlow;
+    otherNetworks["flow_model"] = "fedc9876";
+    expectInputError([&] { checkPhase1Record(tmp.path(), otherNetworks, true, true); }, {"fedc9876"});
+    checkPhase1Record(tmp.path(), otherNetworks, false, false);  // a fresh phase 1 elsewhere compares nothing
+}
+
 }  // namespace
 }  // namespace trbc
