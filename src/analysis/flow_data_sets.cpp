@@ -169,14 +169,16 @@ std::string dataSetSummary(const RbcDataSet& d) {
 
 std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell,
                                        const std::vector<RbcDataSet>& flow) {
-    if (spec == "paper") return singleCell;
+    const std::vector<std::string> items = splitList(spec);
+    const bool one = items.size() == 1;
+    if (one && items[0] == "paper") return singleCell;
     std::vector<RbcDataSet> all = singleCell;
     all.insert(all.end(), flow.begin(), flow.end());
-    if (spec == "all") return all;
+    if (one && items[0] == "all") return all;
     std::vector<std::string> names;
     for (const RbcDataSet& d : all) names.push_back(d.name);
     std::vector<RbcDataSet> chosen;
-    for (const std::string& name : splitList(spec)) {
+    for (const std::string& name : items) {
         const auto it = std::find(names.begin(), names.end(), name);
         if (it == names.end())
             throw InputError(fmt::format("--datasets: '{}' is not a data set; give paper, all, list or names from: {}", name,
@@ -189,9 +191,10 @@ std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vecto
 }
 
 bool selectsFlowDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell) {
-    if (spec == "paper") return false;
-    if (spec == "all" || spec == "list") return true;
-    for (const std::string& name : splitList(spec))
+    const std::vector<std::string> items = splitList(spec);
+    if (items.size() == 1 && items[0] == "paper") return false;
+    if (items.size() == 1 && (items[0] == "all" || items[0] == "list")) return true;
+    for (const std::string& name : items)
         if (std::none_of(singleCell.begin(), singleCell.end(), [&](const RbcDataSet& d) { return d.name == name; })) return true;
     return false;
 }

@@ -9,7 +9,6 @@
 #include <map>
 #include <numeric>
 #include <random>
-#include <sstream>
 
 #include "core/csv.hpp"
 #include "core/error.hpp"

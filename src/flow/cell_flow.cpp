@@ -435,7 +435,7 @@ private:
         ++res_.steps;
         const double tOld = state_.t;
         state_.t = step.end;
-        const CellFlowStepRecord& rec = logStep(step.h, err, s, areaCorrection, volumeCorrection);
+        const CellFlowStepRecord rec = logStep(step.h, err, s, areaCorrection, volumeCorrection);
         // Frames in (tOld, t]: BDF2's dense output.
         for (; bdf2::covers(state_.t, frameTime(state_.nextFrame)); ++state_.nextFrame)
             recordFrame(frameTime(state_.nextFrame),

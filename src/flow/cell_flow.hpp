@@ -213,7 +213,7 @@ struct CellFlowOptions {
     /// products from level 3 on cost 0.39x, the operators change by ~1e-7 of their size.
     QuadratureOptions quadrature{.singlePrecisionFar = true};
     double maxDrift = 0.05;          ///< |A/A0 - 1| or |V/V0 - 1| beyond this: diverged
-    bool preconditioner = true;      ///< right preconditioner P = I + c B M^-1 Gamma (cell_flow.cpp)
+    bool preconditioner = true;      ///< right preconditioner P = I + c B M^-1 Gamma (flow/coupled_system.hpp)
     /// With the preconditioner: the tension and flux multipliers eliminated through their 2 x 2
     /// Schur complement (false: left unpreconditioned; 1.6x the GMRES iterations at level 3).
     bool eliminateMultipliers = true;

@@ -185,7 +185,6 @@ double firstTrialStep(bool unscaled, const Eigen::VectorXd& pg, const Eigen::Vec
 
 struct LineSearchResult {
     bool accepted = false;
-    double step = 0.0;    ///< t of the accepted trial point
     double energy = 0.0;  ///< f at the last evaluated trial point (f(x) if none was evaluated)
 };
 
@@ -219,7 +218,7 @@ LineSearchResult armijoLineSearch(const Objective& f, Manifold& manifold, const 
         if (accepted) break;
         t *= (ls < 2 ? 0.5 : 0.25);
     }
-    return {accepted, t, fNew};
+    return {accepted, fNew};
 }
 
 // The pair (s, y) of an accepted step x -> xNew, with y = grad L(xNew, lambdaNew) - grad L(x, lambdaNew):
