@@ -121,7 +121,7 @@ struct RbcModel {
 /// Time and evaluations spent in the forward model (accumulated by timedModel).
 struct ModelTimer {
     double seconds = 0.0;
-    long long evaluations = 0;  ///< network evaluations (columns)
+    long long evaluations = 0;  ///< cells evaluated (columns); a critical stress, a bisection over the networks, counts once
 };
 
 /// The surrogate as an RbcModel (the surrogate object is shared, not copied).
