@@ -430,28 +430,13 @@ def plot_relaxation(sim, d, sets, out):
             sim_ok = False
     if sim_ok:
         rf = sim.get("relaxation_fit") or {}
-        tc, z0, zinf = num(rf, "tc_s"), num(rf, "z0"), num(rf, "zinf")
-        if tc is None:
-            tc = num(sim.get("observables") or {}, "tc_s")
-        if z0 is None:
-            z0 = float(z_sim[0])
-        if tc is not None and zinf is not None and tc > 0 and z0 != zinf:
-            # the law is autonomous with z(t0) = z0, t0 = the first sample of the fit: trbc simulate
-            # fits from the first sample after release (t = 0 is the release itself), so t0 is the
-            # time of the first sample whose z is z0 (relaxation.csv keeps 10 significant digits)
-            k = np.flatnonzero(np.abs(z_sim - z0) <= 1e-8 * abs(z0))
-            if k.size == 0:
-                note("relaxation_fit z0 matches no sample of relaxation.csv; its time taken as the first sample's")
-            sfit = {"tc": tc, "zinf": zinf, "z0": z0, "t0": float(t_sim[k[0] if k.size else 0]),
-                    "src": "simulate.json"}
+        fit = {k: num(rf, key) for k, key in (("tc", "tc_s"), ("zinf", "zinf"), ("z0", "z0"), ("t0", "t0_s"))}
+        if all(v is not None for v in fit.values()) and fit["tc"] > 0 and fit["z0"] != fit["zinf"]:
+            sfit = fit
         else:
-            note("relaxation_fit incomplete in simulate.json; fitting the simulated z(t) here")
-            # as trbc simulate does: from the first sample after release (t = 0 is the release)
-            first = 1 if t_sim[0] == 0.0 and t_sim.size > 3 else 0
-            f = fit_hochmuth(t_sim[first:], z_sim[first:], rel_path)
-            if f is not None:
-                f["src"] = "refit with trbc.fit_hochmuth"
-                sfit = f
+            # The fit is trbc simulate's (its samples, its start t0_s); none is made here.
+            note("relaxation_fit incomplete in simulate.json (tc_s, zinf, z0, t0_s); the simulated z(t) is drawn "
+                 "without its fit")
 
     cells = []
     relaxation = [s for s in sets if s.experiment == "relaxation"]
@@ -481,8 +466,7 @@ def plot_relaxation(sim, d, sets, out):
             tt = np.linspace(t_sim[0], t_sim.max(), 400)
             axz.plot(tt, hochmuth(tt - sfit["t0"], sfit["tc"], sfit["zinf"], sfit["z0"]),
                      color=C_SIM, lw=1.4, zorder=5,
-                     label=(rf"Hochmuth fit: $t_c$ = {sfit['tc']:.3g} s, $z_\infty$ = {sfit['zinf']:.3g}"
-                            + ("" if sfit["src"] == "simulate.json" else f" ({sfit['src']})")))
+                     label=rf"Hochmuth fit: $t_c$ = {sfit['tc']:.3g} s, $z_\infty$ = {sfit['zinf']:.3g}")
     for (name, t, z, f), col in zip(cells, cycle(C_CELLS)):
         axz.plot(t, z, ls="none", marker="^", ms=4, color=col, alpha=0.85, zorder=3, label=name)
         if f is not None:

@@ -82,6 +82,7 @@ HochmuthFit fitHochmuth(const std::vector<double>& t, const std::vector<double>&
 
     HochmuthFit fit;
     fit.z0 = z[0];
+    fit.t0 = t[0];
     Eigen::Vector2d p(std::log(tcGuess), zInfGuess);
     Eigen::VectorXd r, rTrial;
     Eigen::MatrixXd J;

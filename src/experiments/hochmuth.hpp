@@ -7,6 +7,7 @@ namespace trbc {
 
 struct HochmuthFit {
     double tc = 0, zInf = 0, z0 = 0;  ///< tc in the units of t
+    double t0 = 0;                    ///< the time of the first sample, where z = z0 (elapsed time t - t0)
     bool converged = false;
     int iterations = 0;
     double rms = 0;                   ///< sqrt(mean_k (z(t_k) - z_k)^2) at the returned parameters

@@ -152,8 +152,9 @@ nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level,
         obs["tc_s"] = r.fit.tc;
         j["relaxation_fit"] = {{"law", "z = L/W (largest over second-largest extent; relaxation.csv); Hochmuth fit z(t) = zinf "
                                        "(Lambda + exp(-t/tc)) / (Lambda - exp(-t/tc)), Lambda = (z0 + zinf) / (z0 - zinf), z0 "
-                                       "= z at the first sample; rms = root-mean-square residual of z"},
-                               {"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
+                                       "= z at the first sample of the fit, t0_s its time (the first sample after release); rms = "
+                                       "root-mean-square residual of z"},
+                               {"tc_s", r.fit.tc}, {"z0", r.fit.z0}, {"t0_s", r.fit.t0}, {"zinf", r.fit.zInf}, {"rms", r.fit.rms},
                                {"pre_stretch_force_pN", r.preStretchForce}};
         diag["relaxation"] = {{"pre_stretch", staticSolverJson(r.preStretch)},
                               {"converged", r.dynamics.converged},

@@ -379,7 +379,7 @@ py::dict fitHochmuthArrays(const RowArray& t, const RowArray& z, std::optional<d
         throw InputError("zinf_guess needs tc_guess_s as well");
     else
         f = fitHochmuth(tv, zv);
-    return py::dict("tc_s"_a = f.tc, "zinf"_a = f.zInf, "z0"_a = f.z0, "t0_s"_a = tv.front(), "rms"_a = f.rms,
+    return py::dict("tc_s"_a = f.tc, "zinf"_a = f.zInf, "z0"_a = f.z0, "t0_s"_a = f.t0, "rms"_a = f.rms,
                     "converged"_a = f.converged, "iterations"_a = f.iterations, "message"_a = f.message);
 }
 

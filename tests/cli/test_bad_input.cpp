@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "core/csv.hpp"
 #include "test_support.hpp"
 
 namespace trbc {
@@ -349,12 +350,22 @@ TEST(BadInput, MessagesAndOutputsSayWhatTheirNumbersMean) {
     EXPECT_TRUE(contains(r.err, "a tube of --radius 1.5 um")) << r.err;
     EXPECT_FALSE(contains(r.err, "R_A")) << r.err;
     // The relaxation fit's z, z0, zinf and rms are explained next to them.
-    r = runTrbc("simulate --level 2 --experiments relax" + cache, tmp.path());
+    const fs::path shapes = tmp.path() / "shapes";
+    r = runTrbc("simulate --level 2 --experiments relax --save-shapes " + shapes.string() + cache, tmp.path());
     ASSERT_EQ(r.status, 0) << r.err;
     const auto j = nlohmann::json::parse(r.out);
     const std::string law = j["relaxation_fit"]["law"];
-    for (const char* term : {"z = L/W", "z0 = z at the first sample", "zinf", "rms = root-mean-square residual"})
+    for (const char* term : {"z = L/W", "z0 = z at the first sample", "t0_s its time", "zinf", "rms = root-mean-square residual"})
         EXPECT_TRUE(contains(law, term)) << term;
+    // The fit starts at the first sample after release (t = 0), where z = z0: relaxation.csv's second row.
+    const std::vector<std::vector<std::string>> rows = readCsvRecords(shapes / "relaxation.csv");
+    ASSERT_GT(rows.size(), 3u);
+    const int tCol = columnOf(rows[0], "t_s"), zCol = columnOf(rows[0], "z");
+    ASSERT_TRUE(tCol >= 0 && zCol >= 0);
+    EXPECT_EQ(std::stod(rows[1][static_cast<std::size_t>(tCol)]), 0.0);
+    const double t0 = j["relaxation_fit"]["t0_s"], z0 = j["relaxation_fit"]["z0"];
+    EXPECT_NEAR(t0, std::stod(rows[2][static_cast<std::size_t>(tCol)]), 1e-9 * t0);
+    EXPECT_NEAR(z0, std::stod(rows[2][static_cast<std::size_t>(zCol)]), 1e-9 * z0);
     // coverage.csv's x and y are explained in coverage.md.
     const fs::path inf = tmp.path() / "inference", pred = tmp.path() / "predict";
     ASSERT_EQ(runTrbc("infer --phase 1 --samples 100 --quiet --out " + inf.string(), tmp.path()).status, 0);
