@@ -209,8 +209,9 @@ void runInfer(const InferCommandOptions& o) {
                                          "networks (--flow-model): {}", o.datasets, e.what()));
         }
     }
-    if (o.datasets != "list" && o.out.empty()) throw InputError("infer: --out is required");
-    if (o.datasets == "list") {
+    const bool listOnly = splitList(o.datasets) == std::vector<std::string>{"list"};
+    if (!listOnly && o.out.empty()) throw InputError("infer: --out is required");
+    if (listOnly) {
         for (const RbcDataSet& d : singleCell) std::cout << dataSetSummary(d) << '\n';
         for (const RbcDataSet& d : flow) std::cout << dataSetSummary(d) << '\n';
         return;

@@ -1,5 +1,5 @@
 // Writers and readers of the files of `trbc infer` (posterior_store.hpp), and the public
-// writePosteriorStats and priorBoxJson of rbc_pipeline.hpp.
+// writePosteriorStats, priorBoxJson and checkPhase1Record of rbc_pipeline.hpp.
 #include "inference/posterior_store.hpp"
 
 #include <fmt/format.h>

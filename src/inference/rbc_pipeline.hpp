@@ -118,8 +118,8 @@ std::vector<PosteriorStatsRow> posteriorStatsRows(const std::string& posterior, 
                                                   const Eigen::VectorXd& logPrior, int chains = 1);
 void writePosteriorStats(const std::filesystem::path& file, const std::vector<PosteriorStatsRow>& rows);
 
-/// DIR/phase1_prior_box.json: the prior box of the phase-1 posteriors in DIR, which phases 2-3 and
-/// a resumed phase 1 must share.
+/// DIR/phase1_prior_box.json: the prior box of the phase-1 posteriors in DIR (and the flow networks'
+/// fingerprint when flow sets are chosen), which phases 2-3 and a resumed phase 1 must share.
 inline constexpr const char* kPhase1PriorBoxFile = "phase1_prior_box.json";
 /// {"<parameter>": [lo, hi]} in physical units, for every parameter of the box.
 nlohmann::json priorBoxJson(const RbcPriorBox& box);

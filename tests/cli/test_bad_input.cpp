@@ -349,7 +349,7 @@ TEST(BadInput, MessagesAndOutputsSayWhatTheirNumbersMean) {
     EXPECT_EQ(r.status, 3) << r.err;
     EXPECT_TRUE(contains(r.err, "a tube of --radius 1.5 um")) << r.err;
     EXPECT_FALSE(contains(r.err, "R_A")) << r.err;
-    // The relaxation fit's z, z0, zinf and rms are explained next to them.
+    // The relaxation fit's z, z0, t0_s, zinf and rms are explained next to them.
     const fs::path shapes = tmp.path() / "shapes";
     r = runTrbc("simulate --level 2 --experiments relax --save-shapes " + shapes.string() + cache, tmp.path());
     ASSERT_EQ(r.status, 0) << r.err;

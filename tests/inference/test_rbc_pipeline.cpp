@@ -897,7 +897,9 @@ TEST(RbcPriorBox, PhaseOneRecordIsWrittenByPhaseOneAndCheckedOnReuse) {
     nlohmann::json otherNetworks = withFlow;
     otherNetworks["flow_model"] = "fedc9876";
     expectInputError([&] { checkPhase1Record(tmp.path(), otherNetworks, true, true); }, {"fedc9876"});
-    checkPhase1Record(tmp.path(), otherNetworks, false, false);  // a fresh phase 1 elsewhere compares nothing
+    EXPECT_EQ(nlohmann::json::parse(test::slurp(tmp.path() / kPhase1PriorBoxFile)), withFlow);  // compared before written
+    checkPhase1Record(tmp.path(), otherNetworks, false, true);  // a fresh phase 1 replaces the record
+    EXPECT_EQ(nlohmann::json::parse(test::slurp(tmp.path() / kPhase1PriorBoxFile)), otherNetworks);
 }
 
 }  // namespace
