@@ -167,36 +167,49 @@ std::string dataSetSummary(const RbcDataSet& d) {
     return d.name;
 }
 
-std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell,
-                                       const std::vector<RbcDataSet>& flow) {
+DataSetChoice DataSetChoice::parse(const std::string& spec) {
     const std::vector<std::string> items = splitList(spec);
-    const bool one = items.size() == 1;
-    if (one && items[0] == "paper") return singleCell;
-    std::vector<RbcDataSet> all = singleCell;
-    all.insert(all.end(), flow.begin(), flow.end());
-    if (one && items[0] == "all") return all;
-    std::vector<std::string> names;
-    for (const RbcDataSet& d : all) names.push_back(d.name);
-    std::vector<RbcDataSet> chosen;
+    DataSetChoice c;
+    if (items.size() == 1 && items[0] == "paper") return c;
+    if (items.size() == 1 && items[0] == "all") return c.kind = Kind::All, c;
+    if (items.size() == 1 && items[0] == "list") return c.kind = Kind::List, c;
+    c.kind = Kind::Names;
     for (const std::string& name : items) {
-        const auto it = std::find(names.begin(), names.end(), name);
-        if (it == names.end())
-            throw InputError(fmt::format("--datasets: '{}' is not a data set; give paper, all, list or names from: {}", name,
-                                         fmt::join(names, ", ")));
-        for (const RbcDataSet& c : chosen)
-            if (c.name == name) throw InputError(fmt::format("--datasets: '{}' is given twice", name));
-        chosen.push_back(all[static_cast<std::size_t>(it - names.begin())]);
+        if (name.empty()) throw InputError(fmt::format("--datasets '{}': an empty name; give paper, all, list or names separated by commas", spec));
+        if (name == "paper" || name == "all" || name == "list")
+            throw InputError(fmt::format("--datasets '{}': the keyword '{}' stands alone, not in a list of names", spec, name));
+        if (std::find(c.names.begin(), c.names.end(), name) != c.names.end())
+            throw InputError(fmt::format("--datasets: '{}' is given twice", name));
+        c.names.push_back(name);
     }
-    return chosen;
+    return c;
 }
 
-bool selectsFlowDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell) {
-    const std::vector<std::string> items = splitList(spec);
-    if (items.size() == 1 && items[0] == "paper") return false;
-    if (items.size() == 1 && (items[0] == "all" || items[0] == "list")) return true;
-    for (const std::string& name : items)
-        if (std::none_of(singleCell.begin(), singleCell.end(), [&](const RbcDataSet& d) { return d.name == name; })) return true;
-    return false;
+bool DataSetChoice::mayChooseFlow(const std::vector<RbcDataSet>& singleCell) const {
+    if (kind != Kind::Names) return kind != Kind::Paper;
+    return std::any_of(names.begin(), names.end(), [&](const std::string& name) {
+        return std::none_of(singleCell.begin(), singleCell.end(), [&](const RbcDataSet& d) { return d.name == name; });
+    });
+}
+
+std::vector<RbcDataSet> selectDataSets(const DataSetChoice& choice, const std::vector<RbcDataSet>& singleCell,
+                                       const std::vector<RbcDataSet>& flow) {
+    if (choice.kind == DataSetChoice::Kind::Paper) return singleCell;
+    std::vector<RbcDataSet> all = singleCell;
+    all.insert(all.end(), flow.begin(), flow.end());
+    if (choice.kind != DataSetChoice::Kind::Names) return all;
+    std::vector<RbcDataSet> chosen;
+    for (const std::string& name : choice.names) {
+        const auto it = std::find_if(all.begin(), all.end(), [&](const RbcDataSet& d) { return d.name == name; });
+        if (it == all.end()) {
+            std::vector<std::string> names;
+            for (const RbcDataSet& d : all) names.push_back(d.name);
+            throw InputError(fmt::format("--datasets: '{}' is not a data set; give paper, all, list or names from: {}", name,
+                                         fmt::join(names, ", ")));
+        }
+        chosen.push_back(*it);
+    }
+    return chosen;
 }
 
 }  // namespace trbc

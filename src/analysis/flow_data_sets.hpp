@@ -43,14 +43,24 @@ std::vector<FlowDataSet> flowDataSets(const std::filesystem::path& validationDat
 /// One line describing a data set for `trbc infer --datasets list`: its name, experiment and points.
 std::string dataSetSummary(const RbcDataSet& d);
 
-/// The data sets a calibration takes: "paper" the single-cell sets (the paper's seven, or those of
-/// the data directory's datasets.json), "all" those and the flow sets, or a comma-separated list of
-/// names from both. InputError naming an unknown or repeated name and the valid ones.
-std::vector<RbcDataSet> selectDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell,
-                                       const std::vector<RbcDataSet>& flow);
+/// A --datasets value, parsed once: "paper" (the single-cell sets: the paper's seven, or those of the
+/// data directory's datasets.json), "all" (those and the flow sets), "list" (print them all), or a
+/// comma-separated list of names from both. Keywords are whole values; a name list keeps its order.
+struct DataSetChoice {
+    enum class Kind { Paper, All, List, Names };
+    Kind kind = Kind::Paper;
+    std::vector<std::string> names;  ///< Kind::Names only.
 
-/// Whether `spec` may choose a flow set ("all", "list", or a name that is not a single-cell set's),
-/// so that the flow data and networks are read only then.
-bool selectsFlowDataSets(const std::string& spec, const std::vector<RbcDataSet>& singleCell);
+    /// InputError for an empty value, an empty item or a name given twice.
+    static DataSetChoice parse(const std::string& spec);
+    /// Whether it may choose a flow set (all, list, or a name that is not a single-cell set's), so
+    /// that the flow data and networks are read only then.
+    bool mayChooseFlow(const std::vector<RbcDataSet>& singleCell) const;
+};
+
+/// The data sets of `choice` (List: every set), in the order of the sets or of the names given.
+/// InputError naming an unknown name and the valid ones.
+std::vector<RbcDataSet> selectDataSets(const DataSetChoice& choice, const std::vector<RbcDataSet>& singleCell,
+                                       const std::vector<RbcDataSet>& flow);
 
 }  // namespace trbc

@@ -27,10 +27,7 @@ namespace {
 /// --hidden: comma-separated widths in [1, 4096].
 std::vector<int> hiddenLayerWidths(const std::string& text) {
     std::vector<int> widths;
-    for (long w : parseIntegerList(text, "--hidden", "a layer width", 1)) {
-        if (w > 4096) throw InputError(fmt::format("--hidden: layer width {} is outside [1, 4096]", w));
-        widths.push_back(int(w));
-    }
+    for (long w : parseIntegerList(text, "--hidden", "a layer width", 1, 4096)) widths.push_back(int(w));
     return widths;
 }
 

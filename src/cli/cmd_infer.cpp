@@ -192,16 +192,16 @@ void printInferSummary(const InferCommandOptions& o, const RbcInferenceResult& r
 void runInfer(const InferCommandOptions& o) {
     RbcInferenceOptions opt = inferenceOptions(o);
     const RbcPriorBox box = parsePriorBox(o.priors);
+    const DataSetChoice choice = DataSetChoice::parse(o.datasets);
     // Every input is read and checked before anything is written to --out.
     const std::filesystem::path modelDir = surrogateModelDirectory(o.model);
     auto surrogate = std::make_shared<Surrogate>(Surrogate::load(modelDir));
     surrogate->precision = o.single ? Precision::Single : Precision::Double;
     const std::filesystem::path dataDir = experimentDirectory(o.dataDir);
     const std::vector<RbcDataSet> singleCell = loadRbcDataSets(dataDir);
-    const bool flowWanted = selectsFlowDataSets(o.datasets, singleCell);
     const std::filesystem::path flowDir = o.flowModel.empty() ? defaultSurrogateDirectory() / "flow_distilled" : std::filesystem::path(o.flowModel);
     std::vector<RbcDataSet> flow;
-    if (flowWanted) {
+    if (choice.mayChooseFlow(singleCell)) {
         try {
             for (FlowDataSet& f : flowDataSets(dataDir / "validation", flowNetworkErrors(flowDir))) flow.push_back(flowRbcDataSet(std::move(f)));
         } catch (const InputError& e) {
@@ -209,14 +209,14 @@ void runInfer(const InferCommandOptions& o) {
                                          "networks (--flow-model): {}", o.datasets, e.what()));
         }
     }
-    const bool listOnly = splitList(o.datasets) == std::vector<std::string>{"list"};
+    const bool listOnly = choice.kind == DataSetChoice::Kind::List;
     if (!listOnly && o.out.empty()) throw InputError("infer: --out is required");
     if (listOnly) {
         for (const RbcDataSet& d : singleCell) std::cout << dataSetSummary(d) << '\n';
         for (const RbcDataSet& d : flow) std::cout << dataSetSummary(d) << '\n';
         return;
     }
-    std::vector<RbcDataSet> data = selectDataSets(o.datasets, singleCell, flow);
+    std::vector<RbcDataSet> data = selectDataSets(choice, singleCell, flow);
     for (RbcDataSet& d : data) d.prior = box;
     const bool anyFlow = std::any_of(data.begin(), data.end(), [](const RbcDataSet& d) { return d.experiment == RbcExperiment::Flow; });
     std::shared_ptr<const FlowSurrogate> flowNetworks;

@@ -283,10 +283,14 @@ std::vector<Value> parseList(const std::string& text, Convert convert, Accept ac
 
 }  // namespace
 
-std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue) {
+std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue,
+                                   long maxValue) {
+    const std::string range = maxValue == std::numeric_limits<long>::max() ? fmt::format("integer >= {}", minValue)
+                                                                            : fmt::format("integer in [{}, {}]", minValue, maxValue);
     return parseList<long>(
-        text, [](const std::string& s, std::size_t* used) { return std::stol(s, used); }, [&](long n) { return n >= minValue; },
-        [&](const std::string& item) { return InputError(fmt::format("{}: '{}' is not {} (integer >= {})", option, item, what, minValue)); });
+        text, [](const std::string& s, std::size_t* used) { return std::stol(s, used); },
+        [&](long n) { return n >= minValue && n <= maxValue; },
+        [&](const std::string& item) { return InputError(fmt::format("{}: '{}' is not {} ({})", option, item, what, range)); });
 }
 
 std::vector<double> parseNumberList(const std::string& text, const std::string& option, const std::string& hint) {

@@ -125,9 +125,10 @@ void addInPlaneLawOptions(CLI::App* app, ModulusOptions& m);
 /// only the moduli of the chosen --law) and returns the parameters. Throws InputError naming the option.
 MembraneParameters checkedParameters(const ModulusOptions& m);
 
-/// A comma-separated list of integers >= minValue, in the order given; InputError naming `option`,
-/// the bad item and what it should be (`what`, e.g. "a case id").
-std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue);
+/// A comma-separated list of integers in [minValue, maxValue], in the order given; InputError naming
+/// `option`, the bad item and what it should be (`what`, e.g. "a case id") with the valid range.
+std::vector<long> parseIntegerList(const std::string& text, const std::string& option, const std::string& what, long minValue,
+                                   long maxValue = std::numeric_limits<long>::max());
 /// The numbers of a comma-separated list; InputError "OPTION: 'ITEM' is not a number (HINT)" for an
 /// item that is not one whole number. Ranges are the caller's.
 std::vector<double> parseNumberList(const std::string& text, const std::string& option, const std::string& hint);

@@ -143,5 +143,65 @@ TEST(FlowDataSets, ANetworkDirectoryWithoutCrossValidationIsNamed) {
     }
 }
 
+RbcDataSet namedSet(const std::string& name) {
+    RbcDataSet d;
+    d.name = name;
+    return d;
+}
+
+TEST(DataSetChoice, KeywordsAreWholeValuesAndNamesKeepTheirOrder) {
+    const std::vector<RbcDataSet> single{namedSet("mills_2004"), namedSet("evans_1976")};
+    const std::vector<RbcDataSet> flow{namedSet("fischer_2015_donor1"), namedSet("abkarian_2007_critical_stress")};
+    using Kind = DataSetChoice::Kind;
+    EXPECT_EQ(DataSetChoice::parse("paper").kind, Kind::Paper);
+    EXPECT_EQ(DataSetChoice::parse(" all ").kind, Kind::All);
+    EXPECT_EQ(DataSetChoice::parse("list").kind, Kind::List);
+    EXPECT_FALSE(DataSetChoice::parse("paper").mayChooseFlow(single));
+    EXPECT_TRUE(DataSetChoice::parse("all").mayChooseFlow(single));
+    EXPECT_TRUE(DataSetChoice::parse("list").mayChooseFlow(single));
+    EXPECT_FALSE(DataSetChoice::parse("evans_1976, mills_2004").mayChooseFlow(single));
+    EXPECT_TRUE(DataSetChoice::parse("mills_2004,fischer_2015_donor1").mayChooseFlow(single));
+
+    auto names = [](const std::vector<RbcDataSet>& sets) {
+        std::vector<std::string> n;
+        for (const RbcDataSet& d : sets) n.push_back(d.name);
+        return n;
+    };
+    using V = std::vector<std::string>;
+    EXPECT_EQ(names(selectDataSets(DataSetChoice::parse("paper"), single, flow)), (V{"mills_2004", "evans_1976"}));
+    const V every{"mills_2004", "evans_1976", "fischer_2015_donor1", "abkarian_2007_critical_stress"};
+    EXPECT_EQ(names(selectDataSets(DataSetChoice::parse("all"), single, flow)), every);
+    EXPECT_EQ(names(selectDataSets(DataSetChoice::parse("list"), single, flow)), every);
+    EXPECT_EQ(names(selectDataSets(DataSetChoice::parse("abkarian_2007_critical_stress,evans_1976"), single, flow)),
+              (V{"abkarian_2007_critical_stress", "evans_1976"}));
+}
+
+TEST(DataSetChoice, BadValuesNameTheItem) {
+    const std::vector<RbcDataSet> single{namedSet("mills_2004")};
+    const std::vector<std::pair<std::string, std::string>> cases{
+        {"mills_2004,mills_2004", "'mills_2004' is given twice"},
+        {"mills_2004,", "an empty name"},
+        {"", "an empty name"},
+        {"paper,fischer_2015_donor1", "the keyword 'paper' stands alone"},
+        {"mills_2004, all", "the keyword 'all' stands alone"},
+    };
+    for (const auto& [spec, expect] : cases) {
+        try {
+            DataSetChoice::parse(spec);
+            ADD_FAILURE() << spec << ": no error";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(expect), std::string::npos) << spec << ": " << e.what();
+        }
+    }
+    try {
+        selectDataSets(DataSetChoice::parse("mills_2005"), single, {});
+        ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("'mills_2005' is not a data set; give paper, all, list or names from: mills_2004"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 }  // namespace
 }  // namespace trbc

@@ -48,7 +48,8 @@ TEST(BadInput, NonFiniteAndOutOfRangeNumbersNameTheOptionAndItsUnit) {
         {"export --posterior p --quantile 1 --out x", "--quantile: 1 is out of range (valid: (0, 1))"},
         {"campaign --samples 1 --level 1 --out c", "--level: 1 is out of range (valid: [2, 6])"},
         {"flow distill --model . --samples 10 --out d", "--samples: 10 is out of range (valid: [1000, 1e7])"},
-        {"flow distill --model . --hidden 8,0 --out d", "--hidden: '0' is not a layer width (integer >= 1)"},
+        {"flow distill --model . --hidden 8,0 --out d", "--hidden: '0' is not a layer width (integer in [1, 4096])"},
+        {"flow distill --model . --hidden 8,4097 --out d", "--hidden: '4097' is not a layer width (integer in [1, 4096])"},
     };
     for (const auto& c : cases) {
         const CliRun r = runTrbc(c.args, tmp.path());
