@@ -3,19 +3,10 @@
 // ranks, each rank checkpointing to its own part file.
 #include <fmt/format.h>
 
-#include <chrono>
-#include <cstdio>
-#include <cstdlib>
-#include <iostream>
 #include <memory>
-#include <optional>
-#include <sstream>
 
 #include "cli/campaign_ranks.hpp"
 #include "cli/common.hpp"
-#include "core/output_dir.hpp"
-#include "core/clock.hpp"
-#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "sampling/campaign.hpp"
 
@@ -73,31 +64,8 @@ void runCampaign(const CampaignCommandOptions& o) {
     c.experiment.cacheDir = cacheDirectory(o.cache);
     if (!o.inject.empty()) for (long id : parseIntegerList(o.inject, "--inject-failures", "a sample id", 0)) c.injectFailures.insert(id);
     c.reuseFrom = o.reuseFrom;
-    const Ranks ranks = startRanks();
-    c.ranks = ranks.size;
-    ProgressReporter reporter(ranks.size, "cells", "campaign");
-    if (ranks.rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
-    const auto t0 = SteadyClock::now();
-    CampaignSummary share, s;
-    // Rank 0 locks the output directory for the whole run (every rank writes only its own part
-    // file inside it) and prepares (or refuses) the campaign before any rank touches its part file.
-    std::optional<OutputDirectory> outDir;
-    runOnRanks(
-        ranks,
-        [&] {
-            outDir.emplace(c.outDir, "campaign", "--out", std::vector<std::string>{"campaign.json"});
-            prepareCampaign(c);
-        },
-        [&] { share = runCampaignShare(c, ranks.rank, ranks.size); },
-        [&] { s = finalizeCampaign(c, secondsSince(t0)); });
-    if (ranks.rank != 0) return;
-    std::cout << fmt::format("campaign: {} of {} samples done ({} ok, {} failed); {} cells computed now, {} resumed; "
-                             "{:.1f} s\n",
-                             s.samples, c.samples, s.ok, s.failed, share.cellsComputed, share.cellsResumed,
-                             s.wallSeconds);
-    std::cout << (s.complete ? fmt::format("table: {}\n", (c.outDir / "samples.csv").string())
-                             : std::string("incomplete: rerun with --resume\n"));
-    if (!s.complete) throw NumericalError("campaign incomplete");
+    runCampaignCommand(c, {"campaign", "cells", "samples", "samples.csv"}, c.samples, prepareCampaign, runCampaignShare,
+                       finalizeCampaign);
 }
 
 }  // namespace

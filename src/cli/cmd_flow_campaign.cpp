@@ -5,15 +5,12 @@
 #include <algorithm>
 #include <iostream>
 #include <memory>
-#include <optional>
 #include <sstream>
 
 #include "cli/campaign_ranks.hpp"
 #include "cli/common.hpp"
-#include "core/clock.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
-#include "core/output_dir.hpp"
 #include "flow/shear_campaign.hpp"
 #include "flow/steady_rule_study.hpp"
 
@@ -51,28 +48,8 @@ void runFlowCampaign(FlowCampaignCli& o) {
     c.cacheDir = cacheDirectory(o.cache);
     setProvenanceSeed(c.seed);
     if (!o.inject.empty()) for (long id : parseIntegerList(o.inject, "--inject-failures", "a case id", 0)) c.injectFailures.insert(id);
-    const Ranks ranks = startRanks();
-    c.ranks = ranks.size;
-    ProgressReporter reporter(ranks.size, "cases", "flow campaign");
-    if (ranks.rank == 0) c.progress = [&reporter](const CampaignProgress& p) { reporter(p); };
-    const auto t0 = SteadyClock::now();
-    CampaignSummary share, s;
-    std::optional<OutputDirectory> outDir;
-    runOnRanks(
-        ranks,
-        [&] {
-            outDir.emplace(c.outDir, "flow campaign", "--out", std::vector<std::string>{"campaign.json"});
-            prepareShearCampaign(c);
-        },
-        [&] { share = runShearCampaignShare(c, ranks.rank, ranks.size); },
-        [&] { s = finalizeShearCampaign(c, secondsSince(t0)); });
-    if (ranks.rank != 0) return;
-    std::cout << fmt::format("flow campaign: {} of {} cases done ({} ok, {} failed); {}{} computed now, {} resumed; {:.1f} s\n",
-                             s.samples, c.cases, s.ok, s.failed, ranks.size > 1 ? "rank 0: " : "", share.cellsComputed,
-                             share.cellsResumed, s.wallSeconds);
-    std::cout << (s.complete ? fmt::format("table: {}\n", (c.outDir / "cases.csv").string())
-                             : std::string("incomplete: rerun with --resume\n"));
-    if (!s.complete) throw NumericalError("flow campaign incomplete");
+    runCampaignCommand(c, {"flow campaign", "cases", "cases", "cases.csv"}, c.cases, prepareShearCampaign, runShearCampaignShare,
+                       finalizeShearCampaign);
 }
 
 }  // namespace
