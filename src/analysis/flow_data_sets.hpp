@@ -51,7 +51,7 @@ struct DataSetChoice {
     Kind kind = Kind::Paper;
     std::vector<std::string> names;  ///< Kind::Names only.
 
-    /// InputError for an empty value, an empty item or a name given twice.
+    /// InputError for an empty value, an empty item, a keyword inside a list or a name given twice.
     static DataSetChoice parse(const std::string& spec);
     /// Whether it may choose a flow set (all, list, or a name that is not a single-cell set's), so
     /// that the flow data and networks are read only then.

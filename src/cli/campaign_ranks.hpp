@@ -1,7 +1,8 @@
 #pragma once
 // What `trbc campaign` and `trbc flow campaign` share: the ranks of an MPI launch (built with
 // TRBC_WITH_MPI, run with mpirun; one rank otherwise), the agreement on a failure that keeps every
-// rank on the same path to MPI_Finalize, and the progress line with rate and ETA.
+// rank on the same path to MPI_Finalize, the progress line with rate and ETA, and the run of a
+// campaign command over these (runCampaignCommand).
 #include <filesystem>
 #include <functional>
 #include <optional>

@@ -1,8 +1,6 @@
 // trbc campaign: the training campaign of docs/CAMPAIGN_AND_SURROGATE.md. Parses, then calls
 // sampling/campaign; under MPI (cli/campaign_ranks.hpp) the cells are shared round robin between
 // ranks, each rank checkpointing to its own part file.
-#include <fmt/format.h>
-
 #include <memory>
 
 #include "cli/campaign_ranks.hpp"
