@@ -214,10 +214,18 @@ CalibrateStep validationStep(const CalibrateConfig& cfg, const fs::path& out, co
                                            shellQuote(out / "inference" / "phase3" / "theta_new"), shellQuote(out / "validation"), 1, only))});
 }
 
-/// The report: cheap, but recorded like a stage so that an unchanged run leaves it alone.
-CalibrateStep reportStep(const CalibrateConfig& cfg, const fs::path& out) {
+/// The report: cheap, but recorded like a stage so that an unchanged run leaves it alone. Its
+/// mesh-convergence section reads the records of `meshDir` (<point>_L<level>.json), so a remade
+/// record remakes the report.
+CalibrateStep reportStep(const CalibrateConfig& cfg, const fs::path& out, const fs::path& meshDir) {
     std::vector<Part> inputs = {Part::literal("report"), Part::literal(kVersion), Part::bytesOf(cfg.file)};
     for (const fs::path& b : cfg.bases) inputs.push_back(Part::bytesOf(b));  // the report shows them
+    std::vector<fs::path> meshRecords;
+    if (fs::is_directory(meshDir))
+        for (const auto& e : fs::directory_iterator(meshDir))
+            if (e.path().extension() == ".json") meshRecords.push_back(e.path());
+    std::sort(meshRecords.begin(), meshRecords.end());
+    for (const fs::path& f : meshRecords) inputs.push_back(Part::literal(f.filename().string())), inputs.push_back(Part::bytesOf(f));
     for (Part p : {Part::of("datasets"), Part::of("model"), Part::of("inference.phase23"), Part::of("predict"),
                    cfg.cellEnabled ? Part::of("cell") : Part::literal("disabled"), Part::recorded("sobol"),
                    cfg.validationEnabled ? Part::of("validation") : Part::literal("disabled")})
@@ -248,7 +256,7 @@ std::vector<CalibrateStep> calibrateSteps(const CalibrateConfig& cfg, const fs::
     steps.push_back(predictStep(cfg, out, threads, c, modelDir));
     if (cfg.cellEnabled) steps.push_back(cellStep(cfg, out, threads, c));
     if (cfg.validationEnabled) steps.push_back(validationStep(cfg, out, c));
-    steps.push_back(reportStep(cfg, out));
+    steps.push_back(reportStep(cfg, out, tools.meshConvergence));
     return steps;
 }
 

@@ -168,6 +168,27 @@ TEST(CalibrateStages, AChangedBaseOfTheValidationConfigChangesTheValidationStage
     EXPECT_EQ(changed, (std::set<std::string>{"validation", "report"}));
 }
 
+TEST(CalibrateStages, ARemadeMeshConvergenceRecordChangesOnlyTheReport) {
+    TempDir dir;
+    CalibrateTools t = tools();
+    t.meshConvergence = dir.path() / "mesh";
+    fs::create_directories(t.meshConvergence);
+    std::ofstream(t.meshConvergence / "reference_L3.json") << R"({"observables": {"tc_s": 0.1762}})";
+    const CalibrateConfig cfg = config(dir, "[run]\nseed = 1\n");
+    const std::map<std::string, std::string> before = fingerprints(calibrateSteps(cfg, dir.path() / "out", 2, t), dir.path() / "out");
+    std::ofstream(t.meshConvergence / "reference_L3.json") << R"({"observables": {"tc_s": 0.1766}})";
+    const std::map<std::string, std::string> remade = fingerprints(calibrateSteps(cfg, dir.path() / "out", 2, t), dir.path() / "out");
+    std::ofstream(t.meshConvergence / "reference_L4.json") << R"({"observables": {"tc_s": 0.1680}})";
+    const std::map<std::string, std::string> added = fingerprints(calibrateSteps(cfg, dir.path() / "out", 2, t), dir.path() / "out");
+    for (const auto* after : {&remade, &added}) {
+        std::set<std::string> changed;
+        for (const auto& [name, fp] : before)
+            if (after->at(name) != fp) changed.insert(name);
+        EXPECT_EQ(changed, (std::set<std::string>{"report"}));
+    }
+    EXPECT_NE(remade.at("report"), added.at("report"));
+}
+
 TEST(CalibrateStages, MissingNetworksNameTheSurrogateDirectory) {
     TempDir dir;
     const std::string toml = "[surrogate]\nmode = \"path\"\ndir = \"" + dir.path().string() + "\"\n";
