@@ -24,7 +24,6 @@
 namespace trbc::cli {
 namespace {
 
-/// --hidden: comma-separated widths in [1, 4096].
 std::vector<int> hiddenLayerWidths(const std::string& text) {
     std::vector<int> widths;
     for (long w : parseIntegerList(text, "--hidden", "a layer width", 1, 4096)) widths.push_back(int(w));

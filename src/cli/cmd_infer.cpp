@@ -10,7 +10,6 @@
 
 #include "cli/common.hpp"
 #include "core/output_dir.hpp"
-#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/version.hpp"
 #include "analysis/flow_data_sets.hpp"

@@ -1,5 +1,5 @@
 // The shear-flow data as data sets of the red-cell model: one per donor, the TTF and the critical
-// stresses, with the networks' errors from their training.json.
+// stresses, with the networks' errors from their training.json; and the --datasets choice of them.
 #include "analysis/flow_data_sets.hpp"
 
 #include <gtest/gtest.h>
@@ -180,6 +180,7 @@ TEST(DataSetChoice, BadValuesNameTheItem) {
     const std::vector<RbcDataSet> single{namedSet("mills_2004")};
     const std::vector<std::pair<std::string, std::string>> cases{
         {"mills_2004,mills_2004", "'mills_2004' is given twice"},
+        {"mills_2005,mills_2005", "'mills_2005' is given twice"},  // before the names are looked up
         {"mills_2004,", "an empty name"},
         {"", "an empty name"},
         {"paper,fischer_2015_donor1", "the keyword 'paper' stands alone"},

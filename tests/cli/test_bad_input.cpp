@@ -45,6 +45,8 @@ TEST(BadInput, NonFiniteAndOutOfRangeNumbersNameTheOptionAndItsUnit) {
         {"sobol --samples 12abc --out s", "--samples: '12abc' is not a number"},
         {"sobol --samples 2.5 --out s", "--samples: '2.5' is not a whole number"},
         {"infer --samples 2 --out i", "--samples: 2 is out of range (valid: [100, 1e6])"},
+        // --datasets is checked before the model or the data are read.
+        {"infer --model absent --datasets paper,mills_2004 --out i", "the keyword 'paper' stands alone"},
         {"export --posterior p --quantile 1 --out x", "--quantile: 1 is out of range (valid: (0, 1))"},
         {"campaign --samples 1 --level 1 --out c", "--level: 1 is out of range (valid: [2, 6])"},
         {"flow distill --model . --samples 10 --out d", "--samples: 10 is out of range (valid: [1000, 1e7])"},
