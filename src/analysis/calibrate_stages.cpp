@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "analysis/report.hpp"
 #include "analysis/toml_reader.hpp"
 #include "core/error.hpp"
 #include "core/file_io.hpp"
@@ -220,12 +221,8 @@ CalibrateStep validationStep(const CalibrateConfig& cfg, const fs::path& out, co
 CalibrateStep reportStep(const CalibrateConfig& cfg, const fs::path& out, const fs::path& meshDir) {
     std::vector<Part> inputs = {Part::literal("report"), Part::literal(kVersion), Part::bytesOf(cfg.file)};
     for (const fs::path& b : cfg.bases) inputs.push_back(Part::bytesOf(b));  // the report shows them
-    std::vector<fs::path> meshRecords;
-    if (fs::is_directory(meshDir))
-        for (const auto& e : fs::directory_iterator(meshDir))
-            if (e.path().extension() == ".json") meshRecords.push_back(e.path());
-    std::sort(meshRecords.begin(), meshRecords.end());
-    for (const fs::path& f : meshRecords) inputs.push_back(Part::literal(f.filename().string())), inputs.push_back(Part::bytesOf(f));
+    for (const MeshConvergenceRecord& r : meshConvergenceRecords(meshDir))  // the report's mesh table reads them
+        inputs.push_back(Part::literal(r.file.filename().string())), inputs.push_back(Part::bytesOf(r.file));
     for (Part p : {Part::of("datasets"), Part::of("model"), Part::of("inference.phase23"), Part::of("predict"),
                    cfg.cellEnabled ? Part::of("cell") : Part::literal("disabled"), Part::recorded("sobol"),
                    cfg.validationEnabled ? Part::of("validation") : Part::literal("disabled")})

@@ -75,6 +75,19 @@ std::string base64Encode(const std::string& bytes) {
     return out;
 }
 
+std::vector<MeshConvergenceRecord> meshConvergenceRecords(const fs::path& directory) {
+    std::vector<MeshConvergenceRecord> records;
+    if (!fs::is_directory(directory)) return records;
+    const std::regex name("(.+)_L([0-9])\\.json");
+    for (const auto& e : fs::directory_iterator(directory)) {
+        std::smatch m;
+        const std::string file = e.path().filename().string();
+        if (e.is_regular_file() && std::regex_match(file, m, name)) records.push_back({e.path(), m[1], std::stoi(m[2])});
+    }
+    std::sort(records.begin(), records.end(), [](const auto& a, const auto& b) { return a.file < b.file; });
+    return records;
+}
+
 std::string ReportDocument::markdown(const fs::path& directory) const {
     std::string s;
     for (const Block& b : blocks_) {
@@ -317,14 +330,10 @@ void surrogateSection(ReportDocument& doc, const fs::path& modelDir) {
 void meshSection(ReportDocument& doc, const fs::path& dir) {
     doc.heading(2, "Mesh convergence of the forward model");
     std::map<std::string, std::map<int, nlohmann::json>> points;
-    if (fs::is_directory(dir))
-        for (const auto& e : fs::directory_iterator(dir)) {
-            std::smatch m;
-            const std::string name = e.path().filename().string();
-            if (!std::regex_match(name, m, std::regex("(.+)_L([0-9])\\.json"))) continue;
-            const nlohmann::json j = readJson(e.path());
-            if (j.contains("observables")) points[m[1]][std::stoi(m[2])] = j["observables"];
-        }
+    for (const MeshConvergenceRecord& r : meshConvergenceRecords(dir)) {
+        const nlohmann::json j = readJson(r.file);
+        if (j.contains("observables")) points[r.point][r.level] = j["observables"];
+    }
     if (points.empty()) {
         doc.paragraph(fmt::format("No mesh-convergence runs in `{}` (scripts/mesh_convergence.sh makes them).", dir.string()));
         return;

@@ -39,6 +39,17 @@ private:
 
 std::string base64Encode(const std::string& bytes);
 
+/// One `trbc simulate` record of the mesh-convergence set: DIR/<point>_L<level>.json.
+struct MeshConvergenceRecord {
+    std::filesystem::path file;
+    std::string point;
+    int level = 0;
+};
+
+/// The records of `directory` sorted by file name; other files are not records. An absent
+/// directory has none.
+std::vector<MeshConvergenceRecord> meshConvergenceRecords(const std::filesystem::path& directory);
+
 struct CalibrationReportInputs {
     std::filesystem::path outputDirectory;     ///< OUT of trbc calibrate
     std::filesystem::path configFile;

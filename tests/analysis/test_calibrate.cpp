@@ -273,6 +273,22 @@ TEST(CalibrationReport, MarkdownAndSelfContainedHtml) {
     EXPECT_EQ(base64Encode("M"), "TQ==");
 }
 
+TEST(CalibrationReport, MeshConvergenceRecordsArePointAndLevelFilesOnly) {
+    TempDir dir;
+    EXPECT_TRUE(meshConvergenceRecords(dir.path() / "absent").empty());
+    for (const char* f : {"reference_L4.json", "corner_soft_L3.json", "reference_L3.json", "table.md", "notes.json", "reference_L10.json"})
+        writeText(dir.path() / f, "{}");
+    fs::create_directories(dir.path() / "folder_L3.json");
+    const std::vector<MeshConvergenceRecord> r = meshConvergenceRecords(dir.path());
+    ASSERT_EQ(r.size(), 3u);
+    EXPECT_EQ(r[0].file, dir.path() / "corner_soft_L3.json");
+    EXPECT_EQ(r[0].point, "corner_soft");
+    EXPECT_EQ(r[0].level, 3);
+    EXPECT_EQ(r[1].point, "reference");
+    EXPECT_EQ(r[1].level, 3);
+    EXPECT_EQ(r[2].level, 4);
+}
+
 /// Stage names of the last run of OUT/stages.json.
 std::set<std::string> lastRun(const fs::path& out, const char* which) {
     std::ifstream f(out / "stages.json");

@@ -187,6 +187,10 @@ TEST(CalibrateStages, ARemadeMeshConvergenceRecordChangesOnlyTheReport) {
         EXPECT_EQ(changed, (std::set<std::string>{"report"}));
     }
     EXPECT_NE(remade.at("report"), added.at("report"));
+    // The table's other files are not records: they leave the report's fingerprint alone.
+    std::ofstream(t.meshConvergence / "table.md") << "| point |";
+    std::ofstream(t.meshConvergence / "notes.json") << "{}";
+    EXPECT_EQ(fingerprints(calibrateSteps(cfg, dir.path() / "out", 2, t), dir.path() / "out"), added);
 }
 
 TEST(CalibrateStages, MissingNetworksNameTheSurrogateDirectory) {
