@@ -120,9 +120,9 @@ void runOnRanks(const Ranks& ranks, const std::function<void()>& prepare, const 
 
 void reportCampaign(const CampaignNames& names, long total, const CampaignSummary& s, const CampaignSummary& mine,
                     const std::filesystem::path& outDir, int ranks) {
-    std::cout << fmt::format("{}: {} of {} {} done ({} ok, {} failed); {}{} {} computed now, {} resumed; {:.1f} s\n", names.command,
-                             s.samples, total, names.items, s.ok, s.failed, ranks > 1 ? "rank 0: " : "", mine.cellsComputed,
-                             names.unit, mine.cellsResumed, s.wallSeconds);
+    std::cout << fmt::format("{}: {} of {} {} done ({} ok, {} failed); {}{} computed now: {}, resumed: {}; {:.1f} s\n", names.command,
+                             s.samples, total, names.items, s.ok, s.failed, ranks > 1 ? "rank 0: " : "", names.unit,
+                             mine.cellsComputed, mine.cellsResumed, s.wallSeconds);
     std::cout << (s.complete ? fmt::format("table: {}\n", (outDir / names.table).string())
                              : std::string("incomplete: rerun with --resume\n"));
     if (!s.complete) throw NumericalError(names.command + " incomplete");
