@@ -114,8 +114,10 @@ nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level,
     nlohmann::json diag;
     diag["sfs"] = sfsJson(s.sfs);
     const ReferenceProtocolSteps ref = referenceProtocolSteps(p, level);
-    long evaluations = s.sfs.fromCache ? 0 : s.sfs.evaluations;
-    double refSteps = s.sfs.fromCache ? 0.0 : ref.sfs;
+    // `evaluations` and `refSteps` sum the sample's experiments; the SFS joins the total only when
+    // this run computed it.
+    long evaluations = 0;
+    double refSteps = 0.0;
     diag["sfs"]["reference_protocol_steps"] = ref.sfs;
     obs["D_um"] = s.equilibrium.observables.D;
     obs["hmin_um"] = s.equilibrium.observables.hmin;
@@ -166,10 +168,15 @@ nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level,
         evaluations += r.dynamics.evaluations + r.preStretch.evaluations;
         refSteps += ref.preStretch + ref.relaxation;
     }
-    diag["total"] = {{"force_evaluations", evaluations},
-                     {"reference_protocol_steps", refSteps},
-                     {"reduction_factor", refSteps / std::max<long>(1, evaluations)},
-                     {"wall_s", wallSeconds}};
+    const bool sfsComputed = !s.sfs.fromCache;
+    const auto cost = [](long e, double steps, double wall) {
+        return nlohmann::json{{"force_evaluations", e},
+                              {"reference_protocol_steps", steps},
+                              {"reduction_factor", steps / std::max<long>(1, e)},
+                              {"wall_s", wall}};
+    };
+    diag["sample"] = cost(evaluations, refSteps, std::max(0.0, wallSeconds - (sfsComputed ? s.sfs.wallSeconds : 0.0)));
+    diag["total"] = cost(evaluations + (sfsComputed ? s.sfs.evaluations : 0), refSteps + (sfsComputed ? ref.sfs : 0.0), wallSeconds);
     j["status"] = "ok";
     j["observables"] = obs;
     j["diagnostics"] = diag;

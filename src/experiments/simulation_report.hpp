@@ -34,8 +34,10 @@ nlohmann::json cellPhysicalJson(const CellParameters& p, double kbJ);
 nlohmann::json cellDimensionlessJson(const CellParameters& p);
 
 /// "parameters", "status" ("ok"), "observables" (D_um, hmin_um, hmax_um, D0_um, D1_um, tc_s; null for
-/// an experiment not run), "diagnostics" (per experiment, with the steps of the reference's protocol,
-/// and the totals with `wallSeconds`), "stretching_curve" and "relaxation_fit" when they apply.
+/// an experiment not run), "diagnostics" (per experiment, with the steps of the reference's protocol;
+/// "sample": the experiments' sum without the SFS, whatever the cache held; "total": the run's cost,
+/// `wallSeconds` and the SFS when this run computed it), "stretching_curve" and "relaxation_fit" when
+/// they apply.
 nlohmann::json simulationJson(const CellParameters& p, double fextPn, int level, const ExperimentSet& which,
                               const SampleResult& s, double wallSeconds);
 

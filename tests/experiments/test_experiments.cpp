@@ -127,6 +127,30 @@ TEST(ReferencePoint, Level3MatchesTheReferenceImplementation) {
     EXPECT_NEAR(s.relaxation.fit.tc, ref.tc, 0.05 * ref.tc);
 }
 
+// diagnostics.sample is the sample's own cost (equilibrium, stretching, relaxation) whatever the SFS
+// cache held; diagnostics.total adds the SFS only when this run computed it.
+TEST(SimulationRecord, SampleCostLeavesOutTheStressFreeState) {
+    SampleResult s = runSample(CellParameters{}, 100.0, {}, optionsAt(3));
+    s.sfs.evaluations = 500;
+    s.sfs.wallSeconds = 2.0;
+    const long experiments =
+        s.equilibrium.diagnostics.evaluations + s.stretching.front().diagnostics.evaluations + s.relaxation.dynamics.evaluations +
+        s.relaxation.preStretch.evaluations;
+    const ReferenceProtocolSteps ref = referenceProtocolSteps(CellParameters{}, 3);
+    for (const bool cached : {false, true}) {
+        s.sfs.fromCache = cached;
+        const nlohmann::json d = simulationJson(CellParameters{}, 100.0, 3, {}, s, 5.0)["diagnostics"];
+        EXPECT_EQ(d["sample"]["force_evaluations"].get<long>(), experiments);
+        EXPECT_DOUBLE_EQ(d["sample"]["wall_s"].get<double>(), cached ? 5.0 : 3.0);
+        EXPECT_DOUBLE_EQ(d["sample"]["reference_protocol_steps"].get<double>(),
+                         ref.equilibrium + ref.stretchPerForce + ref.preStretch + ref.relaxation);
+        EXPECT_EQ(d["total"]["force_evaluations"].get<long>(), experiments + (cached ? 0 : 500));
+        EXPECT_DOUBLE_EQ(d["total"]["reference_protocol_steps"].get<double>(),
+                         d["sample"]["reference_protocol_steps"].get<double>() + (cached ? 0.0 : ref.sfs));
+        EXPECT_DOUBLE_EQ(d["total"]["wall_s"].get<double>(), 5.0);
+    }
+}
+
 // Level 4 (Nv = 2562, the paper's level): D, hmin, hmax, D0 and tc within the acceptance tolerances.
 // D1 comes out 2.4 % below the reference's 13.98 um (13.65 um); the bead bands of stretching see the
 // mesh's in-plane structure and D1 spans 13.64-13.91 um over in-plane bead angles at this level
