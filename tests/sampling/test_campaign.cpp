@@ -206,7 +206,7 @@ TEST(CampaignRunner, ResumeAfterSigkillGivesTheUninterruptedTable) {
     const CliRun resumed = runTrbc("campaign " + kTiny + " --threads 2 --resume --out " + shellQuote(b.string()), tmp.path());
     ASSERT_EQ(resumed.status, 0) << resumed.err;
     // No finished cell was repeated: the resumed run computed only what was missing.
-    EXPECT_NE(resumed.out.find(fmt::format("{} resumed", before / 4)), std::string::npos) << resumed.out;
+    EXPECT_NE(resumed.out.find(fmt::format("resumed: {};", before / 4)), std::string::npos) << resumed.out;
     EXPECT_EQ(rowsWithoutWallTime(a / "samples.csv"), rowsWithoutWallTime(b / "samples.csv"));
 
     // Failures are kept with their reason: the injected cell (rows 12..15), nothing dropped.
