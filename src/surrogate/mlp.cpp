@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <optional>
 #include <random>
 #include <stdexcept>
@@ -179,28 +180,38 @@ void checkShape(const char* what, Eigen::Index rows, Eigen::Index cols, Eigen::I
 // kTilePackets loads and kTileRows broadcasts per 12 FMAs; the block (<= 32 x 96 doubles per
 // activation buffer) stays in the L1/L2 cache through all layers. Eigen's general product packs
 // its operands for every call, which costs more than the product itself at these sizes.
-// A partial block is padded with zero samples and goes through the same code, so a sample's value
-// does not depend on its position in the batch or on the thread count.
+// A partial block is laid out with the stride of its width, the sample count rounded up to whole
+// tiles of every kernel that may run, and padded with zero samples: a batch of 16 computes 24
+// columns, not kForwardBlock. Every column goes through the same tile code, so a sample's value does
+// not depend on its position in the batch, the batch size or the thread count.
 namespace {
 
 constexpr int kTileRows = 4;
 constexpr int kTilePackets = 3;
 constexpr Eigen::Index kTileSamples = Eigen::Index(kTilePackets) * kPacketSize;
 constexpr Eigen::Index kForwardBlock = Mlp::kBlockColumns;
-static_assert(kForwardBlock % kTileSamples == 0, "a block is a whole number of tiles");
+#if defined(TRBC_MLP_AVX2_DISPATCH)
+constexpr Eigen::Index kWidthQuantum = std::lcm(kTileSamples, Eigen::Index(12));  // the AVX2 kernel's tiles are 12 wide
+#else
+constexpr Eigen::Index kWidthQuantum = kTileSamples;
+#endif
+static_assert(kForwardBlock % kWidthQuantum == 0, "a block is a whole number of tiles");
 
-/// Rows [i0, i0 + R) of Z = W A + b on one block: W column-major nOut x nIn, A nIn x kForwardBlock
-/// and Z nOut x kForwardBlock feature-major.
+/// Columns the kernels compute for n <= kForwardBlock samples.
+constexpr Eigen::Index blockWidth(Eigen::Index n) { return (n + kWidthQuantum - 1) / kWidthQuantum * kWidthQuantum; }
+
+/// Rows [i0, i0 + R) of Z = W A + b on one block: W column-major nOut x nIn, A nIn x width and Z
+/// nOut x width feature-major.
 template <int R>
 void affineRows(const double* W, const double* b, Eigen::Index nOut, Eigen::Index nIn, const double* A,
-                double* Z, Eigen::Index i0) {
+                double* Z, Eigen::Index i0, Eigen::Index width) {
     using namespace Eigen::internal;
-    for (Eigen::Index j = 0; j < kForwardBlock; j += kTileSamples) {
+    for (Eigen::Index j = 0; j < width; j += kTileSamples) {
         Packet acc[R][kTilePackets];
         for (int r = 0; r < R; ++r)
             for (int c = 0; c < kTilePackets; ++c) acc[r][c] = pset1<Packet>(b[i0 + r]);
         for (Eigen::Index k = 0; k < nIn; ++k) {
-            const double* a = A + k * kForwardBlock + j;
+            const double* a = A + k * width + j;
             Packet in[kTilePackets];
             for (int c = 0; c < kTilePackets; ++c) in[c] = ploadu<Packet>(a + c * kPacketSize);
             const double* w = W + k * nOut + i0;
@@ -211,26 +222,25 @@ void affineRows(const double* W, const double* b, Eigen::Index nOut, Eigen::Inde
         }
         for (int r = 0; r < R; ++r)
             for (int c = 0; c < kTilePackets; ++c)
-                pstoreu(Z + (i0 + r) * kForwardBlock + j + c * kPacketSize, acc[r][c]);
+                pstoreu(Z + (i0 + r) * width + j + c * kPacketSize, acc[r][c]);
     }
 }
 
-/// Z = W A + b on one feature-major block, then tanh in place if `hidden`.
+/// Z = W A + b on one feature-major block of `width` columns, then tanh in place if `hidden`.
 void affineBlock(const double* W, const double* b, Eigen::Index nOut, Eigen::Index nIn, const double* A, double* Z,
-                 bool hidden) {
+                 bool hidden, Eigen::Index width) {
 #if defined(TRBC_MLP_AVX2_DISPATCH)
-    static_assert(kForwardBlock % 12 == 0, "the AVX2 kernel's tiles are 12 samples wide");
-    if (simd::active() == simd::Path::avx2) return mlp_avx2::affineBlock(W, b, nOut, nIn, A, Z, hidden, kForwardBlock);
+    if (simd::active() == simd::Path::avx2) return mlp_avx2::affineBlock(W, b, nOut, nIn, A, Z, hidden, width);
 #endif
     Eigen::Index i = 0;
-    for (; i + kTileRows <= nOut; i += kTileRows) affineRows<kTileRows>(W, b, nOut, nIn, A, Z, i);
+    for (; i + kTileRows <= nOut; i += kTileRows) affineRows<kTileRows>(W, b, nOut, nIn, A, Z, i, width);
     switch (nOut - i) {
-        case 3: affineRows<3>(W, b, nOut, nIn, A, Z, i); break;
-        case 2: affineRows<2>(W, b, nOut, nIn, A, Z, i); break;
-        case 1: affineRows<1>(W, b, nOut, nIn, A, Z, i); break;
+        case 3: affineRows<3>(W, b, nOut, nIn, A, Z, i, width); break;
+        case 2: affineRows<2>(W, b, nOut, nIn, A, Z, i, width); break;
+        case 1: affineRows<1>(W, b, nOut, nIn, A, Z, i, width); break;
         default: break;
     }
-    if (hidden) tanhInPlace(Z, nOut * kForwardBlock);
+    if (hidden) tanhInPlace(Z, nOut * width);
 }
 
 }  // namespace
@@ -241,15 +251,16 @@ void Mlp::forwardBlock(const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::Ref<Ei
     double* in = bufA.data();
     double* out = bufB.data();
     using FeatureMajor = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-    FeatureMajor A0(in, X.rows(), kForwardBlock);
+    const Eigen::Index width = blockWidth(n);
+    FeatureMajor A0(in, X.rows(), width);
     A0.leftCols(n) = X;
-    A0.rightCols(kForwardBlock - n).setZero();
+    A0.rightCols(width - n).setZero();
     const int L = numLayers();
     for (int l = 0; l < L; ++l) {
-        affineBlock(weights(l).data(), biases(l).data(), sizes_[l + 1], sizes_[l], in, out, l + 1 < L);
+        affineBlock(weights(l).data(), biases(l).data(), sizes_[l + 1], sizes_[l], in, out, l + 1 < L, width);
         std::swap(in, out);
     }
-    Y = FeatureMajor(in, numOutputs(), kForwardBlock).leftCols(n);
+    Y = FeatureMajor(in, numOutputs(), width).leftCols(n);
 }
 
 namespace {

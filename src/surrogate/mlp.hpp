@@ -107,7 +107,8 @@ public:
     /// of kBlockColumns columns, OpenMP-parallel over blocks like forward().
     Eigen::MatrixXd inputGradient(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::MatrixXd>& G) const;
 
-    /// Samples per block: 8 register tiles of 3 packets (96 with AVX2), see the forward kernel.
+    /// Samples per block: 8 register tiles of 3 packets (96 with AVX2, 192 with AVX-512), see the
+    /// forward kernel; a smaller batch computes only the tiles it fills.
     static constexpr Eigen::Index kBlockColumns = 24 * Eigen::internal::packet_traits<double>::size;
 
 private:

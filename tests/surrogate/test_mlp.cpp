@@ -168,11 +168,22 @@ TEST(Mlp, BatchedForwardIsIndependentOfThreadCountAndBlocking) {
     omp_set_num_threads(2);
     const Eigen::MatrixXd Y2 = net.forward(X);
     EXPECT_TRUE(Y1 == Y2);  // bit-identical
-    // every column agrees with a one-sample evaluation (different product kernel: round-off only)
-    for (Eigen::Index j : {Eigen::Index(0), X.cols() / 2, X.cols() - 1}) {
-        const Eigen::MatrixXd y = net.forward(X.col(j));
-        EXPECT_LT((y - Y1.col(j)).cwiseAbs().maxCoeff(), 1e-14);
+    // A small batch computes only the tiles it fills, with the same tile code: its columns equal the
+    // full blocks' to the bit, wherever they sit, and equal a one-sample evaluation.
+    // Every SIMD path the CPU offers, each against its own full blocks.
+    const simd::Path saved = simd::active();
+    for (const simd::Path p : {simd::Path::portable, simd::Path::avx2}) {
+        if (!simd::cpuOffers(p)) continue;
+        simd::force(p);
+        const Eigen::MatrixXd full = net.forward(X);
+        for (const Eigen::Index n : {Eigen::Index(1), Eigen::Index(16), Eigen::Index(25), Mlp::kBlockColumns - 1}) {
+            const Eigen::Index c0 = X.cols() - 40 - n;  // spans a block boundary
+            EXPECT_TRUE(net.forward(X.middleCols(c0, n)) == full.middleCols(c0, n)) << n << " columns, " << simd::name(p);
+        }
+        for (Eigen::Index j : {Eigen::Index(0), X.cols() / 2, X.cols() - 1})
+            EXPECT_TRUE(net.forward(X.col(j)) == full.col(j)) << simd::name(p);
     }
+    simd::force(saved);
     EXPECT_THROW(net.forward(Eigen::MatrixXd::Zero(4, 3)), std::invalid_argument);
 }
 
