@@ -191,7 +191,7 @@ constexpr int kTilePackets = 3;
 constexpr Eigen::Index kTileSamples = Eigen::Index(kTilePackets) * kPacketSize;
 constexpr Eigen::Index kForwardBlock = Mlp::kBlockColumns;
 #if defined(TRBC_MLP_AVX2_DISPATCH)
-constexpr Eigen::Index kWidthQuantum = std::lcm(kTileSamples, Eigen::Index(12));  // the AVX2 kernel's tiles are 12 wide
+constexpr Eigen::Index kWidthQuantum = std::lcm(kTileSamples, Eigen::Index(mlp_avx2::kTileSamples));
 #else
 constexpr Eigen::Index kWidthQuantum = kTileSamples;
 #endif

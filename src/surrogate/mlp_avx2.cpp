@@ -18,7 +18,7 @@ namespace {
 constexpr int kLanes = 4;
 constexpr int kTileRows = 4;
 constexpr int kTilePackets = 3;
-constexpr std::int64_t kTileSamples = std::int64_t(kTilePackets) * kLanes;
+static_assert(kTileSamples == std::int64_t(kTilePackets) * kLanes, "a tile is kTilePackets packets");
 
 /// 2^k for integer-valued k in [-1022, 1023] (the exponent field of 1.5 2^52 + k + 1023).
 inline __m256d exp2Integer(__m256d k) {
