@@ -121,7 +121,7 @@ SETS = {
                              "--cells theta_new --viscosities 30,100 --protocols ensemble --posterior " + POSTERIOR,
                              "python3 scripts/threshold_protocols.py --trbc {trbc} --out {out} --level 3 --members 8 "
                              "--cells reference,table1,theta_new --viscosities 10.7,23.9,30,100 --protocols in-plane,fluctuating "
-                             "--fluctuating 3 --descend --posterior " + POSTERIOR], 11.0,
+                             "--fluctuating 3 --descend --posterior " + POSTERIOR], 7.0,
                             ["command.txt", "cases.csv", "fractions.csv", "threshold_table.md"]),
     "flow_threshold/ramp_theta_new_eta100": ("the theta_new cell's shear ramp at 100 mPa s",
                                              ["{trbc} flow ramp --eta-out 100 --rates 0.3,0.4384,0.6406,0.9362,1.368,2.0 "
